@@ -1,0 +1,65 @@
+"""The ``softevo`` command line.
+
+Each command group lives in its own module and registers itself on the shared Typer app:
+``service.cli_sim`` (simulate), ``service.cli_evolution`` (describe) and ``service.cli_runs``
+(run, experiment, status, resume, export, lineage, ...). A user's mistake (bad arguments,
+a malformed scene, a database that cannot be written) is reported as one line on stderr with
+exit status 2, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+app = typer.Typer(
+    name="softevo",
+    help="Evolve soft voxel robots on land and in water.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _user_error_types() -> tuple[type[BaseException], ...]:
+    from sim.scene import SceneError
+
+    from service.errors import UserError
+
+    return (UserError, SceneError)
+
+
+def _register() -> None:
+    from service import cli_evolution, cli_runs, cli_sim
+
+    for module in (cli_sim, cli_evolution, cli_runs):
+        module.register(app)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the ``softevo`` console script."""
+    _register()
+    user_errors = _user_error_types()
+    try:
+        app(args=argv, standalone_mode=False)
+    except user_errors as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)
+    except typer.Abort:
+        print("aborted", file=sys.stderr)
+        sys.exit(130)
+    except Exception as exc:  # click usage errors carry their own exit code
+        import click
+
+        if isinstance(exc, click.exceptions.ClickException):
+            print(f"error: {exc.format_message()}", file=sys.stderr)
+            sys.exit(2)
+        raise
+    except SystemExit as exc:
+        # standalone_mode=False returns exit codes instead of raising; keep them
+        raise exc
+
+
+if __name__ == "__main__":
+    main()
