@@ -1,0 +1,137 @@
+"""``softevo simulate SCENE.json``: run one scene through the physics engine.
+
+Plain output is a short human summary; ``--json`` prints exactly ``Result.to_dict()`` as one
+JSON object; ``--record out.npz`` also writes the frames (``t`` (n_frames,) seconds,
+``positions`` (n_frames, n_voxels, 3) metres, ``voxels`` (n_voxels, 3) body indices). A scene
+without a ``record`` field is recorded at about ``DEFAULT_RECORD_FPS`` frames per simulated
+second when ``--record`` is given.
+
+Mistakes (missing file, invalid JSON, malformed scene, unwritable output) raise
+``UserError`` / ``sim.SceneError``; ``service.cli.main`` turns them into one line and exit 2.
+An unstable robot is a result, not an error: it is reported with its reason and exit 0.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from service.errors import UserError
+
+DEFAULT_RECORD_FPS = 60.0  # frames per simulated second when the scene has no `record`
+
+
+def _read_scene(path: Path) -> dict[str, Any]:
+    """Load a scene document from a JSON file; every failure is one UserError line."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a directory, expected a scene JSON file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read ({exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise UserError(
+            f"{path}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
+        ) from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: scene: must be a JSON object (got {type(data).__name__})")
+    return data
+
+
+def _default_record_every(scene_dict: dict[str, Any]) -> int:
+    """Steps between frames for about DEFAULT_RECORD_FPS frames per simulated second.
+
+    Uses the stable step of PHYSICS.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to pick
+    a frame rate; the engine's own dt stays authoritative (the frames carry their times).
+    """
+    import sim
+
+    scene = sim.parse_scene(scene_dict)
+    m = scene.material
+    dt = scene.dt_fraction * scene.voxel_size * math.sqrt(m.density / m.youngs_modulus)
+    dt /= 2.0 * math.pi
+    return max(1, int(round(1.0 / (DEFAULT_RECORD_FPS * dt))))
+
+
+def _write_record(out: Path, result: Any) -> int:
+    """Write the frames of ``result`` to ``out`` (.npz); return the number of frames."""
+    import numpy as np
+
+    frames = result.frames or {"t": [], "positions": []}
+    t = np.asarray(frames["t"], dtype=np.float64)
+    positions = np.asarray(frames["positions"], dtype=np.float64)
+    voxels = np.asarray(result.voxels, dtype=np.int64).reshape(-1, 3)
+    positions = positions.reshape(len(t), len(voxels), 3)
+    try:
+        with open(out, "wb") as fh:  # a file object keeps the name exactly as given
+            np.savez_compressed(fh, t=t, positions=positions, voxels=voxels)
+    except OSError as exc:
+        raise UserError(f"--record: cannot write {out} ({exc.strerror or exc})") from None
+    return len(t)
+
+
+def _summary(result: Any, wall_seconds: float, environment: str) -> str:
+    """A few stable-format lines a person can read at a glance."""
+    axes = "horizontal" if environment == "land" else "3-D"
+    lines = [
+        f"stable     {'yes' if result.stable else 'NO: ' + str(result.reason)}",
+        f"distance   {result.distance:.4g} voxel lengths ({axes}, {environment})",
+        f"simulated  {result.simulated_seconds:.4g} s in {result.steps:,} steps "
+        f"(dt {result.dt:.3g} s)",
+        f"wall time  {wall_seconds:.2f} s",
+    ]
+    return "\n".join(lines)
+
+
+def simulate(
+    scene_path: Annotated[
+        Path, typer.Argument(metavar="SCENE.json", help="Scene file (SPEC.md section 1).")
+    ],
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print Result.to_dict() as one JSON object.")
+    ] = False,
+    record: Annotated[
+        Path | None,
+        typer.Option("--record", metavar="OUT.npz", help="Write frames (t, positions, voxels)."),
+    ] = None,
+) -> None:
+    """Simulate one scene and print its result."""
+    import sim
+
+    scene_dict = _read_scene(scene_path)
+    sim.parse_scene(scene_dict)  # fail fast, before compiling anything, on a malformed scene
+    if record is not None and "record" not in scene_dict:
+        scene_dict = {**scene_dict, "record": {"every": _default_record_every(scene_dict)}}
+    started = time.perf_counter()
+    result = sim.simulate(scene_dict)
+    wall = time.perf_counter() - started
+    n_frames = _write_record(record, result) if record is not None else 0
+    if as_json:
+        typer.echo(json.dumps(result.to_dict()))
+        return
+    environment = sim.parse_scene(scene_dict).environment.kind
+    typer.echo(_summary(result, wall, environment))
+    if record is not None:
+        typer.echo(f"recorded   {n_frames} frames -> {record}")
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``simulate`` command to ``app``."""
+    app.command("simulate")(simulate)
+    if app.registered_callback is None:
+        # Typer runs a lone command as the whole program (``softevo SCENE.json``); a group
+        # callback keeps ``softevo simulate SCENE.json`` working while it is the only one.
+        app.callback()(_group)
+
+
+def _group() -> None:
+    """Evolve soft voxel robots on land and in water."""
