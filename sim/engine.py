@@ -1,0 +1,193 @@
+"""Public entry points: ``simulate(scene)`` and ``simulate_many(scenes)``.
+
+Both accept scene dicts (SPEC.md section 1) or parsed ``Scene`` objects and return ``Result``
+objects; an unstable robot yields ``stable=False`` with a reason, never an exception. Invalid
+scenes raise ``SceneError`` before anything runs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numba
+import numpy as np
+
+from sim import kernels
+from sim.scene import Scene, parse_scene
+from sim.system import (
+    COM_SAMPLES, F_DT, F_L, I_N_FRAMES, I_RECORD, I_SETTLE_STEPS, I_STEPS, Robot, build_robot,
+    pack,
+)
+
+
+@dataclass
+class Result:
+    """What one evaluation returns (SPEC.md section 1). Distances in voxel lengths."""
+
+    stable: bool
+    reason: str | None
+    dt: float  # seconds
+    steps: int
+    simulated_seconds: float
+    voxels: np.ndarray  # (n, 3) int lattice indices of the simulated voxels
+    final_positions: np.ndarray  # (n, 3) metres
+    com_start: np.ndarray  # (3,) metres, after settling
+    com_end: np.ndarray  # (3,) metres
+    displacement: np.ndarray  # (3,) metres
+    distance: float  # voxel lengths: horizontal on land, 3-D otherwise; 0 when unstable
+    com_trajectory: dict = field(default_factory=dict)  # {"t": (k,), "com": (k, 3)}
+    frames: dict | None = None  # {"t": (f,), "positions": (f, n, 3)} when recorded
+    removed_voxels: int = 0  # voxels dropped as not face-connected to the largest component
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON types only (lists, floats, ints, bools, None)."""
+        out = {
+            "stable": bool(self.stable),
+            "reason": self.reason,
+            "dt": float(self.dt),
+            "steps": int(self.steps),
+            "simulated_seconds": float(self.simulated_seconds),
+            "voxels": np.asarray(self.voxels).astype(int).tolist(),
+            "final_positions": np.asarray(self.final_positions, float).tolist(),
+            "com_start": np.asarray(self.com_start, float).tolist(),
+            "com_end": np.asarray(self.com_end, float).tolist(),
+            "displacement": np.asarray(self.displacement, float).tolist(),
+            "distance": float(self.distance),
+            "removed_voxels": int(self.removed_voxels),
+            "com_trajectory": {k: np.asarray(v, float).tolist()
+                               for k, v in self.com_trajectory.items()},
+        }
+        if self.frames is not None:
+            out["frames"] = {k: np.asarray(v, float).tolist() for k, v in self.frames.items()}
+        return out
+
+
+def _work_arrays(batch, n_voxels: int):
+    n_links = len(batch.link_neg)
+    return (
+        np.zeros(n_voxels),  # size
+        np.zeros((n_voxels, 3)),  # force
+        np.zeros((n_voxels, 3)),  # moment
+        np.ones(n_voxels, dtype=np.bool_),  # static friction (everything starts at rest)
+        np.ones(n_links, dtype=np.bool_),  # small-angle link frames
+        np.zeros((n_links, 9)),  # previous link deformation, for bond damping
+        np.zeros(n_links, dtype=np.bool_),  # previous deformation valid
+        np.zeros((int(batch.poff[-1]), 2), dtype=np.int64),  # collision pair buffer
+    )
+
+
+def _budget_reason(scene: Scene, robot: Robot) -> str | None:
+    steps = int(robot.iparams[I_STEPS])
+    if steps > scene.max_steps:
+        return (f"step budget exceeded: needs {steps} steps (dt {robot.fparams[F_DT]:.3g} s), "
+                f"more than max_steps {scene.max_steps}")
+    return None
+
+
+def _result(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, com_count,
+            status, steps_done) -> Result:
+    v0, v1 = batch.voff[r], batch.voff[r + 1]
+    dt = float(robot.fparams[F_DT])
+    L = float(robot.fparams[F_L])
+    traj = com_traj[r, : com_count[r]]
+    com_start, com_end = traj[0, 1:].copy(), traj[-1, 1:].copy()
+    disp = com_end - com_start
+    stable = status[r] == kernels.STATUS_OK and np.all(np.isfinite(disp))
+    reason = None
+    if status[r] == kernels.STATUS_STRAIN:
+        reason = f"diverged: a link's axial strain exceeded {kernels.MAX_STRAIN:g} at step {steps_done[r]}"
+    elif status[r] == kernels.STATUS_NONFINITE or not stable:
+        reason = f"diverged: a voxel's state became non-finite or exploded at step {steps_done[r]}"
+    horizontal = scene.environment.kind == "land"
+    distance = float(np.hypot(disp[0], disp[1]) if horizontal else np.linalg.norm(disp)) / L
+    recorded = None
+    every = int(robot.iparams[I_RECORD])
+    if every > 0:
+        n_frames = int(steps_done[r]) // every + 1
+        recorded = {"t": np.arange(n_frames) * every * dt,
+                    "positions": frames[:n_frames, v0:v1].copy()}
+    return Result(
+        stable=bool(stable),
+        reason=reason,
+        dt=dt,
+        steps=int(steps_done[r]),
+        simulated_seconds=float(steps_done[r]) * dt,
+        voxels=robot.voxels,
+        final_positions=state.pos[v0:v1].copy(),
+        com_start=com_start,
+        com_end=com_end,
+        displacement=disp,
+        distance=distance if stable else 0.0,
+        com_trajectory={"t": traj[:, 0].copy(), "com": traj[:, 1:].copy()},
+        frames=recorded,
+        removed_voxels=robot.removed,
+    )
+
+
+def _unrun(scene: Scene, robot: Robot, reason: str) -> Result:
+    com0 = robot.pos.mean(axis=0)
+    return Result(False, reason, float(robot.fparams[F_DT]), 0, 0.0, robot.voxels,
+                  robot.pos.copy(), com0, com0.copy(), np.zeros(3), 0.0,
+                  {"t": np.zeros(1), "com": com0[None]}, None, robot.removed)
+
+
+def simulate_many(scenes: list[dict | Scene], threads: int | None = None) -> list[Result]:
+    """Simulate many robots in one compiled call, one robot per parallel task.
+
+    ``threads`` caps numba's threads for this call (default: all cores numba was given).
+    Results come back in the order of ``scenes``.
+    """
+    parsed = [parse_scene(s) for s in scenes]
+    robots = [build_robot(s) for s in parsed]
+    results: list[Result | None] = [None] * len(parsed)
+    runnable = []
+    for k, (scene, robot) in enumerate(zip(parsed, robots, strict=True)):
+        reason = _budget_reason(scene, robot)
+        if reason:
+            results[k] = _unrun(scene, robot, reason)
+        else:
+            runnable.append(k)
+    if runnable:
+        # longest robots first, so the parallel tasks finish together
+        cost = {k: robots[k].iparams[I_STEPS] * len(robots[k].pos) for k in runnable}
+        runnable.sort(key=lambda k: -cost[k])
+        sub = [robots[k] for k in runnable]
+        batch, state = pack(sub)
+        n = int(batch.voff[-1])
+        n_frames = max(int(r.iparams[I_N_FRAMES]) for r in sub)
+        frames = np.zeros((n_frames, n if n_frames else 0, 3))
+        com_traj = np.zeros((len(sub), COM_SAMPLES + 3, 4))
+        com_count = np.zeros(len(sub), dtype=np.int64)
+        status = np.zeros(len(sub), dtype=np.int64)
+        steps_done = np.zeros(len(sub), dtype=np.int64)
+        work = _work_arrays(batch, n)
+        previous = numba.get_num_threads()
+        if threads is not None:
+            numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+        try:
+            kernels.run_batch(batch, state, work, frames, com_traj, com_count, status, steps_done)
+        finally:
+            numba.set_num_threads(previous)
+        for r, k in enumerate(runnable):
+            results[k] = _result(parsed[k], robots[k], r, batch, state, frames, com_traj,
+                                 com_count, status, steps_done)
+    return results  # type: ignore[return-value]
+
+
+def simulate(scene: dict | Scene, threads: int | None = 1) -> Result:
+    """Simulate one robot (SPEC.md section 1)."""
+    return simulate_many([scene], threads=threads)[0]
+
+
+def settle_steps(scene: dict | Scene) -> int:
+    """Number of settling steps the scene asks for (handy in tests)."""
+    robot = build_robot(parse_scene(scene))
+    return int(robot.iparams[I_SETTLE_STEPS])
+
+
+def steps_for(seconds: float, scene: dict | Scene) -> int:
+    """How many steps ``seconds`` of simulated time take for this scene's dt."""
+    robot = build_robot(parse_scene(scene))
+    return int(math.ceil(seconds / robot.fparams[F_DT]))

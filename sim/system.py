@@ -1,0 +1,227 @@
+"""Static model of one or many robots: the lattice, beam constants and per-robot parameters.
+
+``build_robot(scene)`` turns a validated Scene into plain arrays for one robot;
+``pack(robots)`` concatenates many robots into one ``Batch`` (struct of arrays with offsets)
+that a single compiled kernel call steps in parallel.
+
+Conventions (all SI):
+- voxels are numbered in x-major order of the body over the largest face-connected component;
+- ``pos``: (n, 3) float64 metres, voxel (i, j, k) starts at ((i + .5) L, (j + .5) L, (k + .5) L);
+- ``quat``: (n, 4) float64 (w, x, y, z), identity at start;
+- links join face neighbours; ``link_neg``/``link_pos`` are the voxels on the negative and
+  positive side along ``link_axis`` (0 x, 1 y, 2 z).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from scipy import ndimage
+
+from sim.scene import Scene
+
+# Columns of the per-robot float parameter table ``fparams``.
+F_L, F_MASS, F_INERTIA, F_A1, F_A2, F_B1, F_B2, F_B3, F_GAMMA = range(9)
+F_DT, F_GRAVITY, F_KFLOOR, F_CCOLL, F_CGLIN, F_CGANG, F_MUS, F_MUK = range(9, 17)
+F_DRAG, F_OMEGA, F_AMP, F_SETTLE = range(17, 21)
+N_FPARAMS = 21
+# Columns of the per-robot integer parameter table ``iparams``.
+I_STEPS, I_SETTLE_STEPS, I_ENV, I_WAVE, I_RECORD, I_COLLIDE, I_COM_EVERY, I_N_FRAMES = range(8)
+N_IPARAMS = 8
+
+ENV_CODES = {"land": 0, "water": 1, "void": 2}
+WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
+COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
+FLAG_FIXED, FLAG_ACTIVE = 1, 2
+
+
+def largest_component(body: np.ndarray) -> np.ndarray:
+    """Keep only the largest face-connected component of full voxels (ties: lowest label)."""
+    labels, n = ndimage.label(body > 0)  # default structure: face connectivity
+    if n <= 1:
+        return body.copy()
+    sizes = np.bincount(labels.ravel())[1:]
+    keep = 1 + int(np.argmax(sizes))
+    return np.where(labels == keep, body, 0).astype(body.dtype)
+
+
+def stable_dt(voxel_size: float, density: float, youngs_modulus: float, fraction: float) -> float:
+    """Step size: ``fraction`` of 1 / (2 pi f_link), f_link the axial frequency of one link."""
+    return fraction * voxel_size * math.sqrt(density / youngs_modulus) / (2.0 * math.pi)
+
+
+class Robot(NamedTuple):
+    """Arrays of one robot before packing."""
+
+    voxels: np.ndarray  # (n, 3) int64 lattice indices
+    pos: np.ndarray  # (n, 3) metres
+    flags: np.ndarray  # (n,) int8: FLAG_FIXED | FLAG_ACTIVE
+    phase: np.ndarray  # (n,) radians
+    ext_force: np.ndarray  # (n, 3) newtons
+    lin_mom: np.ndarray  # (n, 3) kg m / s
+    ang_mom: np.ndarray  # (n, 3) kg m^2 / s
+    nbr: np.ndarray  # (n, 6) int64 neighbour index for -x,+x,-y,+y,-z,+z (-1: exposed face)
+    link_neg: np.ndarray  # (m,) int64
+    link_pos: np.ndarray  # (m,) int64
+    link_axis: np.ndarray  # (m,) int64
+    surface: np.ndarray  # (s,) int64 voxels with at least one exposed face
+    fparams: np.ndarray  # (N_FPARAMS,)
+    iparams: np.ndarray  # (N_IPARAMS,)
+    removed: int  # voxels dropped as not connected to the largest component
+
+
+class Batch(NamedTuple):
+    """Many robots concatenated; robot r owns voxels voff[r]:voff[r+1] and so on."""
+
+    voff: np.ndarray  # (R + 1,) int64
+    loff: np.ndarray  # (R + 1,) int64
+    soff: np.ndarray  # (R + 1,) int64 into ``surface``
+    poff: np.ndarray  # (R + 1,) int64 into the collision pair buffer
+    flags: np.ndarray
+    cos_phase: np.ndarray
+    sin_phase: np.ndarray
+    phase: np.ndarray
+    ext_force: np.ndarray
+    nbr: np.ndarray  # global voxel indices
+    link_neg: np.ndarray  # global voxel indices
+    link_pos: np.ndarray
+    link_axis: np.ndarray
+    surface: np.ndarray  # global voxel indices
+    fparams: np.ndarray  # (R, N_FPARAMS)
+    iparams: np.ndarray  # (R, N_IPARAMS)
+
+
+class State(NamedTuple):
+    """Dynamic state of a batch (updated in place by the kernel)."""
+
+    pos: np.ndarray  # (N, 3)
+    quat: np.ndarray  # (N, 4)
+    lin_mom: np.ndarray  # (N, 3)
+    ang_mom: np.ndarray  # (N, 3)
+
+
+def _lattice(body: np.ndarray):
+    idx = np.argwhere(body > 0)  # x-major order
+    lookup = -np.ones(body.shape, dtype=np.int64)
+    lookup[tuple(idx.T)] = np.arange(len(idx))
+    padded = np.pad(lookup, 1, constant_values=-1)
+    nbr = np.empty((len(idx), 6), dtype=np.int64)
+    shifted = idx + 1
+    for axis in range(3):
+        for side, delta in enumerate((-1, 1)):
+            off = shifted.copy()
+            off[:, axis] += delta
+            nbr[:, 2 * axis + side] = padded[tuple(off.T)]
+    links = [
+        (np.arange(len(idx))[nbr[:, 2 * a + 1] >= 0], nbr[nbr[:, 2 * a + 1] >= 0, 2 * a + 1], a)
+        for a in range(3)
+    ]
+    link_neg = np.concatenate([n for n, _, _ in links]).astype(np.int64)
+    link_pos = np.concatenate([p for _, p, _ in links]).astype(np.int64)
+    link_axis = np.concatenate([np.full(len(n), a) for n, _, a in links]).astype(np.int64)
+    return idx, lookup, nbr, link_neg, link_pos, link_axis
+
+
+def build_robot(scene: Scene) -> Robot:
+    """Static arrays, parameters and initial momenta of one robot from a validated Scene."""
+    body = largest_component(scene.body)
+    removed = int((scene.body > 0).sum() - (body > 0).sum())
+    idx, lookup, nbr, link_neg, link_pos, link_axis = _lattice(body)
+    n = len(idx)
+    L = scene.voxel_size
+    mat, env, act = scene.material, scene.environment, scene.actuation
+    E, rho, nu = mat.youngs_modulus, mat.density, mat.poisson_ratio
+    mass = rho * L**3
+    inertia = mass * L**2 / 6.0
+    pos = (idx + 0.5) * L
+
+    flags = np.where(body[tuple(idx.T)] == 2, FLAG_ACTIVE, 0).astype(np.int8)
+    for v in scene.fixed:
+        if lookup[tuple(v)] >= 0:
+            flags[lookup[tuple(v)]] |= FLAG_FIXED
+    ext = np.zeros((n, 3))
+    for v, f in zip(scene.force_voxels, scene.force_values, strict=True):
+        if lookup[tuple(v)] >= 0:
+            ext[lookup[tuple(v)]] += f
+
+    com = pos.mean(axis=0)
+    omega = np.array(scene.initial_angular_velocity)
+    vel = np.array(scene.initial_velocity) + np.cross(omega, pos - com)
+    lin_mom = mass * vel
+    ang_mom = np.tile(inertia * omega, (n, 1))
+    fixed = (flags & FLAG_FIXED) > 0
+    lin_mom[fixed] = 0.0
+    ang_mom[fixed] = 0.0
+
+    dt = stable_dt(L, rho, E, scene.dt_fraction)
+    settle_steps = int(round(scene.settle_seconds / dt))
+    steps = settle_steps + int(math.ceil(scene.duration_seconds / dt - 1e-9))
+    gravity = env.gravity
+    k_floor = 2.0 * E * L
+    sqrt_mel = math.sqrt(mass * E * L)
+    f = np.zeros(N_FPARAMS)
+    f[[F_L, F_MASS, F_INERTIA]] = L, mass, inertia
+    f[[F_A1, F_A2, F_B1, F_B2, F_B3]] = (
+        E * L, E * L**3 / (12.0 * (1.0 + nu)), E * L, E * L**2 / 2.0, E * L**3 / 6.0)
+    # Bond damping as stiffness-proportional (Rayleigh) damping: C = gamma K, which gives each
+    # beam term the coefficient 2 zeta sqrt(m k) (sqrt(I k) for the rotational ones).
+    f[F_GAMMA] = 2.0 * mat.damping_bond * math.sqrt(mass / (E * L))
+    f[[F_DT, F_GRAVITY, F_KFLOOR]] = dt, gravity, k_floor
+    f[F_CCOLL] = 2.0 * mat.damping_collision * sqrt_mel
+    f[F_CGLIN] = 2.0 * mat.damping_global * sqrt_mel
+    f[F_CGANG] = 2.0 * mat.damping_global * math.sqrt(inertia * E * L**3)
+    f[[F_MUS, F_MUK]] = mat.friction_static, mat.friction_kinetic
+    f[F_DRAG] = 0.5 * env.fluid_density * env.drag_coefficient if env.kind == "water" else 0.0
+    f[[F_OMEGA, F_AMP, F_SETTLE]] = 2 * math.pi * act.frequency, act.amplitude, scene.settle_seconds
+
+    i = np.zeros(N_IPARAMS, dtype=np.int64)
+    i[I_STEPS], i[I_SETTLE_STEPS] = steps, settle_steps
+    i[I_ENV], i[I_WAVE] = ENV_CODES[env.kind], WAVE_CODES[act.waveform]
+    i[I_RECORD] = scene.record_every
+    i[I_COLLIDE] = int(scene.self_collisions)
+    i[I_COM_EVERY] = max(1, (steps - settle_steps) // COM_SAMPLES)
+    i[I_N_FRAMES] = (steps // scene.record_every + 1) if scene.record_every > 0 else 0
+
+    surface = np.flatnonzero((nbr < 0).any(axis=1)).astype(np.int64)
+    return Robot(idx, pos, flags, scene.phase[tuple(idx.T)].astype(np.float64), ext, lin_mom,
+                 ang_mom, nbr, link_neg, link_pos, link_axis, surface, f, i, removed)
+
+
+def _offsets(counts) -> np.ndarray:
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+
+def pack(robots: list[Robot]) -> tuple[Batch, State]:
+    """Concatenate robots into one Batch and its initial State."""
+    voff = _offsets([len(r.pos) for r in robots])
+    shift = lambda arr, r: np.where(arr >= 0, arr + voff[r], -1)  # noqa: E731
+    batch = Batch(
+        voff=voff,
+        loff=_offsets([len(r.link_neg) for r in robots]),
+        soff=_offsets([len(r.surface) for r in robots]),
+        poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
+        flags=np.concatenate([r.flags for r in robots]),
+        cos_phase=np.concatenate([np.cos(r.phase) for r in robots]),
+        sin_phase=np.concatenate([np.sin(r.phase) for r in robots]),
+        phase=np.concatenate([r.phase for r in robots]),
+        ext_force=np.concatenate([r.ext_force for r in robots]),
+        nbr=np.concatenate([shift(r.nbr, k) for k, r in enumerate(robots)]),
+        link_neg=np.concatenate([r.link_neg + voff[k] for k, r in enumerate(robots)]),
+        link_pos=np.concatenate([r.link_pos + voff[k] for k, r in enumerate(robots)]),
+        link_axis=np.concatenate([r.link_axis for r in robots]),
+        surface=np.concatenate([r.surface + voff[k] for k, r in enumerate(robots)]),
+        fparams=np.stack([r.fparams for r in robots]),
+        iparams=np.stack([r.iparams for r in robots]),
+    )
+    n = int(voff[-1])
+    quat = np.zeros((n, 4))
+    quat[:, 0] = 1.0
+    state = State(
+        pos=np.concatenate([r.pos for r in robots]),
+        quat=quat,
+        lin_mom=np.concatenate([r.lin_mom for r in robots]),
+        ang_mom=np.concatenate([r.ang_mom for r in robots]),
+    )
+    return batch, state
