@@ -1,0 +1,160 @@
+"""Export runs to the files of SPEC.md section 7: runs, individuals, populations.
+
+``individuals`` has one row per evaluation (an individual re-evaluated at an environment
+switch appears twice). CSV by default; Parquet needs ``pyarrow``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+from sqlalchemy import Connection, Engine, select
+
+from service.db.models import Evaluation, Experiment, Individual, PopulationMember, Run, Treatment
+from service.errors import UserError
+
+FORMATS = ("csv", "parquet")
+RUN_COLUMNS = [
+    "run_id",
+    "experiment",
+    "treatment",
+    "repetition",
+    "seed",
+    "environment_schedule",
+    "stiffness_pa",
+    "population",
+    "generations",
+    "status",
+]
+INDIVIDUAL_COLUMNS = [
+    "individual_id",
+    "run_id",
+    "parent_id",
+    "generation",
+    "generation_born",
+    "age",
+    "environment",
+    "distance",
+    "active_share",
+    "voxel_count",
+    "frequency",
+    "symmetry",
+    "branching",
+    "shape_entropy",
+    "stable",
+    "error",
+]
+POPULATION_COLUMNS = ["run_id", "generation", "individual_id", "front_rank"]
+
+
+def _read(conn: Connection, query) -> pd.DataFrame:
+    result = conn.execute(query)
+    return pd.DataFrame(result.fetchall(), columns=list(result.keys()))
+
+
+def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
+    """One row per run: treatment settings flattened to the export columns."""
+    from service.treatments import Treatment as TreatmentSettings
+
+    runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
+    query = (
+        select(
+            runs.c.id.label("run_id"),
+            experiments.c.name.label("experiment"),
+            treatments.c.name.label("treatment"),
+            runs.c.repetition,
+            runs.c.seed,
+            treatments.c.settings,
+            runs.c.generations,
+            runs.c.status,
+        )
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .join(experiments, treatments.c.experiment_id == experiments.c.id)
+        .where(runs.c.id.in_(list(run_ids)))
+        .order_by(runs.c.id)
+    )
+    frame = _read(conn, query)
+    settings = [TreatmentSettings.from_settings(s) for s in frame.pop("settings")]
+    frame["environment_schedule"] = [t.schedule_text() for t in settings]
+    frame["stiffness_pa"] = [t.stiffness_pa for t in settings]
+    frame["population"] = [t.population for t in settings]
+    return frame[RUN_COLUMNS]
+
+
+def individuals_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
+    """One row per evaluation, ordered by run, generation and individual."""
+    evaluations, individuals = Evaluation.__table__, Individual.__table__
+    query = (
+        select(
+            individuals.c.id.label("individual_id"),
+            evaluations.c.run_id,
+            individuals.c.parent_id,
+            evaluations.c.generation,
+            individuals.c.generation_born,
+            evaluations.c.age,
+            *[evaluations.c[name] for name in INDIVIDUAL_COLUMNS[6:]],
+        )
+        .join(individuals, evaluations.c.individual_id == individuals.c.id)
+        .where(evaluations.c.run_id.in_(list(run_ids)))
+        .order_by(evaluations.c.run_id, evaluations.c.generation, individuals.c.id)
+    )
+    frame = _read(conn, query)
+    frame["parent_id"] = frame["parent_id"].astype("Int64")
+    return frame[INDIVIDUAL_COLUMNS]
+
+
+def populations_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
+    """Population membership with front rank (0 = non-dominated) per generation."""
+    members = PopulationMember.__table__
+    query = (
+        select(*[members.c[name] for name in POPULATION_COLUMNS])
+        .where(members.c.run_id.in_(list(run_ids)))
+        .order_by(
+            members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id
+        )
+    )
+    return _read(conn, query)
+
+
+def export_runs(
+    engine: Engine, run_ids: Sequence[int], out_dir: str | Path, fmt: str = "csv"
+) -> list[Path]:
+    """Write runs, individuals and populations files for ``run_ids`` into ``out_dir``."""
+    if fmt not in FORMATS:
+        raise UserError(f"unknown format {fmt!r}; choose csv or parquet")
+    if fmt == "parquet":
+        _require_pyarrow()
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create output directory {out}: {exc.strerror}") from exc
+    with engine.connect() as conn:
+        frames = {
+            "runs": runs_frame(conn, run_ids),
+            "individuals": individuals_frame(conn, run_ids),
+            "populations": populations_frame(conn, run_ids),
+        }
+    return [_write(frame, out / f"{name}.{fmt}", fmt) for name, frame in frames.items()]
+
+
+def _write(frame: pd.DataFrame, path: Path, fmt: str) -> Path:
+    try:
+        if fmt == "csv":
+            frame.to_csv(path, index=False)
+        else:
+            frame.to_parquet(path, index=False)
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror}") from exc
+    return path
+
+
+def _require_pyarrow() -> None:
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError as exc:
+        raise UserError(
+            "parquet export needs pyarrow: pip install pyarrow (or use --format csv)"
+        ) from exc

@@ -1,0 +1,226 @@
+"""Phylogeny queries: recursive CTEs over ``individuals.parent_id``, returned as DataFrames.
+
+All queries are SQLAlchemy core with bound parameters and run unchanged on SQLite and
+PostgreSQL. An individual's traits come from one of its evaluations: ``which="birth"`` (the
+default) takes its first evaluation (the one that selected it), ``which="latest"`` its last
+(after an environment switch, the one in the new world).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import pandas as pd
+from sqlalchemy import Connection, Engine, and_, func, literal, select
+
+from service.db.models import Evaluation, Individual, PopulationMember, Run, Treatment
+from service.errors import UserError
+
+Which = Literal["birth", "latest"]
+TRAITS = (
+    "distance",
+    "active_share",
+    "voxel_count",
+    "frequency",
+    "symmetry",
+    "branching",
+    "shape_entropy",
+)
+_EVALUATION_COLUMNS = ("generation", "environment", "stiffness", "age", *TRAITS, "stable", "error")
+
+
+def _frame(bind: Connection | Engine, query) -> pd.DataFrame:
+    """Run ``query`` and return its rows as a DataFrame (columns kept when empty)."""
+    if isinstance(bind, Engine):
+        with bind.connect() as conn:
+            return _frame(conn, query)
+    result = bind.execute(query)
+    return pd.DataFrame(result.fetchall(), columns=list(result.keys()))
+
+
+def _chosen_evaluation(which: Which):
+    """Subquery: one evaluation per individual (its first or its last)."""
+    evaluations = Evaluation.__table__
+    order = evaluations.c.generation.asc() if which == "birth" else evaluations.c.generation.desc()
+    ranked = select(
+        evaluations,
+        func.row_number().over(partition_by=evaluations.c.individual_id, order_by=order).label("n"),
+    ).subquery("ranked")
+    return (
+        select(*[ranked.c[name] for name in ("individual_id", *_EVALUATION_COLUMNS)])
+        .where(ranked.c.n == 1)
+        .subquery("chosen")
+    )
+
+
+def _ancestor_cte(individual_id: int):
+    """Recursive CTE: the individual (depth 0), its parent (depth 1), ... to the root."""
+    individuals = Individual.__table__
+    anchor = select(
+        individuals.c.id,
+        individuals.c.parent_id,
+        individuals.c.run_id,
+        individuals.c.generation_born,
+        literal(0).label("depth"),
+    ).where(individuals.c.id == individual_id)
+    cte = anchor.cte("ancestors", recursive=True)
+    step = select(
+        individuals.c.id,
+        individuals.c.parent_id,
+        individuals.c.run_id,
+        individuals.c.generation_born,
+        (cte.c.depth + 1).label("depth"),
+    ).join(cte, individuals.c.id == cte.c.parent_id)
+    return cte.union_all(step)
+
+
+def ancestors(
+    bind: Connection | Engine, individual_id: int, which: Which = "birth"
+) -> pd.DataFrame:
+    """The individual and its ancestors, newest first, to its root newcomer.
+
+    Columns: depth (0 = the individual), id, parent_id, run_id, generation_born, and the
+    chosen evaluation's generation, environment, stiffness, age, objectives, descriptors,
+    stable and error. Empty if the id is unknown.
+    """
+    cte = _ancestor_cte(individual_id)
+    chosen = _chosen_evaluation(which)
+    query = (
+        select(
+            cte.c.depth,
+            cte.c.id,
+            cte.c.parent_id,
+            cte.c.run_id,
+            cte.c.generation_born,
+            *[chosen.c[name] for name in _EVALUATION_COLUMNS],
+        )
+        .outerjoin(chosen, chosen.c.individual_id == cte.c.id)
+        .order_by(cte.c.depth)
+    )
+    return _frame(bind, query)
+
+
+def switch_generation(bind: Connection | Engine, run_id: int) -> int | None:
+    """The generation at which run ``run_id`` changes environment (None if it never does)."""
+    query = (
+        select(Treatment.__table__.c.settings)
+        .join(Run.__table__, Run.__table__.c.treatment_id == Treatment.__table__.c.id)
+        .where(Run.__table__.c.id == run_id)
+    )
+    frame = _frame(bind, query)
+    if frame.empty:
+        raise UserError(f"no run {run_id}")
+    from service.treatments import Treatment as TreatmentSettings
+
+    return TreatmentSettings.from_settings(frame.iloc[0]["settings"]).switch_generation()
+
+
+def transition_lineages(
+    bind: Connection | Engine, run_id: int, switch_at: int | None = None
+) -> pd.DataFrame:
+    """Descendants of the individuals alive when the environment switched.
+
+    ``switch_at`` is the first generation in the new environment (default: from the run's
+    treatment); the founders are the population kept at ``switch_at - 1``, which was moved
+    and re-evaluated. Columns: founder_id, id, parent_id, generation_born, depth (0 = the
+    founder), last_generation (the last generation whose population held it; NaN if never
+    kept). Empty when the run has no transition.
+    """
+    if switch_at is None:
+        switch_at = switch_generation(bind, run_id)
+        if switch_at is None:
+            return pd.DataFrame(
+                columns=[
+                    "founder_id",
+                    "id",
+                    "parent_id",
+                    "generation_born",
+                    "depth",
+                    "last_generation",
+                ]
+            )
+    individuals, members = Individual.__table__, PopulationMember.__table__
+    anchor = (
+        select(
+            individuals.c.id.label("founder_id"),
+            individuals.c.id,
+            individuals.c.parent_id,
+            individuals.c.generation_born,
+            literal(0).label("depth"),
+        )
+        .join(members, members.c.individual_id == individuals.c.id)
+        .where(members.c.run_id == run_id, members.c.generation == switch_at - 1)
+    )
+    cte = anchor.cte("lineage", recursive=True)
+    step = select(
+        cte.c.founder_id,
+        individuals.c.id,
+        individuals.c.parent_id,
+        individuals.c.generation_born,
+        (cte.c.depth + 1).label("depth"),
+    ).join(cte, individuals.c.parent_id == cte.c.id)
+    cte = cte.union_all(step)
+    last = (
+        select(members.c.individual_id, func.max(members.c.generation).label("last_generation"))
+        .where(members.c.run_id == run_id)
+        .group_by(members.c.individual_id)
+        .subquery("last_kept")
+    )
+    query = (
+        select(cte, last.c.last_generation)
+        .outerjoin(last, last.c.individual_id == cte.c.id)
+        .order_by(cte.c.founder_id, cte.c.depth, cte.c.id)
+    )
+    return _frame(bind, query)
+
+
+def trait_changes(
+    bind: Connection | Engine,
+    individual_id: int,
+    trait: str = "active_share",
+    which: Which = "birth",
+) -> pd.DataFrame:
+    """Where ``trait`` changed along the line from the root newcomer to the individual.
+
+    Rows, oldest first, of ancestors whose trait differs from their parent's. Columns: id,
+    parent_id, generation_born, environment, previous, value. ``trait`` is one of ``TRAITS``.
+    """
+    if trait not in TRAITS:
+        raise UserError(f"unknown trait {trait!r}; choose one of {', '.join(TRAITS)}")
+    cte = _ancestor_cte(individual_id)
+    chosen = _chosen_evaluation(which)
+    value = chosen.c[trait]
+    line = (
+        select(
+            cte.c.id,
+            cte.c.parent_id,
+            cte.c.generation_born,
+            cte.c.depth,
+            chosen.c.environment,
+            value.label("value"),
+            func.lag(value).over(order_by=cte.c.depth.desc()).label("previous"),
+        )
+        .outerjoin(chosen, chosen.c.individual_id == cte.c.id)
+        .subquery("line")
+    )
+    query = (
+        select(
+            line.c.id,
+            line.c.parent_id,
+            line.c.generation_born,
+            line.c.environment,
+            line.c.previous,
+            line.c.value,
+        )
+        .where(and_(line.c.parent_id.is_not(None), line.c.previous != line.c.value))
+        .order_by(line.c.depth.desc())
+    )
+    return _frame(bind, query)
+
+
+def first_trait_change(
+    bind: Connection | Engine, individual_id: int, trait: str = "active_share"
+) -> int | None:
+    """The first generation (of birth) at which ``trait`` changed along the individual's line."""
+    changes = trait_changes(bind, individual_id, trait)
+    return None if changes.empty else int(changes.iloc[0]["generation_born"])

@@ -1,0 +1,210 @@
+"""Treatments (environment schedule, stiffness, sizes, seeds) and the paper's presets.
+
+A treatment's environment is ``land``, ``water``, ``land-water`` or ``water-land``. A
+transition switches at ``switch_at`` (default: half the generations): generations
+``0 .. switch_at - 1`` are evaluated in the first environment, ``switch_at ..`` in the
+second, and at ``switch_at`` the whole surviving population is re-evaluated in the new one.
+Repetition ``r`` of a treatment runs with seed ``seed + r``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from service.errors import UserError
+
+ENVIRONMENTS = ("land", "water", "land-water", "water-land")
+ALGORITHMS = ("afpo", "pareto")
+STIFFNESS_RANGE_MPA = (0.001, 10.0)
+PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
+SCALES = ("tiny", "small", "paper")
+
+
+@dataclass(frozen=True)
+class Treatment:
+    """One treatment; defaults are the paper-like evaluation settings (PHYSICS.md)."""
+
+    environment: str
+    stiffness_mpa: float
+    name: str = ""
+    switch_at: int | None = None
+    population: int = 30
+    generations: int = 100
+    workspace: tuple[int, int, int] = (7, 7, 7)
+    cycles: int = 50
+    repetitions: int = 1
+    seed: int = 0
+    algorithm: str = "afpo"
+    genomes_per_task: int = 4
+
+    def __post_init__(self) -> None:
+        self.validate()
+        if not self.name:
+            object.__setattr__(self, "name", self.default_name())
+
+    def validate(self) -> None:
+        """Raise UserError (one clear line) for an impossible setting."""
+        if self.environment not in ENVIRONMENTS:
+            raise UserError(
+                f"unknown environment {self.environment!r}; choose one of {', '.join(ENVIRONMENTS)}"
+            )
+        low, high = STIFFNESS_RANGE_MPA
+        stiffness = self.stiffness_mpa
+        if not (isinstance(stiffness, int | float) and math.isfinite(stiffness)):
+            raise UserError(f"stiffness must be a number of MPa (got {stiffness!r})")
+        if not low <= stiffness <= high:
+            raise UserError(f"stiffness must be within {low}..{high} MPa (got {stiffness})")
+        _positive("population", self.population, minimum=2)
+        _positive("generations", self.generations)
+        _positive("cycles", self.cycles)
+        _positive("repetitions", self.repetitions)
+        _positive("genomes_per_task", self.genomes_per_task)
+        if len(self.workspace) != 3 or any(int(n) < 1 for n in self.workspace):
+            raise UserError(f"workspace must be three positive sizes X,Y,Z (got {self.workspace})")
+        if self.seed < 0:
+            raise UserError(f"seed must be >= 0 (got {self.seed})")
+        if self.algorithm not in ALGORITHMS:
+            raise UserError(f"unknown algorithm {self.algorithm!r}; choose afpo or pareto")
+        self._validate_switch()
+
+    def _validate_switch(self) -> None:
+        if self.switch_at is None:
+            return
+        if "-" not in self.environment:
+            raise UserError(f"--switch-at needs a transition environment (got {self.environment})")
+        if not 1 <= self.switch_at < self.generations:
+            raise UserError(
+                f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})"
+            )
+
+    def default_name(self) -> str:
+        """E.g. ``land-water S=0.1MPa``."""
+        return f"{self.environment} S={self.stiffness_mpa:g}MPa"
+
+    @property
+    def stiffness_pa(self) -> float:
+        """Young's modulus in pascals."""
+        return self.stiffness_mpa * 1e6
+
+    def switch_generation(self) -> int | None:
+        """First generation in the second environment (None without a transition)."""
+        if "-" not in self.environment:
+            return None
+        return self.switch_at if self.switch_at is not None else max(1, self.generations // 2)
+
+    def schedule(self) -> list[tuple[str, int]]:
+        """[(environment, first generation), ...] in order."""
+        switch = self.switch_generation()
+        if switch is None:
+            return [(self.environment, 0)]
+        first, second = self.environment.split("-")
+        return [(first, 0), (second, switch)]
+
+    def schedule_text(self) -> str:
+        """The schedule as text, e.g. ``land:0,water:50``."""
+        return ",".join(f"{env}:{start}" for env, start in self.schedule())
+
+    def environment_at(self, generation: int) -> str:
+        """The environment individuals are evaluated in at ``generation``."""
+        current = self.schedule()[0][0]
+        for env, start in self.schedule():
+            if generation >= start:
+                current = env
+        return current
+
+    def seed_of(self, repetition: int) -> int:
+        """Seed of repetition ``repetition`` (0-based)."""
+        return self.seed + repetition
+
+    def to_settings(self) -> dict[str, Any]:
+        """Plain JSON settings (stored in ``treatments.settings``)."""
+        settings = dataclasses.asdict(self)
+        settings["workspace"] = list(self.workspace)
+        return settings
+
+    @classmethod
+    def from_settings(cls, settings: dict[str, Any]) -> Treatment:
+        """Inverse of ``to_settings``; unknown keys are a UserError."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(settings) - known)
+        if unknown:
+            raise UserError(f"unknown treatment field(s): {', '.join(unknown)}")
+        values = dict(settings)
+        if "workspace" in values:
+            values["workspace"] = tuple(int(n) for n in values["workspace"])
+        return cls(**values)
+
+
+def _positive(name: str, value: int, minimum: int = 1) -> None:
+    if not isinstance(value, int) or value < minimum:
+        raise UserError(f"{name} must be an integer >= {minimum} (got {value!r})")
+
+
+@dataclass(frozen=True)
+class Scale:
+    """Sizes of a preset scale."""
+
+    population: int
+    generations: int
+    transition_generations: int
+    workspace: tuple[int, int, int]
+    cycles: int
+    repetitions: int
+
+
+# tiny: the whole grid in minutes on 2 cores (CI); small: about an hour on 2 cores;
+# paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
+PRESET_SCALES: dict[str, Scale] = {
+    "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1),
+    "small": Scale(12, 40, 40, (6, 6, 6), 10, 2),
+    "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15),
+}
+
+
+def paper_grid(
+    scale: str = "tiny", repetitions: int | None = None, seed: int = 0
+) -> list[Treatment]:
+    """The paper's grid (SPEC.md section 5): land and water at S1..S5, transitions at S3.
+
+    At paper scale the S3 static treatments run as long as the transitions (9000
+    generations), as in the paper, for a fair comparison.
+    """
+    if scale not in PRESET_SCALES:
+        raise UserError(f"unknown scale {scale!r}; choose one of {', '.join(SCALES)}")
+    sizes = PRESET_SCALES[scale]
+    reps = sizes.repetitions if repetitions is None else repetitions
+    common = {
+        "population": sizes.population,
+        "workspace": sizes.workspace,
+        "cycles": sizes.cycles,
+        "repetitions": reps,
+        "seed": seed,
+    }
+    treatments = []
+    for environment in ("land", "water"):
+        for index, stiffness in enumerate(PAPER_STIFFNESSES_MPA, start=1):
+            long = stiffness == 0.1 and scale == "paper"
+            generations = sizes.transition_generations if long else sizes.generations
+            treatments.append(
+                Treatment(
+                    environment,
+                    stiffness,
+                    name=f"{environment} S{index}",
+                    generations=generations,
+                    **common,
+                )
+            )
+    for environment in ("land-water", "water-land"):
+        treatments.append(
+            Treatment(
+                environment,
+                0.1,
+                name=f"{environment} S3",
+                generations=sizes.transition_generations,
+                **common,
+            )
+        )
+    return treatments
