@@ -1,0 +1,268 @@
+"""Age-Fitness Pareto Optimisation (Schmidt & Lipson 2011) and plain Pareto, ask/tell.
+
+A generation, in ``mode="afpo"``:
+1. every survivor's age grows by one;
+2. every survivor makes one mutated child (which inherits its parent's age and differs from
+   it in phenotype, see ``mutate_genotype``), and one random newcomer of age 0 joins;
+3. the new individuals are handed out by :meth:`Evolution.ask` and their results come back
+   through :meth:`Evolution.tell`;
+4. survivors and offspring together are cut back to ``population_size`` by successive
+   non-dominated fronts over the objectives plus age (minimised); the front that does not fit
+   whole is cut by crowding distance, then by lower id (the older individual).
+``mode="pareto"`` is the same without the age objective and without the newcomer.
+
+Failed evaluations (a crash, an unstable simulation, an empty body) get distance 0 and rank
+behind every successful individual. Offspring whose phenotype hash equals a living
+individual's evaluated in the same environment inherit that evaluation instead of being
+simulated again.
+
+The whole state (including the random generator) is JSON: ``state_to_json`` /
+``from_state_json``; a resumed run continues exactly as the uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from evolution.genotype import (
+    EncodingConfig,
+    mutate_genotype,
+    random_viable_genotype,
+)
+from evolution.individual import FAILED_DISTANCE, Evaluation, Individual
+from evolution.selection import (
+    AGE_OBJECTIVE,
+    PAPER_OBJECTIVES,
+    Objective,
+    objective_matrix,
+    select_survivors,
+)
+
+MODES = ("afpo", "pareto")
+
+
+@dataclass(frozen=True)
+class EvolutionConfig:
+    """Everything that defines a run's algorithm and its evaluation scenes.
+
+    youngs_modulus: Pa; cycles: actuation cycles per evaluation; environment: the starting
+    world ("land", "water"); descriptors: compute shape descriptors at each tell.
+    """
+
+    population_size: int = 12
+    mode: str = "afpo"
+    seed: int = 0
+    environment: str = "land"
+    youngs_modulus: float = 1e6
+    cycles: int = 50
+    encoding: EncodingConfig = field(default_factory=EncodingConfig)
+    objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
+    descriptors: bool = True
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES} (got {self.mode!r})")
+        if self.population_size < 1:
+            raise ValueError("population_size must be >= 1")
+
+    @property
+    def selection_objectives(self) -> tuple[Objective, ...]:
+        return self.objectives + ((AGE_OBJECTIVE,) if self.mode == "afpo" else ())
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "population_size": self.population_size,
+            "mode": self.mode,
+            "seed": self.seed,
+            "environment": self.environment,
+            "youngs_modulus": self.youngs_modulus,
+            "cycles": self.cycles,
+            "encoding": self.encoding.to_dict(),
+            "objectives": [[o.name, o.direction] for o in self.objectives],
+            "descriptors": self.descriptors,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> EvolutionConfig:
+        data = dict(data)
+        if "encoding" in data:
+            data["encoding"] = EncodingConfig.from_dict(data["encoding"])
+        if "objectives" in data:
+            data["objectives"] = tuple(Objective(n, d) for n, d in data["objectives"])
+        return cls(**data)
+
+
+class Evolution:
+    """The ask/tell algorithm. Holds the population, the pending offspring and the RNG."""
+
+    def __init__(self, config: EvolutionConfig, rng: np.random.Generator | None = None):
+        self.config = config
+        self.rng = rng if rng is not None else np.random.default_rng(config.seed)
+        self.generation = 0  # generation of the individuals being (or last) evaluated
+        self.next_id = 0
+        self.environment = config.environment
+        self.population: list[Individual] = []  # evaluated survivors
+        self.pending: list[Individual] = []  # this generation's individuals awaiting results
+        self.started = False
+
+    # ---- ask / tell ------------------------------------------------------------------------
+    def ask(self) -> list[Individual]:
+        """Individuals needing evaluation in ``self.environment`` (idempotent until told)."""
+        if not self.pending:
+            if self.started:
+                self._breed()
+            else:
+                self.pending = [self._newcomer() for _ in range(self.config.population_size)]
+                self.started = True
+            self._fill_known()
+        return [ind for ind in self.pending if not ind.evaluated]
+
+    def tell(self, evaluations: Sequence[Any] | Mapping[int, Any]) -> None:
+        """Record results: a mapping {individual id: result} or a sequence in ``ask`` order.
+
+        A result is anything ``Evaluation.coerce`` accepts. When every pending individual has
+        its result, survivors are selected and the generation is complete.
+        """
+        waiting = {ind.id: ind for ind in self.pending if not ind.evaluated}
+        if not isinstance(evaluations, Mapping):
+            asked = list(waiting.values())
+            if len(evaluations) != len(asked):
+                raise ValueError(f"expected {len(asked)} evaluations, got {len(evaluations)}")
+            evaluations = {ind.id: value for ind, value in zip(asked, evaluations, strict=True)}
+        for ind_id, value in evaluations.items():
+            if ind_id not in waiting:
+                raise KeyError(f"individual {ind_id} is not awaiting evaluation")
+            self._record(waiting[ind_id], Evaluation.coerce(value))
+        if all(ind.evaluated for ind in self.pending):
+            self._select()
+
+    def reevaluate_all(self, environment: str) -> None:
+        """Move the whole population into ``environment``: every living individual (and any
+        pending offspring) is evaluated again there by the next ``ask``/``tell``."""
+        self.environment = environment
+        everyone = self.population + self.pending
+        for ind in everyone:
+            ind.clear_evaluation()
+        self.population, self.pending = [], everyone
+        self.started = True
+        self._fill_known()
+
+    def scene(self, ind: Individual, **extra: Any) -> dict[str, Any]:
+        """The simulator scene that evaluates ``ind`` in the current environment."""
+        phenotype = ind.phenotype(self.config.encoding)
+        return phenotype.to_scene(
+            self.environment, self.config.youngs_modulus, self.config.cycles, **extra
+        )
+
+    @property
+    def generation_complete(self) -> bool:
+        return self.started and not self.pending
+
+    # ---- internals -------------------------------------------------------------------------
+    def _new_id(self) -> int:
+        self.next_id += 1
+        return self.next_id - 1
+
+    def _newcomer(self) -> Individual:
+        genome = random_viable_genotype(self.rng, self.config.encoding)
+        return Individual(self._new_id(), None, self.generation, 0, genome)
+
+    def _breed(self) -> None:
+        self.generation += 1
+        for ind in self.population:
+            ind.age += 1
+        offspring = []
+        for parent in self.population:
+            genome, ops, _ = mutate_genotype(parent.genome, self.rng, self.config.encoding)
+            offspring.append(
+                Individual(
+                    self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops
+                )
+            )
+        if self.config.mode == "afpo" or not self.population:
+            offspring.append(self._newcomer())
+        self.pending = offspring
+
+    def _fill_known(self) -> None:
+        """Evaluate without simulation: empty bodies fail, known phenotypes reuse results."""
+        known = {
+            ind.phenotype(self.config.encoding).phenotype_hash(): ind
+            for ind in self.population
+            if ind.evaluated and ind.environment == self.environment
+        }
+        for ind in self.pending:
+            phenotype = ind.phenotype(self.config.encoding)
+            twin = known.get(phenotype.phenotype_hash())
+            if phenotype.voxel_count == 0:
+                self._record(ind, Evaluation(FAILED_DISTANCE, False, "empty body"))
+            elif twin is not None:
+                ind.objectives = dict(twin.objectives)
+                ind.descriptors = None if twin.descriptors is None else dict(twin.descriptors)
+                ind.environment, ind.stable, ind.error = self.environment, twin.stable, twin.error
+                ind.evaluated_generation = self.generation
+
+    def _record(self, ind: Individual, evaluation: Evaluation) -> None:
+        phenotype = ind.phenotype(self.config.encoding)
+        ind.objectives = {
+            "distance": evaluation.distance,
+            "active_share": phenotype.active_share,
+            "voxel_count": float(phenotype.voxel_count),
+        }
+        ind.environment = self.environment
+        ind.stable, ind.error = evaluation.stable, evaluation.error
+        ind.evaluated_generation = self.generation
+        if self.config.descriptors and phenotype.voxel_count:
+            from evolution.descriptors import describe_phenotype
+
+            ind.descriptors = describe_phenotype(phenotype)
+
+    def _select(self) -> None:
+        combined = self.population + self.pending
+        rows = [{**ind.objectives, "age": ind.age} for ind in combined]
+        F = objective_matrix(rows, self.config.selection_objectives)
+        valid = np.array([not ind.failed for ind in combined])
+        # rows in id order, so "lower index" in select_survivors means "lower id"
+        order = np.argsort([ind.id for ind in combined], kind="stable")
+        kept = select_survivors(F[order], self.config.population_size, valid[order])
+        self.population = [combined[i] for i in order[kept]]
+        self.pending = []
+
+    # ---- state -----------------------------------------------------------------------------
+    def state_to_dict(self) -> dict[str, Any]:
+        return {
+            "config": self.config.to_dict(),
+            "rng": self.rng.bit_generator.state,
+            "generation": self.generation,
+            "next_id": self.next_id,
+            "environment": self.environment,
+            "started": self.started,
+            "population": [ind.to_dict() for ind in self.population],
+            "pending": [ind.to_dict() for ind in self.pending],
+        }
+
+    def state_to_json(self) -> str:
+        return json.dumps(self.state_to_dict())
+
+    @classmethod
+    def from_state_dict(cls, state: Mapping[str, Any]) -> Evolution:
+        config = EvolutionConfig.from_dict(state["config"])
+        rng_state = state["rng"]
+        bit_generator = getattr(np.random, rng_state["bit_generator"])()
+        bit_generator.state = rng_state
+        algo = cls(config, np.random.Generator(bit_generator))
+        algo.generation = int(state["generation"])
+        algo.next_id = int(state["next_id"])
+        algo.environment = state["environment"]
+        algo.started = bool(state["started"])
+        algo.population = [Individual.from_dict(d) for d in state["population"]]
+        algo.pending = [Individual.from_dict(d) for d in state["pending"]]
+        return algo
+
+    @classmethod
+    def from_state_json(cls, text: str) -> Evolution:
+        return cls.from_state_dict(json.loads(text))

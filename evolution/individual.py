@@ -1,0 +1,110 @@
+"""Individuals and their evaluations, as plain data with JSON round trips."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
+
+FAILED_DISTANCE = 0.0
+"""Distance given to a failed or unstable evaluation (the simulator's own convention).
+Selection also ranks such an individual behind every successful one (see afpo.py)."""
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What an evaluation returns: distance in voxel lengths, stability, an error message."""
+
+    distance: float
+    stable: bool = True
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.stable and self.error is None
+
+    @classmethod
+    def coerce(cls, value: Any) -> Evaluation:
+        """Accept an Evaluation, a sim ``Result`` (attributes distance/stable/reason), a dict
+        with the same keys (``error`` or ``reason``), an exception (a crash) or None."""
+        if isinstance(value, Evaluation):
+            return value
+        if value is None:
+            return cls(FAILED_DISTANCE, False, "no result")
+        if isinstance(value, BaseException):
+            return cls(FAILED_DISTANCE, False, f"{type(value).__name__}: {value}")
+        get = value.get if isinstance(value, dict) else lambda k, d=None: getattr(value, k, d)
+        stable = bool(get("stable", True))
+        error = get("error", None) or (None if stable else get("reason", None) or "unstable")
+        distance = float(get("distance", FAILED_DISTANCE))
+        if not math.isfinite(distance):
+            distance, stable, error = FAILED_DISTANCE, False, error or "non-finite distance"
+        if not stable or error is not None:
+            distance = FAILED_DISTANCE
+        return cls(distance, stable, None if error is None else str(error))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"distance": self.distance, "stable": self.stable, "error": self.error}
+
+
+@dataclass
+class Individual:
+    """One robot in a run. Evaluation fields stay None until the individual is told a result.
+
+    objectives: {"distance", "active_share", "voxel_count"} (plus "age" at selection time).
+    descriptors: see ``evolution.descriptors.describe``.
+    evaluated_generation: the generation whose ``tell`` gave the current evaluation.
+    """
+
+    id: int
+    parent_id: int | None
+    generation_born: int
+    age: int
+    genome: Genotype
+    objectives: dict[str, float] | None = None
+    descriptors: dict[str, float] | None = None
+    environment: str | None = None
+    stable: bool | None = None
+    error: str | None = None
+    evaluated_generation: int | None = None
+    mutations: list[str] = field(default_factory=list)
+
+    @property
+    def evaluated(self) -> bool:
+        return self.objectives is not None
+
+    @property
+    def failed(self) -> bool:
+        """True when evaluated and the evaluation failed or was unstable."""
+        return self.evaluated and (not self.stable or self.error is not None)
+
+    def phenotype(self, encoding: EncodingConfig) -> Phenotype:
+        return develop(self.genome, encoding)
+
+    def clear_evaluation(self) -> None:
+        self.objectives = self.descriptors = self.environment = None
+        self.stable = self.error = self.evaluated_generation = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "parent_id": self.parent_id,
+            "generation_born": self.generation_born,
+            "age": self.age,
+            "genome": self.genome.to_dict(),
+            "objectives": self.objectives,
+            "descriptors": self.descriptors,
+            "environment": self.environment,
+            "stable": self.stable,
+            "error": self.error,
+            "evaluated_generation": self.evaluated_generation,
+            "mutations": list(self.mutations),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Individual:
+        data = dict(data)
+        data["genome"] = Genotype.from_dict(data["genome"])
+        return cls(**data)

@@ -1,0 +1,115 @@
+"""Pareto selection as pure functions of an objectives matrix.
+
+``F`` is an (n_individuals, n_objectives) float array in *minimisation* form: objectives to
+maximise are negated by :func:`objective_matrix`. Row i dominates row j when it is no worse
+on every objective and strictly better on at least one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Objective:
+    """An objective declared as data: a name looked up in an individual's objectives and
+    ``direction`` "max" or "min"."""
+
+    name: str
+    direction: str
+
+    def sign(self) -> float:
+        """+1 for "min", -1 for "max": multiplying by it gives minimisation form."""
+        if self.direction not in ("min", "max"):
+            raise ValueError(f"objective {self.name}: direction must be 'min' or 'max'")
+        return 1.0 if self.direction == "min" else -1.0
+
+
+PAPER_OBJECTIVES: tuple[Objective, ...] = (
+    Objective("distance", "max"),
+    Objective("active_share", "min"),
+    Objective("voxel_count", "min"),
+)
+AGE_OBJECTIVE = Objective("age", "min")
+
+
+def objective_matrix(
+    rows: Sequence[Mapping[str, float]], objectives: Sequence[Objective]
+) -> np.ndarray:
+    """F, shape (len(rows), len(objectives)), in minimisation form."""
+    signs = np.array([o.sign() for o in objectives])
+    values = np.array([[float(r[o.name]) for o in objectives] for r in rows], dtype=float)
+    return values.reshape(len(rows), len(objectives)) * signs
+
+
+def dominance_matrix(F: np.ndarray) -> np.ndarray:
+    """D[i, j] is True when row i dominates row j. Shape (n, n)."""
+    no_worse = np.all(F[:, None, :] <= F[None, :, :], axis=2)
+    better = np.any(F[:, None, :] < F[None, :, :], axis=2)
+    return no_worse & better
+
+
+def non_dominated_sort(F: np.ndarray) -> np.ndarray:
+    """Front rank of every row, shape (n,) int: 0 for the non-dominated, 1 for those dominated
+    only by rank-0 rows, and so on."""
+    F = np.asarray(F, dtype=float)
+    dominates = dominance_matrix(F)
+    dominated_by = dominates.sum(axis=0)  # how many rows dominate each row
+    ranks = np.full(len(F), -1, dtype=int)
+    rank = 0
+    current = np.flatnonzero(dominated_by == 0)
+    while current.size:
+        ranks[current] = rank
+        dominated_by = dominated_by - dominates[current].sum(axis=0)
+        dominated_by[ranks >= 0] = -1
+        current = np.flatnonzero(dominated_by == 0)
+        rank += 1
+    return ranks
+
+
+def crowding_distance(F: np.ndarray) -> np.ndarray:
+    """NSGA-II crowding distance of each row within the set F, shape (n,).
+
+    Per objective, rows are sorted; the two extremes get +inf, others the gap between their
+    neighbours divided by the objective's range; the per-objective parts are summed. An
+    objective with zero range contributes 0 (extremes included); n <= 2 gives all +inf.
+    """
+    F = np.asarray(F, dtype=float)
+    n, m = F.shape
+    if n <= 2:
+        return np.full(n, np.inf)
+    distance = np.zeros(n)
+    for column in range(m):
+        order = np.argsort(F[:, column], kind="stable")
+        values = F[order, column]
+        span = values[-1] - values[0]
+        if span <= 0:
+            continue
+        distance[order[1:-1]] += (values[2:] - values[:-2]) / span
+        distance[order[[0, -1]]] = np.inf
+    return distance
+
+
+def select_survivors(F: np.ndarray, k: int, valid: np.ndarray | None = None) -> np.ndarray:
+    """Indices of the k rows kept: whole fronts in rank order, the front that does not fit
+    cut by crowding distance (largest first), remaining ties by lower index.
+
+    ``valid`` (n,) bool: invalid rows (failed evaluations) rank behind every valid row and
+    among themselves by index. Returns indices sorted ascending.
+    """
+    F = np.asarray(F, dtype=float)
+    n = len(F)
+    valid = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    ranks = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+    good = np.flatnonzero(valid)
+    if good.size:
+        ranks[good] = non_dominated_sort(F[good])
+    crowding = np.zeros(n)
+    for rank in np.unique(ranks[good]):
+        members = good[ranks[good] == rank]
+        crowding[members] = crowding_distance(F[members])
+    order = np.lexsort((np.arange(n), -crowding, ranks))
+    return np.sort(order[:k])
