@@ -35,7 +35,11 @@ def _frame(bind: Connection | Engine, query) -> pd.DataFrame:
         with bind.connect() as conn:
             return _frame(conn, query)
     result = bind.execute(query)
-    return pd.DataFrame(result.fetchall(), columns=list(result.keys()))
+    frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))
+    for column in ("parent_id", "last_generation"):
+        if column in frame.columns:
+            frame[column] = frame[column].astype("Int64")
+    return frame
 
 
 def _chosen_evaluation(which: Which):

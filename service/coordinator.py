@@ -1,0 +1,285 @@
+"""The coordinator: ask -> dispatch -> tell -> persist, one transaction per generation.
+
+Many runs advance together: each round asks every active run for its next generation,
+sends all their tasks to the executor in one call, then tells each run its results and
+commits that run's generation (individuals, evaluations, population, summary and the
+algorithm's JSON state, RNG included) in one transaction, before the next round dispatches
+anything. A coordinator killed at any point resumes from the last committed generation and
+reaches exactly the results of an uninterrupted run: the state it restarts from is the
+state the uninterrupted run had, and evaluations are deterministic.
+
+Environment switch: at the treatment's switch generation the algorithm first breeds as
+usual, then ``reevaluate_all`` moves survivors and offspring into the new environment, and
+they are all evaluated there in that same generation.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sqlalchemy import Engine, select
+
+from service.db.models import Run, RunStatus
+from service.db.store import GenerationRecord, record_generation, run_row, set_run_status
+from service.executors import Executor
+from service.experiments import evolution_config
+from service.treatments import Treatment
+
+ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
+
+
+@dataclass(frozen=True)
+class GenerationReport:
+    """What the coordinator tells its progress listener after each committed generation."""
+
+    run_id: int
+    generation: int
+    generations: int
+    best_distance: float
+    evaluations: int
+    evaluation_seconds: float
+    finished: bool
+
+
+@dataclass
+class ActiveRun:
+    """A run being advanced: its treatment, algorithm and the generation to do next."""
+
+    run_id: int
+    treatment: Treatment
+    algorithm: Any  # evolution.afpo.Evolution
+    next_generation: int
+    generations: int
+    pending: list[Any] | None = None  # the generation's individuals (evaluated or not)
+    asked: list[Any] | None = None  # those needing a simulation
+
+    @property
+    def done(self) -> bool:
+        return self.next_generation >= self.generations
+
+
+def load_run(engine: Engine, run_id: int) -> ActiveRun:
+    """The run as stored: a new algorithm, or the one saved after its last generation."""
+    from evolution.afpo import Evolution
+
+    with engine.connect() as conn:
+        row = run_row(conn, run_id)
+    treatment = Treatment.from_settings(row["settings"])
+    if row["algorithm_state"] is None:
+        algorithm = Evolution(evolution_config(treatment, row["seed"]))
+    else:
+        algorithm = Evolution.from_state_dict(row["algorithm_state"])
+    return ActiveRun(run_id, treatment, algorithm, row["generation"] + 1, row["generations"])
+
+
+def unfinished_runs(engine: Engine, run_ids: Sequence[int] | None = None) -> list[int]:
+    """Ids of pending or running runs (among ``run_ids`` if given)."""
+    table = Run.__table__
+    query = select(table.c.id).where(table.c.status.in_(ACTIVE)).order_by(table.c.id)
+    if run_ids is not None:
+        query = query.where(table.c.id.in_(list(run_ids)))
+    with engine.connect() as conn:
+        return list(conn.execute(query).scalars())
+
+
+def ask(run: ActiveRun) -> list[dict[str, Any]]:
+    """Ask the run's algorithm for its next generation; return the evaluation tasks."""
+    algorithm, generation = run.algorithm, run.next_generation
+    environment = run.treatment.environment_at(generation)
+    asked = algorithm.ask()
+    if algorithm.environment != environment:
+        algorithm.reevaluate_all(environment)
+        asked = algorithm.ask()
+    if algorithm.generation != generation:
+        raise RuntimeError(f"algorithm at generation {algorithm.generation}, run at {generation}")
+    run.pending, run.asked = list(algorithm.pending), asked
+    encoding = algorithm.config.encoding.to_dict()
+    return [
+        {
+            "id": ind.id,
+            "genome": ind.genome.to_dict(),
+            "environment": environment,
+            "youngs_modulus": run.treatment.stiffness_pa,
+            "cycles": run.treatment.cycles,
+            "workspace": list(run.treatment.workspace),
+            "encoding": encoding,
+        }
+        for ind in asked
+    ]
+
+
+def tell(run: ActiveRun, results: list[dict[str, Any]], seconds: float) -> GenerationRecord:
+    """Tell the algorithm its results; return the generation's record for the database."""
+    by_id = {result["id"]: result for result in results}
+    for ind in run.asked:
+        ind.descriptors = by_id[ind.id].get("descriptors")
+    run.algorithm.tell({ind.id: by_id[ind.id] for ind in run.asked})
+    record = GenerationRecord(run.run_id, run.next_generation)
+    record.individuals = [
+        _individual_row(run, ind, by_id.get(ind.id))
+        for ind in run.pending
+        if ind.generation_born == run.next_generation
+    ]
+    record.evaluations = [_evaluation_row(run, ind, by_id.get(ind.id)) for ind in run.pending]
+    record.members = _member_rows(run)
+    record.summary = _summary(run, len(results), seconds)
+    record.state = run.algorithm.state_to_dict()
+    record.finished = run.next_generation + 1 >= run.generations
+    return record
+
+
+def _individual_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
+    phenotype = result.get("phenotype") if result else None
+    if phenotype is None:
+        phenotype = ind.phenotype(run.algorithm.config.encoding).summary()
+    return {
+        "local_id": ind.id,
+        "parent_local_id": ind.parent_id,
+        "generation_born": ind.generation_born,
+        "genome": ind.genome.to_dict(),
+        "phenotype": phenotype,
+    }
+
+
+def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
+    objectives, descriptors = ind.objectives, ind.descriptors or {}
+    return {
+        "local_id": ind.id,
+        "generation": run.next_generation,
+        "age": ind.age,
+        "environment": ind.environment,
+        "stiffness": run.treatment.stiffness_pa,
+        "distance": objectives["distance"],
+        "active_share": objectives["active_share"],
+        "voxel_count": int(objectives["voxel_count"]),
+        "frequency": descriptors.get("frequency"),
+        "symmetry": descriptors.get("symmetry"),
+        "branching": descriptors.get("branching"),
+        "shape_entropy": descriptors.get("shape_entropy"),
+        "descriptors": ind.descriptors,
+        "stable": bool(ind.stable),
+        "error": ind.error,
+        "seconds": result.get("seconds") if result else None,
+    }
+
+
+def front_ranks(run: ActiveRun) -> list[int]:
+    """Front rank (0 = non-dominated) of each survivor over the treatment's objectives
+    (age excluded); failed evaluations rank behind every successful one."""
+    from evolution.selection import non_dominated_sort, objective_matrix
+
+    population = run.algorithm.population
+    valid = np.array([not ind.failed for ind in population], dtype=bool)
+    ranks = np.zeros(len(population), dtype=int)
+    if valid.any():
+        rows = [ind.objectives for ind, ok in zip(population, valid, strict=True) if ok]
+        ranks[valid] = non_dominated_sort(objective_matrix(rows, run.algorithm.config.objectives))
+        ranks[~valid] = ranks[valid].max() + 1
+    return [int(rank) for rank in ranks]
+
+
+def _member_rows(run: ActiveRun) -> list[dict[str, Any]]:
+    ranks = front_ranks(run)
+    return [
+        {"local_id": ind.id, "front_rank": rank, "age": ind.age}
+        for ind, rank in zip(run.algorithm.population, ranks, strict=True)
+    ]
+
+
+def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
+    population = run.algorithm.population
+    distances = [ind.objectives["distance"] for ind in population]
+    ranks = front_ranks(run)
+    return {
+        "environment": run.treatment.environment_at(run.next_generation),
+        "evaluations": simulated,
+        "evaluation_seconds": seconds,
+        "best_distance": max(distances),
+        "mean_distance": float(np.mean(distances)),
+        "front_size": ranks.count(0),
+        "failed": sum(1 for ind in run.pending if ind.failed),
+        "mean_voxel_count": float(np.mean([i.objectives["voxel_count"] for i in population])),
+        "mean_active_share": float(np.mean([i.objectives["active_share"] for i in population])),
+        "best_local_id": population[int(np.argmax(distances))].id,
+    }
+
+
+class Coordinator:
+    """Advances runs to their end, persisting each generation before dispatching the next."""
+
+    def __init__(
+        self,
+        engine: Engine,
+        executor: Executor,
+        on_generation: Callable[[GenerationReport], None] | None = None,
+    ) -> None:
+        self.engine = engine
+        self.executor = executor
+        self.on_generation = on_generation
+
+    def run(self, run_ids: Sequence[int], max_rounds: int | None = None) -> None:
+        """Advance the unfinished runs among ``run_ids`` until all are done (or cancelled,
+        or failed), or for at most ``max_rounds`` generations."""
+        runs = [load_run(self.engine, run_id) for run_id in unfinished_runs(self.engine, run_ids)]
+        rounds = 0
+        while runs and (max_rounds is None or rounds < max_rounds):
+            runs = self.round(self._still_active(runs))
+            rounds += 1
+
+    def round(self, runs: list[ActiveRun]) -> list[ActiveRun]:
+        """One generation of every run; returns the runs that go on."""
+        asked: list[tuple[ActiveRun, list[dict]]] = []
+        for run in runs:
+            tasks = self._guard(run, ask, run)
+            if tasks is not None:
+                asked.append((run, tasks))
+        tasks = [task for _, run_tasks in asked for task in run_tasks]
+        start = time.perf_counter()
+        results = self.executor.evaluate(tasks)
+        seconds = time.perf_counter() - start
+        share = seconds / max(1, len(tasks))
+        going_on, offset = [], 0
+        for run, run_tasks in asked:
+            run_results = results[offset : offset + len(run_tasks)]
+            offset += len(run_tasks)
+            if self._guard(run, self._finish, run, run_results, share * len(run_tasks)):
+                going_on.append(run)
+        return [run for run in going_on if not run.done]
+
+    def _finish(self, run: ActiveRun, results: list[dict], seconds: float) -> bool:
+        record = tell(run, results, seconds)
+        with self.engine.begin() as conn:
+            record_generation(conn, record)
+        run.next_generation += 1
+        if self.on_generation:
+            self.on_generation(
+                GenerationReport(
+                    run.run_id,
+                    record.generation,
+                    run.generations,
+                    record.summary["best_distance"],
+                    len(results),
+                    seconds,
+                    record.finished,
+                )
+            )
+        return True
+
+    def _guard(self, run: ActiveRun, function, *args):
+        """Call ``function``; a bug in one run marks it failed and the others go on."""
+        try:
+            return function(*args)
+        except Exception:
+            with self.engine.begin() as conn:
+                set_run_status(conn, run.run_id, RunStatus.FAILED, traceback.format_exc())
+            return None
+
+    def _still_active(self, runs: list[ActiveRun]) -> list[ActiveRun]:
+        """Drop runs cancelled (or otherwise stopped) in the database meanwhile."""
+        active = set(unfinished_runs(self.engine, [run.run_id for run in runs]))
+        return [run for run in runs if run.run_id in active]

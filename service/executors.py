@@ -1,0 +1,98 @@
+"""Executors: where evaluation tasks run. One small interface, several implementations.
+
+An executor takes a list of JSON tasks (see ``worker.evaluate``) and returns their JSON
+results in the same order. ``InlineExecutor`` runs them in this process (tests, one core);
+``LocalExecutor`` spreads them over a process pool, one numba thread per process, many
+genomes per pool task. Issue 5 adds an RQ executor with the same interface.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, Protocol
+
+Task = dict[str, Any]
+
+
+class Executor(Protocol):
+    """Evaluates tasks; ``workers`` is how many evaluate at once (for progress estimates)."""
+
+    workers: int
+
+    def evaluate(self, tasks: list[Task]) -> list[Task]:
+        """Results of ``tasks``, in order."""
+        ...
+
+    def close(self) -> None:
+        """Release processes or connections."""
+        ...
+
+
+class InlineExecutor:
+    """Evaluates in the calling process, all robots in one ``simulate_many`` call."""
+
+    def __init__(self, threads: int | None = 1) -> None:
+        self.threads = threads
+        self.workers = threads or 1
+
+    def evaluate(self, tasks: list[Task]) -> list[Task]:
+        from worker.evaluate import evaluate_batch
+
+        return evaluate_batch(tasks, threads=self.threads) if tasks else []
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def chunks(tasks: list[Task], workers: int, per_task: int) -> list[list[Task]]:
+    """Split tasks into pool jobs of at most ``per_task`` genomes, at least one per worker."""
+    if not tasks:
+        return []
+    size = max(1, min(per_task, math.ceil(len(tasks) / workers)))
+    return [tasks[i : i + size] for i in range(0, len(tasks), size)]
+
+
+class LocalExecutor:
+    """A process pool over ``workers`` processes (default: all cores).
+
+    Processes start with the ``spawn`` method (no fork of a process holding numba threads or
+    database connections) and warm the simulator once each.
+    """
+
+    def __init__(self, workers: int | None = None, genomes_per_task: int = 4) -> None:
+        from worker.evaluate import init_pool_process
+
+        self.workers = workers or os.cpu_count() or 1
+        self.genomes_per_task = genomes_per_task
+        self._pool = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=init_pool_process,
+        )
+
+    def evaluate(self, tasks: list[Task]) -> list[Task]:
+        from worker.evaluate import evaluate_batch
+
+        jobs = [
+            self._pool.submit(evaluate_batch, chunk)
+            for chunk in chunks(tasks, self.workers, self.genomes_per_task)
+        ]
+        return [result for job in jobs for result in job.result()]
+
+    def warm(self) -> None:
+        """Start every process now (their start-up is otherwise paid by the first batch)."""
+        for job in [self._pool.submit(os.getpid) for _ in range(self.workers)]:
+            job.result()
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def make_executor(workers: int | None = None, genomes_per_task: int = 4) -> Executor:
+    """The local executor; ``workers=0`` evaluates inline in this process."""
+    if workers == 0:
+        return InlineExecutor()
+    return LocalExecutor(workers, genomes_per_task)

@@ -1,0 +1,58 @@
+"""Create experiments and runs from treatments; map a treatment to the algorithm's config."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from sqlalchemy import Engine
+
+from service.db.store import NewRun, NewTreatment, create_experiment
+from service.treatments import Treatment, paper_grid
+
+
+def create(
+    engine: Engine,
+    name: str,
+    treatments: Sequence[Treatment],
+    preset: str | None = None,
+    scale: str | None = None,
+) -> tuple[int, list[int]]:
+    """Store an experiment with one pending run per repetition; return (id, run ids)."""
+    new = [
+        NewTreatment(
+            t.name,
+            t.to_settings(),
+            [NewRun(r, t.seed_of(r), t.generations) for r in range(t.repetitions)],
+        )
+        for t in treatments
+    ]
+    with engine.begin() as conn:
+        return create_experiment(conn, name, new, preset=preset, scale=scale)
+
+
+def create_paper(
+    engine: Engine, scale: str, repetitions: int | None = None, seed: int = 0
+) -> tuple[int, list[int]]:
+    """The paper's grid (SPEC.md section 5) at ``scale`` as a new experiment."""
+    treatments = paper_grid(scale, repetitions=repetitions, seed=seed)
+    return create(engine, f"paper-{scale}", treatments, preset="paper", scale=scale)
+
+
+def evolution_config(treatment: Treatment, seed: int):
+    """The ``evolution.EvolutionConfig`` of one run of ``treatment``.
+
+    Descriptors are computed by the workers (``worker.evaluate``), not at ``tell`` time.
+    """
+    from evolution.afpo import EvolutionConfig
+    from evolution.genotype import EncodingConfig
+
+    return EvolutionConfig(
+        population_size=treatment.population,
+        mode=treatment.algorithm,
+        seed=seed,
+        environment=treatment.environment_at(0),
+        youngs_modulus=treatment.stiffness_pa,
+        cycles=treatment.cycles,
+        encoding=EncodingConfig(workspace=tuple(treatment.workspace)),
+        descriptors=False,
+    )
