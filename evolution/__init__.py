@@ -1,0 +1,46 @@
+"""The evolution core: CPPN encoding, AFPO / Pareto selection (ask/tell), shape descriptors.
+
+A pure library: genome -> phenotype -> scene, results -> objectives -> selection. It imports
+neither worker/ nor service/; evaluation is a function passed in (see ``runner.run``).
+
+Main entry points:
+- ``CPPN``, ``express``: genome data and vectorised expression (``evolution.cppn``);
+- ``Genotype``, ``Phenotype``, ``EncodingConfig``, ``develop`` (``evolution.genotype``);
+- ``Evolution``, ``EvolutionConfig``: the ask/tell algorithm (``evolution.afpo``);
+- ``Individual``, ``Evaluation`` (``evolution.individual``);
+- ``describe`` (``evolution.descriptors``, needs trimesh; imported lazily);
+- ``run``: a local run loop (``evolution.runner``).
+"""
+
+from evolution.afpo import Evolution, EvolutionConfig
+from evolution.cppn import CPPN, express
+from evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
+from evolution.individual import Evaluation, Individual
+from evolution.runner import run
+from evolution.selection import Objective, crowding_distance, non_dominated_sort
+
+__all__ = [
+    "CPPN",
+    "EncodingConfig",
+    "Evaluation",
+    "Evolution",
+    "EvolutionConfig",
+    "Genotype",
+    "Individual",
+    "Objective",
+    "Phenotype",
+    "crowding_distance",
+    "describe",
+    "develop",
+    "express",
+    "non_dominated_sort",
+    "run",
+]
+
+
+def __getattr__(name: str):
+    if name == "describe":
+        from evolution.descriptors import describe
+
+        return describe
+    raise AttributeError(f"module 'evolution' has no attribute {name!r}")
