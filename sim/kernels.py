@@ -31,6 +31,7 @@ MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared di
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
 SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2
 COLLIDE_EVERY = 8  # steps between refreshes of the self-collision candidate pairs
+FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
 MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
 
 
@@ -152,7 +153,7 @@ def actuate(v0, v1, t, fp, wave, flags, cos_phase, sin_phase, phase, size):
 # ---------------------------------------------------------------- links
 @njit(**INLINE)
 def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, prev_valid,
-               force, moment, a1, a2, b1, b2, b3, damp):
+               force, moment, a1, a2, b1, b2, b3, damp, inv_l):
     """Beam forces of link l, added to both ends. Returns the link's axial strain.
 
     Co-rotational: the frame follows the negative-side voxel while the bend is small and the
@@ -220,7 +221,7 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
 
     # 3-D frame element (Euler-Bernoulli), forces and moments on the negative end (a) and the
     # moments on the positive end (b); the force on b is -fa.
-    fax = a1 * ex
+    fax = a1 * ex * (rest * inv_l)  # E A_current strain: area and rest length both scale
     fay = b1 * ey - b2 * (e1z + e2z)
     faz = b1 * ez + b2 * (e1y + e2y)
     max_ = a2 * (e2x - e1x)
@@ -261,10 +262,11 @@ def link_forces(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, smal
     """Add the forces of links l0..l1 of one robot; return the largest |axial strain|."""
     damp = fp[F_GAMMA] * 0.5 / fp[F_DT]
     a1, a2, b1, b2, b3 = fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3]
+    inv_l = 1.0 / fp[F_L]
     worst = 0.0
     for l in range(l0, l1):
         strain = link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
-                            prev_valid, force, moment, a1, a2, b1, b2, b3, damp)
+                            prev_valid, force, moment, a1, a2, b1, b2, b3, damp, inv_l)
         worst = max(worst, abs(strain))
     return worst
 
@@ -383,26 +385,22 @@ def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, momen
                 fz += normal - c_coll * vz
                 if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
                     static[v] = False
-                if not static[v]:
+                elif not static[v]:
                     hv = math.sqrt(vx * vx + vy * vy)
-                    if hv > 0.0:
+                    if hv > FRICTION_EPS * fp[F_L] / dt:
                         fx -= mu_k * normal * vx / hv
                         fy -= mu_k * normal * vy / hv
             else:
                 static[v] = False
-
-        lin_mom[v, 0] += fx * dt
-        lin_mom[v, 1] += fy * dt
         lin_mom[v, 2] += fz * dt
-        if in_contact:  # a sliding voxel stops when friction would reverse it (work-energy)
-            tx, ty = lin_mom[v, 0] * inv_m * dt, lin_mom[v, 1] * inv_m * dt
-            work = fx * tx + fy * ty
-            kinetic = 0.5 * inv_m * (lin_mom[v, 0] ** 2 + lin_mom[v, 1] ** 2)
-            if kinetic + work <= 0.0:
+        px, py = lin_mom[v, 0] + fx * dt, lin_mom[v, 1] + fy * dt
+        if in_contact:  # a sliding voxel sticks when friction would reverse it (work-energy)
+            work = (fx * px + fy * py) * inv_m * dt
+            if 0.5 * inv_m * (px * px + py * py) + work <= 0.0:
                 static[v] = True
             if static[v]:
-                lin_mom[v, 0] = 0.0
-                lin_mom[v, 1] = 0.0
+                px, py = 0.0, 0.0
+        lin_mom[v, 0], lin_mom[v, 1] = px, py
         pos[v, 0] += lin_mom[v, 0] * inv_m * dt
         pos[v, 1] += lin_mom[v, 1] * inv_m * dt
         pos[v, 2] += lin_mom[v, 2] * inv_m * dt

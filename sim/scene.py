@@ -66,6 +66,7 @@ class Scene:
     force_values: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # newtons
     initial_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m / s
     initial_angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rad / s
+    initial_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # metres, added to start positions
     duration_seconds: float = 0.0  # simulated after settling
     settle_seconds: float = 0.0
     dt_fraction: float = 0.7
@@ -80,7 +81,7 @@ class Scene:
 
 _TOP_FIELDS = {
     "voxel_size", "material", "environment", "body", "phase", "actuation", "fixed", "forces",
-    "initial_velocity", "initial_angular_velocity", "duration", "settle_seconds",
+    "initial_velocity", "initial_angular_velocity", "initial_offset", "duration", "settle_seconds",
     "dt_fraction", "self_collisions", "record", "notes", "max_steps",
 }
 
@@ -262,6 +263,7 @@ def parse_scene(data: Any) -> Scene:
         initial_velocity=_vector3(data.get("initial_velocity", [0, 0, 0]), "initial_velocity"),
         initial_angular_velocity=_vector3(data.get("initial_angular_velocity", [0, 0, 0]),
                                           "initial_angular_velocity"),
+        initial_offset=_vector3(data.get("initial_offset", [0, 0, 0]), "initial_offset"),
         duration_seconds=seconds,
         settle_seconds=_number(data.get("settle_seconds", 0.0), "settle_seconds", low=0),
         dt_fraction=_number(data.get("dt_fraction", 0.7), "dt_fraction", low=0, low_open=True,

@@ -135,7 +135,7 @@ def build_robot(scene: Scene) -> Robot:
     E, rho, nu = mat.youngs_modulus, mat.density, mat.poisson_ratio
     mass = rho * L**3
     inertia = mass * L**2 / 6.0
-    pos = (idx + 0.5) * L
+    pos = (idx + 0.5) * L + np.array(scene.initial_offset)
 
     flags = np.where(body[tuple(idx.T)] == 2, FLAG_ACTIVE, 0).astype(np.int8)
     for v in scene.fixed:
