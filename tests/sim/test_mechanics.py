@@ -390,9 +390,16 @@ def test_resting_column_sag_matches_springs_in_series():
     np.testing.assert_allclose(got, expected, rtol=0.02)
 
 
-def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_global=0.0):
-    """Horizontal force ``force_total`` (N, along +x) split evenly over the body's voxels."""
+def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_global=0.0,
+                    preloaded=False):
+    """Horizontal force ``force_total`` (N, along +x) split evenly over the body's voxels.
+
+    ``preloaded``: start each (single-layer) voxel sunk into the floor by its equilibrium
+    penetration m g / k_p (k_p = 2 E L), so the normal force is m g from the first step.
+    """
     body = np.asarray(body)
+    L, rho, E = 0.05, 1200.0, 1e6
+    sink = rho * L**3 * G / (2 * E * L) if preloaded else 0.0
     full = [list(map(int, v)) for v in np.argwhere(body > 0)]
     per = force_total / len(full)
     return {
@@ -404,12 +411,42 @@ def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_
         "forces": [{"voxel": v, "force": [per, 0.0, 0.0]} for v in full],
         "settle_seconds": settle,
         "duration": {"seconds": seconds},
+        "initial_offset": [0.0, 0.0, -sink],
         "record": {"every": 50},
     }
 
 
+@pytest.mark.parametrize("factor", [0.95, 1.05])
 @pytest.mark.parametrize("body", [[[[1]]], np.ones((2, 2, 1), int).tolist()])
-def test_friction_holds_just_below_static_threshold(body):
+def test_friction_threshold_from_equilibrium(body, factor):
+    """The friction threshold itself, with mu_s = 1 and mu_k = 0.5 far apart.
+
+    Starting at the equilibrium penetration (normal force m g from the first step), a
+    horizontal force of 0.95 mu_s m g must not move the body at all (< 1e-6 voxel lengths in
+    1 s), while 1.05 mu_s m g must slide it at (F - mu_k m g) / m (fitted over 0.1-1 s, 2%).
+    A static threshold at mu_k, or no static friction, fails the first; a wrong kinetic law
+    fails the second.
+    """
+    mu_s, mu_k = 1.0, 0.5
+    n = int(np.sum(body))
+    m = 1200.0 * 0.05**3 * n
+    force = factor * mu_s * m * G
+    result = simulate(_friction_scene(body, force, mu_s, mu_k, 1.0, preloaded=True))
+    t, com = com_trajectory(result)
+    if factor < 1:
+        report(f"land.friction_threshold.n{n}.below", drift_L=result.distance)
+        assert result.distance < 1e-6
+        return
+    late = t >= 0.1
+    accel = 2 * np.polyfit(t[late], com[late, 0], 2)[0]
+    expected = (force - mu_k * m * G) / m
+    report(f"land.friction_threshold.n{n}.above", accel_expected=expected, accel_got=accel,
+           ratio=accel / expected)
+    assert accel == pytest.approx(expected, rel=0.02)
+
+
+@pytest.mark.parametrize("body", [[[[1]]], np.ones((2, 2, 1), int).tolist()])
+def test_friction_holds_after_touchdown(body):
     """F = 0.95 mu_s m g: static friction holds (after touchdown) and nothing creeps.
 
     The body starts touching the floor with zero normal force, so during the first
@@ -427,7 +464,7 @@ def test_friction_holds_just_below_static_threshold(body):
 
 @pytest.mark.parametrize("mu_k", [0.5, 0.25])
 @pytest.mark.parametrize("body", [[[[1]]], np.ones((2, 2, 1), int).tolist()])
-def test_friction_slides_just_above_static_threshold(body, mu_k):
+def test_friction_slides_above_static_threshold(body, mu_k):
     """F = 1.05 mu_s m g: the body slides with a = (F - mu_k m g) / m (no global damping).
 
     The acceleration is fitted to x(t) over 0.1-1 s, after touchdown; the normal force is
