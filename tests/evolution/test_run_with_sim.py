@@ -1,0 +1,29 @@
+"""Acceptance: a 20-generation run with the real simulator improves the best distance."""
+
+import pytest
+
+from evolution import EncodingConfig, EvolutionConfig, run
+from evolution.runner import best_distance
+
+sim = pytest.importorskip("sim")
+
+
+@pytest.mark.slow
+def test_twenty_generations_on_land_improve_the_best_distance():
+    config = EvolutionConfig(
+        population_size=12,
+        seed=1,
+        environment="land",
+        youngs_modulus=1e6,
+        cycles=4,  # short evaluations keep the test around a minute on 2 cores
+        encoding=EncodingConfig(workspace=(5, 5, 5)),
+    )
+    best = {}
+
+    def record(algo):
+        best[algo.generation] = best_distance(algo)
+
+    algo = run(config, sim.simulate_many, generations=20, on_generation=record)
+    assert algo.generation == 20 and len(algo.population) == 12
+    assert sorted(best) == list(range(21))
+    assert best[20] > best[0]
