@@ -17,7 +17,15 @@ import numpy as np
 from sim import kernels
 from sim.scene import Scene, parse_scene
 from sim.system import (
-    COM_SAMPLES, F_DT, F_L, I_N_FRAMES, I_RECORD, I_SETTLE_STEPS, I_STEPS, Robot, build_robot,
+    COM_SAMPLES,
+    F_DT,
+    F_L,
+    I_N_FRAMES,
+    I_RECORD,
+    I_SETTLE_STEPS,
+    I_STEPS,
+    Robot,
+    build_robot,
     pack,
 )
 

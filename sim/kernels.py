@@ -16,9 +16,35 @@ import numpy as np
 from numba import njit, prange
 
 from sim.system import (
-    F_A1, F_A2, F_AMP, F_B1, F_B2, F_B3, F_CCOLL, F_CGANG, F_CGLIN, F_DRAG, F_DT, F_GAMMA,
-    F_GRAVITY, F_INERTIA, F_KFLOOR, F_L, F_MASS, F_MUK, F_MUS, F_OMEGA, FLAG_ACTIVE, FLAG_FIXED,
-    I_COLLIDE, I_COM_EVERY, I_ENV, I_RECORD, I_SETTLE_STEPS, I_STEPS, I_WAVE,
+    F_A1,
+    F_A2,
+    F_AMP,
+    F_B1,
+    F_B2,
+    F_B3,
+    F_CCOLL,
+    F_CGANG,
+    F_CGLIN,
+    F_DRAG,
+    F_DT,
+    F_GAMMA,
+    F_GRAVITY,
+    F_INERTIA,
+    F_KFLOOR,
+    F_L,
+    F_MASS,
+    F_MUK,
+    F_MUS,
+    F_OMEGA,
+    FLAG_ACTIVE,
+    FLAG_FIXED,
+    I_COLLIDE,
+    I_COM_EVERY,
+    I_ENV,
+    I_RECORD,
+    I_SETTLE_STEPS,
+    I_STEPS,
+    I_WAVE,
 )
 
 # fastmath without 'nnan'/'ninf' so that divergence stays detectable by comparisons
@@ -66,9 +92,10 @@ def rotvec(w, x, y, z):
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     s2 = x * x + y * y + z * z
-    if s2 < 0.09 * w * w:  # |v| / w < 0.3: atan series, relative error < 1e-6
-        r2 = s2 / (w * w)
-        f = (2.0 / w) * (1.0 - r2 * (1.0 / 3.0 - r2 * (0.2 - r2 * (1.0 / 7.0 - r2 / 9.0))))
+    if s2 < 0.04 * w * w:  # |v| / w < 0.2 (angle < 0.39 rad): atan series, rel. error < 1e-8
+        inv_w = 1.0 / w
+        r2 = s2 * inv_w * inv_w
+        f = 2.0 * inv_w * (1.0 - r2 * (1.0 / 3.0 - r2 * (0.2 - r2 * (1.0 / 7.0 - r2 / 9.0))))
     else:
         s = math.sqrt(s2)
         f = 2.0 * math.atan2(s, w) / s
@@ -154,7 +181,7 @@ def actuate(v0, v1, t, fp, wave, flags, cos_phase, sin_phase, phase, size):
 @njit(**INLINE)
 def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, prev_valid,
                force, moment, a1, a2, b1, b2, b3, damp, inv_l):
-    """Beam forces of link l, added to both ends. Returns the link's axial strain.
+    """Beam forces of link l, added to both ends. Returns |elongation| - MAX_STRAIN * rest.
 
     Co-rotational: the frame follows the negative-side voxel while the bend is small and the
     centre-to-centre line when it is large (hysteresis as Voxelyze). Bond damping is
@@ -165,20 +192,34 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
     j = link_pos[l]
     ax = link_axis[l]
     qw, qx, qy, qz = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
-    rx, ry, rz = qrot(qw, -qx, -qy, -qz, pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1],
-                      pos[j, 2] - pos[i, 2])
+    # rotation matrix of the negative voxel (world = R local), cheaper than repeated qrot
+    r00 = 1.0 - 2.0 * (qy * qy + qz * qz)
+    r01 = 2.0 * (qx * qy - qw * qz)
+    r02 = 2.0 * (qx * qz + qw * qy)
+    r10 = 2.0 * (qx * qy + qw * qz)
+    r11 = 1.0 - 2.0 * (qx * qx + qz * qz)
+    r12 = 2.0 * (qy * qz - qw * qx)
+    r20 = 2.0 * (qx * qz - qw * qy)
+    r21 = 2.0 * (qy * qz + qw * qx)
+    r22 = 1.0 - 2.0 * (qx * qx + qy * qy)
+    wx, wy, wz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
+    rx = r00 * wx + r10 * wy + r20 * wz
+    ry = r01 * wx + r11 * wy + r21 * wz
+    rz = r02 * wx + r12 * wy + r22 * wz
     ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
     rx, ry, rz = to_link(ax, rx, ry, rz)
     ox, oy, oz = to_link(ax, ox, oy, oz)
     rest = 0.5 * (size[i] + size[j])
 
-    turn = (abs(ry) + abs(rz)) / rx if rx > 0.0 else 1e30
-    extend = abs(rx / rest - 1.0)
+    # hysteresis between the two frames, compared without divisions
+    turn = abs(ry) + abs(rz)  # compared against SMALL_TURN * rx
+    extend = abs(rx - rest)  # compared against SMALL_EXTEND * rest
     if small[l]:
-        if turn > SMALL_TURN or extend > SMALL_EXTEND:
+        if turn > SMALL_TURN * rx or extend > SMALL_EXTEND * rest:
             small[l] = False
             prev_valid[l] = False
-    elif turn < SMALL_TURN / HYSTERESIS and extend < SMALL_EXTEND / HYSTERESIS:
+    elif (turn < (SMALL_TURN / HYSTERESIS) * rx
+          and extend < (SMALL_EXTEND / HYSTERESIS) * rest):
         small[l] = True
         prev_valid[l] = False
 
@@ -230,16 +271,24 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
     mby = -b2 * ez - b3 * (e1y + 2.0 * e2y)
     mbz = b2 * ey - b3 * (e1z + 2.0 * e2z)
 
-    # back to world axes: undo the large-angle alignment, the axis permutation, the voxel frame
-    fax, fay, faz = qrot(cw, -cx, -cy, -cz, fax, fay, faz)
-    max_, may, maz = qrot(cw, -cx, -cy, -cz, max_, may, maz)
-    mbx, mby, mbz = qrot(cw, -cx, -cy, -cz, -a2 * (e2x - e1x), mby, mbz)
-    fax, fay, faz = from_link(ax, fax, fay, faz)
-    max_, may, maz = from_link(ax, max_, may, maz)
-    mbx, mby, mbz = from_link(ax, mbx, mby, mbz)
-    fax, fay, faz = qrot(qw, qx, qy, qz, fax, fay, faz)
-    max_, may, maz = qrot(qw, qx, qy, qz, max_, may, maz)
-    mbx, mby, mbz = qrot(qw, qx, qy, qz, mbx, mby, mbz)
+    mbx = -max_
+    if not small[l]:  # undo the large-angle alignment
+        fax, fay, faz = qrot(cw, -cx, -cy, -cz, fax, fay, faz)
+        max_, may, maz = qrot(cw, -cx, -cy, -cz, max_, may, maz)
+        mbx, mby, mbz = qrot(cw, -cx, -cy, -cz, mbx, mby, mbz)
+    # back to world axes: undo the axis permutation, then the voxel frame
+    fx, fy, fz = from_link(ax, fax, fay, faz)
+    fax = r00 * fx + r01 * fy + r02 * fz
+    fay = r10 * fx + r11 * fy + r12 * fz
+    faz = r20 * fx + r21 * fy + r22 * fz
+    fx, fy, fz = from_link(ax, max_, may, maz)
+    max_ = r00 * fx + r01 * fy + r02 * fz
+    may = r10 * fx + r11 * fy + r12 * fz
+    maz = r20 * fx + r21 * fy + r22 * fz
+    fx, fy, fz = from_link(ax, mbx, mby, mbz)
+    mbx = r00 * fx + r01 * fy + r02 * fz
+    mby = r10 * fx + r11 * fy + r12 * fz
+    mbz = r20 * fx + r21 * fy + r22 * fz
 
     force[i, 0] += fax
     force[i, 1] += fay
@@ -253,21 +302,23 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
     moment[j, 0] += mbx
     moment[j, 1] += mby
     moment[j, 2] += mbz
-    return dx / rest
+    return abs(dx) - MAX_STRAIN * rest  # > 0: diverged
 
 
 @njit(**JIT)
 def link_forces(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
                 prev_valid, force, moment):
-    """Add the forces of links l0..l1 of one robot; return the largest |axial strain|."""
+    """Add the forces of links l0..l1 of one robot; return the largest excess of |axial
+    strain| over MAX_STRAIN (times rest length): > 0, or NaN, means diverged."""
     damp = fp[F_GAMMA] * 0.5 / fp[F_DT]
     a1, a2, b1, b2, b3 = fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3]
     inv_l = 1.0 / fp[F_L]
-    worst = 0.0
+    worst = -1e300
     for l in range(l0, l1):
-        strain = link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
+        excess = link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
                             prev_valid, force, moment, a1, a2, b1, b2, b3, damp, inv_l)
-        worst = max(worst, abs(strain))
+        if excess > worst or excess != excess:  # a NaN sticks
+            worst = excess
     return worst
 
 
@@ -473,7 +524,7 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
             collision_forces(p0, n_pairs, pairs, pos, lin_mom, size, fp, force)
         ok = integrate(v0, v1, fp, env, batch.flags, batch.ext_force, batch.nbr, size, static,
                        force, moment, pos, quat, lin_mom, ang_mom)
-        if not worst < MAX_STRAIN:  # also true for NaN
+        if not worst <= 0.0:  # also true for NaN
             status[r] = STATUS_STRAIN
             steps_done[r] = step + 1
             break

@@ -1,0 +1,77 @@
+"""Simulator throughput: voxel-steps per second, single robot and simulate_many (all cores).
+
+Usage: python bench/sim_throughput.py [--seconds 0.5]
+Prints compile time apart, then voxel-steps/s for actuated solid cubes of 4^3, 7^3, 10^3 on
+land and for random 7^3 robots, with the ratio to Voxelyze (2.8 M voxel-steps/s on one core).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numba
+import numpy as np
+
+import sim
+
+VOXELYZE = 2.8e6
+
+
+def cube(n: int, rng: np.random.Generator, seconds: float) -> dict:
+    return {
+        "body": np.full((n, n, n), 2).tolist(),
+        "phase": rng.uniform(0, 2 * np.pi, (n, n, n)).tolist(),
+        "material": {"youngs_modulus": 1e6},
+        "environment": {"kind": "land"},
+        "actuation": {"frequency": 3.0},
+        "duration": {"seconds": seconds},
+    }
+
+
+def random_robot(n: int, rng: np.random.Generator, seconds: float) -> dict:
+    body = rng.choice([0, 1, 2], size=(n, n, n), p=[0.3, 0.35, 0.35])
+    body[n // 2, n // 2, n // 2] = 2
+    scene = cube(n, rng, seconds)
+    scene["body"] = body.tolist()
+    return scene
+
+
+def voxel_steps(results) -> float:
+    return float(sum(r.steps * len(r.voxels) for r in results))
+
+
+def timed(scenes, threads):
+    start = time.perf_counter()
+    results = sim.simulate_many(scenes, threads=threads)
+    return voxel_steps(results) / (time.perf_counter() - start), results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--seconds", type=float, default=0.5, help="simulated seconds per robot")
+    args = parser.parse_args()
+    rng = np.random.default_rng(0)
+    cores = numba.config.NUMBA_NUM_THREADS
+    print(f"cores: {cores} (os: {os.cpu_count()}), numba {numba.__version__}")
+
+    start = time.perf_counter()
+    sim.simulate(cube(2, rng, 0.001))
+    print(f"compile / cache load: {time.perf_counter() - start:.2f} s (not counted below)")
+
+    print(f"{'case':<22}{'voxels':>7}{'1 core Mvs/s':>14}{'x Voxelyze':>11}"
+          f"{'many, all cores':>17}{'x 1 core':>9}")
+    cases = [(f"solid cube {n}^3", [cube(n, rng, args.seconds) for _ in range(2 * cores)])
+             for n in (4, 7, 10)]
+    cases.append(("random 7^3 robots", [random_robot(7, rng, args.seconds) for _ in range(4 * cores)]))
+    for name, scenes in cases:
+        single, res = timed(scenes[:1], threads=1)
+        many, _ = timed(scenes, threads=cores)
+        voxels = np.mean([len(r.voxels) for r in res])
+        print(f"{name:<22}{voxels:>7.0f}{single / 1e6:>14.2f}{single / VOXELYZE:>11.2f}"
+              f"{many / 1e6:>17.2f}{many / single:>9.2f}")
+
+
+if __name__ == "__main__":
+    main()
