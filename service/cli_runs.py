@@ -1,7 +1,258 @@
-"""Commands registered on the softevo CLI (filled in by the owning layer)."""
+"""``softevo run | experiment | status | resume | export | lineage`` (SPEC.md section 7).
+
+Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
+``sqlite:///softevo.db``) and a local process pool. Runs and experiments are named by
+``RUN_OR_EXPERIMENT``: ``5``, ``r5`` or ``run-5`` for run 5; ``e2`` or ``exp-2`` for
+experiment 2; or an experiment's name.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Annotated
 
 import typer
+
+from service.errors import UserError
+
+DbOption = Annotated[
+    str | None,
+    typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB or sqlite:///softevo.db)"),
+]
+WorkersOption = Annotated[
+    int | None,
+    typer.Option("--workers", help="evaluation processes (default: all cores; 0: inline)"),
+]
+QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
+
+
+def _parse_workspace(text: str) -> tuple[int, int, int]:
+    try:
+        sizes = tuple(int(part) for part in text.split(","))
+    except ValueError:
+        sizes = ()
+    if len(sizes) != 3 or min(sizes) < 1:
+        raise UserError(f"--workspace must be three positive integers X,Y,Z (got {text!r})")
+    return sizes  # type: ignore[return-value]
+
+
+def _workers(workers: int | None) -> int:
+    if workers is not None and workers < 0:
+        raise UserError(f"--workers must be >= 0 (got {workers})")
+    if workers is None:
+        return os.cpu_count() or 1
+    return workers
+
+
+def _execute(
+    engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = 4
+) -> None:
+    """Advance ``run_ids`` to their end with a progress bar; print a summary line per run."""
+    from service.coordinator import Coordinator, unfinished_runs
+    from service.executors import make_executor
+    from service.progress import progress_bar
+
+    runs = unfinished_runs(engine, run_ids)
+    if not runs:
+        typer.echo("nothing to do: every run is finished")
+        return
+    total, done = _generation_counts(engine, runs)
+    executor = make_executor(_workers(workers), genomes_per_task)
+    try:
+        with progress_bar(total, done, enabled=not quiet) as reporter:
+            Coordinator(engine, executor, on_generation=reporter).run(runs)
+    finally:
+        executor.close()
+    _print_status(engine, run_ids)
+
+
+def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
+    from service.db.store import run_row
+
+    with engine.connect() as conn:
+        rows = [run_row(conn, run_id) for run_id in run_ids]
+    return sum(r["generations"] for r in rows), sum(r["generation"] + 1 for r in rows)
+
+
+def run(
+    env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
+    stiffness: Annotated[
+        float, typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10)")
+    ],
+    population: Annotated[int, typer.Option("--population")] = 30,
+    generations: Annotated[int, typer.Option("--generations")] = 100,
+    workspace: Annotated[str, typer.Option("--workspace", help="X,Y,Z voxels")] = "7,7,7",
+    cycles: Annotated[int, typer.Option("--cycles", help="actuation cycles per evaluation")] = 50,
+    seed: Annotated[int, typer.Option("--seed")] = 0,
+    switch_at: Annotated[
+        int | None, typer.Option("--switch-at", help="first generation in the second environment")
+    ] = None,
+    db: DbOption = None,
+    workers: WorkersOption = None,
+    quiet: QuietOption = False,
+) -> None:
+    """Evolve one treatment (one run) and store every individual."""
+    from service.db import open_database
+    from service.experiments import create
+    from service.treatments import Treatment
+
+    treatment = Treatment(
+        env,
+        stiffness,
+        population=population,
+        generations=generations,
+        workspace=_parse_workspace(workspace),
+        cycles=cycles,
+        seed=seed,
+        switch_at=switch_at,
+    )
+    engine = open_database(db)
+    experiment_id, run_ids = create(engine, "run", [treatment])
+    typer.echo(f"experiment {experiment_id} (e{experiment_id}): run {run_ids[0]}", err=True)
+    _execute(engine, run_ids, workers, quiet, treatment.genomes_per_task)
+
+
+def experiment(
+    preset: Annotated[str, typer.Argument(help="paper: the paper's grid (SPEC.md section 5)")],
+    scale: Annotated[str, typer.Option("--scale", help="tiny | small | paper")] = "tiny",
+    repetitions: Annotated[int | None, typer.Option("--repetitions")] = None,
+    seed: Annotated[int, typer.Option("--seed")] = 0,
+    db: DbOption = None,
+    workers: WorkersOption = None,
+    quiet: QuietOption = False,
+) -> None:
+    """Run a preset experiment: every treatment and repetition."""
+    from service.db import open_database
+    from service.experiments import create_paper
+    from service.treatments import paper_grid
+
+    if preset != "paper":
+        raise UserError(f"unknown experiment preset {preset!r}; choose paper")
+    if repetitions is not None and repetitions < 1:
+        raise UserError(f"--repetitions must be >= 1 (got {repetitions})")
+    paper_grid(scale)  # validates the scale before touching the database
+    engine = open_database(db)
+    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed)
+    typer.echo(
+        f"experiment {experiment_id} (e{experiment_id}): runs {run_ids[0]}..{run_ids[-1]}", err=True
+    )
+    _execute(engine, run_ids, workers, quiet)
+
+
+def _print_status(engine, run_ids: list[int]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from service.db.status import run_summaries
+
+    table = Table(
+        "run", "experiment", "treatment", "rep", "seed", "status", "generation", "best distance"
+    )
+    for r in run_summaries(engine, run_ids):
+        best = "-" if r["best_distance"] is None else f"{r['best_distance']:.3f}"
+        table.add_row(
+            str(r["run_id"]),
+            f"e{r['experiment_id']} {r['experiment']}",
+            r["treatment"],
+            str(r["repetition"]),
+            str(r["seed"]),
+            r["status"],
+            f"{r['generation'] + 1}/{r['generations']}",
+            best,
+        )
+    Console().print(table)
+
+
+def status(
+    reference: Annotated[str | None, typer.Argument(metavar="[RUN_OR_EXPERIMENT]")] = None,
+    db: DbOption = None,
+) -> None:
+    """Show runs: status, generation, best distance."""
+    from service.db import open_database
+    from service.db.store import resolve_runs
+
+    engine = open_database(db)
+    with engine.connect() as conn:
+        run_ids = resolve_runs(conn, reference)
+    if not run_ids:
+        typer.echo("no runs yet")
+        return
+    _print_status(engine, run_ids)
+
+
+def resume(
+    reference: Annotated[str | None, typer.Argument(metavar="[RUN_OR_EXPERIMENT]")] = None,
+    db: DbOption = None,
+    workers: WorkersOption = None,
+    quiet: QuietOption = False,
+) -> None:
+    """Continue unfinished runs from their last stored generation."""
+    from service.db import open_database
+    from service.db.store import resolve_runs
+
+    engine = open_database(db)
+    with engine.connect() as conn:
+        run_ids = resolve_runs(conn, reference)
+    _execute(engine, run_ids, workers, quiet)
+
+
+def export(
+    reference: Annotated[str, typer.Argument(metavar="RUN_OR_EXPERIMENT")],
+    out: Annotated[str, typer.Option("--out", help="output directory")],
+    fmt: Annotated[str, typer.Option("--format", help="csv | parquet")] = "csv",
+    db: DbOption = None,
+) -> None:
+    """Write runs, individuals (one row per evaluation) and populations files."""
+    from service.db import open_database
+    from service.db.export import export_runs
+    from service.db.store import resolve_runs
+
+    engine = open_database(db)
+    with engine.connect() as conn:
+        run_ids = resolve_runs(conn, reference)
+    for path in export_runs(engine, run_ids, out, fmt):
+        typer.echo(str(path))
+
+
+def lineage(
+    individual: Annotated[int, typer.Argument(metavar="INDIVIDUAL")],
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    db: DbOption = None,
+) -> None:
+    """An individual's ancestors, newest first, to its root newcomer."""
+    from service.db import open_database
+    from service.db.status import lineage_records
+
+    records = lineage_records(open_database(db), individual)
+    if as_json:
+        typer.echo(json.dumps(records, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        "id", "parent", "born", "environment", "distance", "active share", "voxels", "error"
+    )
+    for r in records:
+        table.add_row(
+            str(r["id"]),
+            str(r["parent_id"] or "-"),
+            str(r["generation_born"]),
+            str(r["environment"]),
+            _fmt(r["distance"]),
+            _fmt(r["active_share"]),
+            str(r["voxel_count"]),
+            r["error"] or "",
+        )
+    Console().print(table)
+
+
+def _fmt(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3f}"
 
 
 def register(app: typer.Typer) -> None:
     """Add this module's commands to ``app``."""
+    for command in (run, experiment, status, resume, export, lineage):
+        app.command(name=command.__name__)(command)

@@ -1,0 +1,63 @@
+"""Read models for status displays and the REST layer: run summaries and lineage records."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from sqlalchemy import Engine, func, select
+
+from service.db.models import Experiment, Generation, Run, Treatment
+from service.db.phylogeny import ancestors
+from service.errors import UserError
+
+
+def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]]:
+    """Per run: run_id, experiment_id, experiment, treatment, repetition, seed, status,
+    generation (last committed), generations, best_distance (best ever, None before any)."""
+    runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
+    generations = Generation.__table__
+    best = (
+        select(generations.c.run_id, func.max(generations.c.best_distance).label("best_distance"))
+        .group_by(generations.c.run_id)
+        .subquery("best")
+    )
+    query = (
+        select(
+            runs.c.id.label("run_id"),
+            treatments.c.experiment_id,
+            experiments.c.name.label("experiment"),
+            treatments.c.name.label("treatment"),
+            runs.c.repetition,
+            runs.c.seed,
+            runs.c.status,
+            runs.c.generation,
+            runs.c.generations,
+            best.c.best_distance,
+        )
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .join(experiments, treatments.c.experiment_id == experiments.c.id)
+        .outerjoin(best, best.c.run_id == runs.c.id)
+        .where(runs.c.id.in_(list(run_ids)))
+        .order_by(runs.c.id)
+    )
+    with engine.connect() as conn:
+        return [dict(row) for row in conn.execute(query).mappings()]
+
+
+def lineage_records(engine: Engine, individual_id: int) -> list[dict[str, Any]]:
+    """Ancestors newest first as plain dicts (SPEC.md section 6, /individuals/{id}/lineage)."""
+    frame = ancestors(engine, individual_id)
+    if frame.empty:
+        raise UserError(f"no individual {individual_id}")
+    records = frame.astype(object).where(frame.notna(), None).to_dict(orient="records")
+    return [{key: _plain(value) for key, value in record.items()} for record in records]
+
+
+def _plain(value: Any) -> Any:
+    if hasattr(value, "item"):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,68 @@
+"""Acceptance: SIGKILL mid-run (or mid-write), resume, and get the uninterrupted results."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from sqlalchemy import select
+
+from service.db import open_database
+from service.db.models import Run
+from tests.service import tinyrun
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory, numba_cache):
+    """The uninterrupted run (SQLite)."""
+    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('ref') / 'ref.db'}")
+    run_id = tinyrun.new_run(engine)
+    tinyrun.run_to_end(engine, run_id)
+    snap = tinyrun.snapshot(engine, run_id)
+    engine.dispose()
+    return snap
+
+
+def _python(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, *args], cwd=ROOT, stderr=subprocess.PIPE)
+
+
+def _generation(engine) -> int:
+    with engine.connect() as conn:
+        return conn.execute(select(Run.__table__.c.generation)).scalar_one()
+
+
+def _resume_and_compare(engine, reference) -> None:
+    tinyrun.run_to_end(engine, 1)
+    assert tinyrun.snapshot(engine, 1) == reference
+
+
+@pytest.mark.parametrize(("mode", "generation"), [("after-commit", 1), ("during-write", 3)])
+def test_sigkill_then_resume_is_identical(engine, db_url, reference, mode, generation):
+    assert tinyrun.new_run(engine) == 1
+    process = _python("-m", "tests.service.killed_run", db_url, mode, str(generation))
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == -signal.SIGKILL, stderr.decode()[-2000:]
+    committed = generation if mode == "after-commit" else generation - 1
+    assert _generation(engine) == committed
+    _resume_and_compare(engine, reference)
+
+
+@pytest.mark.slow
+def test_external_sigkill_of_the_cli_then_resume(engine, db_url, reference):
+    assert tinyrun.new_run(engine) == 1
+    process = _python("-m", "service.cli", "resume", "r1", "--db", db_url, "--workers", "0", "-q")
+    deadline = time.monotonic() + 300
+    while _generation(engine) < 1 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait(timeout=60)
+    assert _generation(engine) < 4
+    _resume_and_compare(engine, reference)

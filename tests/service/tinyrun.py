@@ -1,0 +1,80 @@
+"""Helpers for tests on real (tiny) runs: create, run inline, and snapshot a run's results."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sqlalchemy import Engine, select
+
+from service.coordinator import Coordinator
+from service.db.models import Evaluation, Individual, PopulationMember, Run
+from service.executors import Executor, InlineExecutor
+from service.experiments import create
+from service.treatments import Treatment
+
+TINY = Treatment(
+    "land-water",
+    0.1,
+    population=4,
+    generations=5,
+    workspace=(4, 4, 4),
+    cycles=2,
+    switch_at=3,
+    seed=11,
+)
+
+
+def new_run(engine: Engine, treatment: Treatment = TINY) -> int:
+    _, (run_id,) = create(engine, "test", [treatment])
+    return run_id
+
+
+def run_to_end(engine: Engine, run_id: int, executor: Executor | None = None) -> None:
+    Coordinator(engine, executor or InlineExecutor()).run([run_id])
+
+
+def snapshot(engine: Engine, run_id: int) -> dict[str, Any]:
+    """Everything a run stored, keyed by the algorithm's local ids (comparable across DBs)."""
+    ind, ev, pm = Individual.__table__, Evaluation.__table__, PopulationMember.__table__
+    parent = ind.alias("parent")
+    with engine.connect() as conn:
+        individuals = conn.execute(
+            select(ind.c.local_id, parent.c.local_id, ind.c.generation_born, ind.c.genome)
+            .outerjoin(parent, ind.c.parent_id == parent.c.id)
+            .where(ind.c.run_id == run_id)
+            .order_by(ind.c.local_id)
+        ).all()
+        evaluations = conn.execute(
+            select(
+                ind.c.local_id,
+                ev.c.generation,
+                ev.c.environment,
+                ev.c.age,
+                ev.c.distance,
+                ev.c.active_share,
+                ev.c.voxel_count,
+                ev.c.symmetry,
+                ev.c.stable,
+                ev.c.error,
+            )
+            .join(ind, ev.c.individual_id == ind.c.id)
+            .where(ev.c.run_id == run_id)
+            .order_by(ev.c.generation, ind.c.local_id)
+        ).all()
+        members = conn.execute(
+            select(pm.c.generation, ind.c.local_id, pm.c.front_rank, pm.c.age)
+            .join(ind, pm.c.individual_id == ind.c.id)
+            .where(pm.c.run_id == run_id)
+            .order_by(pm.c.generation, ind.c.local_id)
+        ).all()
+        run = conn.execute(
+            select(
+                Run.__table__.c.status, Run.__table__.c.generation, Run.__table__.c.algorithm_state
+            ).where(Run.__table__.c.id == run_id)
+        ).one()
+    return {
+        "individuals": [tuple(r) for r in individuals],
+        "evaluations": [tuple(r) for r in evaluations],
+        "members": [tuple(r) for r in members],
+        "run": tuple(run),
+    }
