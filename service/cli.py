@@ -30,6 +30,11 @@ def _user_error_types() -> tuple[type[BaseException], ...]:
     return (UserError, SceneError)
 
 
+@app.callback()
+def _group() -> None:
+    """Evolve soft voxel robots on land and in water."""
+
+
 def _register() -> None:
     from service import cli_evolution, cli_runs, cli_sim
 
@@ -49,17 +54,12 @@ def main(argv: list[str] | None = None) -> None:
     except typer.Abort:
         print("aborted", file=sys.stderr)
         sys.exit(130)
-    except Exception as exc:  # click usage errors carry their own exit code
-        import click
-
-        if isinstance(exc, click.exceptions.ClickException):
+    except Exception as exc:
+        # usage errors (unknown option, missing argument) from typer's bundled click
+        if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
             print(f"error: {exc.format_message()}", file=sys.stderr)
             sys.exit(2)
         raise
-    except SystemExit as exc:
-        # standalone_mode=False returns exit codes instead of raising; keep them
-        raise exc
-
 
 if __name__ == "__main__":
     main()

@@ -127,11 +127,3 @@ def simulate(
 def register(app: typer.Typer) -> None:
     """Add the ``simulate`` command to ``app``."""
     app.command("simulate")(simulate)
-    if app.registered_callback is None:
-        # Typer runs a lone command as the whole program (``softevo SCENE.json``); a group
-        # callback keeps ``softevo simulate SCENE.json`` working while it is the only one.
-        app.callback()(_group)
-
-
-def _group() -> None:
-    """Evolve soft voxel robots on land and in water."""
