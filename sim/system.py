@@ -33,6 +33,7 @@ N_IPARAMS = 8
 
 ENV_CODES = {"land": 0, "water": 1, "void": 2}
 WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
+STEPS_PER_CYCLE = 1000  # the step also resolves the actuation cycle at least this finely
 COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
@@ -156,6 +157,8 @@ def build_robot(scene: Scene) -> Robot:
     ang_mom[fixed] = 0.0
 
     dt = stable_dt(L, rho, E, scene.dt_fraction)
+    if act.frequency > 0 and (flags & FLAG_ACTIVE).any():
+        dt = min(dt, 1.0 / (act.frequency * STEPS_PER_CYCLE))
     settle_steps = int(round(scene.settle_seconds / dt))
     steps = settle_steps + int(math.ceil(scene.duration_seconds / dt - 1e-9))
     gravity = env.gravity

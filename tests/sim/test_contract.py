@@ -46,7 +46,8 @@ def test_result_fields_and_strict_json():
 
 
 def test_initial_placement_and_dt():
-    """Voxel (i, j, k) starts centred at ((i, j, k) + 1/2) L; dt = 0.7 L sqrt(rho/E) / 2 pi."""
+    """Voxel (i, j, k) starts centred at ((i, j, k) + 1/2) L; dt = f L sqrt(rho/E) / 2 pi with
+    f the default dt_fraction (here below the actuation-period cap)."""
     body = np.zeros((3, 2, 2), int)
     body[:, 0, 0] = 1
     body[0, 1, 0] = 2
@@ -58,7 +59,8 @@ def test_initial_placement_and_dt():
     expected = (np.asarray(result.voxels) + 0.5) * 0.04
     np.testing.assert_allclose(pos[0], expected, atol=1e-15)
     assert [tuple(v) for v in result.voxels] == [tuple(v) for v in np.argwhere(body > 0)]
-    assert result.dt == pytest.approx(0.7 * 0.04 * math.sqrt(1200 / 1e6) / (2 * math.pi))
+    fraction = sim.Scene.dt_fraction
+    assert result.dt == pytest.approx(fraction * 0.04 * math.sqrt(1200 / 1e6) / (2 * math.pi))
 
 
 def test_distance_is_horizontal_on_land():
@@ -102,8 +104,10 @@ def test_step_budget_returns_unstable_not_hang():
 def test_unstable_robot_is_flagged_with_strict_json():
     """Far past the stable step the robot blows up: stable false, a reason, distance 0, and
     its to_dict still valid JSON (no NaN: the CLI prints it and the database stores it)."""
+    # passive voxels: the actuation-period cap on the step does not apply
     result = sim.simulate(_block("land", 0.5, dt_fraction=8.0,
-                                 body=np.full((3, 3, 3), 2).tolist()))
+                                 body=np.full((3, 3, 3), 1).tolist(),
+                                 initial_velocity=[0.0, 0.0, -0.5]))
     assert not result.stable
     assert result.reason
     assert result.distance == 0.0

@@ -1,0 +1,123 @@
+"""Coordinator and storage overhead per generation, and local executor throughput.
+
+    python bench/coordinator_overhead.py [--populations 30,100] [--generations 5]
+                                         [--cycles 50] [--workspace 7,7,7] [--batch 16]
+
+1. Overhead: the coordinator runs ``--generations`` generations with an executor that
+   returns instant results, on a SQLite file: what is left per generation is ask (breeding,
+   expression), tell (selection), and the transaction that stores the generation.
+2. Evaluation time: one real generation (the initial population) on the local process pool
+   over all cores, with paper-like settings (``--cycles``, ``--workspace``).
+3. Share = overhead / evaluation time per generation (target < 2%).
+4. Evaluations per second of the local executor with 1 process vs 2 (target >= 1.8x),
+   on ``--batch`` random genomes, processes warmed first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from service.coordinator import Coordinator, ask, load_run
+from service.db import open_database
+from service.executors import LocalExecutor
+from service.experiments import create
+from service.treatments import Treatment
+
+
+class InstantExecutor:
+    """Results without simulation: distance from the genome's id (deterministic)."""
+
+    workers = 1
+
+    def evaluate(self, tasks):
+        return [
+            {
+                "id": t["id"],
+                "distance": (t["id"] * 0.618) % 1.0,
+                "stable": True,
+                "error": None,
+                "descriptors": {"symmetry": 0.5, "branching": 0.1, "shape_entropy": 1.0, "frequency": 2.0},
+                "phenotype": None,
+                "seconds": 0.0,
+            }
+            for t in tasks
+        ]
+
+    def close(self):
+        pass
+
+
+def overhead_per_generation(population: int, generations: int, args, folder: Path) -> float:
+    """Seconds of coordinator + storage work per generation (no evaluation cost)."""
+    engine = open_database(f"sqlite:///{folder / f'overhead{population}.db'}")
+    treatment = Treatment(
+        "land",
+        0.1,
+        population=population,
+        generations=generations + 1,
+        workspace=args.workspace,
+        cycles=args.cycles,
+    )
+    _, (run_id,) = create(engine, "bench", [treatment])
+    coordinator = Coordinator(engine, InstantExecutor())
+    coordinator.run([run_id], max_rounds=1)  # generation 0: warm imports and caches
+    start = time.perf_counter()
+    coordinator.run([run_id], max_rounds=generations)
+    return (time.perf_counter() - start) / generations
+
+
+def generation_tasks(population: int, args, folder: Path) -> list[dict]:
+    """The evaluation tasks of a fresh run's first generation."""
+    engine = open_database(f"sqlite:///{folder / f'tasks{population}.db'}")
+    treatment = Treatment(
+        "land", 0.1, population=population, generations=2, workspace=args.workspace, cycles=args.cycles
+    )
+    _, (run_id,) = create(engine, "bench", [treatment])
+    return ask(load_run(engine, run_id))
+
+
+def timed(executor: LocalExecutor, tasks: list[dict]) -> float:
+    start = time.perf_counter()
+    executor.evaluate(tasks)
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--populations", default="30,100")
+    parser.add_argument("--generations", type=int, default=5)
+    parser.add_argument("--cycles", type=int, default=50)
+    parser.add_argument("--workspace", default="7,7,7")
+    parser.add_argument("--batch", type=int, default=16)
+    args = parser.parse_args()
+    args.workspace = tuple(int(n) for n in args.workspace.split(","))
+    folder = Path(tempfile.mkdtemp(prefix="softevo-bench-"))
+    pool = LocalExecutor()
+    pool.warm()
+    print(f"workspace {args.workspace}, {args.cycles} cycles, {pool.workers} processes")
+    for population in (int(p) for p in args.populations.split(",")):
+        overhead = overhead_per_generation(population, args.generations, args, folder)
+        evaluation = timed(pool, generation_tasks(population, args, folder))
+        print(
+            f"population {population:4d}: overhead {overhead * 1e3:8.1f} ms/generation, "
+            f"evaluation {evaluation:7.2f} s/generation, share {overhead / evaluation:6.2%}"
+        )
+    pool.close()
+    tasks = generation_tasks(args.batch, args, folder)[: args.batch]
+    rates = {}
+    for workers in (1, 2):
+        executor = LocalExecutor(workers, genomes_per_task=2)
+        executor.warm()
+        rates[workers] = len(tasks) / float(np.median([timed(executor, tasks) for _ in range(2)]))
+        executor.close()
+        print(f"local executor, {workers} process(es): {rates[workers]:.2f} evaluations/s")
+    print(f"speed-up 2 vs 1: {rates[2] / rates[1]:.2f}x")
+
+
+if __name__ == "__main__":
+    main()

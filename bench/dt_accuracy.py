@@ -1,0 +1,114 @@
+"""How large may the step be? Distance error against a small-step reference, per stiffness.
+
+For a walker (land) and a swimmer (water), each of the paper's five stiffnesses, run 10
+actuation cycles at several ``dt_fraction`` values and compare the travelled distance with a
+reference at ``--reference`` (default 0.1). Prints the error table and, per stiffness, the
+largest fraction within 1%. Then evaluations per second of the paper-like robot (7^3 workspace,
+50 cycles) at each stiffness with the default fraction, one core.
+
+Usage: python bench/dt_accuracy.py [--cycles 10] [--reference 0.1] [--skip-speed]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import sim
+from sim.scene import Scene
+
+STIFFNESS_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
+FRACTIONS = (0.15, 0.2, 0.3, 0.5, 0.7, 0.9, 1.2)
+
+
+def walker() -> tuple[np.ndarray, np.ndarray]:
+    """A four-legged 6x4x3 body, active legs, phase travelling along x."""
+    body = np.zeros((6, 4, 3), int)
+    body[:, :, 1:] = 1
+    for x in (0, 1, 4, 5):
+        for y in (0, 3):
+            body[x, y, 0] = 2
+    body[:, :, 2] = 2
+    phase = np.broadcast_to(np.arange(6)[:, None, None] * 0.9, body.shape).copy()
+    return body, phase
+
+
+def swimmer() -> tuple[np.ndarray, np.ndarray]:
+    """A 5x5x2 plate with two active flaps beating out of phase."""
+    body = np.ones((5, 5, 2), int)
+    body[:2] = 2
+    body[3:] = 2
+    phase = np.zeros(body.shape)
+    phase[3:] = np.pi
+    return body, phase
+
+
+def scene(kind: str, mpa: float, fraction: float, cycles: float) -> dict:
+    body, phase = walker() if kind == "land" else swimmer()
+    return {
+        "body": body.tolist(), "phase": phase.tolist(),
+        "material": {"youngs_modulus": mpa * 1e6},
+        "environment": {"kind": kind},
+        "actuation": {"frequency": 2.0},
+        "duration": {"cycles": cycles},
+        "settle_seconds": 0.5 if kind == "land" else 0.0,
+        "dt_fraction": fraction,
+    }
+
+
+def accuracy(cycles: float, reference: float) -> None:
+    print(f"relative distance error vs dt_fraction {reference} ({cycles:g} cycles)")
+    print(f"{'world':<7}{'MPa':>7}{'ref dist':>10}" + "".join(f"{f:>8}" for f in FRACTIONS)
+          + "   largest within 1%")
+    safe_all = []
+    for kind in ("land", "water"):
+        for mpa in STIFFNESS_MPA:
+            fractions = (reference, *FRACTIONS)
+            results = sim.simulate_many([scene(kind, mpa, f, cycles) for f in fractions])
+            base = results[0].distance
+            errors = [abs(r.distance - base) / max(abs(base), 1e-9) if r.stable else np.inf
+                      for r in results[1:]]
+            ok = [f for f, e in zip(FRACTIONS, errors, strict=True) if e <= 0.01]
+            largest = max(ok) if ok else None
+            safe_all.append(largest or 0.0)
+            print(f"{kind:<7}{mpa:>7g}{base:>10.3f}" + "".join(f"{e:>8.2%}" for e in errors)
+                  + f"   {largest}")
+    print(f"largest fraction safe at every stiffness and world: {min(safe_all)}")
+
+
+def speed() -> None:
+    rng = np.random.default_rng(1)
+    body = rng.choice([0, 1, 2], size=(7, 7, 7), p=[0.4, 0.3, 0.3])
+    base = {"body": body.tolist(), "phase": rng.uniform(0, 6.28, body.shape).tolist(),
+            "actuation": {"frequency": 2.0}, "duration": {"cycles": 50}}
+    default = Scene.__dataclass_fields__["dt_fraction"].default
+    print(f"\npaper-like robot ({int((body > 0).sum())} voxels before pruning, 7^3 workspace, "
+          f"50 cycles at 2 Hz, dt_fraction {default}), one core:")
+    print(f"{'world':<7}{'MPa':>7}{'steps':>10}{'seconds':>9}{'evals/s':>9}{'Mvs/s':>8}")
+    sim.simulate(dict(base, duration={"seconds": 0.001}))
+    for kind in ("land", "water"):
+        for mpa in STIFFNESS_MPA:
+            s = dict(base, environment={"kind": kind}, material={"youngs_modulus": mpa * 1e6},
+                     settle_seconds=0.5 if kind == "land" else 0.0)
+            start = time.perf_counter()
+            r = sim.simulate(s)
+            el = time.perf_counter() - start
+            print(f"{kind:<7}{mpa:>7g}{r.steps:>10}{el:>9.2f}{1 / el:>9.3f}"
+                  f"{r.steps * len(r.voxels) / el / 1e6:>8.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--cycles", type=float, default=10)
+    parser.add_argument("--reference", type=float, default=0.1)
+    parser.add_argument("--skip-speed", action="store_true")
+    args = parser.parse_args()
+    accuracy(args.cycles, args.reference)
+    if not args.skip_speed:
+        speed()
+
+
+if __name__ == "__main__":
+    main()
