@@ -102,6 +102,8 @@ def ask(run: ActiveRun) -> list[dict[str, Any]]:
     return [
         {
             "id": ind.id,
+            "run_id": run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
+            "generation": generation,
             "genome": ind.genome.to_dict(),
             "environment": environment,
             "youngs_modulus": run.treatment.stiffness_pa,

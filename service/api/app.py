@@ -1,0 +1,232 @@
+"""The FastAPI application: ``create_app(settings)``.
+
+The lifespan builds what the routes use (``Services``): the database engine (schema
+upgraded), the executor (RQ when ``SOFTEVO_REDIS_URL`` is set, else local processes) and,
+unless ``SOFTEVO_COORDINATOR=false``, the coordinator loop that drives every unfinished run
+(``service.driver``). Nothing is built at import time.
+
+Errors are JSON ``{"detail": "<message>"}`` (422 adds ``errors``, the problems found).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import multiprocessing
+import threading
+from collections.abc import AsyncIterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI, HTTPException, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from sqlalchemy import Engine
+from sqlalchemy.exc import DBAPIError, OperationalError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from service.errors import UserError
+from service.settings import Settings
+
+log = logging.getLogger("softevo.api")
+
+
+class Services:
+    """What the app builds in its lifespan and the routes share."""
+
+    def __init__(self, settings: Settings, engine: Engine) -> None:
+        self.settings = settings
+        self.engine = engine
+        self.stop = threading.Event()
+        self.executor: Any = None
+        self.executor_kind = "none"
+        self.loop: Any = None
+        self._status_queue: Any = None
+        self._frames_pool: ProcessPoolExecutor | None = None
+        self._frames_mutex = threading.Lock()
+
+    # -- building and closing ----------------------------------------------------------------
+
+    def start(self) -> None:
+        """Executor and coordinator loop (if this process coordinates)."""
+        settings = self.settings
+        if settings.redis_url:
+            from rq import Queue
+            from rq.serializers import JSONSerializer
+
+            from service.rq_executor import connect
+
+            self._status_queue = Queue(
+                settings.queue, connection=connect(settings.redis_url), serializer=JSONSerializer
+            )
+            self.executor_kind = "rq"
+        if not settings.coordinator:
+            return
+        self.executor = self._make_executor()
+        from service.driver import CoordinatorLoop, LocalLocks, RedisLocks
+
+        if settings.redis_url:
+            locks = RedisLocks(settings.redis_url, settings.database_namespace())
+        else:
+            locks = LocalLocks()
+        self.loop = CoordinatorLoop(self.engine, self.executor, locks, stop=self.stop)
+        self.loop.start()
+
+    def _make_executor(self):
+        settings = self.settings
+        if settings.redis_url:
+            from service.rq_executor import RQExecutor
+
+            return RQExecutor(
+                settings.redis_url,
+                queue=settings.queue,
+                genomes_per_job=settings.genomes_per_job,
+                job_timeout=settings.job_timeout,
+                retries=settings.job_retries,
+                result_ttl=settings.result_ttl,
+                stop=self.stop,
+            )
+        from service.executors import make_executor
+
+        self.executor_kind = "local"
+        return make_executor(settings.workers, settings.genomes_per_job)
+
+    def close(self) -> None:
+        self.stop.set()
+        if self.loop is not None:
+            self.loop.stop()
+        if self.executor is not None:
+            self.executor.close()
+        if self._frames_pool is not None:
+            self._frames_pool.shutdown(wait=False, cancel_futures=True)
+        self.engine.dispose()
+
+    # -- used by the routes ------------------------------------------------------------------
+
+    def executor_status(self) -> tuple[int, int, bool]:
+        """(workers, queued jobs, reachable) of the executor."""
+        if self._status_queue is not None:
+            from rq import Worker
+            from rq.worker_registration import clean_worker_registry
+
+            try:
+                clean_worker_registry(self._status_queue)
+                return Worker.count(queue=self._status_queue), self._status_queue.count, True
+            except Exception:
+                return 0, 0, False
+        if self.executor is not None:
+            return int(self.executor.workers), 0, True
+        return 0, 0, True
+
+    def wake(self) -> None:
+        """A new experiment: nothing to do, the loop polls the database every second."""
+
+    def cancel(self, run_id: int) -> None:
+        if self.loop is not None:
+            self.loop.request_cancel(run_id)
+
+    async def record_motion(self, task: dict, every: int, max_frames: int) -> dict:
+        """``worker.frames.record_motion`` in a separate process (numba holds the GIL)."""
+        from worker.frames import record_motion
+
+        with self._frames_mutex:
+            if self._frames_pool is None:
+                from worker.evaluate import init_pool_process
+
+                self._frames_pool = ProcessPoolExecutor(
+                    max_workers=1,
+                    mp_context=multiprocessing.get_context("spawn"),
+                    initializer=init_pool_process,
+                )
+            future = self._frames_pool.submit(record_motion, task, every, max_frames)
+        return await asyncio.wrap_future(future)
+
+
+# -- errors ------------------------------------------------------------------------------------
+
+
+def _error(status: int, message: str, headers: dict | None = None, **extra) -> JSONResponse:
+    return JSONResponse({"detail": message, **extra}, status_code=status, headers=headers)
+
+
+def _location(loc) -> str:
+    return ".".join(str(part) for part in loc)
+
+
+async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
+    errors = []
+    for error in exc.errors():
+        errors.append(
+            {
+                "loc": [str(part) for part in error.get("loc", ())],
+                "msg": str(error.get("msg", "")),
+                "type": str(error.get("type", "")),
+            }
+        )
+    first = errors[0] if errors else {"loc": [], "msg": "invalid request"}
+    message = f"{_location(first['loc'])}: {first['msg']}" if first["loc"] else first["msg"]
+    if len(errors) > 1:
+        message += f" (and {len(errors) - 1} more problem(s))"
+    return _error(422, message, errors=errors)
+
+
+async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+    return _error(exc.status_code, str(exc.detail), getattr(exc, "headers", None))
+
+
+async def _user_error(request: Request, exc: UserError) -> JSONResponse:
+    return _error(422, str(exc), errors=[])
+
+
+async def _database_error(request: Request, exc: DBAPIError) -> JSONResponse:
+    log.error("database error on %s: %s", request.url.path, exc)
+    if isinstance(exc, OperationalError) or exc.connection_invalidated:
+        return _error(503, "the database is unreachable; try again shortly")
+    return _error(500, "database error")
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(StarletteHTTPException, _http_error)
+    app.add_exception_handler(HTTPException, _http_error)
+    app.add_exception_handler(UserError, _user_error)
+    app.add_exception_handler(DBAPIError, _database_error)
+
+
+# -- the app -----------------------------------------------------------------------------------
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The API for ``settings`` (default: from the environment).
+
+    Raises UserError when no token is set and ``settings.host`` is not a loopback address.
+    """
+    from service.api.routes import experiments, health, individuals, runs
+
+    settings = settings or Settings()
+    settings.check_safe()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        from service.db import open_database
+
+        services = Services(settings, open_database(settings.db))
+        app.state.services = services
+        services.start()
+        try:
+            yield
+        finally:
+            await asyncio.to_thread(services.close)
+
+    app = FastAPI(
+        title="softevo",
+        summary="Evolve soft voxel robots on land and in water: experiments, runs, lineages.",
+        version="0.1.0",
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    install_error_handlers(app)
+    for module in (health, experiments, runs, individuals):
+        app.include_router(module.router)
+    return app

@@ -1,0 +1,125 @@
+"""/individuals: one individual, its lineage, its recorded motion."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Annotated, Literal
+
+from fastapi import APIRouter, HTTPException, Path, Query
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import Response
+
+from service.api import queries
+from service.api.deps import COMMON, NOT_FOUND, ServicesDep
+from service.api.frames import __doc__ as FRAMES_FORMAT
+from service.api.frames import encode_frames
+from service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
+from service.errors import UserError
+
+router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
+
+IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32, description="individual id")]
+FRAMES_TIMEOUT_S = 300
+
+
+def _with_connection(services, function, *args):
+    with services.engine.connect() as conn:
+        return function(conn, *args)
+
+
+@router.get("/{individual_id}", response_model=IndividualOut, responses=NOT_FOUND)
+def get_individual(individual_id: IndividualId, services: ServicesDep):
+    """Genome, phenotype summary, objectives and descriptors (of the latest evaluation), and
+    every evaluation (at birth, and again after an environment switch)."""
+    found = _with_connection(services, queries.individual, individual_id)
+    if found is None:
+        raise HTTPException(404, f"no individual {individual_id}")
+    return found
+
+
+@router.get("/{individual_id}/lineage", response_model=list[LineageEntry], responses=NOT_FOUND)
+def lineage(individual_id: IndividualId, services: ServicesDep):
+    """Ancestors, newest first (the individual itself at depth 0), to the root newcomer
+    (``parent_id`` null); traits from each one's evaluation at birth."""
+    from service.db.status import lineage_records
+
+    try:
+        return [queries.finite(record) for record in lineage_records(services.engine, individual_id)]
+    except UserError as exc:
+        raise HTTPException(404, str(exc)) from exc
+
+
+def _frames_task(services, individual_id: int, environment: str | None) -> dict:
+    """The evaluation task of a stored individual (as the coordinator built it)."""
+    from service.experiments import evolution_config
+    from service.treatments import Treatment
+
+    context = _with_connection(services, queries.individual_context, individual_id)
+    if context is None:
+        raise HTTPException(404, f"no individual {individual_id}")
+    evaluations = context["evaluations"]
+    if environment is not None:
+        evaluations = [e for e in evaluations if e["environment"] == environment]
+    if not evaluations:
+        where = f" in {environment}" if environment else ""
+        raise HTTPException(404, f"individual {individual_id} was never evaluated{where}")
+    evaluation = evaluations[-1]
+    treatment = Treatment.from_settings(context["settings"])
+    encoding = evolution_config(treatment, context["seed"]).encoding
+    return {
+        "id": individual_id,
+        "genome": context["genome"],
+        "environment": evaluation["environment"],
+        "youngs_modulus": evaluation["stiffness"],
+        "cycles": treatment.cycles,
+        "encoding": encoding.to_dict(),
+    }
+
+
+@router.get(
+    "/{individual_id}/frames",
+    response_class=Response,
+    description=FRAMES_FORMAT,
+    responses={
+        200: {
+            "content": {"application/octet-stream": {}},
+            "description": "Recorded motion, little-endian float32 (format above)",
+            "headers": {
+                "X-Frames": {"schema": {"type": "integer"}, "description": "F"},
+                "X-Voxels": {"schema": {"type": "integer"}, "description": "V"},
+                "X-Time-Step": {"schema": {"type": "number"}, "description": "dt, seconds"},
+            },
+        },
+        **NOT_FOUND,
+        504: {"model": ErrorOut, "description": "The simulation took too long"},
+    },
+)
+async def frames(
+    individual_id: IndividualId,
+    services: ServicesDep,
+    every: Annotated[int, Query(ge=10, le=1_000_000, description="record every n steps")] = 100,
+    max_frames: Annotated[int, Query(ge=1, le=2000)] = 500,
+    environment: Annotated[
+        Literal["land", "water"] | None,
+        Query(description="default: that of the individual's latest evaluation"),
+    ] = None,
+):
+    """The individual's evaluated motion, simulated again with recording on (in a separate
+    process: the API stays responsive). The body is the float32 format of
+    ``service.api.frames``."""
+    task = await run_in_threadpool(_frames_task, services, individual_id, environment)
+    try:
+        motion = await asyncio.wait_for(services.record_motion(task, every, max_frames), FRAMES_TIMEOUT_S)
+    except TimeoutError as exc:
+        raise HTTPException(504, "the simulation took too long") from exc
+    except ValueError as exc:  # an empty body: nothing to simulate
+        raise HTTPException(404, f"individual {individual_id} has no motion: {exc}") from exc
+    return Response(
+        encode_frames(motion),
+        media_type="application/octet-stream",
+        headers={
+            "X-Frames": str(len(motion["t"])),
+            "X-Voxels": str(len(motion["voxels"])),
+            "X-Time-Step": repr(float(motion["dt"])),
+        },
+    )

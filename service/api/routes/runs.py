@@ -1,0 +1,115 @@
+"""/runs: list (filters), one run, cancel, per-generation statistics, Pareto front."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Path, Query
+from sqlalchemy import update
+
+from service.api import queries
+from service.api.deps import (
+    COMMON,
+    NOT_FOUND,
+    UNAUTHORIZED,
+    ConnectionDep,
+    ServicesDep,
+    WriteAccess,
+)
+from service.api.schemas import (
+    MAX_INT32,
+    ErrorOut,
+    FrontOut,
+    GenerationOut,
+    RunOut,
+    RunStatusName,
+    RunSummary,
+)
+from service.db.models import Run, RunStatus, utcnow
+
+router = APIRouter(prefix="/runs", tags=["runs"], responses=COMMON)
+
+RunId = Annotated[int, Path(ge=1, le=MAX_INT32, description="run id")]
+STOPPABLE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
+
+
+@router.get("", response_model=list[RunSummary])
+def list_runs(
+    conn: ConnectionDep,
+    experiment: Annotated[int | None, Query(ge=1, le=MAX_INT32)] = None,
+    status: Annotated[RunStatusName | None, Query()] = None,
+    limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
+    offset: Annotated[int, Query(ge=0, le=MAX_INT32)] = 0,
+):
+    """Runs in id order, optionally of one experiment and/or with one status."""
+    return queries.list_runs(conn, experiment, status, limit, offset)
+
+
+def _run_or_404(conn, run_id: int) -> dict:
+    run = queries.run_detail(conn, run_id)
+    if run is None:
+        raise HTTPException(404, f"no run {run_id}")
+    return run
+
+
+@router.get("/{run_id}", response_model=RunOut, responses=NOT_FOUND)
+def get_run(run_id: RunId, conn: ConnectionDep):
+    """A run: status, last stored generation, treatment, best evaluation so far."""
+    return _run_or_404(conn, run_id)
+
+
+@router.post(
+    "/{run_id}/cancel",
+    response_model=RunOut,
+    dependencies=[WriteAccess],
+    responses={
+        **UNAUTHORIZED,
+        **NOT_FOUND,
+        409: {"model": ErrorOut, "description": "The run already finished or failed"},
+    },
+)
+def cancel(run_id: RunId, services: ServicesDep):
+    """Cancel a pending or running run: nothing more is dispatched for it after the
+    generation in flight. Cancelling a cancelled run changes nothing."""
+    table = Run.__table__
+    with services.engine.begin() as conn:
+        status = queries.run_status(conn, run_id)
+        if status is None:
+            raise HTTPException(404, f"no run {run_id}")
+        if status in (RunStatus.FINISHED.value, RunStatus.FAILED.value):
+            raise HTTPException(409, f"run {run_id} is {status}: nothing to cancel")
+        conn.execute(
+            update(table)
+            .where(table.c.id == run_id, table.c.status.in_(STOPPABLE))
+            .values(status=RunStatus.CANCELLED.value, updated_at=utcnow())
+        )
+    services.cancel(run_id)
+    with services.engine.connect() as conn:
+        return _run_or_404(conn, run_id)
+
+
+@router.get("/{run_id}/generations", response_model=list[GenerationOut], responses=NOT_FOUND)
+def generations(run_id: RunId, conn: ConnectionDep):
+    """Statistics of every stored generation, oldest first."""
+    if queries.run_status(conn, run_id) is None:
+        raise HTTPException(404, f"no run {run_id}")
+    return queries.generations(conn, run_id)
+
+
+@router.get("/{run_id}/front", response_model=FrontOut, responses=NOT_FOUND)
+def front(
+    run_id: RunId,
+    conn: ConnectionDep,
+    generation: Annotated[
+        int | None, Query(ge=0, le=MAX_INT32, description="default: the latest stored")
+    ] = None,
+):
+    """The non-dominated individuals (front rank 0 over distance, active share and voxel
+    count) of the population kept at ``generation``."""
+    if queries.run_status(conn, run_id) is None:
+        raise HTTPException(404, f"no run {run_id}")
+    found = queries.front(conn, run_id, generation)
+    if found is None:
+        which = "any generation" if generation is None else f"generation {generation}"
+        raise HTTPException(404, f"run {run_id} has not stored {which} yet")
+    return found

@@ -1,0 +1,264 @@
+"""Request and response bodies of the REST API (pydantic v2), apart from the SQL models.
+
+Limits on submitted values keep every request within what the database and the simulator
+accept (ids and seeds fit a 32-bit integer column, names a 200-character column), so a bad
+request is a 422 with a clear message, never a 500.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    StringConstraints,
+    Tag,
+)
+
+MAX_INT32 = 2**31 - 1
+Name = Annotated[
+    str,
+    StringConstraints(min_length=1, max_length=200, strip_whitespace=True, pattern=r"^[^\x00-\x1f\x7f]+$"),
+]
+Environment = Literal["land", "water", "land-water", "water-land"]
+RunStatusName = Literal["pending", "running", "finished", "failed", "cancelled"]
+
+
+class Strict(BaseModel):
+    """Unknown fields are an error (a typo must not be silently ignored)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+# -- requests ------------------------------------------------------------------------------
+
+
+class TreatmentIn(Strict):
+    """One treatment (SPEC.md section 5); every field but environment and stiffness_mpa has a
+    default. Repetition r runs with seed ``seed + r``."""
+
+    name: Name | None = Field(None, description="default: e.g. 'land S=0.1MPa'")
+    environment: Environment
+    switch_at: int | None = Field(
+        None, ge=1, le=MAX_INT32, description="first generation in the second environment"
+    )
+    stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
+    population: int = Field(30, ge=2, le=10_000)
+    generations: int = Field(100, ge=1, le=1_000_000)
+    workspace: tuple[
+        Annotated[int, Field(ge=1, le=32)],
+        Annotated[int, Field(ge=1, le=32)],
+        Annotated[int, Field(ge=1, le=32)],
+    ] = (7, 7, 7)
+    cycles: int = Field(50, ge=1, le=10_000, description="actuation cycles per evaluation")
+    repetitions: int = Field(1, ge=1, le=1000)
+    seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
+    algorithm: Literal["afpo", "pareto"] = "afpo"
+
+
+class ExperimentIn(Strict):
+    """An experiment of explicit treatments."""
+
+    name: Name
+    treatments: list[TreatmentIn] = Field(min_length=1, max_length=200)
+
+
+class PresetIn(Strict):
+    """A preset experiment: the paper's grid at a scale (SPEC.md section 5)."""
+
+    preset: Literal["paper"]
+    scale: Literal["tiny", "small", "paper"] = "tiny"
+    repetitions: int | None = Field(None, ge=1, le=1000)
+    seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
+    name: Name | None = None
+
+
+def _experiment_kind(value: Any) -> str:
+    if isinstance(value, dict):
+        return "preset" if "preset" in value else "treatments"
+    return "preset" if isinstance(value, PresetIn) else "treatments"
+
+
+ExperimentRequest = Annotated[
+    Annotated[ExperimentIn, Tag("treatments")] | Annotated[PresetIn, Tag("preset")],
+    Discriminator(_experiment_kind),
+]
+
+
+# -- responses -----------------------------------------------------------------------------
+
+
+class ErrorOut(BaseModel):
+    """Every error: one clear message."""
+
+    detail: str
+
+
+class ValidationErrorOut(BaseModel):
+    """A request that does not match the schema: a message and each problem found."""
+
+    detail: str
+    errors: list[dict[str, Any]]
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok", "degraded"]
+    workers: int = Field(description="RQ workers on the queue, or local evaluation processes")
+    queued: int = Field(description="evaluation jobs waiting in the queue")
+    executor: Literal["rq", "local", "none"]
+    database: Literal["ok", "unreachable"]
+    coordinator: bool = Field(description="whether this process drives runs")
+
+
+class ExperimentCreated(BaseModel):
+    id: int
+    runs: list[int]
+
+
+class RunSummary(BaseModel):
+    id: int
+    experiment_id: int
+    treatment: str
+    repetition: int
+    seed: int
+    status: RunStatusName
+    generation: int = Field(description="last generation stored (-1: none yet)")
+    generations: int
+    best_distance: float | None = Field(description="best distance ever reached, voxel lengths")
+
+
+class Progress(BaseModel):
+    generations_done: int
+    generations_total: int
+    fraction: float
+
+
+class ExperimentOut(BaseModel):
+    id: int
+    name: str
+    preset: str | None
+    scale: str | None
+    created_at: datetime | None
+    status: RunStatusName = Field(
+        description="running if any run is, else pending if any is, else failed, cancelled or "
+        "finished (the first that applies)"
+    )
+    progress: Progress
+    runs: list[RunSummary]
+
+
+class Objectives(BaseModel):
+    distance: float = Field(description="voxel lengths (maximised)")
+    active_share: float = Field(description="active voxels / voxels (minimised)")
+    voxel_count: int = Field(description="voxels (minimised)")
+
+
+class BestOut(Objectives):
+    individual_id: int
+    generation: int = Field(description="generation of the evaluation")
+    environment: str
+
+
+class TreatmentOut(BaseModel):
+    name: str
+    settings: dict[str, Any] = Field(description="service.treatments.Treatment as JSON")
+
+
+class RunOut(BaseModel):
+    id: int
+    experiment_id: int
+    status: RunStatusName
+    generation: int = Field(description="last generation stored (-1: none yet)")
+    generations: int
+    repetition: int
+    seed: int
+    treatment: TreatmentOut
+    best: BestOut | None
+    error: str | None
+    created_at: datetime | None
+    updated_at: datetime | None
+
+
+class GenerationOut(BaseModel):
+    generation: int
+    environment: str
+    evaluations: int
+    best_distance: float
+    mean_distance: float
+    front_size: int
+    evaluation_seconds: float
+    stats: dict[str, Any]
+    created_at: datetime | None
+
+
+class EvaluationOut(BaseModel):
+    generation: int
+    environment: str
+    stiffness: float = Field(description="Young's modulus, Pa")
+    age: int
+    distance: float
+    active_share: float
+    voxel_count: int
+    frequency: float | None
+    symmetry: float | None
+    branching: float | None
+    shape_entropy: float | None
+    descriptors: dict[str, Any] | None
+    stable: bool
+    error: str | None
+    seconds: float | None
+
+
+class FrontMember(BaseModel):
+    id: int
+    local_id: int
+    parent_id: int | None
+    generation_born: int
+    age: int
+    front_rank: int
+    objectives: Objectives
+    evaluation: EvaluationOut
+
+
+class FrontOut(BaseModel):
+    run_id: int
+    generation: int
+    individuals: list[FrontMember]
+
+
+class IndividualOut(BaseModel):
+    id: int
+    run_id: int
+    local_id: int
+    parent_id: int | None
+    generation_born: int
+    genome: dict[str, Any]
+    phenotype: dict[str, Any] | None
+    objectives: Objectives | None = Field(description="from the latest evaluation")
+    descriptors: dict[str, Any] | None = Field(description="from the latest evaluation")
+    evaluations: list[EvaluationOut]
+
+
+class LineageEntry(BaseModel):
+    depth: int = Field(description="0: the individual, 1: its parent, ...")
+    id: int
+    parent_id: int | None
+    run_id: int
+    generation_born: int
+    generation: int | None = Field(description="generation of the evaluation shown (its birth)")
+    environment: str | None
+    stiffness: float | None
+    age: int | None
+    distance: float | None
+    active_share: float | None
+    voxel_count: int | None
+    frequency: float | None
+    symmetry: float | None
+    branching: float | None
+    shape_entropy: float | None
+    stable: bool | None
+    error: str | None

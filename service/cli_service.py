@@ -1,0 +1,97 @@
+"""``softevo serve`` (REST API + coordinator) and ``softevo worker`` (RQ worker).
+
+Both read their settings from ``SOFTEVO_*`` environment variables (``service.settings``);
+the options below override them for one invocation.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from service.errors import UserError
+
+
+def _settings(**overrides):
+    """Settings from the environment, ``overrides`` (options given) winning."""
+    from pydantic import ValidationError
+
+    from service.settings import Settings
+
+    try:
+        return Settings(**{key: value for key, value in overrides.items() if value is not None})
+    except ValidationError as exc:
+        problem = exc.errors()[0]
+        field = ".".join(str(part) for part in problem["loc"])
+        raise UserError(f"setting {field} (SOFTEVO_{field.upper()}): {problem['msg']}") from exc
+
+
+def serve(
+    host: Annotated[str | None, typer.Option("--host", help="default $SOFTEVO_HOST or 127.0.0.1")] = None,
+    port: Annotated[int | None, typer.Option("--port", help="default $SOFTEVO_PORT or 8000")] = None,
+    db: Annotated[str | None, typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB)")] = None,
+    redis_url: Annotated[
+        str | None,
+        typer.Option("--redis-url", help="default $SOFTEVO_REDIS_URL; unset: local processes"),
+    ] = None,
+    no_coordinator: Annotated[
+        bool, typer.Option("--no-coordinator", help="serve the API only; drive no runs")
+    ] = False,
+    log_level: Annotated[str, typer.Option("--log-level")] = "info",
+) -> None:
+    """Serve the REST API (OpenAPI at /docs) and drive every unfinished run.
+
+    Write endpoints need 'Authorization: Bearer $SOFTEVO_TOKEN'; without a token the server
+    only listens on loopback.
+    """
+    import logging
+
+    import uvicorn
+
+    from service.api.app import create_app
+
+    settings = _settings(
+        host=host, port=port, db=db, redis_url=redis_url, coordinator=False if no_coordinator else None
+    )
+    settings.check_safe()
+    logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(name)s %(message)s")
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=log_level)
+
+
+def worker(
+    redis_url: Annotated[str | None, typer.Option("--redis-url", help="default $SOFTEVO_REDIS_URL")] = None,
+    queue: Annotated[str | None, typer.Option("--queue", help="default $SOFTEVO_QUEUE")] = None,
+    name: Annotated[str | None, typer.Option("--name", help="default <host>-<pid>")] = None,
+    threads: Annotated[int, typer.Option("--threads", help="numba threads per batch")] = 1,
+    heartbeat_ttl: Annotated[
+        int | None,
+        typer.Option("--heartbeat-ttl", help="seconds; default $SOFTEVO_HEARTBEAT_TTL or 30"),
+    ] = None,
+    burst: Annotated[bool, typer.Option("--burst", help="quit when the queue is empty")] = False,
+) -> None:
+    """Evaluate genomes for a coordinator: an RQ worker on the Redis of $SOFTEVO_REDIS_URL.
+
+    Needs only the Redis URL (no database). Run one per core.
+    """
+    from worker.rq_worker import run_worker
+
+    settings = _settings(redis_url=redis_url, queue=queue, heartbeat_ttl=heartbeat_ttl)
+    if not settings.redis_url:
+        raise UserError("softevo worker needs a Redis URL: set SOFTEVO_REDIS_URL or --redis-url")
+    if threads < 1:
+        raise UserError(f"--threads must be >= 1 (got {threads})")
+    run_worker(
+        settings.redis_url,
+        queue=settings.queue,
+        name=name,
+        threads=threads,
+        heartbeat_ttl=settings.heartbeat_ttl,
+        burst=burst,
+    )
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``serve`` and ``worker`` to ``app``."""
+    for command in (serve, worker):
+        app.command(name=command.__name__)(command)

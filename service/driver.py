@@ -1,0 +1,266 @@
+"""The coordinator loop of ``softevo serve``: drives every unfinished run of the database.
+
+A background thread claims each pending or running run (a lock, so that only one
+coordinator drives a run), loads it from the database (a new algorithm, or the state saved
+after its last generation) and advances all claimed runs one generation per round with
+``service.coordinator.Coordinator.round``, which stores each generation in one transaction
+before the next is dispatched. Runs submitted meanwhile join at the next round; cancelled
+runs leave at the next round. A coordinator restarted (or another one taking over a lock
+that expired) resumes every run from its last stored generation.
+
+Locks: with Redis, a key per run (``SET NX PX``, renewed every ``ttl / 3`` seconds by a
+thread, re-taken after a Redis restart if nobody else did); a coordinator that dies lets its
+locks expire within ``ttl``. Without Redis, locks are held in this process only: run one
+``softevo serve`` per database.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import uuid
+from collections.abc import Iterable
+from typing import Protocol
+
+from sqlalchemy import Engine, update
+
+from service.coordinator import ActiveRun, Coordinator, GenerationReport, load_run, unfinished_runs
+from service.db.models import Run, RunStatus, utcnow
+from service.db.store import set_run_status
+from service.executors import Executor
+
+log = logging.getLogger("softevo.coordinator")
+
+RENEW_SCRIPT = """
+local owner = redis.call('GET', KEYS[1])
+if owner == ARGV[1] then
+  return redis.call('PEXPIRE', KEYS[1], ARGV[2])
+elseif not owner then
+  return redis.call('SET', KEYS[1], ARGV[1], 'NX', 'PX', ARGV[2]) and 1 or 0
+end
+return 0
+"""
+RELEASE_SCRIPT = """
+if redis.call('GET', KEYS[1]) == ARGV[1] then return redis.call('DEL', KEYS[1]) end
+return 0
+"""
+
+
+class RunLocks(Protocol):
+    """Who drives which run."""
+
+    def acquire(self, run_id: int) -> bool: ...
+
+    def renew(self) -> set[int]:
+        """Extend every lock held; return the runs whose lock was lost."""
+        ...
+
+    def release(self, run_ids: Iterable[int]) -> None: ...
+
+
+class LocalLocks:
+    """Locks within this process (no Redis): one coordinator per database."""
+
+    def __init__(self) -> None:
+        self.held: set[int] = set()
+        self._mutex = threading.Lock()
+
+    def acquire(self, run_id: int) -> bool:
+        with self._mutex:
+            if run_id in self.held:
+                return False
+            self.held.add(run_id)
+            return True
+
+    def renew(self) -> set[int]:
+        return set()
+
+    def release(self, run_ids: Iterable[int]) -> None:
+        with self._mutex:
+            self.held.difference_update(run_ids)
+
+
+class RedisLocks:
+    """One Redis key per run, ``softevo:<database>:run:<id>:coordinator`` = owner token."""
+
+    def __init__(self, redis_url: str, namespace: str, ttl: float = 30.0) -> None:
+        from service.rq_executor import connect
+
+        self.connection = connect(redis_url)
+        self.namespace = namespace
+        self.ttl_ms = int(ttl * 1000)
+        self.token = uuid.uuid4().hex
+        self.held: set[int] = set()
+        self._renew = self.connection.register_script(RENEW_SCRIPT)
+        self._release = self.connection.register_script(RELEASE_SCRIPT)
+        self._mutex = threading.Lock()
+
+    def key(self, run_id: int) -> str:
+        return f"softevo:{self.namespace}:run:{run_id}:coordinator"
+
+    def acquire(self, run_id: int) -> bool:
+        with self._mutex:
+            if run_id in self.held:
+                return False
+            if self.connection.set(self.key(run_id), self.token, nx=True, px=self.ttl_ms):
+                self.held.add(run_id)
+                return True
+            return False
+
+    def renew(self) -> set[int]:
+        with self._mutex:
+            lost = {
+                run_id
+                for run_id in self.held
+                if not self._renew(keys=[self.key(run_id)], args=[self.token, self.ttl_ms])
+            }
+            self.held -= lost
+            return lost
+
+    def release(self, run_ids: Iterable[int]) -> None:
+        with self._mutex:
+            for run_id in list(run_ids):
+                if run_id in self.held:
+                    self.held.discard(run_id)
+                    self._release(keys=[self.key(run_id)], args=[self.token])
+
+    def owner(self, run_id: int) -> str | None:
+        """The token of the coordinator holding the run (None: nobody)."""
+        value = self.connection.get(self.key(run_id))
+        return value.decode() if value else None
+
+
+class CoordinatorLoop:
+    """Drives the database's unfinished runs in a background thread (see the module doc)."""
+
+    def __init__(
+        self,
+        engine: Engine,
+        executor: Executor,
+        locks: RunLocks,
+        poll_seconds: float = 1.0,
+        renew_seconds: float = 10.0,
+        stop: threading.Event | None = None,
+    ) -> None:
+        self.engine = engine
+        self.executor = executor
+        self.locks = locks
+        self.poll_seconds = poll_seconds
+        self.renew_seconds = renew_seconds
+        self.stop_event = stop or threading.Event()
+        self.active: list[ActiveRun] = []
+        self.cancelled: set[int] = set()
+        self.lost: set[int] = set()
+        self.coordinator = Coordinator(engine, executor, on_generation=self._on_generation)
+        self._threads: list[threading.Thread] = []
+
+    # -- control -----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        for target, name in ((self._loop, "coordinator"), (self._renew_loop, "run-locks")):
+            thread = threading.Thread(target=target, name=name, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+
+    def stop(self, timeout: float = 30.0) -> None:
+        """Stop after the current wait (an RQ executor sharing ``stop_event`` stops waiting
+        at once; the generation in flight is redone by the next coordinator)."""
+        self.stop_event.set()
+        for thread in self._threads:
+            thread.join(timeout)
+        self.locks.release([run.run_id for run in self.active])
+
+    def request_cancel(self, run_id: int) -> None:
+        """Keep ``run_id`` cancelled even if a generation in flight commits after the cancel."""
+        self.cancelled.add(run_id)
+
+    # -- the loop ----------------------------------------------------------------------------
+
+    def _loop(self) -> None:
+        from service.rq_executor import ExecutorStopped
+
+        while not self.stop_event.is_set():
+            try:
+                if not self.step():
+                    self.stop_event.wait(self.poll_seconds)
+            except ExecutorStopped:
+                break
+            except Exception:
+                log.exception("coordinator round failed; reloading runs from the database")
+                self._reset()
+                self.stop_event.wait(self.poll_seconds * 5)
+
+    def step(self) -> bool:
+        """Claim new runs, drop finished, cancelled or lost ones, advance the rest one
+        generation. Returns whether any run was advanced."""
+        self._claim()
+        if not self.active:
+            return False
+        before = {run.run_id for run in self.active}
+        self.active = self.coordinator.round(self.active)
+        self.locks.release(before - {run.run_id for run in self.active})
+        return True
+
+    def _claim(self) -> None:
+        unfinished = unfinished_runs(self.engine)
+        keep = set(unfinished) - self.lost
+        self.lost.clear()
+        dropped = [run.run_id for run in self.active if run.run_id not in keep]
+        self.active = [run for run in self.active if run.run_id in keep]
+        self.locks.release(dropped)
+        held = {run.run_id for run in self.active}
+        for run_id in unfinished:
+            if run_id in held or not self.locks.acquire(run_id):
+                continue
+            try:
+                run = load_run(self.engine, run_id)
+            except Exception as exc:
+                log.exception("run %d cannot be loaded; marking it failed", run_id)
+                self._set_status(run_id, RunStatus.FAILED, f"cannot load the run: {exc}")
+                self.locks.release([run_id])
+                continue
+            self._mark_running(run_id)
+            log.info("driving run %d from generation %d", run_id, run.next_generation)
+            self.active.append(run)
+
+    def _reset(self) -> None:
+        self.locks.release([run.run_id for run in self.active])
+        self.active = []
+
+    def _renew_loop(self) -> None:
+        while not self.stop_event.wait(self.renew_seconds):
+            try:
+                lost = self.locks.renew()
+            except Exception as exc:  # Redis away: the locks are re-taken once it is back
+                log.warning("cannot renew run locks: %s", exc)
+                continue
+            if lost:
+                log.warning("lost the lock of run(s) %s to another coordinator", sorted(lost))
+                self.lost |= lost
+
+    def _on_generation(self, report: GenerationReport) -> None:
+        log.info(
+            "run %d generation %d/%d stored (best %.3f, %d evaluations in %.1f s)",
+            report.run_id,
+            report.generation + 1,
+            report.generations,
+            report.best_distance,
+            report.evaluations,
+            report.evaluation_seconds,
+        )
+        if report.run_id in self.cancelled and not report.finished:
+            self._set_status(report.run_id, RunStatus.CANCELLED)
+
+    def _mark_running(self, run_id: int) -> None:
+        """pending -> running (a run cancelled meanwhile stays cancelled)."""
+        table = Run.__table__
+        with self.engine.begin() as conn:
+            conn.execute(
+                update(table)
+                .where(table.c.id == run_id, table.c.status == RunStatus.PENDING.value)
+                .values(status=RunStatus.RUNNING.value, updated_at=utcnow())
+            )
+
+    def _set_status(self, run_id: int, status: RunStatus, error: str | None = None) -> None:
+        with self.engine.begin() as conn:
+            set_run_status(conn, run_id, status, error)

@@ -1,0 +1,342 @@
+"""The RQ executor: evaluation batches as RQ jobs on Redis, evaluated by ``softevo worker``
+processes on any machine that reaches the same Redis.
+
+Same interface as ``service.executors.LocalExecutor`` (``evaluate(tasks) -> results`` in
+order, ``workers``, ``close``). What travels:
+
+- A job calls ``worker.evaluate.evaluate_batch`` by its dotted name (the coordinator never
+  imports numba) with a list of JSON tasks, through RQ's JSON serializer (never pickle), and
+  returns plain JSON results.
+- Job ids are ``run<run>-gen<generation>-batch<b>-<digest>``: the digest is a hash of the
+  batch's tasks, so the same batch always has the same id. A resubmitted batch (coordinator
+  restarted, Redis emptied, job lost) finds its finished job and takes the stored result, or
+  waits for the queued or running one; two databases sharing one Redis never share a job.
+- Each job has a timeout and ``Retry(max=retries)``. A worker SIGKILLed mid-job stops
+  refreshing its job's heartbeat (``worker.heartbeat``); the executor calls
+  ``StartedJobRegistry.cleanup()`` every ``maintenance_seconds`` and RQ re-queues the
+  abandoned job (or fails it when its retries are spent).
+- A batch whose job fails for good is split into one-genome jobs, so a genome that crashes
+  the simulator fails alone; a one-genome job that fails for good becomes that genome's
+  failed result (worst fitness, the error kept), never an endless retry.
+- Redis restarted or unreachable: the executor waits with back-off and resubmits every job
+  Redis forgot; results are taken once per task, so a batch that ran twice changes nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import threading
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from redis import Redis
+from redis.exceptions import RedisError
+from rq import Queue, Retry, Worker
+from rq.job import Job, JobStatus
+from rq.registry import StartedJobRegistry
+from rq.results import Result
+from rq.serializers import JSONSerializer
+from rq.worker_registration import clean_worker_registry
+
+from service.executors import Task, chunks
+
+JOB_FUNCTION = "worker.evaluate.evaluate_batch"
+WAITING = {
+    JobStatus.QUEUED.value,
+    JobStatus.STARTED.value,
+    JobStatus.DEFERRED.value,
+    JobStatus.SCHEDULED.value,
+    JobStatus.CREATED.value,
+    JobStatus.READY_TO_ENQUEUE.value,
+    JobStatus.RATE_LIMITED.value,
+}
+MAX_BAD_RESULTS = 3  # resubmits of a batch whose job "finished" without usable results
+
+log = logging.getLogger(__name__)
+
+
+class ExecutorStopped(RuntimeError):
+    """Raised by ``evaluate`` when the executor is asked to stop while it waits."""
+
+
+@dataclass
+class Batch:
+    """One job: its id, its tasks and where their results go in the caller's list."""
+
+    job_id: str
+    tasks: list[Task]
+    positions: list[int]
+    single: bool = False
+    bad_results: int = field(default=0)
+
+
+def batch_digest(tasks: list[Task]) -> str:
+    """Short hash of a batch's tasks (canonical JSON): equal batches, equal job ids."""
+    text = json.dumps(tasks, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:10]
+
+
+def job_id_of(tasks: list[Task], index: int) -> str:
+    """``run<r>-gen<g>-batch<index>-<digest>`` (``batch<index>-<digest>`` without run info).
+
+    RQ job ids may hold letters, digits, ``_`` and ``-`` only.
+    """
+    head = tasks[0]
+    run_id, generation = head.get("run_id"), head.get("generation")
+    prefix = ""
+    if isinstance(run_id, int) and isinstance(generation, int):
+        prefix = f"run{run_id}-gen{generation}-"
+    return f"{prefix}batch{index}-{batch_digest(tasks)}"
+
+
+def plan_batches(tasks: list[Task], workers: int, genomes_per_job: int) -> list[Batch]:
+    """Split ``tasks`` into jobs: per (run, generation), at most ``genomes_per_job`` each and at
+    least one per worker (as the local executor does)."""
+    groups: dict[tuple[Any, Any], list[int]] = {}
+    for position, task in enumerate(tasks):
+        groups.setdefault((task.get("run_id"), task.get("generation")), []).append(position)
+    batches = []
+    for positions in groups.values():
+        for index, part in enumerate(chunks(positions, max(1, workers), genomes_per_job)):
+            batch_tasks = [tasks[p] for p in part]
+            batches.append(Batch(job_id_of(batch_tasks, index), batch_tasks, list(part)))
+    return batches
+
+
+def failed_result(task: Task, error: str) -> dict[str, Any]:
+    """The result of a genome whose job failed for good: worst fitness, the error kept (the
+    same shape as the worker's own failures)."""
+    from worker.evaluate import _failure  # the one definition of a failed result's fields
+
+    return _failure({"id": task.get("id")}, error)
+
+
+def connect(redis_url: str) -> Redis:
+    """A Redis client with timeouts (a dead server raises instead of hanging forever)."""
+    return Redis.from_url(redis_url, socket_timeout=30, socket_connect_timeout=5, health_check_interval=15)
+
+
+class RQExecutor:
+    """Evaluates tasks as RQ jobs; see the module doc."""
+
+    def __init__(
+        self,
+        redis_url: str,
+        queue: str = "softevo",
+        genomes_per_job: int = 4,
+        job_timeout: int = 3600,
+        retries: int = 3,
+        result_ttl: int = 600,
+        maintenance_seconds: float = 2.0,
+        stop: threading.Event | None = None,
+    ) -> None:
+        self.connection = connect(redis_url)
+        self.queue = Queue(queue, connection=self.connection, serializer=JSONSerializer)
+        self.genomes_per_job = genomes_per_job
+        self.job_timeout = job_timeout
+        self.retries = retries
+        self.result_ttl = result_ttl
+        self.maintenance_seconds = maintenance_seconds
+        self.stop = stop or threading.Event()
+        self._last_maintenance = 0.0
+
+    # -- the Executor interface -------------------------------------------------------------
+
+    @property
+    def workers(self) -> int:
+        """RQ workers listening on the queue now (at least 1, for planning and estimates)."""
+        try:
+            return max(1, self.worker_count())
+        except RedisError:
+            return 1
+
+    def evaluate(self, tasks: list[Task]) -> list[Task]:
+        """Results of ``tasks`` in order; blocks until every batch has its results."""
+        if not tasks:
+            return []
+        results: list[Task | None] = [None] * len(tasks)
+        waiting = {b.job_id: b for b in plan_batches(tasks, self.workers, self.genomes_per_job)}
+        self._retrying(lambda: self._submit(waiting.values(), replace_failed=True))
+        cursors: dict[str, str] = {}
+        while waiting:
+            if self.stop.is_set():
+                raise ExecutorStopped("executor stopped while waiting for results")
+            settled = self._retrying(lambda: self._poll(waiting, cursors))
+            for batch, outcome in settled or []:
+                del waiting[batch.job_id]
+                cursors.pop(batch.job_id, None)
+                if isinstance(outcome, list):
+                    for position, result in zip(batch.positions, outcome, strict=True):
+                        results[position] = result
+                else:
+                    for part in outcome.values():
+                        waiting[part.job_id] = part
+        return results  # type: ignore[return-value]
+
+    def close(self) -> None:
+        """Close the Redis connections."""
+        self.connection.close()
+
+    # -- status for /health -----------------------------------------------------------------
+
+    def worker_count(self) -> int:
+        """Live RQ workers on the queue (dead ones are dropped from the registry first)."""
+        clean_worker_registry(self.queue)
+        return Worker.count(queue=self.queue)
+
+    def queued(self) -> int:
+        """Jobs waiting in the queue."""
+        return self.queue.count
+
+    # -- internals --------------------------------------------------------------------------
+
+    def _retrying(self, action):
+        """Run ``action``; while Redis is unreachable, wait (back-off up to 5 s) and retry."""
+        delay = 0.2
+        while True:
+            try:
+                return action()
+            except RedisError as exc:
+                if self.stop.is_set():
+                    raise ExecutorStopped("executor stopped while Redis was unreachable") from exc
+                log.warning("redis unreachable (%s); retrying in %.1f s", exc, delay)
+                self.stop.wait(delay)
+                delay = min(5.0, delay * 2)
+
+    def _submit(self, batches: Iterable[Batch], replace_failed: bool = False) -> None:
+        """Enqueue the batches Redis does not hold yet; leave queued, running and finished jobs
+        alone (their results will be taken); replace failed or stopped leftovers if asked."""
+        batches = list(batches)
+        statuses = self._statuses([b.job_id for b in batches])
+        fresh = []
+        for batch, status in zip(batches, statuses, strict=True):
+            if status in WAITING or status == JobStatus.FINISHED.value:
+                continue
+            if status is not None and not replace_failed:
+                continue
+            if status is not None:
+                self._delete(batch.job_id)
+            fresh.append(batch)
+        if fresh:
+            self.queue.enqueue_many([self._job_data(b) for b in fresh])
+
+    def _job_data(self, batch: Batch):
+        return Queue.prepare_data(
+            JOB_FUNCTION,
+            args=[batch.tasks],
+            timeout=self.job_timeout,
+            result_ttl=self.result_ttl,
+            failure_ttl=max(self.result_ttl, 3600),
+            job_id=batch.job_id,
+            description=f"evaluate {len(batch.tasks)} genome(s) ({batch.job_id})",
+            retry=Retry(max=self.retries),
+        )
+
+    def _delete(self, job_id: str) -> None:
+        job = Job.fetch_many([job_id], connection=self.connection, serializer=JSONSerializer)[0]
+        if job is not None:
+            job.delete()
+
+    def _statuses(self, job_ids: list[str]) -> list[str | None]:
+        """Each job's status (None for a job Redis does not hold), in one round trip."""
+        with self.connection.pipeline(transaction=False) as pipe:
+            for job_id in job_ids:
+                pipe.hget(Job.key_for(job_id), "status")
+            raw = pipe.execute()
+        return [None if value is None else value.decode() for value in raw]
+
+    def _wait_for_results(self, waiting: dict[str, Batch], cursors: dict[str, str]) -> None:
+        """Block (up to 0.5 s) until some job of ``waiting`` writes a result."""
+        streams = {Result.get_key(job_id): cursors.get(job_id, "0-0") for job_id in waiting}
+        response = self.connection.xread(streams, block=500) or []
+        by_key = {Result.get_key(job_id): job_id for job_id in waiting}
+        for key, entries in response:
+            key = key.decode() if isinstance(key, bytes) else key
+            last = entries[-1][0]
+            cursors[by_key[key]] = last.decode() if isinstance(last, bytes) else last
+
+    def _maintain(self) -> None:
+        """Re-queue jobs of dead workers now rather than at RQ's 10-minute maintenance."""
+        now = time.monotonic()
+        if now - self._last_maintenance < self.maintenance_seconds:
+            return
+        self._last_maintenance = now
+        StartedJobRegistry(queue=self.queue).cleanup()
+
+    def _poll(
+        self, waiting: dict[str, Batch], cursors: dict[str, str]
+    ) -> list[tuple[Batch, list[Task] | dict[str, Batch]]]:
+        """Wait a little, then settle what finished: (batch, results) for a finished batch,
+        (batch, {id: part}) for a batch replaced by one-genome parts."""
+        self._maintain()
+        self._wait_for_results(waiting, cursors)
+        batches = list(waiting.values())
+        statuses = self._statuses([b.job_id for b in batches])
+        settled: list[tuple[Batch, list[Task] | dict[str, Batch]]] = []
+        lost = []
+        for batch, status in zip(batches, statuses, strict=True):
+            if status in WAITING:
+                continue
+            if status is None:
+                lost.append(batch)
+            elif status == JobStatus.FINISHED.value:
+                outcome = self._finished(batch)
+                if outcome is None:
+                    lost.append(batch)
+                else:
+                    settled.append((batch, outcome))
+            elif status == JobStatus.FAILED.value:
+                settled.append((batch, self._failed(batch)))
+            else:  # stopped or canceled by someone: run it again
+                self._delete(batch.job_id)
+                lost.append(batch)
+        if lost:
+            log.info("resubmitting %d job(s) Redis lost or left unfinished", len(lost))
+            self._submit(lost)
+        return settled
+
+    def _finished(self, batch: Batch) -> list[Task] | None:
+        """The batch's results, or None (and the job deleted) if they are missing or wrong."""
+        job = Job.fetch_many([batch.job_id], connection=self.connection, serializer=JSONSerializer)
+        value = job[0].return_value(refresh=True) if job[0] is not None else None
+        expected = [task["id"] for task in batch.tasks]
+        if isinstance(value, list) and [r.get("id") for r in value if isinstance(r, dict)] == (expected):
+            return value
+        batch.bad_results += 1
+        if batch.bad_results > MAX_BAD_RESULTS:
+            error = f"job {batch.job_id} returned no usable results"
+            return [failed_result(task, error) for task in batch.tasks]
+        if job[0] is not None:
+            job[0].delete()
+        return None
+
+    def _failed(self, batch: Batch) -> list[Task] | dict[str, Batch]:
+        """A job that failed for good: split it into one-genome jobs, or fail its genome."""
+        if len(batch.tasks) == 1:
+            job = Job.fetch_many([batch.job_id], connection=self.connection, serializer=JSONSerializer)[0]
+            reason = _failure_reason(job)
+            return [failed_result(batch.tasks[0], f"evaluation job failed: {reason}")]
+        parts = {}
+        for k, (task, position) in enumerate(zip(batch.tasks, batch.positions, strict=True)):
+            part = Batch(f"{batch.job_id}-g{k}", [task], [position], single=True)
+            parts[part.job_id] = part
+        log.warning("job %s failed for good; retrying its genomes one by one", batch.job_id)
+        self._submit(parts.values(), replace_failed=True)
+        return parts
+
+
+def _failure_reason(job: Job | None) -> str:
+    """Last line of the job's latest failure (e.g. 'AbandonedJobError' for a killed worker)."""
+    if job is None:
+        return "unknown (job expired)"
+    try:
+        latest = job.latest_result()
+    except Exception:  # an unreadable result must not stop the run
+        latest = None
+    text = (latest.exc_string if latest is not None else None) or ""
+    lines = [line for line in text.strip().splitlines() if line.strip()]
+    return lines[-1] if lines else "worker died or the job timed out"

@@ -1,0 +1,99 @@
+"""Settings of the distributed service, from ``SOFTEVO_*`` environment variables.
+
+One pydantic-settings class read by ``softevo serve`` (API + coordinator) and ``softevo
+worker``. Every field is an environment variable named ``SOFTEVO_`` + the field name in
+capitals (``db`` -> ``SOFTEVO_DB``); an empty variable counts as unset.
+
+========================  ======================================================  ==============
+variable                  meaning                                                 default
+========================  ======================================================  ==============
+SOFTEVO_DB                SQLAlchemy URL of the database (coordinator only)        sqlite:///softevo.db
+SOFTEVO_REDIS_URL         Redis URL; unset: the coordinator evaluates locally      unset
+SOFTEVO_TOKEN             bearer token of the write endpoints                      unset
+SOFTEVO_HOST              address ``softevo serve`` listens on                     127.0.0.1
+SOFTEVO_PORT              port ``softevo serve`` listens on                        8000
+SOFTEVO_QUEUE             RQ queue name shared by coordinator and workers          softevo
+SOFTEVO_WORKERS           local evaluation processes when Redis is unset           all cores
+SOFTEVO_GENOMES_PER_JOB   genomes per RQ job (queue overhead vs balance)           4
+SOFTEVO_JOB_TIMEOUT       seconds an RQ job may run before it fails                3600
+SOFTEVO_JOB_RETRIES       re-dispatches of a failed or abandoned RQ job            3
+SOFTEVO_RESULT_TTL        seconds Redis keeps a job's result                       600
+SOFTEVO_HEARTBEAT_TTL     a worker silent this long has its job re-dispatched      30
+SOFTEVO_COORDINATOR       ``serve`` also drives runs (false: API only)             true
+SOFTEVO_REPORTS           directory of experiment reports (issue 6)                reports
+========================  ======================================================  ==============
+
+With no token the write endpoints are open, so the server refuses to start on any address
+but the loopback one (``check_safe``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import ipaddress
+
+from pydantic import Field, SecretStr, field_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from service.errors import UserError
+
+LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
+
+
+class Settings(BaseSettings):
+    """Service settings; see the module doc for the environment variables."""
+
+    model_config = SettingsConfigDict(env_prefix="SOFTEVO_", extra="ignore")
+
+    db: str = "sqlite:///softevo.db"
+    redis_url: str | None = None
+    token: SecretStr | None = None
+    host: str = "127.0.0.1"
+    port: int = Field(8000, ge=1, le=65535)
+    queue: str = Field("softevo", pattern=r"^[A-Za-z0-9_.-]+$")
+    workers: int | None = Field(None, ge=0)
+    genomes_per_job: int = Field(4, ge=1)
+    job_timeout: int = Field(3600, ge=1)
+    job_retries: int = Field(3, ge=1)
+    result_ttl: int = Field(600, ge=10)
+    heartbeat_ttl: int = Field(30, ge=3)
+    coordinator: bool = True
+    reports: str = "reports"
+
+    @field_validator("redis_url", "token", "workers", mode="before")
+    @classmethod
+    def _empty_is_unset(cls, value):
+        return None if value == "" else value
+
+    @property
+    def token_value(self) -> str | None:
+        """The bearer token in clear (None when unset)."""
+        return self.token.get_secret_value() if self.token else None
+
+    def is_loopback(self) -> bool:
+        """Whether ``host`` only accepts connections from this machine."""
+        if self.host.lower() in LOOPBACK_NAMES:
+            return True
+        try:
+            return ipaddress.ip_address(self.host).is_loopback
+        except ValueError:
+            return False
+
+    def check_safe(self) -> None:
+        """Raise UserError if the server would accept writes from the network unauthenticated."""
+        if self.token_value is None and not self.is_loopback():
+            raise UserError(
+                f"refusing to serve on {self.host}: set SOFTEVO_TOKEN (the write endpoints "
+                "need a bearer token) or listen on 127.0.0.1"
+            )
+
+    def database_namespace(self) -> str:
+        """A short stable name of the database (password left out) for Redis keys, so that
+        coordinators of different databases sharing one Redis never share a lock."""
+        from sqlalchemy.engine import make_url
+
+        try:
+            text = make_url(self.db).render_as_string(hide_password=True)
+        except Exception:  # a malformed URL fails later, in make_engine, with a clear message
+            text = self.db
+        return hashlib.sha1(text.encode()).hexdigest()[:12]

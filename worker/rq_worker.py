@@ -1,0 +1,131 @@
+"""``softevo worker``: an RQ worker that evaluates batches of genomes.
+
+- Jobs and results travel through RQ's JSON serializer (never pickle); the job function is
+  ``worker.evaluate.evaluate_batch``, named by the coordinator by its dotted path.
+- The simulator is compiled (or loaded from numba's cache) once, before the first job, and
+  jobs run in this process (RQ's ``SimpleWorker``: no fork per job), one numba thread by
+  default: run one worker per core.
+- A companion process (``worker.heartbeat``) keeps the running job marked alive, so that a
+  worker killed mid-job has its job re-dispatched within ``heartbeat_ttl`` seconds.
+- Redis going away: the worker waits and reconnects (under a fresh RQ worker name, since
+  its old registration may still be there).
+
+It needs the Redis URL and nothing else: no database, no HTTP.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import subprocess
+import sys
+import time
+
+from redis import Redis
+from redis.exceptions import RedisError
+from rq.exceptions import StopRequested
+from rq.serializers import JSONSerializer
+from rq.worker import SimpleWorker
+
+log = logging.getLogger("softevo.worker")
+
+
+class EvaluationWorker(SimpleWorker):
+    """RQ's in-process worker, reconnecting to Redis within 5 s of its return."""
+
+    max_connection_wait_time = 5.0
+
+
+def warm(threads: int = 1) -> float:
+    """Set numba's threads, compile the simulator and evaluate one random genome (imports the
+    descriptor code too); return the seconds it took."""
+    import numba
+    import numpy as np
+
+    from evolution.genotype import EncodingConfig, random_viable_genotype
+    from worker.evaluate import evaluate_batch, warm_up
+
+    start = time.perf_counter()
+    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    warm_up(threads=threads)
+    config = EncodingConfig(workspace=(3, 3, 3))
+    genome = random_viable_genotype(np.random.default_rng(0), config)
+    task = {
+        "id": 0,
+        "genome": genome.to_dict(),
+        "environment": "land",
+        "youngs_modulus": 1e5,
+        "cycles": 1,
+        "encoding": config.to_dict(),
+    }
+    evaluate_batch([task], threads=threads)
+    return time.perf_counter() - start
+
+
+def default_name() -> str:
+    """``<host>-<pid>``: unique among the workers of a cluster."""
+    return f"{socket.gethostname()}-{os.getpid()}"
+
+
+def start_heartbeat(redis_url: str, queue: str, ttl: int) -> subprocess.Popen:
+    """The companion heartbeat process (see ``worker.heartbeat``), fed names on its stdin."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "worker.heartbeat", queue, str(ttl)],
+        stdin=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "SOFTEVO_HEARTBEAT_REDIS": redis_url},
+    )
+
+
+def _announce(heartbeat: subprocess.Popen, name: str) -> None:
+    try:
+        heartbeat.stdin.write(name + "\n")
+        heartbeat.stdin.flush()
+    except (BrokenPipeError, OSError):
+        log.warning("heartbeat process is gone; a killed job will wait for RQ's own timeout")
+
+
+def run_worker(
+    redis_url: str,
+    queue: str = "softevo",
+    name: str | None = None,
+    threads: int = 1,
+    heartbeat_ttl: int = 30,
+    burst: bool = False,
+    logging_level: str = "INFO",
+) -> None:
+    """Warm the simulator, then take jobs from ``queue`` until stopped (SIGINT/SIGTERM: the
+    running job finishes first) or, with ``burst``, until the queue is empty."""
+    logging.basicConfig(level=logging_level, format="%(asctime)s %(name)s %(message)s")
+    seconds = warm(threads)
+    log.info("simulator ready in %.1f s (%d numba thread(s))", seconds, threads)
+    heartbeat = start_heartbeat(redis_url, queue, heartbeat_ttl)
+    base, attempt, delay = name or default_name(), 0, 1.0
+    try:
+        while True:
+            worker_name = base if attempt == 0 else f"{base}-{attempt}"
+            attempt += 1
+            try:
+                worker = EvaluationWorker(
+                    [queue],
+                    name=worker_name,
+                    connection=Redis.from_url(redis_url, socket_timeout=None),
+                    serializer=JSONSerializer,
+                    worker_ttl=max(20, heartbeat_ttl),
+                )
+                _announce(heartbeat, worker_name)
+                worker.work(burst=burst, logging_level=logging_level)
+            except RedisError as exc:
+                log.warning("redis unreachable (%s); retrying in %.0f s", exc, delay)
+            else:
+                if burst or worker._stop_requested or worker._shutdown_requested_date:
+                    return
+                log.warning("worker loop ended (Redis restarted?); starting again")
+            time.sleep(delay)
+            delay = min(5.0, delay * 2)
+    except (StopRequested, KeyboardInterrupt):
+        return
+    finally:
+        heartbeat.stdin.close()
+        heartbeat.wait(timeout=10)
