@@ -1,0 +1,248 @@
+"""An experiment read from the database into pandas DataFrames, the input of every analysis.
+
+``load_experiment(engine, experiment_id)`` gathers, for all runs of one experiment:
+
+- ``treatments``: one row per treatment in creation order (name, environment, stiffness_mpa,
+  switch_at (first generation in the second environment, or <NA>), population,
+  generations, workspace, cycles, repetitions, seed, algorithm);
+- ``runs``: the export's runs table (``service.db.export.runs_frame``) plus ``generation``
+  (the last one stored);
+- ``evaluations``: one row per evaluation (the export's individuals table) with ``treatment``
+  and ``repetition``;
+- ``generations``: per run and generation, the stored summary (environment, best_distance,
+  mean_distance, front_size, evaluations, evaluation_seconds, created_at);
+- ``populations``: the population kept at every generation (run_id, generation,
+  individual_id, front_rank) with each member's traits from its latest evaluation at or
+  before that generation (after an environment switch: the one in the new environment).
+
+Trait columns are ``TRAITS``: distance (voxel lengths), active_share, voxel_count,
+frequency (Hz), branching, shape_entropy (bits), symmetry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+from sqlalchemy import Connection, Engine, select
+
+from service.db.export import individuals_frame, populations_frame, runs_frame
+from service.db.models import Evaluation, Experiment, Generation, Individual, Run, Treatment
+from service.errors import UserError
+
+TRAITS = (
+    "distance",
+    "active_share",
+    "voxel_count",
+    "frequency",
+    "branching",
+    "shape_entropy",
+    "symmetry",
+)
+TRAIT_LABELS = {
+    "distance": "distance (voxel lengths)",
+    "best_distance": "best distance (voxel lengths)",
+    "active_share": "active share",
+    "voxel_count": "voxel count",
+    "frequency": "frequency (Hz)",
+    "branching": "branching index",
+    "shape_entropy": "shape entropy (bits)",
+    "symmetry": "symmetry index",
+}
+
+
+@dataclass(frozen=True)
+class ExperimentData:
+    """Everything the analyses need about one experiment (see the module doc)."""
+
+    experiment: dict[str, Any]
+    treatments: pd.DataFrame
+    runs: pd.DataFrame
+    evaluations: pd.DataFrame
+    generations: pd.DataFrame
+    populations: pd.DataFrame
+
+    @property
+    def treatment_names(self) -> list[str]:
+        """Treatment names in creation order."""
+        return list(self.treatments["name"])
+
+    def final_populations(self) -> pd.DataFrame:
+        """Members of each run's population at its last stored generation."""
+        last = self.populations.groupby("run_id")["generation"].transform("max")
+        return self.populations[self.populations["generation"] == last].reset_index(drop=True)
+
+    def initial_populations(self) -> pd.DataFrame:
+        """Members of each run's population at generation 0."""
+        return self.populations[self.populations["generation"] == 0].reset_index(drop=True)
+
+
+def resolve_experiment(conn: Connection, reference: str | int) -> int:
+    """The id of the experiment named by ``reference``: ``3``, ``e3``, ``exp-3`` or a name.
+
+    Raises UserError for an unknown experiment or a name shared by several experiments.
+    """
+    table = Experiment.__table__
+    text = str(reference).strip()
+    number = text.lower().removeprefix("exp-").removeprefix("e")
+    if number.isdigit():
+        found = conn.execute(select(table.c.id).where(table.c.id == int(number))).scalar()
+        if found is None:
+            raise UserError(f"no experiment {text!r} (see `softevo status`)")
+        return int(found)
+    ids = list(conn.execute(select(table.c.id).where(table.c.name == text)).scalars())
+    if not ids:
+        raise UserError(f"no experiment {text!r} (see `softevo status`)")
+    if len(ids) > 1:
+        names = ", ".join(f"e{i}" for i in sorted(ids))
+        raise UserError(f"experiment name {text!r} is ambiguous ({names}); give its id")
+    return int(ids[0])
+
+
+def load_experiment(engine: Engine, experiment_id: int) -> ExperimentData:
+    """Read experiment ``experiment_id`` (UserError if it does not exist or has no runs)."""
+    with engine.connect() as conn:
+        experiment = _experiment_row(conn, experiment_id)
+        treatments = _treatments_frame(conn, experiment_id)
+        run_ids = _run_ids(conn, experiment_id)
+        if not run_ids:
+            raise UserError(f"experiment e{experiment_id} has no runs")
+        runs = _with_last_generation(conn, runs_frame(conn, run_ids))
+        evaluations = individuals_frame(conn, run_ids)
+        generations = _generations_frame(conn, run_ids)
+        members = populations_frame(conn, run_ids)
+    labels = runs[["run_id", "treatment", "repetition"]]
+    evaluations = evaluations.merge(labels, on="run_id", how="left")
+    generations = generations.merge(labels, on="run_id", how="left")
+    populations = _member_traits(members, evaluations).merge(labels, on="run_id", how="left")
+    return ExperimentData(experiment, treatments, runs, evaluations, generations, populations)
+
+
+def _experiment_row(conn: Connection, experiment_id: int) -> dict[str, Any]:
+    table = Experiment.__table__
+    row = conn.execute(select(table).where(table.c.id == experiment_id)).mappings().first()
+    if row is None:
+        raise UserError(f"no experiment e{experiment_id} (see `softevo status`)")
+    return dict(row)
+
+
+def _treatments_frame(conn: Connection, experiment_id: int) -> pd.DataFrame:
+    from service.treatments import Treatment as Settings
+
+    table = Treatment.__table__
+    rows = conn.execute(
+        select(table.c.name, table.c.settings)
+        .where(table.c.experiment_id == experiment_id)
+        .order_by(table.c.id)
+    ).all()
+    records = []
+    for name, settings in rows:
+        treatment = Settings.from_settings(settings)
+        record = treatment.to_settings()
+        record["name"] = name
+        record["switch_at"] = treatment.switch_generation()
+        record["schedule"] = treatment.schedule_text()
+        record["workspace"] = "x".join(str(n) for n in treatment.workspace)
+        records.append(record)
+    frame = pd.DataFrame.from_records(records)
+    if not frame.empty:
+        frame["switch_at"] = frame["switch_at"].astype("Int64")
+    return frame
+
+
+def _run_ids(conn: Connection, experiment_id: int) -> list[int]:
+    runs, treatments = Run.__table__, Treatment.__table__
+    query = (
+        select(runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+        .order_by(runs.c.id)
+    )
+    return [int(i) for i in conn.execute(query).scalars()]
+
+
+def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
+    table = Run.__table__
+    rows = conn.execute(
+        select(table.c.id.label("run_id"), table.c.generation.label("generation")).where(
+            table.c.id.in_([int(i) for i in runs["run_id"]])
+        )
+    ).all()
+    last = pd.DataFrame(rows, columns=["run_id", "generation"])
+    return runs.merge(last, on="run_id", how="left")
+
+
+def _generations_frame(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+    table = Generation.__table__
+    columns = [
+        "run_id",
+        "generation",
+        "environment",
+        "evaluations",
+        "best_distance",
+        "mean_distance",
+        "front_size",
+        "evaluation_seconds",
+        "created_at",
+    ]
+    result = conn.execute(
+        select(*[table.c[name] for name in columns])
+        .where(table.c.run_id.in_(run_ids))
+        .order_by(table.c.run_id, table.c.generation)
+    )
+    return pd.DataFrame(result.fetchall(), columns=columns)
+
+
+def _member_traits(members: pd.DataFrame, evaluations: pd.DataFrame) -> pd.DataFrame:
+    """Members with the traits of their latest evaluation at or before the member's
+    generation (``evaluation_generation``, ``environment``, ``stable`` and ``TRAITS``)."""
+    traits = evaluations[["individual_id", "generation", "environment", "stable", *TRAITS]]
+    traits = traits.rename(columns={"generation": "evaluation_generation"})
+    left = members.sort_values("generation", kind="stable").reset_index(drop=True)
+    right = traits.sort_values("evaluation_generation", kind="stable").reset_index(drop=True)
+    merged = pd.merge_asof(
+        left,
+        right,
+        left_on="generation",
+        right_on="evaluation_generation",
+        by="individual_id",
+        direction="backward",
+    )
+    return merged.sort_values(["run_id", "generation", "front_rank", "individual_id"]).reset_index(drop=True)
+
+
+def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
+    """The stored individual (id, run_id, genome, generation_born, ...), its run's treatment
+    (``service.treatments.Treatment``) and seed, and its evaluations (a DataFrame, oldest
+    first). UserError if there is no such individual."""
+    from service.db.store import run_row
+    from service.treatments import Treatment as Settings
+
+    table = Individual.__table__
+    with engine.connect() as conn:
+        row = conn.execute(select(table).where(table.c.id == int(individual_id))).mappings().first()
+        if row is None:
+            raise UserError(f"no individual {individual_id}")
+        run = run_row(conn, row["run_id"])
+        evaluations = _evaluations_of(conn, int(individual_id))
+    return {
+        **dict(row),
+        "treatment": Settings.from_settings(run["settings"]),
+        "treatment_name": run["treatment"],
+        "experiment": run["experiment"],
+        "seed": run["seed"],
+        "repetition": run["repetition"],
+        "evaluations": evaluations,
+    }
+
+
+def _evaluations_of(conn: Connection, individual_id: int) -> pd.DataFrame:
+    table = Evaluation.__table__
+    columns = ["generation", "age", "environment", "stiffness", *TRAITS, "stable", "error"]
+    result = conn.execute(
+        select(*[table.c[name] for name in columns])
+        .where(table.c.individual_id == individual_id)
+        .order_by(table.c.generation)
+    )
+    return pd.DataFrame(result.fetchall(), columns=columns)

@@ -1,0 +1,522 @@
+"""The report's figures (matplotlib, Agg), each written as PNG and SVG.
+
+Every figure function takes an ``ExperimentData`` (and what else it needs) and an output
+directory, and returns a ``FigureFile`` (or None when the experiment has nothing to show,
+e.g. no transition treatment). Sizes are fixed by ``figure_size`` at ``DPI`` dots per inch,
+so a figure's pixel size depends only on the number of treatments.
+
+Colours: one hue per environment schedule (land orange, water blue, land->water purple,
+water->land green), darker for stiffer material.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
+from analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
+from analysis.stats_tables import ALPHA, best_distance_per_run, ci_table  # noqa: E402
+
+DPI = 100
+ENVIRONMENT_ORDER = ("land", "water", "land-water", "water-land")
+ENVIRONMENT_CMAPS = {"land": "Oranges", "water": "Blues", "land-water": "Purples", "water-land": "Greens"}
+ENVIRONMENT_TITLES = {
+    "land": "land",
+    "water": "water",
+    "land-water": "land \u2192 water",
+    "water-land": "water \u2192 land",
+}
+MAX_BRACKETS = 6
+SAMPLES_PER_FRONT = 3
+MOVED_SHARE = 0.02
+TITLES = {
+    "fitness": "Fitness over generations",
+    "descriptors": "Descriptors of the final populations",
+    "pareto": "Aggregated Pareto fronts",
+    "transitions": "Transitions against static controls",
+    "robots": "Robots sampled from the fronts",
+    "start_end": "Descriptors at the start vs the end of evolution",
+}
+FIGURES = tuple(TITLES)
+
+
+@dataclass(frozen=True)
+class FigureFile:
+    """A written figure: its name, title, caption, PNG and SVG paths and PNG size in pixels."""
+
+    name: str
+    title: str
+    caption: str
+    png: Path
+    svg: Path
+    size_px: tuple[int, int]
+
+
+def figure_size(name: str, n_treatments: int, n_transitions: int = 0) -> tuple[float, float]:
+    """(width, height) in inches of figure ``name`` for an experiment of that many
+    treatments (and transition treatments)."""
+    n = max(1, n_treatments)
+    if name in ("fitness",):
+        return (12.0, 8.0)
+    if name in ("descriptors", "start_end"):
+        return (16.0, 9.0)
+    if name == "pareto":
+        cols = min(4, n)
+        return (3.6 * cols, 3.2 * math.ceil(n / cols) + 0.4)
+    if name == "transitions":
+        return (15.0, 4.0 * max(1, n_transitions) + 0.4)
+    if name == "robots":
+        per_row = min(2, n)
+        return (2.4 * SAMPLES_PER_FRONT * per_row, 2.6 * math.ceil(n / per_row) + 0.4)
+    raise ValueError(f"unknown figure {name!r}")
+
+
+def _new_figure(name: str, data: ExperimentData) -> Figure:
+    n_transitions = int(data.treatments["switch_at"].notna().sum())
+    size = figure_size(name, len(data.treatments), n_transitions)
+    return plt.figure(figsize=size, dpi=DPI, layout="constrained")
+
+
+def save(fig: Figure, out_dir: Path, name: str, caption: str) -> FigureFile:
+    """Write ``fig`` as ``out_dir/name.png`` and ``.svg`` and close it."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    png, svg = out_dir / f"{name}.png", out_dir / f"{name}.svg"
+    fig.savefig(png, dpi=DPI)
+    fig.savefig(svg)
+    width, height = fig.get_size_inches() * DPI
+    plt.close(fig)
+    size = (int(round(width)), int(round(height)))
+    return FigureFile(name, TITLES[name], caption, png, svg, size)
+
+
+# ---- colours -----------------------------------------------------------------------------------
+def treatment_colors(treatments: pd.DataFrame) -> dict[str, tuple]:
+    """A colour per treatment name: hue by environment, shade by log stiffness."""
+    log_e = np.log10(treatments["stiffness_mpa"].astype(float))
+    low, high = min(log_e.min(), -3.0), max(log_e.max(), 1.0)
+    colors = {}
+    for name, env, value in zip(treatments["name"], treatments["environment"], log_e, strict=True):
+        shade = 0.35 + 0.6 * (value - low) / (high - low)
+        colors[name] = plt.get_cmap(ENVIRONMENT_CMAPS.get(env, "Greys"))(shade)
+    return colors
+
+
+def _environments(data: ExperimentData) -> list[str]:
+    present = list(dict.fromkeys(data.treatments["environment"]))
+    return sorted(
+        present,
+        key=lambda e: ENVIRONMENT_ORDER.index(e) if e in ENVIRONMENT_ORDER else len(ENVIRONMENT_ORDER),
+    )
+
+
+def _grid(fig: Figure, n: int, cols: int, **kwargs) -> list[Axes]:
+    rows = math.ceil(n / cols)
+    axes = fig.subplots(rows, cols, squeeze=False, **kwargs).ravel()
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    return list(axes[:n])
+
+
+# ---- fitness over generations ------------------------------------------------------------------
+def _curve(ax: Axes, curve: pd.DataFrame, color, label: str, style: str = "-") -> None:
+    ax.plot(curve["generation"], curve["mean"], style, color=color, label=label, lw=1.6)
+    ax.fill_between(curve["generation"], curve["low"], curve["high"], color=color, alpha=0.2, lw=0)
+
+
+def _switch_line(ax: Axes, switch_at) -> None:
+    if pd.notna(switch_at):
+        ax.axvline(int(switch_at) - 0.5, color="0.3", ls="--", lw=1)
+        ax.annotate(
+            "switch",
+            (int(switch_at) - 0.5, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(3, -12),
+            textcoords="offset points",
+            fontsize=8,
+            color="0.3",
+        )
+
+
+def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) -> FigureFile:
+    """Best distance over generations per treatment: mean over repetitions, 95% CI band;
+    one panel per environment schedule."""
+    fig = _new_figure("fitness", data)
+    environments = _environments(data)
+    axes = _grid(fig, len(environments), min(2, len(environments)), sharey=True)
+    colors = treatment_colors(data.treatments)
+    for ax, env in zip(axes, environments, strict=True):
+        rows = data.treatments[data.treatments["environment"] == env]
+        for name in rows["name"]:
+            _curve(ax, curves[curves["treatment"] == name], colors[name], name)
+        _switch_line(ax, rows["switch_at"].dropna().iloc[0] if rows["switch_at"].notna().any() else None)
+        ax.set_title(ENVIRONMENT_TITLES.get(env, env))
+        ax.set_xlabel("generation")
+        ax.set_ylabel("best distance (voxel lengths)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+    fig.suptitle(f"Fitness over generations: mean of {_reps(data)} with 95% bootstrap CI")
+    return save(
+        fig,
+        out_dir,
+        "fitness",
+        "Best distance (voxel lengths) of the population at each generation, mean over "
+        "repetitions with its 95% bootstrap confidence band; one panel per environment.",
+    )
+
+
+def _reps(data: ExperimentData) -> str:
+    counts = data.runs.groupby("treatment").size()
+    low, high = int(counts.min()), int(counts.max())
+    text = f"{low}" if low == high else f"{low}-{high}"
+    return f"{text} repetition{'s' if high > 1 else ''}"
+
+
+# ---- descriptors of the final populations ------------------------------------------------------
+def _boxes(ax: Axes, samples: Sequence[np.ndarray], colors: Sequence, positions=None) -> None:
+    positions = np.arange(len(samples)) if positions is None else np.asarray(positions)
+    kept = [(p, s, c) for p, s, c in zip(positions, samples, colors, strict=True) if len(s)]
+    if not kept:
+        return
+    parts = ax.boxplot(
+        [s for _, s, _ in kept],
+        positions=[p for p, _, _ in kept],
+        widths=0.6,
+        patch_artist=True,
+        showfliers=False,
+        medianprops={"color": "black"},
+    )
+    for patch, (_, _, color) in zip(parts["boxes"], kept, strict=True):
+        patch.set_facecolor(color)
+        patch.set_alpha(0.55)
+    jitter = np.random.default_rng(0)
+    for p, s, c in kept:
+        x = p + jitter.uniform(-0.18, 0.18, len(s))
+        ax.scatter(x, s, s=7, color=c, edgecolor="black", linewidth=0.3, zorder=3)
+
+
+def _brackets(ax: Axes, tests: pd.DataFrame, position: dict[str, int]) -> None:
+    """Brackets with stars over the significant pairs (Bonferroni-adjusted p < ALPHA)."""
+    significant = tests[tests["p_bonferroni"] < ALPHA].sort_values("p_bonferroni")
+    if significant.empty:
+        ax.set_title(f"{ax.get_title()}\nno pair differs (p<{ALPHA:g}, Bonferroni)", fontsize=9)
+        return
+    low, high = ax.get_ylim()
+    step = 0.07 * (high - low)
+    for level, row in enumerate(significant.head(MAX_BRACKETS).itertuples()):
+        x1, x2 = sorted((position[row.a], position[row.b]))
+        y = high + step * (level + 0.3)
+        ax.plot([x1, x1, x2, x2], [y - step * 0.25, y, y, y - step * 0.25], color="0.2", lw=0.8)
+        ax.text((x1 + x2) / 2, y, row.significance, ha="center", va="bottom", fontsize=8)
+    ax.set_ylim(low, high + step * (min(len(significant), MAX_BRACKETS) + 0.8))
+    if len(significant) > MAX_BRACKETS:
+        ax.text(
+            0.01,
+            0.98,
+            f"+{len(significant) - MAX_BRACKETS} more (see table)",
+            transform=ax.transAxes,
+            va="top",
+            fontsize=7,
+            color="0.35",
+        )
+
+
+def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -> FigureFile:
+    """Box plots of each trait over the final populations, per treatment, with brackets over
+    significantly different pairs; the last panel is the best distance of each run."""
+    fig = _new_figure("descriptors", data)
+    axes = _grid(fig, len(TRAITS) + 1, 4)
+    names = data.treatment_names
+    colors = treatment_colors(data.treatments)
+    position = {name: k for k, name in enumerate(names)}
+    final = data.final_populations()
+    best = best_distance_per_run(data)
+    panels = [(trait, final, trait) for trait in TRAITS] + [("best_distance", best, "best_distance")]
+    for ax, (metric, frame, column) in zip(axes, panels, strict=True):
+        samples = [frame.loc[frame["treatment"] == n, column].dropna().to_numpy(float) for n in names]
+        _boxes(ax, samples, [colors[n] for n in names])
+        ax.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
+        ax.set_title(TRAIT_LABELS[metric] + (" (per run)" if metric == "best_distance" else ""), fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+        chosen = tests[(tests["metric"] == metric) & (tests["comparison"] == "between treatments")]
+        _brackets(ax, chosen, position)
+    fig.suptitle(
+        "Final populations across treatments (Mann-Whitney U, Bonferroni; * p<0.05, ** p<0.01, *** p<0.001)"
+    )
+    return save(
+        fig,
+        out_dir,
+        "descriptors",
+        "Descriptors of the final populations (all repetitions pooled) per treatment; "
+        "the last panel is each run's final best distance. Brackets mark pairs whose "
+        "Bonferroni-adjusted Mann-Whitney p is below 0.05.",
+    )
+
+
+# ---- Pareto fronts -----------------------------------------------------------------------------
+def pareto_front(frame: pd.DataFrame) -> pd.DataFrame:
+    """Rows of ``frame`` not dominated on (max distance, min active_share), sorted by
+    active_share; duplicates of a front point are all kept."""
+    from evolution.selection import non_dominated_sort
+
+    valid = frame.dropna(subset=["distance", "active_share"])
+    if valid.empty:
+        return valid
+    objectives = np.column_stack([-valid["distance"].to_numpy(float), valid["active_share"].to_numpy(float)])
+    front = valid[non_dominated_sort(objectives) == 0]
+    return front.sort_values(["active_share", "distance"])
+
+
+def pareto_figure(data: ExperimentData, out_dir: Path) -> FigureFile:
+    """Final populations (all repetitions pooled) in the distance / active-share plane, one
+    panel per treatment, with the aggregated non-dominated front drawn as a staircase."""
+    fig = _new_figure("pareto", data)
+    names = data.treatment_names
+    axes = _grid(fig, len(names), min(4, len(names)), sharex=True)
+    colors = treatment_colors(data.treatments)
+    final = data.final_populations()
+    for ax, name in zip(axes, names, strict=True):
+        frame = final[final["treatment"] == name]
+        ax.scatter(
+            frame["active_share"],
+            frame["distance"],
+            s=14,
+            color=colors[name],
+            edgecolor="0.3",
+            linewidth=0.3,
+            alpha=0.7,
+            label="final populations",
+        )
+        front = pareto_front(frame)
+        if not front.empty:
+            ax.step(
+                front["active_share"],
+                front["distance"],
+                where="post",
+                color="black",
+                lw=1.2,
+                label="non-dominated front",
+            )
+            ax.scatter(
+                front["active_share"],
+                front["distance"],
+                s=26,
+                facecolor="none",
+                edgecolor="black",
+                linewidth=0.9,
+            )
+        ax.set_title(name, fontsize=10)
+        ax.set_xlim(-0.05, 1.05)
+        ax.set_xlabel("active share (energy)")
+        ax.set_ylabel("distance (voxel lengths)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, loc="upper left")
+    fig.suptitle("Aggregated Pareto fronts: distance (max) vs active share (min)")
+    return save(
+        fig,
+        out_dir,
+        "pareto",
+        "Individuals of the final populations of all repetitions in the objective "
+        "plane distance (maximised) vs share of active voxels (minimised); the black "
+        "staircase is their non-dominated front.",
+    )
+
+
+# ---- transitions against their static controls -------------------------------------------------
+def transition_controls(treatments: pd.DataFrame) -> dict[str, list[str]]:
+    """For each transition treatment, its static controls: the treatments at the same
+    stiffness in each of its two environments (when present)."""
+    controls = {}
+    for row in treatments[treatments["switch_at"].notna()].itertuples():
+        same = treatments[np.isclose(treatments["stiffness_mpa"], row.stiffness_mpa)]
+        controls[row.name] = [
+            n for env in row.environment.split("-") for n in same.loc[same["environment"] == env, "name"]
+        ]
+    return controls
+
+
+def transitions_figure(
+    data: ExperimentData, curves: pd.DataFrame, tests: pd.DataFrame, out_dir: Path
+) -> FigureFile | None:
+    """Per transition treatment: its fitness curve against its static controls, and its final
+    distance and active share against theirs. None without a transition treatment."""
+    controls = transition_controls(data.treatments)
+    if not controls:
+        return None
+    fig = _new_figure("transitions", data)
+    axes = fig.subplots(len(controls), 3, squeeze=False, width_ratios=[2, 1, 1])
+    colors = treatment_colors(data.treatments)
+    final = data.final_populations()
+    switch = dict(zip(data.treatments["name"], data.treatments["switch_at"], strict=True))
+    for row, (name, static) in zip(axes, controls.items(), strict=True):
+        group = [name, *static]
+        for member in group:
+            style = "-" if member == name else "--"
+            _curve(row[0], curves[curves["treatment"] == member], colors[member], member, style)
+        _switch_line(row[0], switch[name])
+        row[0].set(
+            xlabel="generation", ylabel="best distance (voxel lengths)", title=f"{name} vs static controls"
+        )
+        row[0].legend(fontsize=8, loc="upper left")
+        row[0].grid(alpha=0.3)
+        for ax, metric in zip(row[1:], ("distance", "active_share"), strict=True):
+            samples = [final.loc[final["treatment"] == m, metric].dropna().to_numpy(float) for m in group]
+            _boxes(ax, samples, [colors[m] for m in group])
+            ax.set_xticks(range(len(group)), group, rotation=20, ha="right", fontsize=8)
+            ax.set_title(f"final {TRAIT_LABELS[metric]}", fontsize=10)
+            ax.grid(axis="y", alpha=0.3)
+            chosen = tests[
+                (tests["metric"] == metric)
+                & (tests["comparison"] == "between treatments")
+                & tests["a"].isin(group)
+                & tests["b"].isin(group)
+            ]
+            _brackets(ax, chosen, {m: k for k, m in enumerate(group)})
+    fig.suptitle("Environment transitions against static controls (same stiffness)")
+    return save(
+        fig,
+        out_dir,
+        "transitions",
+        "Each transition treatment against the static treatments of the same stiffness "
+        "in its first and second environment: best distance over generations (mean, "
+        "95% CI; dashed line: the switch) and the final populations' distance and "
+        "active share.",
+    )
+
+
+# ---- robots sampled from the fronts ------------------------------------------------------------
+def front_samples(front: pd.DataFrame, k: int = SAMPLES_PER_FRONT) -> pd.DataFrame:
+    """Up to ``k`` distinct individuals spread along a front (sorted by active share): the
+    farthest-travelling, the most economical, and ones in between. Robots that hardly moved
+    (under ``MOVED_SHARE`` of the front's best distance) are left out when others moved."""
+    unique = front.drop_duplicates("individual_id")
+    moving = unique["distance"] > MOVED_SHARE * unique["distance"].max()
+    if moving.any():
+        unique = unique[moving]
+    if len(unique) <= k:
+        return unique.sort_values("distance", ascending=False)
+    picks = np.unique(np.round(np.linspace(len(unique) - 1, 0, k)).astype(int))[::-1]
+    return unique.iloc[picks]
+
+
+def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
+    """3-D renders of robots sampled from each treatment's aggregated front (active voxels
+    red, passive cyan), with their distance and active share."""
+    from analysis.robots import phenotypes
+
+    final = data.final_populations()
+    names = data.treatment_names
+    samples = {n: front_samples(pareto_front(final[final["treatment"] == n])) for n in names}
+    ids = [int(i) for s in samples.values() for i in s["individual_id"]]
+    bodies = {i: p.body for i, p in phenotypes(engine, ids).items()}
+    fig = _new_figure("robots", data)
+    per_row = min(2, len(names))
+    grid = fig.add_gridspec(math.ceil(len(names) / per_row), SAMPLES_PER_FRONT * per_row)
+    for t, name in enumerate(names):
+        row, col0 = divmod(t, per_row)
+        picks = list(samples[name].itertuples())
+        for s in range(SAMPLES_PER_FRONT):
+            ax = fig.add_subplot(grid[row, col0 * SAMPLES_PER_FRONT + s], projection="3d")
+            if s >= len(picks):
+                ax.set_axis_off()
+                continue
+            pick = picks[s]
+            title = (f"{name}\n" if s == 0 else "\n") + (
+                f"#{pick.individual_id}  d={pick.distance:.2f}  a={pick.active_share:.2f}"
+            )
+            body = bodies.get(int(pick.individual_id), np.zeros((1, 1, 1)))
+            draw_body(ax, body, title, side=max(body.shape))
+    _material_legend(fig)
+    fig.suptitle("Robots sampled from the aggregated Pareto fronts (d: distance, a: active share)")
+    return save(
+        fig,
+        out_dir,
+        "robots",
+        "Robots from each treatment's aggregated non-dominated front, from the "
+        "farthest-travelling to the most economical; active voxels red, passive cyan.",
+    )
+
+
+def _material_legend(fig: Figure) -> None:
+    from matplotlib.patches import Patch
+
+    fig.legend(
+        handles=[Patch(color=ACTIVE_COLOR, label="active"), Patch(color=PASSIVE_COLOR, label="passive")],
+        loc="lower right",
+        fontsize=8,
+        ncols=2,
+    )
+
+
+# ---- start vs end of evolution -----------------------------------------------------------------
+def _per_run_means(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.groupby(["treatment", "run_id"], sort=False)[list(TRAITS)].mean().reset_index()
+
+
+def start_end_figure(
+    data: ExperimentData, tests: pd.DataFrame, rng: np.random.Generator, out_dir: Path
+) -> FigureFile:
+    """Each trait at generation 0 and at the last generation per treatment: mean of the
+    per-run population means with 95% bootstrap CIs, stars where start and end differ."""
+    fig = _new_figure("start_end", data)
+    axes = _grid(fig, len(TRAITS), 4)
+    names = data.treatment_names
+    colors = treatment_colors(data.treatments)
+    start, end = _per_run_means(data.initial_populations()), _per_run_means(data.final_populations())
+    x = np.arange(len(names))
+    for ax, trait in zip(axes, TRAITS, strict=True):
+        for frame, offset, label, filled in ((start, -0.15, "start", False), (end, 0.15, "end", True)):
+            table = ci_table(frame, trait, "treatment", rng, n_resamples=2_000)
+            table = table.set_index("treatment").reindex(names)
+            for k, name in enumerate(names):
+                mean, low, high = table.loc[name, ["mean", "low", "high"]]
+                ax.errorbar(
+                    x[k] + offset,
+                    mean,
+                    yerr=[[mean - low], [high - mean]],
+                    fmt="o",
+                    color=colors[name],
+                    mfc=colors[name] if filled else "white",
+                    capsize=2,
+                    ms=5,
+                    label=label if k == 0 else None,
+                )
+        chosen = tests[(tests["metric"] == trait) & (tests["comparison"] == "start vs end")]
+        _start_end_marks(ax, chosen, names)
+        ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
+        ax.set_title(TRAIT_LABELS[trait], fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].legend(fontsize=8, loc="best")
+    fig.suptitle(
+        "Start (open, generation 0) vs end (filled, last generation) of evolution: "
+        "mean over repetitions, 95% bootstrap CI"
+    )
+    return save(
+        fig,
+        out_dir,
+        "start_end",
+        "Each descriptor at the start (open markers, generation 0) and at the end "
+        "(filled, last generation) of evolution: mean of the per-run population means "
+        "with 95% bootstrap CIs. Stars: Bonferroni-adjusted Mann-Whitney p (pooled "
+        "individuals) between start and end below 0.05.",
+    )
+
+
+def _start_end_marks(ax: Axes, tests: pd.DataFrame, names: Sequence[str]) -> None:
+    marks = dict(zip(tests["a"].str.removesuffix(" start"), tests["significance"], strict=True))
+    for k, name in enumerate(names):
+        mark = marks.get(name, "")
+        if mark and mark not in ("ns", "n/a"):
+            ax.annotate(mark, (k, 1.0), xycoords=("data", "axes fraction"), ha="center", va="top", fontsize=9)

@@ -1,0 +1,245 @@
+"""Animations of a stored individual's evaluated motion.
+
+``record_motion`` re-simulates the individual's scene (same genome, encoding, stiffness,
+cycles and environment as its evaluation; the simulator is deterministic) with frame
+recording on, at about ``service.cli_sim.DEFAULT_RECORD_FPS`` frames per simulated second.
+``animate`` draws the frames as cubes at the voxels' positions (the voxels' surface faces
+only; active red, passive cyan), the centre of mass's path, and the floor on land, and
+writes a GIF (Pillow) or an MP4 (ffmpeg, when it is installed).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib import animation  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+from sqlalchemy import Engine  # noqa: E402
+
+from analysis.render import ACTIVE_COLOR, EDGE_COLOR, PASSIVE_COLOR, VIEW  # noqa: E402
+from service.errors import UserError  # noqa: E402
+
+FORMATS = (".gif", ".mp4")
+PLAYBACK_FPS = 20
+MAX_FRAMES = 240
+SIZE_INCHES = 6.0
+ANIMATION_DPI = 80
+
+# unit-cube faces: (axis, sign) and their four corners as offsets from the centre, in voxels
+_DIRECTIONS = [(axis, sign) for axis in range(3) for sign in (1, -1)]
+
+
+def _face_corners(axis: int, sign: int) -> np.ndarray:
+    b, c = (axis + 1) % 3, (axis + 2) % 3
+    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * 0.5
+    corners = np.zeros((4, 3))
+    corners[:, axis] = 0.5 * sign
+    corners[:, b], corners[:, c] = square[:, 0], square[:, 1]
+    return corners
+
+
+_CORNERS = np.stack([_face_corners(a, s) for a, s in _DIRECTIONS])  # (6, 4, 3)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Recorded motion of one robot.
+
+    t: (f,) seconds; positions: (f, n, 3) metres; voxels: (n, 3) body indices;
+    materials: (n,) 1 passive / 2 active; voxel_size: metres.
+    """
+
+    t: np.ndarray
+    positions: np.ndarray
+    voxels: np.ndarray
+    materials: np.ndarray
+    voxel_size: float
+    environment: str
+    distance: float
+    stored_distance: float | None
+    label: str
+
+
+def record_motion(engine: Engine, individual_id: int, environment: str | None = None) -> Motion:
+    """Re-simulate a stored individual with frames recorded (see the module doc)."""
+    import sim
+    from analysis.robots import individual_scene
+    from service.cli_sim import _default_record_every
+
+    scene, record = individual_scene(engine, individual_id, environment)
+    scene["record"] = {"every": _default_record_every(scene)}
+    result = sim.simulate(scene)
+    if not result.frames or len(result.frames["t"]) == 0:
+        raise UserError(f"individual {individual_id}: the simulation recorded no frames")
+    voxels = np.asarray(result.voxels, dtype=int).reshape(-1, 3)
+    body = record["phenotype_object"].body
+    evaluations = record["evaluations"]
+    same_env = evaluations[evaluations["environment"] == record["environment"]]
+    stored = float(same_env["distance"].iloc[-1]) if not same_env.empty else None
+    label = f"individual {individual_id} \u00b7 {record['treatment_name']} \u00b7 {record['environment']}"
+    return Motion(
+        t=np.asarray(result.frames["t"], dtype=float),
+        positions=np.asarray(result.frames["positions"], dtype=float).reshape(-1, len(voxels), 3),
+        voxels=voxels,
+        materials=body[tuple(voxels.T)],
+        voxel_size=float(scene["voxel_size"]),
+        environment=record["environment"],
+        distance=float(result.distance) if result.stable else float("nan"),
+        stored_distance=stored,
+        label=label,
+    )
+
+
+def lattice_links(voxels: np.ndarray) -> np.ndarray:
+    """Pairs (i, j), shape (k, 2), of face-adjacent voxels of the rest lattice."""
+    index = {tuple(v): k for k, v in enumerate(voxels)}
+    links = []
+    for k, v in enumerate(voxels):
+        for axis in range(3):
+            neighbour = list(v)
+            neighbour[axis] += 1
+            j = index.get(tuple(neighbour))
+            if j is not None:
+                links.append((k, j))
+    return np.array(links, dtype=int).reshape(-1, 2)
+
+
+def voxel_sizes(positions: np.ndarray, links: np.ndarray, rest_size: float) -> np.ndarray:
+    """Drawn edge of each voxel in one frame: the mean length of its lattice links (its
+    neighbours' centre distances), ``rest_size`` for a voxel without neighbours. (n,)."""
+    n = len(positions)
+    if len(links) == 0:
+        return np.full(n, rest_size)
+    lengths = np.linalg.norm(positions[links[:, 0]] - positions[links[:, 1]], axis=1)
+    total = np.bincount(links.ravel(), np.repeat(lengths, 2), minlength=n)
+    count = np.bincount(links.ravel(), minlength=n)
+    return np.where(count > 0, total / np.maximum(count, 1), rest_size)
+
+
+def surface_faces(voxels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Faces of the voxel lattice with no neighbour behind them: (voxel index, direction
+    index into ``_DIRECTIONS``), each shape (m,)."""
+    occupied = {tuple(v) for v in voxels}
+    owners, directions = [], []
+    for k, v in enumerate(voxels):
+        for d, (axis, sign) in enumerate(_DIRECTIONS):
+            neighbour = list(v)
+            neighbour[axis] += sign
+            if tuple(neighbour) not in occupied:
+                owners.append(k)
+                directions.append(d)
+    return np.array(owners, dtype=int), np.array(directions, dtype=int)
+
+
+def frame_indices(t: np.ndarray, fps: int = PLAYBACK_FPS, max_frames: int = MAX_FRAMES):
+    """(indices into ``t``, speed-up): frames for real-time playback at ``fps``, thinned
+    evenly (and played faster) when that needs more than ``max_frames``."""
+    wanted = np.arange(0.0, t[-1] + 1e-12, 1.0 / fps)
+    speed = max(1.0, len(wanted) / max_frames)
+    if speed > 1.0:
+        wanted = np.linspace(0.0, t[-1], max_frames)
+    indices = np.unique(np.clip(np.searchsorted(t, wanted), 0, len(t) - 1))
+    return indices, speed
+
+
+def _limits(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    half = motion.voxel_size
+    low = motion.positions.min(axis=(0, 1)) - half
+    high = motion.positions.max(axis=(0, 1)) + half
+    if motion.environment == "land":
+        low[2] = 0.0
+    span = high - low
+    pad = np.maximum(0.0, 0.5 * (np.max(span[:2]) - span))  # square ground footprint
+    pad[2] = 0.0
+    return low - pad, high + pad
+
+
+def _floor(ax, low: np.ndarray, high: np.ndarray) -> None:
+    square = [[(low[0], low[1], 0), (high[0], low[1], 0), (high[0], high[1], 0), (low[0], high[1], 0)]]
+    ax.add_collection3d(Poly3DCollection(square, facecolor="0.88", edgecolor="0.6", zorder=0))
+
+
+# brightness of a face by direction (+x, -x, +y, -y, +z, -z): a light from above and the front
+_SHADE = np.array([0.85, 0.7, 0.75, 0.9, 1.0, 0.55])
+
+
+def _shaded_colors(materials: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """RGB (m, 3) of faces: active red / passive cyan, darkened by face direction."""
+    from matplotlib.colors import to_rgb
+
+    base = np.where((materials == 2)[:, None], to_rgb(ACTIVE_COLOR), to_rgb(PASSIVE_COLOR))
+    return base * _SHADE[directions][:, None]
+
+
+def animate(
+    motion: Motion,
+    out: str | Path,
+    fps: int = PLAYBACK_FPS,
+    max_frames: int = MAX_FRAMES,
+    on_frame: Callable[[int, int], None] | None = None,
+) -> Path:
+    """Write ``motion`` as ``out`` (.gif or .mp4); ``on_frame(i, n)`` reports progress."""
+    out = Path(out)
+    writer = movie_writer(out, fps)
+    indices, speed = frame_indices(motion.t, fps, max_frames)
+    owners, directions = surface_faces(motion.voxels)
+    links = lattice_links(motion.voxels)
+    corners = _CORNERS[directions]  # (m, 4, 3), in voxel edges
+    colors = _shaded_colors(motion.materials[owners], directions)
+    fig = plt.figure(figsize=(SIZE_INCHES, SIZE_INCHES), dpi=ANIMATION_DPI)
+    ax = fig.add_subplot(projection="3d")
+    low, high = _limits(motion)
+    ax.set(xlim=(low[0], high[0]), ylim=(low[1], high[1]), zlim=(low[2], high[2]))
+    ax.set_box_aspect(high - low)
+    ax.view_init(**VIEW)
+    ax.computed_zorder = False  # floor, then body, then path: drawn in that order
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    if motion.environment == "land":
+        _floor(ax, low, high)
+    body = Poly3DCollection([], facecolors=colors, edgecolor=EDGE_COLOR, linewidths=0.3, zorder=1)
+    ax.add_collection3d(body)
+    com = motion.positions.mean(axis=1)
+    (trace,) = ax.plot([], [], [], color="black", lw=1.0, zorder=2)
+    title = fig.suptitle("")
+
+    def draw(k: int):
+        f = indices[k]
+        positions = motion.positions[f]
+        sizes = voxel_sizes(positions, links, motion.voxel_size)
+        body.set_verts(positions[owners][:, None, :] + corners * sizes[owners][:, None, None])
+        trace.set_data_3d(com[: f + 1, 0], com[: f + 1, 1], com[: f + 1, 2])
+        pace = "" if speed == 1.0 else f"  (\u00d7{speed:.1f} speed)"
+        title.set_text(f"{motion.label}\nt = {motion.t[f]:.2f} s{pace}")
+        return body, trace, title
+
+    movie = animation.FuncAnimation(fig, draw, frames=len(indices), blit=False)
+    try:
+        movie.save(out, writer=writer, dpi=ANIMATION_DPI, progress_callback=on_frame)
+    except OSError as exc:
+        raise UserError(f"cannot write {out}: {exc.strerror or exc}") from exc
+    finally:
+        plt.close(fig)
+    return out
+
+
+def movie_writer(out: Path, fps: int) -> animation.AbstractMovieWriter:
+    suffix = out.suffix.lower()
+    if suffix not in FORMATS:
+        raise UserError(f"--out must end in .gif or .mp4 (got {out.name!r})")
+    if not out.parent.exists():
+        raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
+    if suffix == ".gif":
+        return animation.PillowWriter(fps=fps)
+    if not animation.writers.is_available("ffmpeg"):
+        raise UserError("MP4 needs ffmpeg on PATH (not found); write a .gif instead")
+    return animation.FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])

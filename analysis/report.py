@@ -1,0 +1,457 @@
+"""The experiment report: every figure, the statistics and the run settings, as one
+self-contained HTML page (figures embedded as base64 PNG) and a Markdown file beside it.
+
+``write_report(source, experiment_id, out_dir)`` is the one entry point (the CLI's
+``softevo report`` and the REST service call it). ``out_dir`` receives::
+
+    report.html          self-contained page
+    report.md            the same content; figures linked from figures/
+    figures/NAME.png     and NAME.svg, one pair per figure (see analysis.figures)
+    figures/best.gif     the best robot's motion (unless animation=False)
+    statistics.csv       every Mann-Whitney test (analysis.stats_tables.statistics_table)
+    summary.csv          means and bootstrap CIs over repetitions per treatment and metric
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from sqlalchemy import Connection, Engine
+
+from analysis import figures as fig
+from analysis.data import TRAIT_LABELS, ExperimentData, load_experiment
+from analysis.stats_tables import (
+    N_RESAMPLES,
+    fitness_curves,
+    statistics_table,
+    summary_table,
+)
+from service.errors import UserError
+
+METHODS = (
+    "Confidence intervals: percentile bootstrap of the mean over repetitions "
+    f"({N_RESAMPLES:,} resamples; 2,000 for the per-generation curves), 95%. "
+    "Tests: two-sided Mann-Whitney U. Treatments are compared when they differ in exactly one "
+    "factor (environment schedule or stiffness); descriptors over the pooled individuals of "
+    "the final populations, the best distance over runs. Bonferroni: p-values are multiplied "
+    "by the number of comparisons of the same kind and metric and capped at 1; * p<0.05, "
+    "** p<0.01, *** p<0.001 after correction. Distances are in voxel lengths (horizontal on "
+    "land, 3-D in water); a transition run's values after the switch are measured in its "
+    "second environment."
+)
+
+
+# ---- document model: blocks rendered to Markdown and to HTML ----------------------------------
+@dataclass
+class Document:
+    """An ordered list of blocks: ("h", level, text), ("p", text), ("table", DataFrame),
+    ("figure", FigureFile) or ("animation", path, caption)."""
+
+    title: str
+    blocks: list[tuple] = field(default_factory=list)
+
+    def heading(self, text: str, level: int = 2) -> None:
+        self.blocks.append(("h", level, text))
+
+    def paragraph(self, text: str) -> None:
+        self.blocks.append(("p", text))
+
+    def table(self, frame: pd.DataFrame) -> None:
+        self.blocks.append(("table", frame))
+
+
+def _cell(value: Any) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    if isinstance(value, float | np.floating):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def markdown_table(frame: pd.DataFrame) -> str:
+    """A GitHub-flavoured Markdown table (pipes in cells escaped)."""
+
+    def row(cells) -> str:
+        return "| " + " | ".join(_cell(c).replace("|", "\\|") for c in cells) + " |"
+
+    lines = [row(frame.columns), "| " + " | ".join("---" for _ in frame.columns) + " |"]
+    lines += [row(values) for values in frame.itertuples(index=False)]
+    return "\n".join(lines)
+
+
+def html_table(frame: pd.DataFrame) -> str:
+    """An HTML table, every cell escaped."""
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in frame.columns)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(_cell(v))}</td>" for v in values) + "</tr>"
+        for values in frame.itertuples(index=False)
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def to_markdown(doc: Document, out_dir: Path) -> str:
+    """The document as Markdown; figures are linked relative to ``out_dir``."""
+    parts = [f"# {doc.title}"]
+    for block in doc.blocks:
+        kind = block[0]
+        if kind == "h":
+            parts.append("#" * block[1] + " " + block[2])
+        elif kind == "p":
+            parts.append(block[1])
+        elif kind == "table":
+            parts.append(markdown_table(block[1]))
+        elif kind == "figure":
+            figure = block[1]
+            link = figure.png.relative_to(out_dir).as_posix()
+            svg = figure.svg.relative_to(out_dir).as_posix()
+            parts.append(f"![{figure.name}]({link})\n\n*{figure.caption}* ([SVG]({svg}))")
+        elif kind == "animation":
+            parts.append(f"![animation]({block[1].relative_to(out_dir).as_posix()})\n\n*{block[2]}*")
+    return "\n\n".join(parts) + "\n"
+
+
+STYLE = """
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1500px;
+margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+h1{border-bottom:2px solid #ddd;padding-bottom:.3em}h2{margin-top:2em;border-bottom:1px solid #eee}
+table{border-collapse:collapse;font-size:13px;margin:1em 0}
+th,td{border:1px solid #ddd;padding:3px 8px;text-align:right}th{background:#f4f4f4}
+td:first-child,th:first-child{text-align:left}
+figure{margin:1.5em 0}figure img{max-width:100%;border:1px solid #eee}
+figcaption{font-size:14px;color:#444;margin-top:.4em}
+.scroll{max-height:600px;overflow:auto}
+"""
+
+
+def _data_uri(path: Path, mime: str) -> str:
+    return f"data:{mime};base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def to_html(doc: Document) -> str:
+    """The document as one self-contained HTML page (images inlined as base64)."""
+    parts = [f"<h1>{html.escape(doc.title)}</h1>"]
+    for block in doc.blocks:
+        kind = block[0]
+        if kind == "h":
+            parts.append(f"<h{block[1]}>{html.escape(block[2])}</h{block[1]}>")
+        elif kind == "p":
+            parts.append(f"<p>{html.escape(block[1])}</p>")
+        elif kind == "table":
+            parts.append(f'<div class="scroll">{html_table(block[1])}</div>')
+        elif kind == "figure":
+            figure = block[1]
+            parts.append(
+                f'<figure id="{figure.name}"><img alt="{figure.name}" '
+                f'src="{_data_uri(figure.png, "image/png")}">'
+                f"<figcaption>{html.escape(figure.caption)}</figcaption></figure>"
+            )
+        elif kind == "animation":
+            parts.append(
+                f'<figure id="animation"><img alt="animation" '
+                f'src="{_data_uri(block[1], "image/gif")}">'
+                f"<figcaption>{html.escape(block[2])}</figcaption></figure>"
+            )
+    body = "\n".join(parts)
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f"<title>{html.escape(doc.title)}</title><style>{STYLE}</style></head>"
+        f"<body>\n{body}\n</body></html>\n"
+    )
+
+
+# ---- content ------------------------------------------------------------------------------------
+def settings_table(data: ExperimentData) -> pd.DataFrame:
+    """One row per treatment: schedule, stiffness, sizes, seeds, runs finished."""
+    finished = data.runs[data.runs["status"] == "finished"].groupby("treatment").size()
+    total = data.runs.groupby("treatment").size()
+    t = data.treatments
+    seeds = [
+        f"{s}" if r == 1 else f"{s}..{s + r - 1}" for s, r in zip(t["seed"], t["repetitions"], strict=True)
+    ]
+    return pd.DataFrame(
+        {
+            "treatment": t["name"],
+            "environment schedule (env:first generation)": t["schedule"],
+            "stiffness (MPa)": t["stiffness_mpa"],
+            "population": t["population"],
+            "generations": t["generations"],
+            "workspace": t["workspace"],
+            "cycles": t["cycles"],
+            "repetitions": t["repetitions"],
+            "seeds": seeds,
+            "algorithm": t["algorithm"],
+            "runs finished": [f"{finished.get(n, 0)}/{total.get(n, 0)}" for n in t["name"]],
+        }
+    )
+
+
+def _as_utc(value) -> datetime | None:
+    if value is None or pd.isna(value):
+        return None
+    value = pd.Timestamp(value).to_pydatetime()
+    return value if value.tzinfo else value.replace(tzinfo=UTC)
+
+
+def timing_text(data: ExperimentData) -> str:
+    """Wall time from the experiment's creation to its last stored generation, and the
+    evaluations it took."""
+    created = _as_utc(data.experiment.get("created_at"))
+    last = _as_utc(data.generations["created_at"].max()) if len(data.generations) else None
+    evaluations = int(data.generations["evaluations"].sum())
+    seconds = float(data.generations["evaluation_seconds"].sum())
+    wall = (last - created).total_seconds() if created and last else float("nan")
+    return (
+        f"Wall time from the experiment's creation to its last stored generation: "
+        f"{_duration(wall)} ({len(data.runs)} runs, {len(data.generations)} generations, "
+        f"{evaluations:,} simulated evaluations; {_duration(seconds)} of evaluation time as the "
+        "coordinator measured it, all workers together)."
+    )
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "unknown"
+    hours, rest = divmod(int(round(seconds)), 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours} h {minutes:02d} min {secs:02d} s" if hours else f"{minutes} min {secs:02d} s"
+
+
+def summary_pivot(summary: pd.DataFrame, names: list[str]) -> pd.DataFrame:
+    """Treatments as rows, metrics as columns, cells ``mean [low, high]``."""
+    cells = summary.assign(
+        cell=[
+            f"{m:.3g} [{lo:.3g}, {hi:.3g}]" if np.isfinite(m) else ""
+            for m, lo, hi in zip(summary["mean"], summary["low"], summary["high"], strict=True)
+        ]
+    )
+    table = cells.pivot(index="treatment", columns="metric", values="cell")
+    metrics = [m for m in ["best_distance", *TRAIT_LABELS] if m in table.columns]
+    table = table.reindex(index=names, columns=list(dict.fromkeys(metrics)))
+    table.columns = [TRAIT_LABELS[m] for m in table.columns]
+    return table.reset_index()
+
+
+def _statistics_display(stats: pd.DataFrame) -> pd.DataFrame:
+    shown = stats.drop(columns=["median_a", "median_b"]).copy()
+    shown["metric"] = [TRAIT_LABELS.get(m, m) for m in shown["metric"]]
+    return shown
+
+
+# ---- building -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Report:
+    """What ``write_report`` wrote."""
+
+    html: Path
+    markdown: Path
+    figures: list[fig.FigureFile]
+    statistics: Path
+    summary: Path
+    animation: Path | None
+
+
+def engine_of(source: str | Engine | Connection | Any | None) -> Engine:
+    """An engine from a URL (None: the default database), an Engine, a Connection or an ORM
+    Session."""
+    if isinstance(source, Engine):
+        return source
+    if isinstance(source, Connection):
+        return source.engine
+    if source is None or isinstance(source, str):
+        from service.db import open_database
+
+        return open_database(source)
+    if hasattr(source, "get_bind"):
+        return source.get_bind()
+    raise TypeError(f"expected a database URL, Engine, Connection or Session, got {source!r}")
+
+
+@contextmanager
+def _steps(total: int, enabled: bool) -> Iterator[Callable[[str], None]]:
+    """A rich progress bar over ``total`` steps; yields ``advance(description)``."""
+    if not enabled:
+        yield lambda _description: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    columns = (TextColumn("{task.description:<28}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
+        task = progress.add_task("report", total=total)
+        yield lambda description: progress.update(task, advance=1, description=description)
+
+
+def write_report(
+    source: str | Engine | Connection | Any | None,
+    experiment_id: int | str,
+    out_dir: str | Path,
+    *,
+    animation: bool = True,
+    progress: bool = False,
+    seed: int = 0,
+) -> Report:
+    """Write the report of experiment ``experiment_id`` (an id, ``e3`` or a name) into
+    ``out_dir`` (see the module doc). ``source``: a database URL, Engine, Connection or
+    Session. ``seed`` seeds the bootstrap."""
+    from analysis.data import resolve_experiment
+
+    engine = engine_of(source)
+    with engine.connect() as conn:
+        experiment_id = resolve_experiment(conn, experiment_id)
+    out = _output_dir(out_dir)
+    figures_dir = out / "figures"
+    rng = np.random.default_rng(seed)
+    with _steps(10 if animation else 9, progress) as step:
+        step("reading the database")
+        data = load_experiment(engine, experiment_id)
+        if data.generations.empty:
+            raise UserError(f"experiment e{experiment_id} has no stored generation yet")
+        step("statistics")
+        stats, summary = statistics_table(data), summary_table(data, rng)
+        curves = fitness_curves(data, rng)
+        figures = []
+        for name, make in _figure_makers(data, engine, stats, curves, rng, figures_dir):
+            step(f"figure: {name}")
+            made = make()
+            if made is not None:
+                figures.append(made)
+        gif = None
+        if animation:
+            step("animation of the best robot")
+            gif = _best_animation(engine, data, figures_dir)
+        step("writing the report")
+        stats_path, summary_path = out / "statistics.csv", out / "summary.csv"
+        stats.to_csv(stats_path, index=False)
+        summary.to_csv(summary_path, index=False)
+        doc = build_document(data, stats, summary, figures, gif)
+        markdown, page = out / "report.md", out / "report.html"
+        markdown.write_text(to_markdown(doc, out), encoding="utf-8")
+        page.write_text(to_html(doc), encoding="utf-8")
+    return Report(page, markdown, figures, stats_path, summary_path, gif)
+
+
+def _output_dir(out_dir: str | Path) -> Path:
+    out = Path(out_dir)
+    try:
+        (out / "figures").mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create output directory {out}: {exc.strerror or exc}") from exc
+    return out
+
+
+def _figure_makers(data, engine, stats, curves, rng, figures_dir):
+    return [
+        ("fitness", lambda: fig.fitness_figure(data, curves, figures_dir)),
+        ("descriptors", lambda: fig.descriptors_figure(data, stats, figures_dir)),
+        ("pareto", lambda: fig.pareto_figure(data, figures_dir)),
+        ("transitions", lambda: fig.transitions_figure(data, curves, stats, figures_dir)),
+        ("robots", lambda: fig.robots_figure(data, engine, figures_dir)),
+        ("start_end", lambda: fig.start_end_figure(data, stats, rng, figures_dir)),
+    ]
+
+
+def best_individual(data: ExperimentData) -> dict[str, Any] | None:
+    """The final-population member with the largest distance (None if there is none)."""
+    final = data.final_populations().dropna(subset=["distance"])
+    if final.empty:
+        return None
+    return final.loc[final["distance"].idxmax()].to_dict()
+
+
+def _best_animation(engine: Engine, data: ExperimentData, out_dir: Path) -> Path | None:
+    """A GIF of the best final robot; None (the report says so) if it cannot be made."""
+    from analysis.motion import animate, record_motion
+
+    best = best_individual(data)
+    if best is None:
+        return None
+    try:
+        motion = record_motion(engine, int(best["individual_id"]), best["environment"])
+        return animate(motion, out_dir / "best.gif")
+    except UserError:
+        return None
+
+
+def build_document(
+    data: ExperimentData,
+    stats: pd.DataFrame,
+    summary: pd.DataFrame,
+    figures: list[fig.FigureFile],
+    gif: Path | None,
+) -> Document:
+    """The report's content, in order."""
+    experiment = data.experiment
+    doc = Document(f"softevo report: experiment e{experiment['id']} \u201c{experiment['name']}\u201d")
+    created = _as_utc(experiment.get("created_at"))
+    doc.paragraph(
+        f"Preset: {experiment.get('preset') or '-'}; scale: {experiment.get('scale') or '-'}; "
+        f"created {created:%Y-%m-%d %H:%M} UTC; report generated "
+        f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC by softevo {_version()}."
+        if created
+        else f"Report generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC."
+    )
+    doc.heading("Run settings")
+    doc.table(settings_table(data))
+    doc.paragraph(timing_text(data))
+    doc.heading("Summary")
+    doc.paragraph(
+        "Mean over repetitions with its 95% bootstrap confidence interval. Best "
+        "distance: each run's best at its last generation; other columns: each run's "
+        "final-population mean."
+    )
+    doc.table(summary_pivot(summary, data.treatment_names))
+    doc.heading("Figures")
+    for figure in figures:
+        doc.heading(figure.title, 3)
+        doc.blocks.append(("figure", figure))
+    if not any(f.name == "transitions" for f in figures):
+        doc.paragraph("No transition treatment in this experiment: no transition figure.")
+    _animation_block(doc, data, gif)
+    doc.heading("Statistics")
+    doc.paragraph(METHODS)
+    doc.table(_statistics_display(stats))
+    return doc
+
+
+def _animation_block(doc: Document, data: ExperimentData, gif: Path | None) -> None:
+    best = best_individual(data)
+    if gif is None or best is None:
+        return
+    doc.heading("Motion of the best robot", 3)
+    doc.blocks.append(
+        (
+            "animation",
+            gif,
+            f"Individual {int(best['individual_id'])} ({best['treatment']}, repetition "
+            f"{int(best['repetition'])}), the farthest-travelling member of the final populations "
+            f"({best['distance']:.3g} voxel lengths in {best['environment']}), re-simulated. "
+            f"`softevo show {int(best['individual_id'])} --out FILE.gif` makes it again.",
+        )
+    )
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("softevo")
+    except PackageNotFoundError:
+        return "(not installed)"
+
+
+def report_html(source: str | Engine | Connection | Any | None, experiment_id: int | str) -> str:
+    """The report page as a string (for the REST service), built in a temporary directory."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="softevo-report-") as tmp:
+        return write_report(source, experiment_id, tmp).html.read_text(encoding="utf-8")
