@@ -36,9 +36,9 @@ def _group() -> None:
 
 
 def _register() -> None:
-    from service import cli_evolution, cli_runs, cli_sim
+    from service import cli_analysis, cli_evolution, cli_runs, cli_sim
 
-    for module in (cli_sim, cli_evolution, cli_runs):
+    for module in (cli_sim, cli_evolution, cli_runs, cli_analysis):
         module.register(app)
 
 
