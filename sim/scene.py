@@ -69,7 +69,7 @@ class Scene:
     initial_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # metres, added to start positions
     duration_seconds: float = 0.0  # simulated after settling
     settle_seconds: float = 0.0
-    # Step = min(dt_fraction x the link stability step, actuation period / 1000). 0.2 is the
+    # Step = min(dt_fraction x the link stability step, actuation period / 2000). 0.2 is the
     # largest fraction that kept a walker's and a swimmer's distance within 1% of a
     # dt_fraction-0.1 reference at every stiffness from 1 kPa to 10 MPa (bench/dt_accuracy.py);
     # the engine itself stays stable up to about 1.0 with bond damping 1 (3.0 without).

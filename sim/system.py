@@ -33,7 +33,7 @@ N_IPARAMS = 8
 
 ENV_CODES = {"land": 0, "water": 1, "void": 2}
 WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
-STEPS_PER_CYCLE = 1000  # the step also resolves the actuation cycle at least this finely
+STEPS_PER_CYCLE = 2000  # the step also resolves the actuation cycle at least this finely
 COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
