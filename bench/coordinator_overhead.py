@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -94,9 +95,19 @@ def main() -> None:
     parser.add_argument("--cycles", type=int, default=50)
     parser.add_argument("--workspace", default="7,7,7")
     parser.add_argument("--batch", type=int, default=16)
+    parser.add_argument("--parts", default="overhead,speedup")
     args = parser.parse_args()
     args.workspace = tuple(int(n) for n in args.workspace.split(","))
     folder = Path(tempfile.mkdtemp(prefix="softevo-bench-"))
+    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    if "overhead" in args.parts:
+        overheads(args, folder)
+    if "speedup" in args.parts:
+        speedup(args, folder)
+
+
+def overheads(args, folder: Path) -> None:
+    """Part 1-3: overhead per generation as a share of evaluation time."""
     pool = LocalExecutor()
     pool.warm()
     print(f"workspace {args.workspace}, {args.cycles} cycles, {pool.workers} processes")
@@ -108,7 +119,13 @@ def main() -> None:
             f"evaluation {evaluation:7.2f} s/generation, share {overhead / evaluation:6.2%}"
         )
     pool.close()
-    tasks = generation_tasks(args.batch, args, folder)[: args.batch]
+
+
+def speedup(args, folder: Path) -> None:
+    """Part 4: evaluations/s with 1 and 2 processes, on ``--batch`` copies of one genome
+    (equal costs, so the ratio shows the executor's scaling, not the luck of the split)."""
+    first = generation_tasks(2, args, folder)[0]
+    tasks = [dict(first, id=k) for k in range(args.batch)]
     rates = {}
     for workers in (1, 2):
         executor = LocalExecutor(workers, genomes_per_task=2)

@@ -59,6 +59,4 @@ def numba_cache():
     import subprocess
     import sys
 
-    subprocess.run(
-        [sys.executable, "-c", "from worker.evaluate import warm_up; warm_up()"], check=True
-    )
+    subprocess.run([sys.executable, "-c", "from worker.evaluate import warm_up; warm_up()"], check=True)

@@ -93,9 +93,7 @@ def test_a_failed_generation_write_leaves_nothing(engine):
     run_id = handbuilt.build(engine)
     record = handbuilt.generation_record(run_id, 3)
     record.generation = 4
-    record.individuals = [
-        {"local_id": 99, "parent_local_id": 7, "generation_born": 4, "genome": {}}
-    ]
+    record.individuals = [{"local_id": 99, "parent_local_id": 7, "generation_born": 4, "genome": {}}]
     record.members = [{"local_id": 12345, "front_rank": 0}]  # unknown: fails mid-write
     with pytest.raises(KeyError), engine.begin() as conn:
         record_generation(conn, record)

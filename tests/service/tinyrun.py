@@ -68,9 +68,9 @@ def snapshot(engine: Engine, run_id: int) -> dict[str, Any]:
             .order_by(pm.c.generation, ind.c.local_id)
         ).all()
         run = conn.execute(
-            select(
-                Run.__table__.c.status, Run.__table__.c.generation, Run.__table__.c.algorithm_state
-            ).where(Run.__table__.c.id == run_id)
+            select(Run.__table__.c.status, Run.__table__.c.generation, Run.__table__.c.algorithm_state).where(
+                Run.__table__.c.id == run_id
+            )
         ).one()
     return {
         "individuals": [tuple(r) for r in individuals],
