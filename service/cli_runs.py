@@ -45,9 +45,7 @@ def _workers(workers: int | None) -> int:
     return workers
 
 
-def _execute(
-    engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = 4
-) -> None:
+def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = 4) -> None:
     """Advance ``run_ids`` to their end with a progress bar; print a summary line per run."""
     from service.coordinator import Coordinator, unfinished_runs
     from service.executors import make_executor
@@ -77,9 +75,7 @@ def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
 
 def run(
     env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
-    stiffness: Annotated[
-        float, typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10)")
-    ],
+    stiffness: Annotated[float, typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10)")],
     population: Annotated[int, typer.Option("--population")] = 30,
     generations: Annotated[int, typer.Option("--generations")] = 100,
     workspace: Annotated[str, typer.Option("--workspace", help="X,Y,Z voxels")] = "7,7,7",
@@ -134,9 +130,7 @@ def experiment(
     paper_grid(scale)  # validates the scale before touching the database
     engine = open_database(db)
     experiment_id, run_ids = create_paper(engine, scale, repetitions, seed)
-    typer.echo(
-        f"experiment {experiment_id} (e{experiment_id}): runs {run_ids[0]}..{run_ids[-1]}", err=True
-    )
+    typer.echo(f"experiment {experiment_id} (e{experiment_id}): runs {run_ids[0]}..{run_ids[-1]}", err=True)
     _execute(engine, run_ids, workers, quiet)
 
 
@@ -146,9 +140,7 @@ def _print_status(engine, run_ids: list[int]) -> None:
 
     from service.db.status import run_summaries
 
-    table = Table(
-        "run", "experiment", "treatment", "rep", "seed", "status", "generation", "best distance"
-    )
+    table = Table("run", "experiment", "treatment", "rep", "seed", "status", "generation", "best distance")
     for r in run_summaries(engine, run_ids):
         best = "-" if r["best_distance"] is None else f"{r['best_distance']:.3f}"
         table.add_row(
@@ -231,9 +223,7 @@ def lineage(
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(
-        "id", "parent", "born", "environment", "distance", "active share", "voxels", "error"
-    )
+    table = Table("id", "parent", "born", "environment", "distance", "active share", "voxels", "error")
     for r in records:
         table.add_row(
             str(r["id"]),

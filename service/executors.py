@@ -11,7 +11,9 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
 Task = dict[str, Any]
@@ -62,25 +64,55 @@ class LocalExecutor:
     database connections) and warm the simulator once each.
     """
 
-    def __init__(self, workers: int | None = None, genomes_per_task: int = 4) -> None:
-        from worker.evaluate import init_pool_process
+    def __init__(
+        self, workers: int | None = None, genomes_per_task: int = 4, job: Callable[..., list] | None = None
+    ) -> None:
+        from worker.evaluate import evaluate_batch
 
         self.workers = workers or os.cpu_count() or 1
         self.genomes_per_task = genomes_per_task
-        self._pool = ProcessPoolExecutor(
+        self.job = job or evaluate_batch  # a module-level function (the pool pickles it by name)
+        self._pool = self._new_pool()
+
+    def _new_pool(self) -> ProcessPoolExecutor:
+        from worker.evaluate import init_pool_process
+
+        return ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=init_pool_process,
         )
 
     def evaluate(self, tasks: list[Task]) -> list[Task]:
-        from worker.evaluate import evaluate_batch
+        """Results in order. A process that dies (a crash inside compiled code) breaks the
+        pool: it is restarted and the unfinished genomes are evaluated one per job, so the
+        genome that kills a process again is recorded as failed, not retried forever."""
+        parts = chunks(tasks, self.workers, self.genomes_per_task)
+        jobs = [self._pool.submit(self.job, part) for part in parts]
+        results: list[Task] = []
+        for part, job in zip(parts, jobs, strict=True):
+            try:
+                results.extend(job.result())
+            except BrokenProcessPool:
+                self._restart()
+                results.extend(self._one_by_one(part))
+        return results
 
-        jobs = [
-            self._pool.submit(evaluate_batch, chunk)
-            for chunk in chunks(tasks, self.workers, self.genomes_per_task)
-        ]
-        return [result for job in jobs for result in job.result()]
+    def _one_by_one(self, tasks: list[Task]) -> list[Task]:
+        from worker.evaluate import crashed
+
+        results = []
+        for task in tasks:
+            try:
+                results.extend(self._pool.submit(self.job, [task]).result())
+            except BrokenProcessPool:
+                self._restart()
+                results.append(crashed(task, "the evaluation killed its worker process"))
+        return results
+
+    def _restart(self) -> None:
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        self._pool = self._new_pool()
 
     def warm(self) -> None:
         """Start every process now (their start-up is otherwise paid by the first batch)."""

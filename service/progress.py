@@ -25,9 +25,7 @@ class ProgressReporter:
 
     def __init__(self, progress: Progress, total_generations: int, done: int = 0) -> None:
         self.progress = progress
-        self.task = progress.add_task(
-            "starting", total=total_generations, completed=done, best="-", rate="-"
-        )
+        self.task = progress.add_task("starting", total=total_generations, completed=done, best="-", rate="-")
         self.best: dict[int, float] = {}
         self.evaluations = 0
         self.started = time.perf_counter()

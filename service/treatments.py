@@ -76,9 +76,7 @@ class Treatment:
         if "-" not in self.environment:
             raise UserError(f"--switch-at needs a transition environment (got {self.environment})")
         if not 1 <= self.switch_at < self.generations:
-            raise UserError(
-                f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})"
-            )
+            raise UserError(f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})")
 
     def default_name(self) -> str:
         """E.g. ``land-water S=0.1MPa``."""
@@ -164,9 +162,7 @@ PRESET_SCALES: dict[str, Scale] = {
 }
 
 
-def paper_grid(
-    scale: str = "tiny", repetitions: int | None = None, seed: int = 0
-) -> list[Treatment]:
+def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 0) -> list[Treatment]:
     """The paper's grid (SPEC.md section 5): land and water at S1..S5, transitions at S3.
 
     At paper scale the S3 static treatments run as long as the transitions (9000

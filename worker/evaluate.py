@@ -54,6 +54,11 @@ def _failure(task: dict[str, Any], error: str, phenotype=None) -> dict[str, Any]
     return result
 
 
+def crashed(task: dict[str, Any], error: str) -> dict[str, Any]:
+    """The result of a task whose evaluation could not finish (e.g. its process died)."""
+    return _failure(task, error)
+
+
 def _phenotype_fields(phenotype) -> dict[str, Any]:
     if phenotype is None:
         return {

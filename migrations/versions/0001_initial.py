@@ -63,9 +63,7 @@ def upgrade() -> None:
             ondelete="CASCADE",
         ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_runs")),
-        sa.UniqueConstraint(
-            "treatment_id", "repetition", name=op.f("uq_runs_treatment_id_repetition")
-        ),
+        sa.UniqueConstraint("treatment_id", "repetition", name=op.f("uq_runs_treatment_id_repetition")),
     )
     with op.batch_alter_table("runs", schema=None) as batch_op:
         batch_op.create_index(batch_op.f("ix_runs_status"), ["status"], unique=False)
@@ -149,9 +147,7 @@ def upgrade() -> None:
         ),
     )
     with op.batch_alter_table("evaluations", schema=None) as batch_op:
-        batch_op.create_index(
-            "ix_evaluations_run_generation", ["run_id", "generation"], unique=False
-        )
+        batch_op.create_index("ix_evaluations_run_generation", ["run_id", "generation"], unique=False)
 
     op.create_table(
         "population_members",
@@ -172,9 +168,7 @@ def upgrade() -> None:
             name=op.f("fk_population_members_run_id_runs"),
             ondelete="CASCADE",
         ),
-        sa.PrimaryKeyConstraint(
-            "run_id", "generation", "individual_id", name=op.f("pk_population_members")
-        ),
+        sa.PrimaryKeyConstraint("run_id", "generation", "individual_id", name=op.f("pk_population_members")),
     )
     with op.batch_alter_table("population_members", schema=None) as batch_op:
         batch_op.create_index("ix_population_members_individual", ["individual_id"], unique=False)

@@ -111,16 +111,12 @@ def populations_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     query = (
         select(*[members.c[name] for name in POPULATION_COLUMNS])
         .where(members.c.run_id.in_(list(run_ids)))
-        .order_by(
-            members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id
-        )
+        .order_by(members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id)
     )
     return _read(conn, query)
 
 
-def export_runs(
-    engine: Engine, run_ids: Sequence[int], out_dir: str | Path, fmt: str = "csv"
-) -> list[Path]:
+def export_runs(engine: Engine, run_ids: Sequence[int], out_dir: str | Path, fmt: str = "csv") -> list[Path]:
     """Write runs, individuals and populations files for ``run_ids`` into ``out_dir``."""
     if fmt not in FORMATS:
         raise UserError(f"unknown format {fmt!r}; choose csv or parquet")
@@ -155,6 +151,4 @@ def _require_pyarrow() -> None:
     try:
         import pyarrow  # noqa: F401
     except ImportError as exc:
-        raise UserError(
-            "parquet export needs pyarrow: pip install pyarrow (or use --format csv)"
-        ) from exc
+        raise UserError("parquet export needs pyarrow: pip install pyarrow (or use --format csv)") from exc

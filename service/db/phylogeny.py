@@ -78,9 +78,7 @@ def _ancestor_cte(individual_id: int):
     return cte.union_all(step)
 
 
-def ancestors(
-    bind: Connection | Engine, individual_id: int, which: Which = "birth"
-) -> pd.DataFrame:
+def ancestors(bind: Connection | Engine, individual_id: int, which: Which = "birth") -> pd.DataFrame:
     """The individual and its ancestors, newest first, to its root newcomer.
 
     Columns: depth (0 = the individual), id, parent_id, run_id, generation_born, and the
@@ -119,9 +117,7 @@ def switch_generation(bind: Connection | Engine, run_id: int) -> int | None:
     return TreatmentSettings.from_settings(frame.iloc[0]["settings"]).switch_generation()
 
 
-def transition_lineages(
-    bind: Connection | Engine, run_id: int, switch_at: int | None = None
-) -> pd.DataFrame:
+def transition_lineages(bind: Connection | Engine, run_id: int, switch_at: int | None = None) -> pd.DataFrame:
     """Descendants of the individuals alive when the environment switched.
 
     ``switch_at`` is the first generation in the new environment (default: from the run's

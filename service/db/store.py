@@ -110,9 +110,7 @@ def create_experiment(
 ) -> tuple[int, list[int]]:
     """Insert an experiment, its treatments and pending runs; return (experiment id, run ids)."""
     experiment_id = conn.execute(
-        Experiment.__table__.insert().values(
-            name=name, preset=preset, scale=scale, created_at=utcnow()
-        )
+        Experiment.__table__.insert().values(name=name, preset=preset, scale=scale, created_at=utcnow())
     ).inserted_primary_key[0]
     run_ids: list[int] = []
     for treatment in treatments:
@@ -149,9 +147,7 @@ def local_to_db_ids(conn: Connection, run_id: int, local_ids: Iterable[int]) -> 
         return {}
     table = Individual.__table__
     rows = conn.execute(
-        select(table.c.local_id, table.c.id).where(
-            table.c.run_id == run_id, table.c.local_id.in_(wanted)
-        )
+        select(table.c.local_id, table.c.id).where(table.c.run_id == run_id, table.c.local_id.in_(wanted))
     )
     return {local: db_id for local, db_id in rows}
 
@@ -172,9 +168,7 @@ def record_generation(conn: Connection, record: GenerationRecord) -> None:
             {
                 "run_id": run_id,
                 "local_id": i["local_id"],
-                "parent_id": None
-                if i["parent_local_id"] is None
-                else parent_ids[i["parent_local_id"]],
+                "parent_id": None if i["parent_local_id"] is None else parent_ids[i["parent_local_id"]],
                 "generation_born": i["generation_born"],
                 "genome": i["genome"],
                 "phenotype": i.get("phenotype"),
@@ -248,9 +242,7 @@ def _advance_run(conn: Connection, record: GenerationRecord) -> None:
     )
 
 
-def set_run_status(
-    conn: Connection, run_id: int, status: RunStatus, error: str | None = None
-) -> None:
+def set_run_status(conn: Connection, run_id: int, status: RunStatus, error: str | None = None) -> None:
     """Set a run's status (and error message, for a failed run)."""
     table = Run.__table__
     conn.execute(

@@ -121,3 +121,21 @@ def test_local_process_pool_gives_the_inline_results(tmp_path, numba_cache):
             executor.close()
         snaps.append(tinyrun.snapshot(engine, run_id))
     assert snaps[0] == snaps[1]
+
+
+@pytest.mark.slow
+def test_a_genome_that_kills_its_pool_process_is_recorded_not_retried_forever():
+    from service.executors import LocalExecutor
+    from tests.service import crashy
+
+    executor = LocalExecutor(2, genomes_per_task=2, job=crashy.evaluate_batch)
+    try:
+        tasks = [{"id": k, "crash": k == 3} for k in range(6)]
+        results = executor.evaluate(tasks)
+        assert [r["id"] for r in results] == list(range(6))
+        assert results[3]["error"] == "the evaluation killed its worker process"
+        assert results[3]["stable"] is False and results[3]["distance"] == 0.0
+        assert all(r["error"] is None for k, r in enumerate(results) if k != 3)
+        assert executor.evaluate([{"id": 7}])[0]["distance"] == 1.0  # the pool works again
+    finally:
+        executor.close()
