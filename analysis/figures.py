@@ -84,10 +84,10 @@ def figure_size(name: str, n_treatments: int, n_transitions: int = 0) -> tuple[f
     raise ValueError(f"unknown figure {name!r}")
 
 
-def _new_figure(name: str, data: ExperimentData) -> Figure:
+def _new_figure(name: str, data: ExperimentData, layout: str | None = "constrained") -> Figure:
     n_transitions = int(data.treatments["switch_at"].notna().sum())
     size = figure_size(name, len(data.treatments), n_transitions)
-    return plt.figure(figsize=size, dpi=DPI, layout="constrained")
+    return plt.figure(figsize=size, dpi=DPI, layout=layout)
 
 
 def save(fig: Figure, out_dir: Path, name: str, caption: str) -> FigureFile:
@@ -95,6 +95,7 @@ def save(fig: Figure, out_dir: Path, name: str, caption: str) -> FigureFile:
     out_dir.mkdir(parents=True, exist_ok=True)
     png, svg = out_dir / f"{name}.png", out_dir / f"{name}.svg"
     fig.savefig(png, dpi=DPI)
+    fig.set_layout_engine("none")  # keep the layout just computed; do not redo it for the SVG
     fig.savefig(svg)
     width, height = fig.get_size_inches() * DPI
     plt.close(fig)
@@ -421,9 +422,19 @@ def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
     samples = {n: front_samples(pareto_front(final[final["treatment"] == n])) for n in names}
     ids = [int(i) for s in samples.values() for i in s["individual_id"]]
     bodies = {i: p.body for i, p in phenotypes(engine, ids).items()}
-    fig = _new_figure("robots", data)
+    fig = _new_figure("robots", data, layout=None)  # fixed margins: 3-D axes need no solver
     per_row = min(2, len(names))
-    grid = fig.add_gridspec(math.ceil(len(names) / per_row), SAMPLES_PER_FRONT * per_row)
+    top = 1.0 - 0.45 / fig.get_size_inches()[1]
+    grid = fig.add_gridspec(
+        math.ceil(len(names) / per_row),
+        SAMPLES_PER_FRONT * per_row,
+        left=0.0,
+        right=1.0,
+        bottom=0.0,
+        top=top,
+        wspace=0.0,
+        hspace=0.12,
+    )
     for t, name in enumerate(names):
         row, col0 = divmod(t, per_row)
         picks = list(samples[name].itertuples())

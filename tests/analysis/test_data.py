@@ -1,0 +1,98 @@
+"""Reading a real tiny experiment back, and the statistics tables over it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats as scipy_stats
+
+from analysis.data import TRAITS, load_experiment, resolve_experiment
+from analysis.stats_tables import (
+    best_distance_per_run,
+    fitness_curves,
+    statistics_table,
+    summary_table,
+)
+from service.errors import UserError
+
+
+def test_the_experiment_is_read_back(tiny, tiny_data):
+    data = tiny_data
+    assert data.experiment["name"] == "tiny-analysis"
+    assert data.treatment_names == ["land S3", "water-land S3"]
+    assert data.treatments["switch_at"].tolist()[1] == 2 and data.treatments["switch_at"].isna()[0]
+    assert sorted(data.runs["run_id"]) == sorted(tiny.run_ids)
+    assert (data.runs["status"] == "finished").all()
+    assert len(data.generations) == 4 * 3
+    counts = data.populations.groupby(["run_id", "generation"]).size()
+    assert (counts == 4).all() and len(counts) == 4 * 3
+
+
+def test_members_carry_the_traits_of_their_latest_evaluation(tiny_data):
+    members = tiny_data.populations
+    assert members[list(TRAITS)].notna().all().all()
+    assert (members["evaluation_generation"] <= members["generation"]).all()
+    transition = members[members["treatment"] == "water-land S3"]
+    expected = np.where(transition["generation"] >= 2, "land", "water")
+    assert (transition["environment"].to_numpy() == expected).all()
+    static = members[members["treatment"] == "land S3"]
+    assert (static["environment"] == "land").all()
+
+
+def test_initial_and_final_populations(tiny_data):
+    assert (tiny_data.initial_populations()["generation"] == 0).all()
+    final = tiny_data.final_populations()
+    assert len(final) == 4 * 4 and (final["generation"] == 2).all()
+
+
+def test_resolve_experiment_by_id_and_name(tiny):
+    with tiny.engine.connect() as conn:
+        for reference in (tiny.experiment_id, f"e{tiny.experiment_id}", "tiny-analysis"):
+            assert resolve_experiment(conn, reference) == tiny.experiment_id
+        with pytest.raises(UserError, match="no experiment 'e999'"):
+            resolve_experiment(conn, "e999")
+        with pytest.raises(UserError, match="no experiment 'nope'"):
+            resolve_experiment(conn, "nope")
+
+
+def test_load_unknown_experiment_is_a_user_error(tiny):
+    with pytest.raises(UserError, match="no experiment e999"):
+        load_experiment(tiny.engine, 999)
+
+
+def test_statistics_table_on_the_real_experiment(tiny_data):
+    table = statistics_table(tiny_data)
+    between = table[table["comparison"] == "between treatments"]
+    assert sorted(between["metric"]) == sorted(["best_distance", *TRAITS])
+    assert (between["a"] == "land S3").all() and (between["b"] == "water-land S3").all()
+    start_end = table[table["comparison"] == "start vs end"]
+    assert len(start_end) == 2 * len(TRAITS)
+    # one family of two comparisons per metric: adjusted = min(1, 2 p)
+    assert start_end["p_bonferroni"].to_numpy() == pytest.approx(np.minimum(1, 2 * start_end["p"]))
+    final = tiny_data.final_populations()
+    row = between[between["metric"] == "voxel_count"].iloc[0]
+    reference = scipy_stats.mannwhitneyu(
+        final.loc[final["treatment"] == "land S3", "voxel_count"],
+        final.loc[final["treatment"] == "water-land S3", "voxel_count"],
+    )
+    assert (row["U"], row["p"]) == pytest.approx((reference.statistic, reference.pvalue))
+    assert row["p_bonferroni"] == pytest.approx(row["p"])  # a family of one comparison
+
+
+def test_summary_and_fitness_curves_are_over_repetitions(tiny_data):
+    rng = np.random.default_rng(0)
+    summary = summary_table(tiny_data, rng)
+    assert (summary["n"] == 2).all()
+    assert (summary["low"] <= summary["mean"] + 1e-12).all()
+    assert (summary["mean"] <= summary["high"] + 1e-12).all()
+    best = best_distance_per_run(tiny_data)
+    row = summary[(summary["metric"] == "best_distance") & (summary["treatment"] == "land S3")]
+    assert row["mean"].iloc[0] == pytest.approx(
+        best.loc[best["treatment"] == "land S3", "best_distance"].mean()
+    )
+    curves = fitness_curves(tiny_data, rng)
+    assert len(curves) == 2 * 3 and (curves["n"] == 2).all()
+    generations = tiny_data.generations
+    mean = generations.groupby(["treatment", "generation"])["best_distance"].mean()
+    for r in curves.itertuples():
+        assert r.mean == pytest.approx(mean[(r.treatment, r.generation)])

@@ -1,0 +1,83 @@
+"""Each figure on a real tiny experiment: a non-empty PNG of the expected size and an SVG."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from analysis import figures
+from analysis.stats_tables import fitness_curves, statistics_table
+
+# 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
+EXPECTED_PX = {
+    "fitness": (1200, 800),
+    "descriptors": (1600, 900),
+    "pareto": (720, 360),  # 2 panels of 3.6 x 3.2 in, + 0.4 in for the title
+    "transitions": (1500, 440),  # one transition row of 4 in, + 0.4 in
+    "robots": (1440, 300),  # 2 treatments x 3 robots of 2.4 in, one row of 2.6 in + 0.4 in
+    "start_end": (1600, 900),
+}
+
+
+@pytest.fixture(scope="module")
+def inputs(tiny_data):
+    rng = np.random.default_rng(0)
+    return tiny_data, statistics_table(tiny_data), fitness_curves(tiny_data, rng)
+
+
+def _make(name, data, tests, curves, engine, out):
+    rng = np.random.default_rng(0)
+    return {
+        "fitness": lambda: figures.fitness_figure(data, curves, out),
+        "descriptors": lambda: figures.descriptors_figure(data, tests, out),
+        "pareto": lambda: figures.pareto_figure(data, out),
+        "transitions": lambda: figures.transitions_figure(data, curves, tests, out),
+        "robots": lambda: figures.robots_figure(data, engine, out),
+        "start_end": lambda: figures.start_end_figure(data, tests, rng, out),
+    }[name]()
+
+
+@pytest.mark.parametrize("name", figures.FIGURES)
+def test_figure_writes_png_and_svg_of_the_expected_size(name, inputs, tiny, tmp_path):
+    data, tests, curves = inputs
+    made = _make(name, data, tests, curves, tiny.engine, tmp_path)
+    assert made.name == name and made.title == figures.TITLES[name]
+    assert made.png == tmp_path / f"{name}.png" and made.svg == tmp_path / f"{name}.svg"
+    assert made.png.stat().st_size > 10_000
+    with Image.open(made.png) as image:
+        assert image.format == "PNG"
+        assert image.size == made.size_px == EXPECTED_PX[name]
+        # not a blank canvas: the picture has many distinct colours
+        assert len(image.convert("RGB").getcolors(maxcolors=1 << 20)) > 50
+    svg = made.svg.read_text(encoding="utf-8")
+    assert "<svg" in svg and svg.rstrip().endswith("</svg>")
+
+
+def test_no_transition_figure_without_a_transition_treatment(inputs, tmp_path):
+    data, tests, curves = inputs
+    static = dataclasses.replace(data, treatments=data.treatments[data.treatments["switch_at"].isna()])
+    assert figures.transitions_figure(static, curves, tests, tmp_path) is None
+    assert not list(tmp_path.iterdir())
+
+
+def test_transition_controls_are_the_same_stiffness_in_each_environment(tiny_data):
+    assert figures.transition_controls(tiny_data.treatments) == {"water-land S3": ["land S3"]}
+
+
+def test_pareto_front_is_the_non_dominated_staircase():
+    import pandas as pd
+
+    frame = pd.DataFrame(
+        {
+            "individual_id": [1, 2, 3, 4, 5],
+            "distance": [5.0, 3.0, 4.0, 1.0, 0.0],
+            "active_share": [0.9, 0.2, 0.5, 0.6, 0.0],
+        }
+    )
+    front = figures.pareto_front(frame)
+    assert front["individual_id"].tolist() == [5, 2, 3, 1]  # 4 is dominated by 2 and 3
+    picks = figures.front_samples(front, 3)
+    assert picks["individual_id"].tolist() == [1, 3, 2]  # the robot that never moved is left out

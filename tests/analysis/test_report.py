@@ -1,0 +1,89 @@
+"""``softevo report`` / ``write_report`` on a real tiny experiment: every figure is in it."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+import pytest
+
+from analysis.figures import FIGURES, TITLES
+from analysis.report import report_html, write_report
+from tests.analysis.cli import softevo
+
+
+@pytest.fixture(scope="module")
+def report(tiny, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    return write_report(tiny.url, tiny.experiment_id, out), out
+
+
+def test_report_writes_every_figure_and_table(report):
+    result, out = report
+    assert [f.name for f in result.figures] == list(FIGURES)
+    for name in FIGURES:
+        assert (out / "figures" / f"{name}.png").stat().st_size > 0
+        assert (out / "figures" / f"{name}.svg").stat().st_size > 0
+    assert result.animation == out / "figures" / "best.gif"
+    assert result.statistics.read_text().startswith("comparison,metric,unit,a,b")
+    assert "best_distance" in result.summary.read_text()
+
+
+def test_html_is_self_contained_and_embeds_every_figure(report):
+    result, out = report
+    page = result.html.read_text(encoding="utf-8")
+    assert 'src="figures/' not in page and "<img" in page
+    for figure in result.figures:
+        match = re.search(
+            rf'<figure id="{figure.name}"><img alt="[^"]*" src="data:image/png;base64,([^"]+)"', page
+        )
+        assert match, figure.name
+        assert base64.b64decode(match.group(1)) == figure.png.read_bytes()
+        assert TITLES[figure.name] in page
+    assert 'src="data:image/gif;base64,' in page
+    for text in ("Run settings", "Summary", "Statistics", "Mann-Whitney", "land S3", "water-land S3"):
+        assert text in page
+    assert "water:0,land:2" in page  # the transition's schedule
+    assert "Wall time" in page
+
+
+def test_markdown_links_every_figure_and_holds_the_tables(report):
+    result, out = report
+    text = result.markdown.read_text(encoding="utf-8")
+    for name in FIGURES:
+        assert f"](figures/{name}.png)" in text and f"(figures/{name}.svg)" in text
+    assert "](figures/best.gif)" in text
+    assert "## Run settings" in text and "## Statistics" in text
+    assert "| comparison | metric | unit |" in text
+    assert "| land S3 | land:0 | 0.1 | 4 | 3 | 4x4x4 | 2 | 2 | 0..1 | afpo | 2/2 |" in text
+
+
+def test_report_command(capsys, tiny, tmp_path):
+    code, out, err = softevo(
+        capsys,
+        "report",
+        f"e{tiny.experiment_id}",
+        "--out",
+        str(tmp_path / "r"),
+        "--db",
+        tiny.url,
+        "--no-animation",
+        "--quiet",
+    )
+    assert code == 0, err
+    assert out.split() == [str(tmp_path / "r" / "report.html"), str(tmp_path / "r" / "report.md")]
+    assert not (tmp_path / "r" / "figures" / "best.gif").exists()
+
+
+def test_report_html_for_the_rest_service(tiny):
+    page = report_html(tiny.engine, tiny.experiment_id)
+    assert page.startswith("<!DOCTYPE html>") and page.count("data:image/png;base64,") == len(FIGURES)
+
+
+@pytest.mark.parametrize(
+    ("reference", "message"), [("e999", "no experiment 'e999'"), ("nope", "no experiment 'nope'")]
+)
+def test_unknown_experiment_is_one_line_and_exit_2(capsys, tiny, tmp_path, reference, message):
+    code, _, err = softevo(capsys, "report", reference, "--out", str(tmp_path), "--db", tiny.url, "-q")
+    assert code == 2
+    assert err.startswith("error: ") and err.count("\n") == 1 and message in err

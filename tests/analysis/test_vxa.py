@@ -1,0 +1,107 @@
+"""VoxCAD export: a known robot against a hand-written file; a stored individual via the CLI."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.robots import individual_scene
+from analysis.vxa import data_layers, phase_layers, scene_to_vxa, write_vxa
+from tests.analysis.cli import softevo
+
+EXPECTED = Path(__file__).parent / "data" / "small.vxa"
+
+# body[x][y][z], 2 x 3 x 2: no two layers, rows or columns alike, so any transposition shows
+BODY = [
+    [[1, 0], [2, 1], [0, 2]],
+    [[2, 2], [0, 1], [1, 0]],
+]
+PHASE = [
+    [[0.0, 0.1], [0.2, 0.3], [0.4, 0.5]],
+    [[0.6, 0.7], [0.8, 0.9], [1.0, 1.1]],
+]
+SCENE = {
+    "body": BODY,
+    "phase": PHASE,
+    "material": {"youngs_modulus": 1e5},
+    "environment": {"kind": "land"},
+    "actuation": {"frequency": 2.0},
+    "duration": {"cycles": 4},
+    "settle_seconds": 0.5,
+}
+
+
+def _parse(text: str) -> ET.Element:
+    return ET.fromstring(text.encode("iso-8859-1"))
+
+
+def test_known_robot_matches_the_hand_written_file(tmp_path):
+    written = write_vxa(SCENE, tmp_path / "small.vxa")
+    assert written.read_text(encoding="iso-8859-1") == EXPECTED.read_text(encoding="iso-8859-1")
+
+
+def test_layers_are_z_bottom_first_then_y_rows_of_x():
+    root = _parse(scene_to_vxa(SCENE))
+    structure = root.find("VXC/Structure")
+    assert structure.get("Compression") == "ASCII_READABLE"
+    assert [structure.findtext(t) for t in ("X_Voxels", "Y_Voxels", "Z_Voxels")] == ["2", "3", "2"]
+    layers = [layer.text for layer in structure.findall("Data/Layer")]
+    body = np.array(BODY)
+    for z, layer in enumerate(layers):
+        expected = "".join(str(body[x, y, z]) for y in range(3) for x in range(2))
+        assert layer == expected
+    assert layers == ["122001", "021120"]
+    phases = [[float(v) for v in layer.text.split(",")] for layer in structure.findall("PhaseOffset/Layer")]
+    assert phases[1] == pytest.approx([0.1, 0.7, 0.3, 0.9, 0.5, 1.1])
+
+
+def test_layer_helpers_on_a_single_voxel_column():
+    column = np.array([[[1, 2, 0]]])  # x = y = 1, z = 3
+    assert data_layers(column) == ["1", "2", "0"]
+    assert phase_layers(np.array([[[0.5, -1.25, 0.0]]])) == ["0.5", "-1.25", "0"]
+
+
+def test_water_has_no_gravity_no_floor_and_a_fluid():
+    root = _parse(scene_to_vxa({**SCENE, "environment": {"kind": "water"}}))
+    assert root.findtext("Environment/Gravity/GravEnabled") == "0"
+    assert root.findtext("Environment/Gravity/FloorEnabled") == "0"
+    assert root.findtext("Environment/Fluid/FluidEnvironment") == "1"
+    assert root.findtext("Environment/Fluid/DragCoefficient") == "1.5"
+
+
+def test_export_vxa_command_writes_the_stored_individual(capsys, tiny, tiny_data, tmp_path):
+    final = tiny_data.final_populations()
+    member = final[final["treatment"] == "water-land S3"].iloc[0]
+    individual = int(member["individual_id"])
+    out = tmp_path / "robot.vxa"
+    code, stdout, err = softevo(capsys, "export-vxa", str(individual), "--out", str(out), "--db", tiny.url)
+    assert code == 0, err
+    assert stdout.strip() == str(out)
+    root = _parse(out.read_text(encoding="iso-8859-1"))
+    scene, _ = individual_scene(tiny.engine, individual)
+    body = np.array(scene["body"])
+    assert body.shape == (4, 4, 4)
+    assert [layer.text for layer in root.findall("VXC/Structure/Data/Layer")] == data_layers(body)
+    # after the switch the individual lives on land: gravity, a floor, the run's stiffness
+    assert root.findtext("Environment/Gravity/FloorEnabled") == "1"
+    assert float(root.findtext("VXC/Palette/Material/Mechanical/Elastic_Mod")) == pytest.approx(1e5)
+    period = float(root.findtext("Environment/Thermal/TempPeriod"))
+    assert period == pytest.approx(1.0 / scene["actuation"]["frequency"])
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["999999", "--out", "x.vxa"], "no individual 999999"),
+        (["1", "--out", "x.txt"], "--out must end in .vxa"),
+        (["1", "--out", "x.vxa", "--environment", "moon"], "environment must be land or water"),
+    ],
+)
+def test_export_vxa_mistakes_are_one_line_and_exit_2(capsys, tiny, tmp_path, args, message):
+    args = [a if not a.startswith("x.") else str(tmp_path / a) for a in args]
+    code, _, err = softevo(capsys, "export-vxa", *args, "--db", tiny.url)
+    assert code == 2
+    assert err.startswith("error: ") and err.count("\n") == 1 and message in err
