@@ -25,7 +25,9 @@ from fastapi.responses import JSONResponse
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
+from service.api.schemas import EXPERIMENT_TAGS
 from service.errors import UserError
 from service.settings import Settings
 
@@ -43,8 +45,9 @@ class Services:
         self.executor_kind = "none"
         self.loop: Any = None
         self._status_queue: Any = None
-        self._frames_pool: ProcessPoolExecutor | None = None
-        self._frames_mutex = threading.Lock()
+        self._background_pool: ProcessPoolExecutor | None = None
+        self._background_mutex = threading.Lock()
+        self._reports: dict[int, asyncio.Future] = {}
 
     # -- building and closing ----------------------------------------------------------------
 
@@ -98,8 +101,8 @@ class Services:
             self.loop.stop()
         if self.executor is not None:
             self.executor.close()
-        if self._frames_pool is not None:
-            self._frames_pool.shutdown(wait=False, cancel_futures=True)
+        if self._background_pool is not None:
+            self._background_pool.shutdown(wait=False, cancel_futures=True)
         self.engine.dispose()
 
     # -- used by the routes ------------------------------------------------------------------
@@ -126,21 +129,39 @@ class Services:
         if self.loop is not None:
             self.loop.request_cancel(run_id)
 
-    async def record_motion(self, task: dict, every: int, max_frames: int) -> dict:
-        """``worker.frames.record_motion`` in a separate process (numba holds the GIL)."""
-        from worker.frames import record_motion
-
-        with self._frames_mutex:
-            if self._frames_pool is None:
+    def _background(self) -> ProcessPoolExecutor:
+        """One spawned process for simulations and reports: numba holds the GIL, and the
+        API and the coordinator loop must stay responsive."""
+        with self._background_mutex:
+            if self._background_pool is None:
                 from worker.evaluate import init_pool_process
 
-                self._frames_pool = ProcessPoolExecutor(
+                self._background_pool = ProcessPoolExecutor(
                     max_workers=1,
                     mp_context=multiprocessing.get_context("spawn"),
                     initializer=init_pool_process,
                 )
-            future = self._frames_pool.submit(record_motion, task, every, max_frames)
+            return self._background_pool
+
+    async def record_motion(self, task: dict, every: int, max_frames: int) -> dict:
+        """``worker.frames.record_motion`` in the background process."""
+        from worker.frames import record_motion
+
+        future = self._background().submit(record_motion, task, every, max_frames)
         return await asyncio.wrap_future(future)
+
+    async def write_report(self, experiment_id: int, out_dir) -> Any:
+        """``analysis.report.write_report`` in the background process; concurrent requests
+        for one experiment share one writing."""
+        running = self._reports.get(experiment_id)
+        if running is None:
+            from analysis.report import write_report
+
+            future = self._background().submit(write_report, self.settings.db, experiment_id, str(out_dir))
+            running = asyncio.wrap_future(future)
+            self._reports[experiment_id] = running
+            running.add_done_callback(lambda _: self._reports.pop(experiment_id, None))
+        return await asyncio.shield(running)
 
 
 # -- errors ------------------------------------------------------------------------------------
@@ -157,9 +178,12 @@ def _location(loc) -> str:
 async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
     errors = []
     for error in exc.errors():
+        loc = [str(part) for part in error.get("loc", ())]
+        if len(loc) > 1 and loc[0] == "body" and loc[1] in EXPERIMENT_TAGS:
+            del loc[1]  # the union's tag (which kind of experiment body), not a field
         errors.append(
             {
-                "loc": [str(part) for part in error.get("loc", ())],
+                "loc": loc,
                 "msg": str(error.get("msg", "")),
                 "type": str(error.get("type", "")),
             }
@@ -172,7 +196,22 @@ async def _validation_error(request: Request, exc: RequestValidationError) -> JS
 
 
 async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
-    return _error(exc.status_code, str(exc.detail), getattr(exc, "headers", None))
+    headers = dict(getattr(exc, "headers", None) or {})
+    if exc.status_code == 405:
+        headers["Allow"] = ", ".join(_allowed_methods(request))
+        return _error(405, f"method {request.method} not allowed here", headers)
+    return _error(exc.status_code, str(exc.detail), headers or None)
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Every method some route serves at this path (Starlette's own 405 names only the first
+    matching route's)."""
+    methods: set[str] = set()
+    for route in request.app.router.routes:
+        match, _ = route.matches(request.scope)
+        if match != Match.NONE:
+            methods |= set(getattr(route, "methods", None) or ())
+    return sorted(methods)
 
 
 async def _user_error(request: Request, exc: UserError) -> JSONResponse:
@@ -203,6 +242,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     Raises UserError when no token is set and ``settings.host`` is not a loopback address.
     """
     from service.api.routes import experiments, health, individuals, runs
+    from service.dashboard import dashboard_router
 
     settings = settings or Settings()
     settings.check_safe()
@@ -229,4 +269,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     for module in (health, experiments, runs, individuals):
         app.include_router(module.router)
+    app.include_router(dashboard_router())  # issue 7: /dashboard pages and assets
     return app

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import Connection, func, select
@@ -46,7 +47,10 @@ STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
 
 
 def finite(value: Any) -> Any:
-    """``value`` with every non-finite float (also inside dicts and lists) replaced by None."""
+    """``value`` with every non-finite float (also inside dicts and lists) replaced by None,
+    and times without a zone (SQLite keeps UTC without it) marked UTC."""
+    if isinstance(value, datetime) and value.tzinfo is None:
+        return value.replace(tzinfo=UTC)
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
@@ -226,6 +230,28 @@ def list_experiments(
 def experiment_exists(conn: Connection, experiment_id: int) -> bool:
     table = Experiment.__table__
     return conn.execute(select(table.c.id).where(table.c.id == experiment_id)).first() is not None
+
+
+def experiment_generations(conn: Connection, experiment_id: int) -> int:
+    """Generations stored over all runs of the experiment."""
+    generations, runs, treatments = Generation.__table__, Run.__table__, Treatment.__table__
+    return conn.execute(
+        select(func.count())
+        .select_from(generations)
+        .join(runs, generations.c.run_id == runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+    ).scalar_one()
+
+
+def experiment_updated_at(conn: Connection, experiment_id: int):
+    """When a run of the experiment last changed (None without runs)."""
+    runs, treatments = Run.__table__, Treatment.__table__
+    return conn.execute(
+        select(func.max(runs.c.updated_at))
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+    ).scalar()
 
 
 # -- individuals ---------------------------------------------------------------------------

@@ -31,7 +31,7 @@ RunStatusName = Literal["pending", "running", "finished", "failed", "cancelled"]
 class Strict(BaseModel):
     """Unknown fields are an error (a typo must not be silently ignored)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 # -- requests ------------------------------------------------------------------------------
@@ -49,11 +49,9 @@ class TreatmentIn(Strict):
     stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
     population: int = Field(30, ge=2, le=10_000)
     generations: int = Field(100, ge=1, le=1_000_000)
-    workspace: tuple[
-        Annotated[int, Field(ge=1, le=32)],
-        Annotated[int, Field(ge=1, le=32)],
-        Annotated[int, Field(ge=1, le=32)],
-    ] = (7, 7, 7)
+    workspace: list[Annotated[int, Field(ge=1, le=32)]] = Field(
+        [7, 7, 7], min_length=3, max_length=3, description="voxels along x, y, z"
+    )
     cycles: int = Field(50, ge=1, le=10_000, description="actuation cycles per evaluation")
     repetitions: int = Field(1, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
@@ -83,6 +81,7 @@ def _experiment_kind(value: Any) -> str:
     return "preset" if isinstance(value, PresetIn) else "treatments"
 
 
+EXPERIMENT_TAGS = ("treatments", "preset")  # where a request's errors are (see app.py)
 ExperimentRequest = Annotated[
     Annotated[ExperimentIn, Tag("treatments")] | Annotated[PresetIn, Tag("preset")],
     Discriminator(_experiment_kind),

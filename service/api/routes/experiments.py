@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import asyncio
 import importlib
 import logging
+from datetime import UTC, datetime
 from pathlib import Path as FilePath
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path, Query, status
+from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
 
 from service.api import queries
@@ -35,6 +38,7 @@ log = logging.getLogger("softevo.api")
 
 ExperimentId = Annotated[int, Path(ge=1, le=MAX_INT32, description="experiment id")]
 REPORT_FILE = "report.html"
+REPORT_TIMEOUT_S = 900
 
 
 def _treatments(body: ExperimentIn):
@@ -72,7 +76,7 @@ def _treatments(body: ExperimentIn):
     status_code=status.HTTP_201_CREATED,
     response_model=ExperimentCreated,
     dependencies=[WriteAccess],
-    responses=UNAUTHORIZED,
+    responses={**UNAUTHORIZED, 400: {"model": ErrorOut, "description": "The body is not JSON"}},
 )
 def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     """Create an experiment with one pending run per treatment repetition; the coordinator
@@ -112,13 +116,24 @@ def get_experiment(experiment_id: ExperimentId, conn: ConnectionDep):
     return found[0]
 
 
-def _report_generator():
+def _report_writer():
     """``analysis.report.write_report`` if issue 6's module is installed, else None."""
     try:
         module = importlib.import_module("analysis.report")
     except ImportError:
         return None
     return getattr(module, "write_report", None)
+
+
+def _stale(html: FilePath, updated: datetime | None) -> bool:
+    """Whether the report misses generations stored after it was written."""
+    if not html.is_file():
+        return True
+    if updated is None:
+        return False
+    if updated.tzinfo is None:  # SQLite keeps UTC without its zone
+        updated = updated.replace(tzinfo=UTC)
+    return updated.timestamp() > html.stat().st_mtime
 
 
 @router.get(
@@ -128,40 +143,47 @@ def _report_generator():
         200: {"content": {"text/html": {}}, "description": "The experiment's HTML report"},
         **NOT_FOUND,
         500: {"model": ErrorOut, "description": "The report could not be written"},
+        504: {"model": ErrorOut, "description": "Writing the report took too long"},
     },
 )
-def report(experiment_id: ExperimentId, conn: ConnectionDep, services: ServicesDep):
-    """The experiment's HTML report (figures, statistics, settings; issue 6), written on the
-    first request into ``SOFTEVO_REPORTS/experiment-<id>/`` and served from there after.
-    404 while no report exists and no report writer is installed."""
-    if not queries.experiment_exists(conn, experiment_id):
-        raise HTTPException(404, f"no experiment {experiment_id}")
+async def report(experiment_id: ExperimentId, services: ServicesDep):
+    """The experiment's self-contained HTML report (figures, statistics, settings; issue 6).
+
+    Written by ``analysis.report.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
+    on the first request, again when runs have stored generations since, and served from
+    there. 404 while the experiment has no stored generation or no report writer is
+    installed."""
+    updated = await run_in_threadpool(_last_update, services, experiment_id)
     out_dir = FilePath(services.settings.reports) / f"experiment-{experiment_id}"
     html = out_dir / REPORT_FILE
-    if not html.is_file():
-        write_report = _report_generator()
-        if write_report is None:
+    if _stale(html, updated):
+        if _report_writer() is None:
             raise HTTPException(
                 404,
                 f"no report for experiment {experiment_id} yet: the report writer "
-                "(analysis.report, issue 6) is not installed; `softevo report` makes one",
+                "(analysis.report, issue 6) is not installed",
             )
         try:
-            written = write_report(services.engine, experiment_id, out_dir)
+            written = await asyncio.wait_for(services.write_report(experiment_id, out_dir), REPORT_TIMEOUT_S)
+        except TimeoutError as exc:
+            raise HTTPException(504, "writing the report took too long; try again") from exc
+        except UserError as exc:  # e.g. no generation stored yet
+            raise HTTPException(404, f"no report for experiment {experiment_id}: {exc}") from exc
         except Exception as exc:
             log.exception("report of experiment %d failed", experiment_id)
             raise HTTPException(500, f"the report could not be written: {exc}") from exc
-        html = _html_in(written, out_dir) or html
+        html = FilePath(getattr(written, "html", html))
         if not html.is_file():
             raise HTTPException(500, "the report writer wrote no HTML file")
     return FileResponse(html, media_type="text/html")
 
 
-def _html_in(written, out_dir: FilePath) -> FilePath | None:
-    """The HTML file among what the writer returned (a path, or paths) or wrote."""
-    candidates = written if isinstance(written, list | tuple) else [written]
-    for candidate in candidates:
-        if isinstance(candidate, str | FilePath) and str(candidate).endswith(".html"):
-            return FilePath(candidate)
-    found = sorted(out_dir.glob("*.html"))
-    return found[0] if found else None
+def _last_update(services, experiment_id: int) -> datetime | None:
+    """Latest update of the experiment's runs; 404 if there is no such experiment or it has
+    no stored generation (nothing to report)."""
+    with services.engine.connect() as conn:
+        if not queries.experiment_exists(conn, experiment_id):
+            raise HTTPException(404, f"no experiment {experiment_id}")
+        if queries.experiment_generations(conn, experiment_id) == 0:
+            raise HTTPException(404, f"no report for experiment {experiment_id}: no generation stored yet")
+        return queries.experiment_updated_at(conn, experiment_id)
