@@ -143,16 +143,12 @@ def check_lineage(base: str, individual_id: int) -> list[dict]:
     return chain
 
 
-def test_experiment_completes_when_a_worker_is_killed_mid_job(
-    db_url, redis_url, processes, tmp_path
-):
+def test_experiment_completes_when_a_worker_is_killed_mid_job(db_url, redis_url, processes, tmp_path):
     env = service_env(db_url, redis_url)
     group = processes(env)
     workers = {name: group.worker(name) for name in ("w1", "w2")}
     _, base = group.serve()
-    wait_for(
-        lambda: httpx.get(f"{base}/health").json()["workers"] == 2, 90, "two workers on /health"
-    )
+    wait_for(lambda: httpx.get(f"{base}/health").json()["workers"] == 2, 90, "two workers on /health")
     run_id = submit(base)
 
     killed_job = kill_mid_job(redis_url, env["SOFTEVO_QUEUE"], "w1", workers["w1"])
