@@ -1,0 +1,65 @@
+"""``softevo dashboard``: the web dashboard (issue 7) on a database, without a coordinator.
+
+It serves the same FastAPI app as ``softevo serve`` (REST API and ``/dashboard`` pages) with
+``SOFTEVO_COORDINATOR=false``: it only reads, so it can watch a ``softevo run`` writing to the
+same SQLite file. Replays are simulated again on demand in one background process.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from service.errors import UserError
+
+
+def _check_database_exists(url: str) -> None:
+    """A missing SQLite file is a mistake here (the dashboard would show a new empty one)."""
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import ArgumentError
+
+    try:
+        parsed = make_url(url)
+    except ArgumentError as exc:
+        raise UserError(f"not a database URL: {url!r}") from exc
+    database = parsed.database
+    if parsed.get_backend_name() != "sqlite" or not database or database == ":memory:":
+        return
+    if not Path(database).is_file():
+        raise UserError(f"no database at {database}: run `softevo run ... --db {url}` first, or pass --db")
+
+
+def dashboard(
+    db: Annotated[
+        str | None, typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB or sqlite:///softevo.db)")
+    ] = None,
+    host: Annotated[str | None, typer.Option("--host", help="default $SOFTEVO_HOST or 127.0.0.1")] = None,
+    port: Annotated[int | None, typer.Option("--port", help="default $SOFTEVO_PORT or 8000")] = None,
+    log_level: Annotated[str, typer.Option("--log-level")] = "warning",
+) -> None:
+    """Browse experiments, runs and individuals in a web browser, with 3D replays.
+
+    Serves http://HOST:PORT/dashboard/ (and the read API) on the database; drives no runs.
+    """
+    import logging
+
+    import uvicorn
+
+    from service.api.app import create_app
+    from service.cli_service import _settings
+
+    settings = _settings(db=db, host=host, port=port, coordinator=False)
+    settings.check_safe()
+    _check_database_exists(settings.db)
+    logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(name)s %(message)s")
+    print(
+        f"softevo dashboard on http://{settings.host}:{settings.port}/dashboard/ (Ctrl+C to stop)", flush=True
+    )
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=log_level)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``dashboard`` to ``app``."""
+    app.command(name="dashboard")(dashboard)

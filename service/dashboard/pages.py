@@ -1,0 +1,78 @@
+"""The dashboard's HTML pages: static shells from ``templates/`` that JS modules fill from
+the REST API. A page for an unknown run or individual is a 404 page.
+
+Every URL in a page starts with the app's root path (``request.scope["root_path"]``), so the
+dashboard also works behind a reverse proxy that serves the API under a prefix.
+"""
+
+from __future__ import annotations
+
+import html
+from functools import cache
+from pathlib import Path as FilePath
+from string import Template
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Request
+from fastapi.responses import HTMLResponse
+from sqlalchemy import select
+
+from service.api import queries
+from service.api.deps import ConnectionDep
+from service.api.schemas import MAX_INT32
+from service.db.models import Individual
+
+TEMPLATES = FilePath(__file__).parent / "templates"
+
+router = APIRouter()
+
+RunId = Annotated[int, Path(ge=1, le=MAX_INT32)]
+IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32)]
+
+
+@cache
+def template(name: str) -> Template:
+    return Template((TEMPLATES / name).read_text(encoding="utf-8"))
+
+
+def render(request: Request, page: str, title: str, status_code: int = 200, **values) -> HTMLResponse:
+    """``templates/<page>`` inside ``layout.html``; ``values`` fill the page's ``$names``
+    (HTML-escaped), ``$root`` and ``$static`` are filled everywhere."""
+    root = html.escape(request.scope.get("root_path", "").rstrip("/"))
+    common = {"root": root, "static": f"{root}/dashboard/static"}
+    escaped = {key: html.escape(str(value)) for key, value in values.items()}
+    content = template(page).substitute(common, **escaped)
+    body = template("layout.html").substitute(
+        common, title=html.escape(title), content=content, page=page.removesuffix(".html")
+    )
+    return HTMLResponse(body, status_code=status_code)
+
+
+def not_found(request: Request, message: str) -> HTMLResponse:
+    return render(request, "missing.html", "Not found", status_code=404, message=message)
+
+
+@router.get("/", response_class=HTMLResponse)
+def index(request: Request) -> HTMLResponse:
+    """Experiments and their runs, with live status."""
+    return render(request, "index.html", "Experiments")
+
+
+@router.get("/runs/{run_id}", response_class=HTMLResponse)
+def run_page(request: Request, run_id: RunId, conn: ConnectionDep) -> HTMLResponse:
+    """A run: fitness curves and its Pareto front by generation."""
+    if queries.run_status(conn, run_id) is None:
+        return not_found(request, f"There is no run {run_id}.")
+    return render(request, "run.html", f"Run {run_id}", run_id=run_id)
+
+
+@router.get("/individuals/{individual_id}", response_class=HTMLResponse)
+def individual_page(request: Request, individual_id: IndividualId, conn: ConnectionDep) -> HTMLResponse:
+    """An individual: genome summary, objectives, descriptors, lineage and 3D replay."""
+    table = Individual.__table__
+    run_id = conn.execute(select(table.c.run_id).where(table.c.id == individual_id)).scalar()
+    if run_id is None:
+        return not_found(request, f"There is no individual {individual_id}.")
+    return render(
+        request, "individual.html", f"Individual {individual_id}", individual_id=individual_id, run_id=run_id
+    )

@@ -1,0 +1,305 @@
+// 3D replay of recorded motion with three.js (vendored): one instanced cube per voxel, placed
+// at its recorded centre (interpolated between frames). Active voxels red, passive cyan, as in
+// the paper; an active voxel's brightness is its actuation at that moment,
+// sin(2 pi f (t - t_settle) + phase), so the phase pattern shows as a travelling shade.
+// Units: metres and seconds, z up, the floor (on land) at z = 0.
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+
+const ACTIVE = new THREE.Color("#e8322b");
+const PASSIVE = new THREE.Color("#27c6d9");
+const BACKGROUND = { land: "#eef2f6", water: "#d6e9f6" };
+const CUBE_FILL = 0.9; // cube side / voxel size: the gap shows the lattice
+const MIN_BRIGHTNESS = 0.25; // of an active voxel fully contracted
+const GRID_CELLS = 80; // floor grid, in voxel lengths
+const MAX_STEP_S = 0.1; // wall time a single tick may advance (after a hidden tab)
+
+/** Actuation signal in [-1, 1] at phase angle `angle` (radians), as sim/kernels.py. */
+export function actuation(waveform, angle) {
+  if (waveform === "square") return Math.tanh(8 * Math.sin(angle)) / Math.tanh(8);
+  if (waveform === "impulse") {
+    let u = angle / (2 * Math.PI);
+    u -= Math.floor(u);
+    return u < 0.2 ? Math.cos((Math.PI * u) / 0.2) : -Math.cos((Math.PI * (u - 0.2)) / 0.8);
+  }
+  return Math.sin(angle);
+}
+
+/** A cube of side `side` (m) whose faces carry a fixed shade (linear RGB factors) per
+ * direction, as if lit from above, front and right: cheap on CPU-rendered WebGL. */
+function shadedBox(side) {
+  const geometry = new THREE.BoxGeometry(side, side, side);
+  const normals = geometry.getAttribute("normal");
+  const shades = new Float32Array(normals.count * 3);
+  for (let i = 0; i < normals.count; i++) {
+    const [x, y, z] = [normals.getX(i), normals.getY(i), normals.getZ(i)];
+    const shade = z > 0.5 ? 1.0 : z < -0.5 ? 0.18 : x > 0.5 ? 0.62 : x < -0.5 ? 0.3 : y < -0.5 ? 0.45 : 0.26;
+    shades.fill(shade, 3 * i, 3 * i + 3);
+  }
+  geometry.setAttribute("color", new THREE.BufferAttribute(shades, 3));
+  return geometry;
+}
+
+/** A square grid of `cells` x `cells` cells of side `spacing` in the x-y plane, centred on
+ * the origin, drawn as one short segment per cell edge: software WebGL drops a whole line
+ * that passes behind the camera, which long grid lines do once the camera is inside the grid. */
+function gridSegments(cells, spacing) {
+  const half = (cells * spacing) / 2;
+  const points = [];
+  for (let line = 0; line <= cells; line++) {
+    const across = -half + line * spacing;
+    for (let cell = 0; cell < cells; cell++) {
+      const from = -half + cell * spacing, to = from + spacing;
+      points.push(from, across, 0, to, across, 0, across, from, 0, across, to, 0);
+    }
+  }
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute("position", new THREE.Float32BufferAttribute(points, 3));
+  return geometry;
+}
+
+/** Phase (radians) of each recorded voxel, matched by lattice index; 0 where unknown. */
+function phasesOf(motion, body) {
+  const phase = new Float32Array(motion.voxelCount);
+  if (!body) return phase;
+  const byIndex = new Map(body.voxels.map(([i, j, k, , p]) => [`${i},${j},${k}`, p]));
+  for (let v = 0; v < motion.voxelCount; v++) {
+    const key = `${motion.lattice[3 * v]},${motion.lattice[3 * v + 1]},${motion.lattice[3 * v + 2]}`;
+    phase[v] = byIndex.get(key) ?? 0;
+  }
+  return phase;
+}
+
+/** Voxel size (m) from the first frame: spread of centres over spread of lattice indices. */
+function estimateVoxelSize(motion) {
+  let best = 0;
+  for (let axis = 0; axis < 3; axis++) {
+    let lo = Infinity, hi = -Infinity, loIndex = Infinity, hiIndex = -Infinity;
+    for (let v = 0; v < motion.voxelCount; v++) {
+      const p = motion.positions[3 * v + axis], i = motion.lattice[3 * v + axis];
+      lo = Math.min(lo, p); hi = Math.max(hi, p);
+      loIndex = Math.min(loIndex, i); hiIndex = Math.max(hiIndex, i);
+    }
+    if (hiIndex > loIndex) best = Math.max(best, (hi - lo) / (hiIndex - loIndex));
+  }
+  return best > 0 ? best : 0.05;
+}
+
+/** Centre and radius (m) of the voxel centres of frame `frame`. */
+function boundsOf(motion, frame) {
+  const box = new THREE.Box3();
+  const point = new THREE.Vector3();
+  const base = frame * motion.voxelCount * 3;
+  for (let v = 0; v < motion.voxelCount; v++) {
+    box.expandByPoint(point.fromArray(motion.positions, base + 3 * v));
+  }
+  return { centre: box.getCenter(new THREE.Vector3()), radius: box.getSize(new THREE.Vector3()).length() / 2 };
+}
+
+export class Replay {
+  /**
+   * @param container element the canvas fills
+   * @param motion decodeFrames(...) of GET /individuals/{id}/frames
+   * @param body GET /dashboard/api/individuals/{id}/body (null: no phases, size estimated)
+   * @param onTick called with the clock ({time, start, end, settling, cycle, cycles, phaseDegrees})
+   */
+  constructor(container, motion, body, onTick = () => {}) {
+    this.motion = motion;
+    this.body = body;
+    this.onTick = onTick;
+    this.speed = 0.5;
+    this.playing = false;
+    this.follow = true;
+    this.start = motion.t[0];
+    this.end = motion.t[motion.frameCount - 1];
+    this.renderedFrames = 0;
+    this.voxelSize = body ? body.voxel_size : estimateVoxelSize(motion);
+    this.settle = body ? body.settle_seconds : 0;
+    this.omega = body ? 2 * Math.PI * body.frequency : 0;
+    this.waveform = body ? body.waveform : "sine";
+    // play the evaluated motion: from the end of settling (if any) to the end, in a loop
+    this.loopStart = Math.min(Math.max(this.start, this.settle), this.end);
+    this.time = this.loopStart;
+    this.phase = phasesOf(motion, body);
+    this._cursor = 0;
+    this._needsRender = true;
+    this._last = null;
+    this._buildScene(container, body ? body.environment : "land");
+    this.renderer.setAnimationLoop((now) => this._tick(now));
+  }
+
+  play() { this.playing = true; if (this.time >= this.end) this.time = this.loopStart; }
+  pause() { this.playing = false; this._needsRender = true; }
+  setSpeed(speed) { this.speed = speed; }
+  setFollow(follow) { this.follow = follow; }
+  /** Jump to `fraction` (0..1) of the recording. */
+  seek(fraction) { this.time = this.start + fraction * (this.end - this.start); this._needsRender = true; }
+  get fraction() { return this.end > this.start ? (this.time - this.start) / (this.end - this.start) : 0; }
+
+  dispose() {
+    this.renderer.setAnimationLoop(null);
+    this._resize.disconnect();
+    this.controls.dispose();
+    this.renderer.dispose();
+    this.renderer.domElement.remove();
+  }
+
+  _buildScene(container, environment) {
+    const renderer = new THREE.WebGLRenderer({ antialias: false });
+    renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    container.append(renderer.domElement);
+    const scene = new THREE.Scene();
+    scene.background = new THREE.Color(BACKGROUND[environment] || BACKGROUND.land);
+
+    const { centre, radius } = boundsOf(this.motion, 0);
+    const size = Math.max(radius, 2 * this.voxelSize);
+    const camera = new THREE.PerspectiveCamera(40, 1, size / 20, size * 60);
+    camera.up.set(0, 0, 1);
+    camera.position.copy(centre).add(new THREE.Vector3(1.3, -2.2, 1.25).multiplyScalar(size * 2.1));
+    const controls = new OrbitControls(camera, renderer.domElement);
+    controls.target.copy(centre);
+    controls.update();
+    controls.addEventListener("change", () => { this._needsRender = true; });
+
+    scene.add(this._floor(environment, centre));
+    this.mesh = this._voxels();
+    scene.add(this.mesh);
+    Object.assign(this, { renderer, scene, camera, controls, container });
+    this._place();
+    this._com = this._centreOfMass(new THREE.Vector3());
+    this._resize = new ResizeObserver(() => this._fit());
+    this._resize.observe(container);
+    this._fit();
+  }
+
+  /** Grid in voxel lengths: the floor at z = 0 on land, a reference plane below in water. */
+  _floor(environment, centre) {
+    const land = environment === "land";
+    const z = land ? 0 : centre.z - 4 * this.voxelSize;
+    const grid = new THREE.LineSegments(
+      gridSegments(GRID_CELLS, this.voxelSize),
+      new THREE.LineBasicMaterial({ color: land ? 0xaab3c2 : 0xa7c4da }),
+    );
+    grid.position.set(centre.x, centre.y, z);
+    return grid;
+  }
+
+  _voxels() {
+    const count = this.motion.voxelCount;
+    const side = CUBE_FILL * this.voxelSize;
+    // unlit material, light baked into the faces: software WebGL renders 343 voxels at 60 fps
+    const mesh = new THREE.InstancedMesh(shadedBox(side), new THREE.MeshBasicMaterial({ vertexColors: true }), count);
+    mesh.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
+    for (let v = 0; v < count; v++) {
+      mesh.setMatrixAt(v, new THREE.Matrix4());
+      mesh.setColorAt(v, this.motion.material[v] === 2 ? ACTIVE : PASSIVE);
+    }
+    mesh.instanceColor.setUsage(THREE.DynamicDrawUsage);
+    mesh.frustumCulled = false; // the instances move away from the geometry's bounds
+    return mesh;
+  }
+
+  _fit() {
+    const width = this.container.clientWidth || 1, height = this.container.clientHeight || 1;
+    this.renderer.setSize(width, height);
+    this.camera.aspect = width / height;
+    this.camera.updateProjectionMatrix();
+    this._needsRender = true;
+  }
+
+  /** Index k with t[k] <= time < t[k+1] (the last frame at the end). */
+  _frameAt(time) {
+    const t = this.motion.t;
+    let k = this._cursor;
+    if (!(t[k] <= time && (k + 1 >= t.length || time < t[k + 1]))) {
+      let lo = 0, hi = t.length - 1;
+      while (lo < hi) {
+        const mid = (lo + hi + 1) >> 1;
+        if (t[mid] <= time) lo = mid; else hi = mid - 1;
+      }
+      k = lo;
+    }
+    this._cursor = k;
+    return k;
+  }
+
+  _place() {
+    const { positions, voxelCount, t } = this.motion;
+    const k = this._frameAt(this.time);
+    const next = Math.min(k + 1, t.length - 1);
+    const alpha = next > k ? Math.min(1, Math.max(0, (this.time - t[k]) / (t[next] - t[k]))) : 0;
+    const a = k * voxelCount * 3, b = next * voxelCount * 3;
+    const matrices = this.mesh.instanceMatrix.array;
+    for (let v = 0; v < voxelCount; v++) {
+      const m = 16 * v, p = 3 * v;
+      for (let c = 0; c < 3; c++) {
+        matrices[m + 12 + c] = positions[a + p + c] + alpha * (positions[b + p + c] - positions[a + p + c]);
+      }
+    }
+    this.mesh.instanceMatrix.needsUpdate = true;
+  }
+
+  _shade() {
+    const colours = this.mesh.instanceColor.array;
+    const actuated = this.time >= this.settle && this.omega > 0;
+    const angle = this.omega * (this.time - this.settle);
+    for (let v = 0; v < this.motion.voxelCount; v++) {
+      if (this.motion.material[v] !== 2) continue;
+      const signal = actuated ? actuation(this.waveform, angle + this.phase[v]) : 0;
+      const brightness = MIN_BRIGHTNESS + (1 - MIN_BRIGHTNESS) * (signal + 1) / 2;
+      colours[3 * v] = ACTIVE.r * brightness;
+      colours[3 * v + 1] = ACTIVE.g * brightness;
+      colours[3 * v + 2] = ACTIVE.b * brightness;
+    }
+    this.mesh.instanceColor.needsUpdate = true;
+  }
+
+  _centreOfMass(target) {
+    const matrices = this.mesh.instanceMatrix.array;
+    const count = this.motion.voxelCount;
+    target.set(0, 0, 0);
+    for (let v = 0; v < count; v++) target.x += matrices[16 * v + 12], target.y += matrices[16 * v + 13];
+    return target.multiplyScalar(1 / Math.max(1, count));
+  }
+
+  /** Keep the robot in view: move camera and target with the centre of mass (x, y only). */
+  _followRobot() {
+    const com = this._centreOfMass(new THREE.Vector3());
+    if (this.follow) {
+      const shift = com.clone().sub(this._com);
+      this.camera.position.add(shift);
+      this.controls.target.add(shift);
+    }
+    this._com = com;
+  }
+
+  clock() {
+    const cycleTime = this.time - this.settle;
+    const settling = cycleTime < 0 || this.omega <= 0;
+    const angle = settling ? 0 : this.omega * cycleTime;
+    const cycles = this.omega > 0 ? Math.round(((this.end - this.settle) * this.omega) / (2 * Math.PI)) : 0;
+    return {
+      time: this.time, start: this.start, end: this.end, settling, cycles,
+      cycle: settling ? 0 : Math.min(cycles, Math.floor(angle / (2 * Math.PI)) + 1),
+      phaseDegrees: settling ? 0 : ((angle * 180) / Math.PI) % 360,
+    };
+  }
+
+  _tick(now) {
+    const step = this._last === null ? 0 : Math.min(MAX_STEP_S, (now - this._last) / 1000);
+    this._last = now;
+    if (this.playing) {
+      this.time += step * this.speed;
+      if (this.time > this.end) this.time = this.loopStart + (this.time - this.end) % Math.max(1e-9, this.end - this.loopStart);
+    }
+    if (!this.playing && !this._needsRender) return;
+    this._place();
+    this._shade();
+    this._followRobot();
+    this.controls.update();
+    this.renderer.render(this.scene, this.camera);
+    this._needsRender = false;
+    this.renderedFrames += 1;
+    this.onTick(this.clock());
+  }
+}

@@ -1,0 +1,193 @@
+// Run page: fitness curves over generations and the Pareto front of a chosen generation.
+// Plotly is the global from /dashboard/static/vendor/plotly.min.js (the plotly package's copy).
+import { LIVE, badge, el, errorLine, fill, fmt, getJSON, page, poll, showHealth, table } from "./api.js";
+
+const runId = Number(document.getElementById("run").dataset.run);
+const POLL_MS = 2000;
+const PLOT_CONFIG = { displaylogo: false, responsive: true };
+const FONT = { family: "system-ui, sans-serif", size: 12, color: "#1d2430" };
+const ENVIRONMENT_FILL = { land: "rgba(196, 160, 100, 0.13)", water: "rgba(60, 140, 220, 0.12)" };
+
+const state = { run: null, generation: -2, fronts: new Map(), shown: null };
+
+function facts(run) {
+  const s = run.treatment.settings;
+  const schedule = s.switch_at ? `${s.environment} (switch at generation ${s.switch_at})` : s.environment;
+  const items = [
+    ["environment", schedule],
+    ["stiffness", `${s.stiffness_mpa} MPa`],
+    ["population", s.population],
+    ["generations", s.generations],
+    ["workspace", (s.workspace || []).join("×")],
+    ["cycles", s.cycles],
+    ["seed", run.seed],
+    ["algorithm", s.algorithm],
+  ];
+  const parts = items.map(([name, value]) => el("span", {}, `${name} `, el("b", {}, String(value))));
+  if (run.best) {
+    parts.push(el("span", {}, "best ", el("a", { href: page(`individuals/${run.best.individual_id}`) },
+      `individual ${run.best.individual_id}`), ` (distance ${fmt(run.best.distance)})`));
+  }
+  if (run.error) parts.push(el("span", { class: "error" }, run.error));
+  return parts;
+}
+
+function showRun(run) {
+  document.getElementById("run-title").textContent = run.treatment.name;
+  fill("run-status", badge(run.status).firstChild);
+  document.getElementById("run-status").className = `badge ${run.status}`;
+  fill("crumb-experiment", el("a", { href: `${page("")}#experiment-${run.experiment_id}` }, `experiment ${run.experiment_id}`));
+  fill("run-facts", facts(run));
+}
+
+/** Background bands per environment segment (a land-water run shows where it switched). */
+function environmentBands(generations) {
+  const shapes = [];
+  const annotations = [];
+  let start = 0;
+  for (let i = 1; i <= generations.length; i++) {
+    if (i < generations.length && generations[i].environment === generations[start].environment) continue;
+    const environment = generations[start].environment;
+    shapes.push({
+      type: "rect", xref: "x", yref: "paper", x0: generations[start].generation - 0.5,
+      x1: generations[i - 1].generation + 0.5, y0: 0, y1: 1, line: { width: 0 },
+      fillcolor: ENVIRONMENT_FILL[environment] || "rgba(0,0,0,0.04)", layer: "below",
+    });
+    annotations.push({
+      xref: "x", yref: "paper", x: generations[start].generation - 0.4, y: 1, xanchor: "left",
+      yanchor: "top", text: environment, showarrow: false, font: { size: 11, color: "#667085" },
+    });
+    start = i;
+  }
+  return { shapes, annotations };
+}
+
+function drawFitness(generations) {
+  const x = generations.map((g) => g.generation);
+  const traces = [
+    { x, y: generations.map((g) => g.best_distance), name: "best distance", mode: "lines+markers",
+      line: { color: "#e8322b", width: 2.5 } },
+    { x, y: generations.map((g) => g.mean_distance), name: "mean distance", mode: "lines+markers",
+      line: { color: "#1f6feb", width: 2, dash: "dot" } },
+  ];
+  const layout = {
+    font: FONT, margin: { l: 60, r: 20, t: 10, b: 45 }, hovermode: "x unified",
+    xaxis: { title: { text: "generation" }, dtick: generations.length <= 20 ? 1 : undefined, zeroline: false },
+    yaxis: { title: { text: "distance (voxel lengths)" }, rangemode: "tozero" },
+    legend: { orientation: "h", x: 1, xanchor: "right", y: 1.02, yanchor: "bottom" },
+    ...environmentBands(generations),
+  };
+  if (generations.length === 0) layout.annotations = [{ text: "no generation stored yet", showarrow: false, xref: "paper", yref: "paper", x: 0.5, y: 0.5 }];
+  Plotly.react("fitness", traces, layout, PLOT_CONFIG);
+}
+
+async function frontOf(generation) {
+  const live = state.run && LIVE.has(state.run.status) && generation === state.run.generation;
+  if (!live && state.fronts.has(generation)) return state.fronts.get(generation);
+  const front = await getJSON(`/runs/${runId}/front?generation=${generation}`);
+  state.fronts.set(generation, front);
+  return front;
+}
+
+function drawFront(front) {
+  const members = front.individuals;
+  const maxVoxels = Math.max(1, ...members.map((m) => m.objectives.voxel_count));
+  const trace = {
+    type: "scatter", mode: "markers",
+    x: members.map((m) => m.objectives.active_share),
+    y: members.map((m) => m.objectives.distance),
+    customdata: members.map((m) => [m.id, m.objectives.voxel_count, m.age]),
+    hovertemplate: "individual %{customdata[0]}<br>distance %{y:.3f}<br>active share %{x:.3f}" +
+      "<br>voxels %{customdata[1]}<br>age %{customdata[2]}<extra></extra>",
+    marker: {
+      size: members.map((m) => 9 + 17 * Math.sqrt(m.objectives.voxel_count / maxVoxels)),
+      color: members.map((m) => m.objectives.voxel_count), colorscale: "Viridis", showscale: true,
+      colorbar: { title: { text: "voxels" }, thickness: 12 }, line: { color: "#1d2430", width: 1 },
+    },
+  };
+  const layout = {
+    font: FONT, margin: { l: 60, r: 20, t: 10, b: 45 }, hovermode: "closest",
+    xaxis: { title: { text: "active share (minimised)" }, range: [-0.05, 1.05], zeroline: false },
+    yaxis: { title: { text: "distance, voxel lengths (maximised)" }, rangemode: "tozero" },
+  };
+  Plotly.react("front", [trace], layout, PLOT_CONFIG);
+  const rows = members.map((m) => [
+    el("a", { href: page(`individuals/${m.id}`) }, `individual ${m.id}`),
+    m.parent_id === null ? "newcomer" : el("a", { href: page(`individuals/${m.parent_id}`) }, `${m.parent_id}`),
+    m.generation_born, m.age, fmt(m.objectives.distance), fmt(m.objectives.active_share),
+    m.objectives.voxel_count, m.evaluation.environment, m.evaluation.stable ? "yes" : "no",
+  ]);
+  fill("front-table", table(
+    ["individual", "parent", "born", "age", "distance", "active share", "voxels", "environment", "stable"],
+    rows, [2, 3, 4, 5, 6],
+  ));
+}
+
+async function showFront(generation) {
+  const slider = document.getElementById("front-generation");
+  slider.value = String(generation);
+  document.getElementById("front-label").textContent = `generation ${generation} (0–${slider.max})`;
+  state.shown = generation;
+  try {
+    const front = await frontOf(generation);
+    if (state.shown === generation) drawFront(front);
+  } catch (error) {
+    fill("front-table", errorLine(error));
+  }
+}
+
+async function refresh() {
+  const run = await getJSON(`/runs/${runId}`);
+  state.run = run;
+  showRun(run);
+  if (run.generation !== state.generation) {
+    state.generation = run.generation;
+    drawFitness(await getJSON(`/runs/${runId}/generations`));
+    const slider = document.getElementById("front-generation");
+    slider.max = String(Math.max(0, run.generation));
+    slider.disabled = run.generation < 0;
+    const latest = document.getElementById("front-latest").checked;
+    if (run.generation >= 0 && (latest || state.shown === null)) await showFront(run.generation);
+  }
+  return LIVE.has(run.status) ? POLL_MS : null;
+}
+
+function wireControls() {
+  const slider = document.getElementById("front-generation");
+  slider.addEventListener("input", () => {
+    document.getElementById("front-latest").checked = Number(slider.value) === Number(slider.max);
+    showFront(Number(slider.value));
+  });
+  document.getElementById("front-latest").addEventListener("change", (event) => {
+    if (event.target.checked && state.generation >= 0) showFront(state.generation);
+  });
+}
+
+function wireClicks() {
+  // plotly attaches .on() to the div after the first draw
+  document.getElementById("front").on("plotly_click", (event) => {
+    const point = event.points && event.points[0];
+    if (point) window.location.href = page(`individuals/${point.customdata[0]}`);
+  });
+}
+
+async function main() {
+  showHealth();
+  wireControls();
+  if (typeof Plotly === "undefined") {
+    fill("fitness", errorLine(new Error("plotly.js did not load: is the plotly Python package installed?")));
+    return;
+  }
+  Plotly.newPlot("front", [], { font: FONT, margin: { l: 60, r: 20, t: 10, b: 45 } }, PLOT_CONFIG);
+  wireClicks();
+  poll(async () => {
+    try {
+      return await refresh();
+    } catch (error) {
+      fill("run-facts", errorLine(error));
+      return 5 * POLL_MS;
+    }
+  });
+}
+
+main();
