@@ -13,7 +13,8 @@ import sys
 import tempfile
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
@@ -88,6 +89,21 @@ def shared_redis_url() -> str | None:
     except Exception:
         return None
     return url
+
+
+@contextmanager
+def redis_for_test() -> Iterator[str]:
+    """URL of an empty Redis database: the shared CI server's, else a private server's."""
+    url = shared_redis_url()
+    if url:
+        Redis.from_url(url).flushdb()
+        yield url
+        return
+    server = RedisServer()
+    try:
+        yield server.url
+    finally:
+        server.stop()
 
 
 class Processes:

@@ -31,8 +31,8 @@ from tests.service.rq_support import (
     Processes,
     RedisServer,
     auth,
+    redis_for_test,
     service_env,
-    shared_redis_url,
     wait_for,
 )
 
@@ -54,14 +54,8 @@ TREATMENT = {
 
 @pytest.fixture
 def redis_url():
-    url = shared_redis_url()
-    if url:
-        Redis.from_url(url).flushdb()
+    with redis_for_test() as url:
         yield url
-        return
-    server = RedisServer()
-    yield server.url
-    server.stop()
 
 
 @pytest.fixture

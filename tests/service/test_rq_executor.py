@@ -1,0 +1,133 @@
+"""The RQ executor and the run locks against a real Redis and a real ``softevo worker``:
+same results as in-process evaluation, deterministic job ids, a resubmitted batch is not
+evaluated again, a job that fails for good fails only its own genome, one coordinator per
+run."""
+
+from __future__ import annotations
+
+import re
+import uuid
+
+import numpy as np
+import pytest
+from redis import Redis
+from rq.job import Job
+from rq.serializers import JSONSerializer
+
+from evolution.genotype import EncodingConfig, random_viable_genotype
+from service.driver import RedisLocks
+from service.executors import InlineExecutor
+from service.rq_executor import RQExecutor, plan_batches
+from tests.service.rq_support import Processes, redis_for_test, wait_for
+
+pytestmark = pytest.mark.redis
+JOB_ID = re.compile(r"^run(\d+)-gen(\d+)-batch(\d+)-[0-9a-f]{10}$")
+
+
+def tasks(n: int, run_id: int = 1, generation: int = 0, seed: int = 0) -> list[dict]:
+    config = EncodingConfig(workspace=(3, 3, 3))
+    rng = np.random.default_rng(seed)
+    return [
+        {
+            "id": k,
+            "run_id": run_id,
+            "generation": generation,
+            "genome": random_viable_genotype(rng, config).to_dict(),
+            "environment": "land",
+            "youngs_modulus": 1e5,
+            "cycles": 1,
+            "encoding": config.to_dict(),
+        }
+        for k in range(n)
+    ]
+
+
+def without_seconds(results: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "seconds"} for r in results]
+
+
+@pytest.fixture(scope="module")
+def redis_url():
+    with redis_for_test() as url:
+        yield url
+
+
+@pytest.fixture(scope="module")
+def queue(redis_url, tmp_path_factory):
+    """A queue with one live ``softevo worker``."""
+    name = f"test-{uuid.uuid4().hex[:8]}"
+    env = {"SOFTEVO_REDIS_URL": redis_url, "SOFTEVO_QUEUE": name, "SOFTEVO_HEARTBEAT_TTL": "3"}
+    group = Processes(tmp_path_factory.mktemp("worker"), env)
+    group.worker("executor-test")
+    executor = RQExecutor(redis_url, queue=name, genomes_per_job=2, retries=1)
+    wait_for(lambda: executor.worker_count() == 1, 60, "the worker to register")
+    executor.close()
+    yield name
+    group.stop_all()
+
+
+def test_job_ids_name_run_generation_and_batch():
+    batches = plan_batches(tasks(3, run_id=4, generation=7) + tasks(2, run_id=5), 2, 2)
+    ids = [b.job_id for b in batches]
+    parsed = [JOB_ID.match(i).groups() for i in ids]
+    assert parsed == [("4", "7", "0"), ("4", "7", "1"), ("5", "0", "0"), ("5", "0", "1")]
+    assert [b.positions for b in batches] == [[0, 1], [2], [3], [4]]  # >= 1 job per worker
+    again = [b.job_id for b in plan_batches(tasks(3, run_id=4, generation=7) + tasks(2, 5), 2, 2)]
+    assert again == ids  # the same batch always has the same id
+    other = plan_batches(tasks(3, run_id=4, generation=7, seed=1), 2, 2)
+    assert not {b.job_id for b in other} & set(ids)  # other genomes, other jobs
+
+
+def test_results_equal_in_process_evaluation(redis_url, queue):
+    work = tasks(5)
+    executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2)
+    try:
+        remote = executor.evaluate(work)
+    finally:
+        executor.close()
+    local = InlineExecutor(threads=1).evaluate(work)
+    assert without_seconds(remote) == without_seconds(local)
+    assert [r["id"] for r in remote] == [0, 1, 2, 3, 4]
+
+
+def test_a_resubmitted_batch_is_not_evaluated_again(redis_url, queue):
+    work = tasks(2, run_id=9, generation=3, seed=5)
+    executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2)
+    try:
+        first = executor.evaluate(work)
+        second = executor.evaluate(work)  # e.g. a restarted coordinator asks again
+    finally:
+        executor.close()
+    assert second == first
+    (batch,) = plan_batches(work, 1, 2)
+    job = Job.fetch(batch.job_id, connection=Redis.from_url(redis_url), serializer=JSONSerializer)
+    assert len(job.results()) == 1  # one execution only
+
+
+def test_a_job_that_fails_for_good_fails_only_its_genome(redis_url, queue):
+    work = tasks(2, run_id=11, seed=3)
+    del work[1]["id"]  # evaluate_batch cannot even report on this task: the job raises
+    executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2, retries=1)
+    try:
+        results = executor.evaluate(work)
+    finally:
+        executor.close()
+    good = InlineExecutor(threads=1).evaluate(work[:1])
+    assert without_seconds(results[:1]) == without_seconds(good)
+    assert results[1]["stable"] is False and results[1]["distance"] == 0.0
+    assert "evaluation job failed" in results[1]["error"] and "KeyError" in results[1]["error"]
+
+
+def test_one_coordinator_per_run(redis_url):
+    namespace = uuid.uuid4().hex[:8]
+    first, second = RedisLocks(redis_url, namespace), RedisLocks(redis_url, namespace)
+    assert first.acquire(1) and not second.acquire(1) and second.acquire(2)
+    assert first.renew() == set() and first.owner(1) == first.token
+    Redis.from_url(redis_url).delete(first.key(1))  # as after a Redis restart
+    assert first.renew() == set() and first.owner(1) == first.token  # taken back
+    Redis.from_url(redis_url).set(first.key(1), "someone else")
+    assert first.renew() == {1}  # lost to another coordinator
+    second.release([2])
+    assert first.acquire(2)
+    first.release([2])
+    assert second.owner(2) is None
