@@ -7,13 +7,18 @@
   generations, workspace, cycles, repetitions, seed, algorithm);
 - ``runs``: the export's runs table (``service.db.export.runs_frame``) plus ``generation``
   (the last one stored);
-- ``evaluations``: one row per evaluation (the export's individuals table) with ``treatment``
-  and ``repetition``;
 - ``generations``: per run and generation, the stored summary (environment, best_distance,
   mean_distance, front_size, evaluations, evaluation_seconds, created_at);
-- ``populations``: the population kept at every generation (run_id, generation,
-  individual_id, front_rank) with each member's traits from its latest evaluation at or
-  before that generation (after an environment switch: the one in the new environment).
+- ``populations``: the populations kept at generation 0 and at each run's last stored
+  generation (run_id, generation, individual_id, front_rank), each member with the traits
+  of its latest evaluation at or before that generation (after an environment switch: the
+  one in the new environment);
+- ``evaluations``: every evaluation of those members (the export's individuals columns)
+  with ``treatment`` and ``repetition``.
+
+Only the two ends of each run are read: a paper-scale experiment stores tens of millions of
+evaluations, and the analyses need the per-generation summaries and the populations at the
+start and the end.
 
 Trait columns are ``TRAITS``: distance (voxel lengths), active_share, voxel_count,
 frequency (Hz), branching, shape_entropy (bits), symmetry.
@@ -25,10 +30,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
-from sqlalchemy import Connection, Engine, select
+from sqlalchemy import Connection, Engine, and_, or_, select
 
-from service.db.export import individuals_frame, populations_frame, runs_frame
-from service.db.models import Evaluation, Experiment, Generation, Individual, Run, Treatment
+from service.db.export import INDIVIDUAL_COLUMNS, runs_frame
+from service.db.models import (
+    Evaluation,
+    Experiment,
+    Generation,
+    Individual,
+    PopulationMember,
+    Run,
+    Treatment,
+)
 from service.errors import UserError
 
 TRAITS = (
@@ -70,7 +83,7 @@ class ExperimentData:
 
     def final_populations(self) -> pd.DataFrame:
         """Members of each run's population at its last stored generation."""
-        last = self.populations.groupby("run_id")["generation"].transform("max")
+        last = self.populations["run_id"].map(self.runs.set_index("run_id")["generation"])
         return self.populations[self.populations["generation"] == last].reset_index(drop=True)
 
     def initial_populations(self) -> pd.DataFrame:
@@ -109,9 +122,9 @@ def load_experiment(engine: Engine, experiment_id: int) -> ExperimentData:
         if not run_ids:
             raise UserError(f"experiment e{experiment_id} has no runs")
         runs = _with_last_generation(conn, runs_frame(conn, run_ids))
-        evaluations = individuals_frame(conn, run_ids)
         generations = _generations_frame(conn, run_ids)
-        members = populations_frame(conn, run_ids)
+        members = _end_members(conn, run_ids)
+        evaluations = _member_evaluations(conn, run_ids)
     labels = runs[["run_id", "treatment", "repetition"]]
     evaluations = evaluations.merge(labels, on="run_id", how="left")
     generations = generations.merge(labels, on="run_id", how="left")
@@ -171,6 +184,58 @@ def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
     ).all()
     last = pd.DataFrame(rows, columns=["run_id", "generation"])
     return runs.merge(last, on="run_id", how="left")
+
+
+def _end_member_filter(run_ids: list[int]):
+    """WHERE clause: population rows of ``run_ids`` at generation 0 or the run's last one."""
+    members, runs = PopulationMember.__table__, Run.__table__
+    return and_(
+        members.c.run_id.in_(run_ids),
+        or_(members.c.generation == 0, members.c.generation == runs.c.generation),
+    )
+
+
+def _end_members(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+    """Population rows (run_id, generation, individual_id, front_rank) of the initial and the
+    last stored generation of each run."""
+    members, runs = PopulationMember.__table__, Run.__table__
+    columns = ["run_id", "generation", "individual_id", "front_rank"]
+    result = conn.execute(
+        select(*[members.c[name] for name in columns])
+        .join(runs, members.c.run_id == runs.c.id)
+        .where(_end_member_filter(run_ids))
+        .order_by(members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id)
+    )
+    return pd.DataFrame(result.fetchall(), columns=columns)
+
+
+def _member_evaluations(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+    """Every evaluation of the individuals in ``_end_members``, with the export's
+    individuals columns (``service.db.export.INDIVIDUAL_COLUMNS``)."""
+    evaluations, individuals = Evaluation.__table__, Individual.__table__
+    members, runs = PopulationMember.__table__, Run.__table__
+    wanted = (
+        select(members.c.individual_id)
+        .join(runs, members.c.run_id == runs.c.id)
+        .where(_end_member_filter(run_ids))
+    )
+    result = conn.execute(
+        select(
+            individuals.c.id.label("individual_id"),
+            evaluations.c.run_id,
+            individuals.c.parent_id,
+            evaluations.c.generation,
+            individuals.c.generation_born,
+            evaluations.c.age,
+            *[evaluations.c[name] for name in INDIVIDUAL_COLUMNS[6:]],
+        )
+        .join(individuals, evaluations.c.individual_id == individuals.c.id)
+        .where(evaluations.c.individual_id.in_(wanted))
+        .order_by(evaluations.c.run_id, evaluations.c.generation, individuals.c.id)
+    )
+    frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))
+    frame["parent_id"] = frame["parent_id"].astype("Int64")
+    return frame[INDIVIDUAL_COLUMNS]
 
 
 def _generations_frame(conn: Connection, run_ids: list[int]) -> pd.DataFrame:

@@ -424,7 +424,7 @@ def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
     bodies = {i: p.body for i, p in phenotypes(engine, ids).items()}
     fig = _new_figure("robots", data, layout=None)  # fixed margins: 3-D axes need no solver
     per_row = min(2, len(names))
-    top = 1.0 - 0.45 / fig.get_size_inches()[1]
+    top = 1.0 - 0.75 / fig.get_size_inches()[1]
     grid = fig.add_gridspec(
         math.ceil(len(names) / per_row),
         SAMPLES_PER_FRONT * per_row,
@@ -449,6 +449,8 @@ def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
             )
             body = bodies.get(int(pick.individual_id), np.zeros((1, 1, 1)))
             draw_body(ax, body, title, side=max(body.shape))
+    if per_row > 1:  # a rule between the two treatments of a row
+        fig.add_artist(plt.Line2D([0.5, 0.5], [0.0, top], color="0.75", lw=0.8))
     _material_legend(fig)
     fig.suptitle("Robots sampled from the aggregated Pareto fronts (d: distance, a: active share)")
     return save(

@@ -31,6 +31,7 @@ from sqlalchemy import Connection, Engine
 from analysis import figures as fig
 from analysis.data import TRAIT_LABELS, ExperimentData, load_experiment
 from analysis.stats_tables import (
+    CURVE_RESAMPLES,
     N_RESAMPLES,
     fitness_curves,
     statistics_table,
@@ -40,7 +41,7 @@ from service.errors import UserError
 
 METHODS = (
     "Confidence intervals: percentile bootstrap of the mean over repetitions "
-    f"({N_RESAMPLES:,} resamples; 2,000 for the per-generation curves), 95%. "
+    f"({N_RESAMPLES:,} resamples; {CURVE_RESAMPLES:,} for the per-generation curves), 95%. "
     "Tests: two-sided Mann-Whitney U. Treatments are compared when they differ in exactly one "
     "factor (environment schedule or stiffness); descriptors over the pooled individuals of "
     "the final populations, the best distance over runs. Bonferroni: p-values are multiplied "

@@ -32,6 +32,8 @@ from evolution.stats import bonferroni, bootstrap_ci, mann_whitney
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 10_000
+CURVE_RESAMPLES = 2_000  # per generation of the fitness curves
+MAX_CURVE_POINTS = 500
 ALPHA = 0.05
 STAT_COLUMNS = [
     "comparison",
@@ -242,7 +244,25 @@ def summary_table(data: ExperimentData, rng: np.random.Generator) -> pd.DataFram
     return table.reset_index(drop=True)
 
 
-def fitness_curves(data: ExperimentData, rng: np.random.Generator) -> pd.DataFrame:
+def plotted_generations(generations: np.ndarray, switches: Sequence[int], max_points: int) -> np.ndarray:
+    """At most about ``max_points`` generations spread evenly from first to last, plus the
+    generations on either side of each environment switch (so the jump stays sharp)."""
+    generations = np.unique(generations)
+    if len(generations) <= max_points:
+        return generations
+    spread = generations[np.unique(np.linspace(0, len(generations) - 1, max_points).round().astype(int))]
+    near_switch = [g for s in switches for g in (s - 1, s)]
+    return np.intersect1d(generations, np.union1d(spread, near_switch))
+
+
+def fitness_curves(
+    data: ExperimentData, rng: np.random.Generator, max_points: int = MAX_CURVE_POINTS
+) -> pd.DataFrame:
     """Per treatment and generation: mean best distance over repetitions with its bootstrap
-    CI (columns treatment, generation, n, mean, low, high)."""
-    return ci_table(data.generations, "best_distance", ["treatment", "generation"], rng, n_resamples=2_000)
+    CI (columns treatment, generation, n, mean, low, high). Long runs are thinned to about
+    ``max_points`` generations (``plotted_generations``)."""
+    frame = data.generations
+    switches = [int(s) for s in data.treatments["switch_at"].dropna()]
+    kept = plotted_generations(frame["generation"].to_numpy(), switches, max_points)
+    frame = frame[frame["generation"].isin(kept)]
+    return ci_table(frame, "best_distance", ["treatment", "generation"], rng, n_resamples=CURVE_RESAMPLES)

@@ -25,7 +25,9 @@ def test_the_experiment_is_read_back(tiny, tiny_data):
     assert (data.runs["status"] == "finished").all()
     assert len(data.generations) == 4 * 3
     counts = data.populations.groupby(["run_id", "generation"]).size()
-    assert (counts == 4).all() and len(counts) == 4 * 3
+    assert (counts == 4).all() and len(counts) == 4 * 2  # only the two ends of each run
+    assert sorted(data.populations["generation"].unique()) == [0, 2]
+    assert set(data.evaluations["individual_id"]) == set(data.populations["individual_id"])
 
 
 def test_members_carry_the_traits_of_their_latest_evaluation(tiny_data):

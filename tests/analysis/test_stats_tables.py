@@ -106,3 +106,12 @@ def test_comparison_pairs_on_the_paper_grid():
     assert ("land S3", "land-water S3") in pairs and ("water S3", "water-land S3") in pairs
     assert ("land-water S3", "water-land S3") in pairs
     assert ("land S1", "water S2") not in pairs and ("land S1", "land-water S3") not in pairs
+
+
+def test_long_curves_are_thinned_but_keep_both_ends_and_the_switch():
+    from analysis.stats_tables import plotted_generations
+
+    assert plotted_generations(np.arange(10), [5], 20).tolist() == list(range(10))
+    kept = plotted_generations(np.arange(9000), [4500], 100)
+    assert 100 <= len(kept) <= 102
+    assert {0, 4499, 4500, 8999} <= set(kept.tolist())
