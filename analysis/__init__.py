@@ -1,0 +1,22 @@
+"""Analyses of stored experiments (issue 6): statistics, figures, motion, report, VoxCAD export.
+
+Reads the database written by ``service/`` and never writes to it. Modules:
+
+- ``analysis.data``: ``load_experiment(engine, id) -> ExperimentData`` (pandas frames of the
+  settings, runs, per-generation summaries and the initial and final populations);
+- ``analysis.stats_tables``: bootstrap CIs over repetitions, Mann-Whitney U between
+  treatments and between start and end, Bonferroni per family (``evolution.stats`` inside);
+- ``analysis.figures``: the report's figures as PNG + SVG (``FIGURES``);
+- ``analysis.render``: 3-D voxel renders (active red, passive cyan);
+- ``analysis.robots``: stored genome -> phenotype -> scene, as the workers built them;
+- ``analysis.motion``: re-simulate an individual with frames and animate it (GIF, MP4);
+- ``analysis.report``: ``write_report(url_or_engine_or_session, experiment, out_dir)`` and
+  ``report_html(...)`` for the REST service;
+- ``analysis.vxa``: ``scene_to_vxa(scene)`` / ``individual_vxa(engine, id)``, VoxCAD files.
+
+Command line (``service/cli_analysis.py``)::
+
+    softevo report EXPERIMENT --out DIR [--db URL] [--no-animation]
+    softevo show INDIVIDUAL --out FILE.gif|FILE.mp4 [--environment land|water] [--db URL]
+    softevo export-vxa INDIVIDUAL --out FILE.vxa [--environment land|water] [--db URL]
+"""

@@ -264,6 +264,8 @@ def _member_traits(members: pd.DataFrame, evaluations: pd.DataFrame) -> pd.DataF
     generation (``evaluation_generation``, ``environment``, ``stable`` and ``TRAITS``)."""
     traits = evaluations[["individual_id", "generation", "environment", "stable", *TRAITS]]
     traits = traits.rename(columns={"generation": "evaluation_generation"})
+    if members.empty:  # nothing stored yet: merge_asof cannot type empty keys
+        return pd.DataFrame(columns=[*members.columns, *traits.columns.drop("individual_id")])
     left = members.sort_values("generation", kind="stable").reset_index(drop=True)
     right = traits.sort_values("evaluation_generation", kind="stable").reset_index(drop=True)
     merged = pd.merge_asof(

@@ -87,3 +87,15 @@ def test_unknown_experiment_is_one_line_and_exit_2(capsys, tiny, tmp_path, refer
     code, _, err = softevo(capsys, "report", reference, "--out", str(tmp_path), "--db", tiny.url, "-q")
     assert code == 2
     assert err.startswith("error: ") and err.count("\n") == 1 and message in err
+
+
+def test_an_experiment_with_nothing_stored_yet_is_a_user_error(capsys, tmp_path):
+    from service.db import open_database
+    from service.experiments import create
+    from service.treatments import Treatment
+
+    url = f"sqlite:///{tmp_path / 'empty.db'}"
+    engine = open_database(url)
+    experiment_id, _ = create(engine, "not-started", [Treatment("land", 0.1, population=4, generations=2)])
+    code, _, err = softevo(capsys, "report", f"e{experiment_id}", "--out", str(tmp_path / "r"), "--db", url)
+    assert code == 2 and f"experiment e{experiment_id} has no stored generation yet" in err
