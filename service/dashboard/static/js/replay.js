@@ -11,7 +11,9 @@ const PASSIVE = new THREE.Color("#27c6d9");
 const BACKGROUND = { land: "#eef2f6", water: "#d6e9f6" };
 const CUBE_FILL = 0.9; // cube side / voxel size: the gap shows the lattice
 const MIN_BRIGHTNESS = 0.25; // of an active voxel fully contracted
-const GRID_CELLS = 80; // floor grid, in voxel lengths
+const MIN_SIZE = 0.1; // smallest voxel size / rest size, as sim/kernels.py's MIN_SIZE
+const GRID_CELLS = 30; // floor grid, in voxel lengths (at least; more for a large robot)
+const GRID_SEGMENT = 5; // cells per drawn segment of a grid line
 const MAX_STEP_S = 0.1; // wall time a single tick may advance (after a hidden tab)
 
 /** Actuation signal in [-1, 1] at phase angle `angle` (radians), as sim/kernels.py. */
@@ -41,21 +43,37 @@ function shadedBox(side) {
 }
 
 /** A square grid of `cells` x `cells` cells of side `spacing` in the x-y plane, centred on
- * the origin, drawn as one short segment per cell edge: software WebGL drops a whole line
- * that passes behind the camera, which long grid lines do once the camera is inside the grid. */
+ * the origin. Lines are drawn as segments `GRID_SEGMENT` cells long: software WebGL drops a
+ * whole line that passes behind the camera, which long lines do once the camera is inside
+ * the grid; short segments lose only the piece at the camera. */
 function gridSegments(cells, spacing) {
   const half = (cells * spacing) / 2;
+  const step = GRID_SEGMENT * spacing;
   const points = [];
   for (let line = 0; line <= cells; line++) {
     const across = -half + line * spacing;
-    for (let cell = 0; cell < cells; cell++) {
-      const from = -half + cell * spacing, to = from + spacing;
+    for (let from = -half; from < half - 1e-9; from += step) {
+      const to = Math.min(half, from + step);
       points.push(from, across, 0, to, across, 0, across, from, 0, across, to, 0);
     }
   }
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute("position", new THREE.Float32BufferAttribute(points, 3));
   return geometry;
+}
+
+/** Indices of the voxels with at least one free face (the others cannot be seen). */
+function surfaceVoxels(motion) {
+  const key = (i, j, k) => `${i},${j},${k}`;
+  const present = new Set();
+  for (let v = 0; v < motion.voxelCount; v++) present.add(key(...motion.lattice.subarray(3 * v, 3 * v + 3)));
+  const steps = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]];
+  const shown = [];
+  for (let v = 0; v < motion.voxelCount; v++) {
+    const [i, j, k] = motion.lattice.subarray(3 * v, 3 * v + 3);
+    if (steps.some(([di, dj, dk]) => !present.has(key(i + di, j + dj, k + dk)))) shown.push(v);
+  }
+  return Int32Array.from(shown);
 }
 
 /** Phase (radians) of each recorded voxel, matched by lattice index; 0 where unknown. */
@@ -117,6 +135,7 @@ export class Replay {
     this.settle = body ? body.settle_seconds : 0;
     this.omega = body ? 2 * Math.PI * body.frequency : 0;
     this.waveform = body ? body.waveform : "sine";
+    this.amplitude = body ? body.amplitude : 0;
     // play the evaluated motion: from the end of settling (if any) to the end, in a loop
     this.loopStart = Math.min(Math.max(this.start, this.settle), this.end);
     this.time = this.loopStart;
@@ -153,6 +172,7 @@ export class Replay {
 
     const { centre, radius } = boundsOf(this.motion, 0);
     const size = Math.max(radius, 2 * this.voxelSize);
+    this._radius = size;
     const camera = new THREE.PerspectiveCamera(40, 1, size / 20, size * 60);
     camera.up.set(0, 0, 1);
     camera.position.copy(centre).add(new THREE.Vector3(1.3, -2.2, 1.25).multiplyScalar(size * 2.1));
@@ -161,7 +181,8 @@ export class Replay {
     controls.update();
     controls.addEventListener("change", () => { this._needsRender = true; });
 
-    scene.add(this._floor(environment, centre));
+    this.grid = this._floor(environment, centre);
+    scene.add(this.grid);
     this.mesh = this._voxels();
     scene.add(this.mesh);
     Object.assign(this, { renderer, scene, camera, controls, container });
@@ -176,24 +197,27 @@ export class Replay {
   _floor(environment, centre) {
     const land = environment === "land";
     const z = land ? 0 : centre.z - 4 * this.voxelSize;
+    const cells = Math.max(GRID_CELLS, 2 * Math.ceil((4 * this._radius) / this.voxelSize));
     const grid = new THREE.LineSegments(
-      gridSegments(GRID_CELLS, this.voxelSize),
+      gridSegments(cells, this.voxelSize),
       new THREE.LineBasicMaterial({ color: land ? 0xaab3c2 : 0xa7c4da }),
     );
     grid.position.set(centre.x, centre.y, z);
     return grid;
   }
 
+  /** One cube instance per surface voxel (instance n shows voxel this.shown[n]). */
   _voxels() {
-    const count = this.motion.voxelCount;
+    this.shown = surfaceVoxels(this.motion);
     const side = CUBE_FILL * this.voxelSize;
-    // unlit material, light baked into the faces: software WebGL renders 343 voxels at 60 fps
-    const mesh = new THREE.InstancedMesh(shadedBox(side), new THREE.MeshBasicMaterial({ vertexColors: true }), count);
+    // unlit, light baked into the faces: cheap enough for 60 fps on software WebGL
+    const material = new THREE.MeshBasicMaterial({ vertexColors: true });
+    const mesh = new THREE.InstancedMesh(shadedBox(side), material, this.shown.length);
     mesh.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
-    for (let v = 0; v < count; v++) {
-      mesh.setMatrixAt(v, new THREE.Matrix4());
-      mesh.setColorAt(v, this.motion.material[v] === 2 ? ACTIVE : PASSIVE);
-    }
+    this.shown.forEach((v, n) => {
+      mesh.setMatrixAt(n, new THREE.Matrix4());
+      mesh.setColorAt(n, this.motion.material[v] === 2 ? ACTIVE : PASSIVE);
+    });
     mesh.instanceColor.setUsage(THREE.DynamicDrawUsage);
     mesh.frustumCulled = false; // the instances move away from the geometry's bounds
     return mesh;
@@ -223,48 +247,63 @@ export class Replay {
     return k;
   }
 
+  /** Interpolated positions of every voxel at this.time into this.current (V*3, m), and the
+   * surface voxels' instances moved there. */
   _place() {
     const { positions, voxelCount, t } = this.motion;
     const k = this._frameAt(this.time);
     const next = Math.min(k + 1, t.length - 1);
     const alpha = next > k ? Math.min(1, Math.max(0, (this.time - t[k]) / (t[next] - t[k]))) : 0;
     const a = k * voxelCount * 3, b = next * voxelCount * 3;
+    this.current ??= new Float32Array(voxelCount * 3);
+    for (let i = 0; i < voxelCount * 3; i++) {
+      this.current[i] = positions[a + i] + alpha * (positions[b + i] - positions[a + i]);
+    }
     const matrices = this.mesh.instanceMatrix.array;
-    for (let v = 0; v < voxelCount; v++) {
-      const m = 16 * v, p = 3 * v;
-      for (let c = 0; c < 3; c++) {
-        matrices[m + 12 + c] = positions[a + p + c] + alpha * (positions[b + p + c] - positions[a + p + c]);
-      }
+    for (let n = 0; n < this.shown.length; n++) {
+      const p = 3 * this.shown[n];
+      matrices[16 * n + 12] = this.current[p];
+      matrices[16 * n + 13] = this.current[p + 1];
+      matrices[16 * n + 14] = this.current[p + 2];
     }
     this.mesh.instanceMatrix.needsUpdate = true;
   }
 
-  _shade() {
+  /** Active voxels: brightness and size from their actuation now (the size the simulator
+   * gives them, L (1 + amplitude * signal)); passive voxels keep colour and size. */
+  _actuate() {
     const colours = this.mesh.instanceColor.array;
+    const matrices = this.mesh.instanceMatrix.array;
     const actuated = this.time >= this.settle && this.omega > 0;
     const angle = this.omega * (this.time - this.settle);
-    for (let v = 0; v < this.motion.voxelCount; v++) {
+    for (let n = 0; n < this.shown.length; n++) {
+      const v = this.shown[n];
       if (this.motion.material[v] !== 2) continue;
       const signal = actuated ? actuation(this.waveform, angle + this.phase[v]) : 0;
-      const brightness = MIN_BRIGHTNESS + (1 - MIN_BRIGHTNESS) * (signal + 1) / 2;
-      colours[3 * v] = ACTIVE.r * brightness;
-      colours[3 * v + 1] = ACTIVE.g * brightness;
-      colours[3 * v + 2] = ACTIVE.b * brightness;
+      const brightness = MIN_BRIGHTNESS + ((1 - MIN_BRIGHTNESS) * (signal + 1)) / 2;
+      colours[3 * n] = ACTIVE.r * brightness;
+      colours[3 * n + 1] = ACTIVE.g * brightness;
+      colours[3 * n + 2] = ACTIVE.b * brightness;
+      const size = Math.max(MIN_SIZE, 1 + this.amplitude * signal);
+      matrices[16 * n] = matrices[16 * n + 5] = matrices[16 * n + 10] = size;
     }
     this.mesh.instanceColor.needsUpdate = true;
   }
 
+  /** Mean of the current voxel centres in x and y (z = 0), metres. */
   _centreOfMass(target) {
-    const matrices = this.mesh.instanceMatrix.array;
     const count = this.motion.voxelCount;
     target.set(0, 0, 0);
-    for (let v = 0; v < count; v++) target.x += matrices[16 * v + 12], target.y += matrices[16 * v + 13];
+    for (let v = 0; v < count; v++) target.x += this.current[3 * v], target.y += this.current[3 * v + 1];
     return target.multiplyScalar(1 / Math.max(1, count));
   }
 
-  /** Keep the robot in view: move camera and target with the centre of mass (x, y only). */
+  /** Keep the robot in view: move camera and target with the centre of mass (x, y only);
+   * the grid jumps by whole cells to stay under the robot (its lines stay put in the world). */
   _followRobot() {
     const com = this._centreOfMass(new THREE.Vector3());
+    this.grid.position.x = Math.round(com.x / this.voxelSize) * this.voxelSize;
+    this.grid.position.y = Math.round(com.y / this.voxelSize) * this.voxelSize;
     if (this.follow) {
       const shift = com.clone().sub(this._com);
       this.camera.position.add(shift);
@@ -294,7 +333,7 @@ export class Replay {
     }
     if (!this.playing && !this._needsRender) return;
     this._place();
-    this._shade();
+    this._actuate();
     this._followRobot();
     this.controls.update();
     this.renderer.render(this.scene, this.camera);
