@@ -334,7 +334,7 @@ def write_report(
         stats_path, summary_path = out / "statistics.csv", out / "summary.csv"
         stats.to_csv(stats_path, index=False)
         summary.to_csv(summary_path, index=False)
-        doc = build_document(data, stats, summary, figures, gif)
+        doc = build_document(data, stats, summary, figures, gif, evaluation_text(engine, data))
         markdown, page = out / "report.md", out / "report.html"
         markdown.write_text(to_markdown(doc, out), encoding="utf-8")
         page.write_text(to_html(doc), encoding="utf-8")
@@ -359,6 +359,34 @@ def _figure_makers(data, engine, stats, curves, rng, figures_dir):
         ("robots", lambda: fig.robots_figure(data, engine, figures_dir)),
         ("start_end", lambda: fig.start_end_figure(data, stats, rng, figures_dir)),
     ]
+
+
+def evaluation_text(engine: Engine, data: ExperimentData) -> str | None:
+    """The physics and encoding every evaluation used, read from one stored individual's
+    scene (the same for all but stiffness, cycles and environment, given per treatment)."""
+    import sim
+    from analysis.robots import encoding_of, individual_scene
+
+    best = best_individual(data)
+    if best is None:
+        return None
+    scene, record = individual_scene(engine, int(best["individual_id"]), best["environment"])
+    parsed, encoding = sim.parse_scene(scene), encoding_of(record["treatment"], record["seed"])
+    m, low_high = parsed.material, encoding.frequency_range
+    phenotype, modulus = record["phenotype_object"], record["treatment"].stiffness_pa
+    settle = {env: phenotype.to_scene(env, modulus)["settle_seconds"] for env in ("land", "water")}
+    algorithms = set(data.treatments["algorithm"])
+    selection = "with age (AFPO)" if algorithms == {"afpo"} else f"algorithm {', '.join(sorted(algorithms))}"
+    return (
+        f"Evaluation: voxel edge {parsed.voxel_size:g} m, density {m.density:g} kg/m\u00b3, "
+        f"Poisson ratio {m.poisson_ratio:g}, friction {m.friction_static:g} static / "
+        f"{m.friction_kinetic:g} kinetic, actuation {parsed.actuation.waveform} of linear strain "
+        f"amplitude {parsed.actuation.amplitude:g} at one evolved frequency in "
+        f"{low_high[0]:g}-{low_high[1]:g} Hz with evolved per-voxel phases; each evaluation runs "
+        f"the treatment's number of cycles after settling ({settle['land']:g} s on land, "
+        f"{settle['water']:g} s in water). Objectives: distance (max), active share (min), voxel "
+        f"count (min), {selection}."
+    )
 
 
 def best_individual(data: ExperimentData) -> dict[str, Any] | None:
@@ -389,8 +417,9 @@ def build_document(
     summary: pd.DataFrame,
     figures: list[fig.FigureFile],
     gif: Path | None,
+    evaluation: str | None = None,
 ) -> Document:
-    """The report's content, in order."""
+    """The report's content, in order; ``evaluation`` is ``evaluation_text``."""
     experiment = data.experiment
     doc = Document(f"softevo report: experiment e{experiment['id']} \u201c{experiment['name']}\u201d")
     created = _as_utc(experiment.get("created_at"))
@@ -404,6 +433,8 @@ def build_document(
     doc.heading("Run settings")
     doc.table(settings_table(data))
     doc.paragraph(timing_text(data))
+    if evaluation is not None:
+        doc.paragraph(evaluation)
     doc.heading("Summary")
     doc.paragraph(
         "Mean over repetitions with its 95% bootstrap confidence interval. Best "

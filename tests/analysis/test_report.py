@@ -44,7 +44,7 @@ def test_html_is_self_contained_and_embeds_every_figure(report):
     for text in ("Run settings", "Summary", "Statistics", "Mann-Whitney", "land S3", "water-land S3"):
         assert text in page
     assert "water:0,land:2" in page  # the transition's schedule
-    assert "Wall time" in page
+    assert "Wall time" in page and "Evaluation: voxel edge 0.05 m" in page
 
 
 def test_markdown_links_every_figure_and_holds_the_tables(report):
