@@ -157,7 +157,7 @@ class Scale:
 # paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1),
-    "small": Scale(12, 40, 40, (6, 6, 6), 10, 2),
+    "small": Scale(8, 20, 20, (6, 6, 6), 8, 2),
     "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15),
 }
 
