@@ -112,3 +112,18 @@ def test_resolve_runs(engine):
         with pytest.raises(UserError):
             resolve_runs(conn, "nope")
         assert conn.execute(select(Run.__table__.c.seed)).scalar_one() == 7
+
+
+def test_migrations_are_packaged_for_an_installed_coordinator():
+    """The wheel must carry env.py, script.py.mako and versions/ (checked here by the rules
+    that build it: the package list and the package data patterns of pyproject.toml)."""
+    import tomllib
+    from pathlib import Path
+
+    from setuptools import find_packages
+
+    root = Path(__file__).resolve().parents[2]
+    config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
+    packages = find_packages(str(root), include=config["packages"]["find"]["include"])
+    assert {"migrations", "migrations.versions"} <= set(packages)
+    assert "*.mako" in config["package-data"]["*"]
