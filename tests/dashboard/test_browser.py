@@ -73,6 +73,22 @@ def test_run_page_draws_fitness_and_front(dashboard_url, tiny_db, open_page):
     assert page.locator("#front .scatterlayer .trace .points path").count() == len(front)
     assert page.locator("#front-table tbody tr").count() == len(front)
     assert "finished" in page.locator("#run-status").inner_text()
+    first = httpx.get(f"{dashboard_url}/runs/{tiny_db.run_id}/front?generation=0").json()["individuals"]
+    page.locator("#front-generation").fill("0")
+    page.wait_for_function("document.getElementById('front-label').textContent.startsWith('generation 0 ')")
+    page.wait_for_function(f"document.querySelectorAll('#front-table tbody tr').length === {len(first)}")
+    assert page.locator("#front .scatterlayer .trace .points path").count() == len(first)
+    assert not page.locator("#front-latest").is_checked()
+
+
+def test_clicking_a_front_point_opens_the_individual(dashboard_url, tiny_db, open_page):
+    page = open_page(dashboard_url).page
+    page.goto(f"{dashboard_url}/dashboard/runs/{tiny_db.run_id}")
+    point = page.locator("#front .scatterlayer .trace .points path").first
+    point.wait_for(timeout=PLOT_MS)
+    point.click(force=True)  # plotly's drag layer lies above the points and takes the click
+    page.wait_for_url("**/dashboard/individuals/*")
+    page.wait_for_selector("#objectives table")
 
 
 def test_replay_shows_the_robot_moving(dashboard_url, tiny_db, open_page, tmp_path):
