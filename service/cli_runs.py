@@ -3,7 +3,7 @@
 Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
 ``sqlite:///softevo.db``) and a local process pool. Runs and experiments are named by
 ``RUN_OR_EXPERIMENT``: ``5``, ``r5`` or ``run-5`` for run 5; ``e2`` or ``exp-2`` for
-experiment 2; or an experiment's name.
+experiment 2; ``latest`` for the newest experiment; or an experiment's name.
 """
 
 from __future__ import annotations

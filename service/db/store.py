@@ -280,11 +280,14 @@ def resolve_runs(conn: Connection, reference: str | None) -> list[int]:
     """Run ids named by a CLI reference, in id order.
 
     ``None``: every run. ``5``, ``r5`` or ``run-5``: run 5. ``e2`` or ``exp-2``: the runs of
-    experiment 2. Anything else: the runs of the experiment(s) with that name.
+    experiment 2. ``latest``: the runs of the newest experiment. Anything else: the runs of
+    the experiment(s) with that name.
     """
     runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
     query = select(runs.c.id).join(treatments, runs.c.treatment_id == treatments.c.id)
     kind, number = _parse_reference(reference)
+    if kind == "latest":
+        kind, number = "experiment", conn.execute(select(func.max(experiments.c.id))).scalar()
     if kind == "run":
         query = query.where(runs.c.id == number)
     elif kind == "experiment":
@@ -303,6 +306,8 @@ def _parse_reference(reference: str | None) -> tuple[str, int | None]:
     if reference is None:
         return "all", None
     text = reference.strip().lower()
+    if text == "latest":
+        return "latest", None
     for prefix, kind in (
         ("run-", "run"),
         ("r", "run"),
@@ -314,6 +319,22 @@ def _parse_reference(reference: str | None) -> tuple[str, int | None]:
         if rest is not None and rest.isdigit():
             return kind, int(rest)
     return "name", None
+
+
+def resolve_experiment(conn: Connection, reference: str) -> int:
+    """The experiment named by ``e2``, ``exp-2``, ``2``, ``latest`` or its name (the newest of
+    that name); UserError if there is none."""
+    experiments = Experiment.__table__
+    kind, number = _parse_reference(reference)
+    query = select(func.max(experiments.c.id))
+    if kind in ("experiment", "run"):  # a bare number names an experiment here
+        query = query.where(experiments.c.id == number)
+    elif kind == "name":
+        query = query.where(experiments.c.name == reference)
+    found = conn.execute(query).scalar()
+    if found is None:
+        raise UserError(f"no experiment {reference!r}")
+    return int(found)
 
 
 def count_rows(conn: Connection, table: Table, run_id: int) -> int:

@@ -9,7 +9,7 @@ from sqlalchemy import select, text
 from service.db import make_engine, open_database
 from service.db.migrate import alembic_config, script_location
 from service.db.models import Evaluation, Generation, Individual, PopulationMember, Run
-from service.db.store import count_rows, record_generation, resolve_runs, run_row
+from service.db.store import count_rows, record_generation, resolve_experiment, resolve_runs, run_row
 from service.errors import UserError
 from tests.service import handbuilt
 
@@ -109,8 +109,13 @@ def test_resolve_runs(engine):
         assert resolve_runs(conn, None) == [run_id]
         for reference in (str(run_id), f"r{run_id}", f"run-{run_id}", f"e{experiment_id}", "hand"):
             assert resolve_runs(conn, reference) == [run_id]
+        assert resolve_runs(conn, "latest") == [run_id]
+        assert resolve_experiment(conn, "latest") == experiment_id
+        assert resolve_experiment(conn, "hand") == resolve_experiment(conn, str(experiment_id))
         with pytest.raises(UserError):
             resolve_runs(conn, "nope")
+        with pytest.raises(UserError):
+            resolve_experiment(conn, "e999")
         assert conn.execute(select(Run.__table__.c.seed)).scalar_one() == 7
 
 
