@@ -60,6 +60,9 @@ def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool, genom
     try:
         with progress_bar(total, done, enabled=not quiet) as reporter:
             Coordinator(engine, executor, on_generation=reporter).run(runs)
+    except KeyboardInterrupt:
+        typer.echo("interrupted: every finished generation is stored; continue with softevo resume", err=True)
+        raise typer.Exit(130) from None
     finally:
         executor.close()
     _print_status(engine, run_ids)
@@ -135,17 +138,18 @@ def experiment(
 
 
 def _print_status(engine, run_ids: list[int]) -> None:
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
     from service.db.status import run_summaries
 
-    table = Table("run", "experiment", "treatment", "rep", "seed", "status", "generation", "best distance")
+    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "best", box=box.SIMPLE)
     for r in run_summaries(engine, run_ids):
         best = "-" if r["best_distance"] is None else f"{r['best_distance']:.3f}"
         table.add_row(
             str(r["run_id"]),
-            f"e{r['experiment_id']} {r['experiment']}",
+            f"e{r['experiment_id']}",
             r["treatment"],
             str(r["repetition"]),
             str(r["seed"]),

@@ -168,10 +168,13 @@ def warm_up(threads: int | None = 1) -> None:
 
 
 def init_pool_process() -> None:
-    """Process-pool initializer: one numba thread per process (the pool is the parallelism),
-    then warm the simulator so the first real batch pays no compilation."""
+    """Process-pool initializer: ignore Ctrl-C, one numba thread per process (the pool is the
+    parallelism), then warm the simulator so the first real batch pays no compilation."""
+    import signal
+
     import numba
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's to handle
     numba.set_num_threads(1)
     try:
         warm_up(threads=1)
