@@ -25,16 +25,8 @@ from sqlalchemy import create_engine, select, update
 
 from service.db.models import Individual
 from tests.dashboard.block import WORKSPACE, block_genome
+from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_FLAGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--no-first-run",
-]
 SERVER_START_S = 60
 CLI_TIMEOUT_S = 600
 
@@ -157,17 +149,6 @@ def start_server():
 def dashboard_url(tiny_db, start_server) -> str:
     """Base URL of ``softevo dashboard`` on the tiny database."""
     return start_server("dashboard", tiny_db.url)
-
-
-def browser_missing() -> str | None:
-    """Why the browser tests cannot run here, or None."""
-    if not (Path(CHROMIUM).exists() or shutil.which("chromium")):
-        return "Debian's chromium is not installed (apt-get install chromium chromium-driver)"
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        return "the playwright Python package is not installed (pip install playwright)"
-    return None
 
 
 @pytest.fixture(scope="session")

@@ -14,8 +14,12 @@ import pytest
 from sqlalchemy import create_engine, select
 
 from service.db.models import Individual
+from tests.dashboard.chromium import browser_missing
 
-pytestmark = pytest.mark.slow
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing())),
+]
 
 REPLAY_READY_MS = 240_000  # the server simulates the evaluation again for the frames
 PLOT_MS = 60_000

@@ -9,7 +9,12 @@ import shutil
 import httpx
 import pytest
 
-pytestmark = pytest.mark.slow
+from tests.dashboard.chromium import browser_missing
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing())),
+]
 
 LIVE_RUN_MS = 300_000
 EXPERIMENT = {
