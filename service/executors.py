@@ -37,6 +37,9 @@ class InlineExecutor:
     """Evaluates in the calling process, all robots in one ``simulate_many`` call."""
 
     def __init__(self, threads: int | None = 1) -> None:
+        from worker.evaluate import ensure_compiled
+
+        ensure_compiled()
         self.threads = threads
         self.workers = threads or 1
 
@@ -67,8 +70,9 @@ class LocalExecutor:
     def __init__(
         self, workers: int | None = None, genomes_per_task: int = 4, job: Callable[..., list] | None = None
     ) -> None:
-        from worker.evaluate import evaluate_batch
+        from worker.evaluate import ensure_compiled, evaluate_batch
 
+        ensure_compiled()  # before the pool: its processes then all load the cached kernels
         self.workers = workers or os.cpu_count() or 1
         self.genomes_per_task = genomes_per_task
         self.job = job or evaluate_batch  # a module-level function (the pool pickles it by name)

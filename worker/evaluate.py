@@ -21,6 +21,8 @@ genomes of the batch are still evaluated.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 import traceback
 from typing import Any
@@ -165,6 +167,26 @@ def warm_up(threads: int | None = 1) -> None:
 
     body = [[[2]], [[1]]]
     sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads)
+
+
+_CACHE_READY = False
+
+
+def ensure_compiled() -> None:
+    """Fill numba's on-disk cache from a short subprocess, once per process, before this
+    process runs the simulator.
+
+    A kernel compiled fresh in a process can differ in its last bits from the same kernel
+    loaded from the cache, so a run started on a cold cache and resumed later (from the
+    cache) would not repeat itself exactly. Loading from the cache everywhere keeps every
+    process, and every resume, on the same machine code.
+    """
+    global _CACHE_READY
+    if _CACHE_READY:
+        return
+    code = "from worker.evaluate import warm_up; warm_up()"
+    subprocess.run([sys.executable, "-c", code], check=False, capture_output=True)
+    _CACHE_READY = True
 
 
 def init_pool_process() -> None:

@@ -49,14 +49,3 @@ def engine(db_url) -> Engine:
     engine = open_database(db_url)
     yield engine
     engine.dispose()
-
-
-@pytest.fixture(scope="session")
-def numba_cache():
-    """Compile the simulator once in a subprocess, so every later process (this one
-    included) loads the same cached machine code: a kernel compiled fresh in a process can
-    differ from the cached one in the last bits, which would break bit-identical resumes."""
-    import subprocess
-    import sys
-
-    subprocess.run([sys.executable, "-c", "from worker.evaluate import warm_up; warm_up()"], check=True)

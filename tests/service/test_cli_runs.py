@@ -61,7 +61,7 @@ def test_bad_experiment_arguments(capsys, tmp_path):
     assert code == 2 and "unknown scale" in err
 
 
-def test_run_status_lineage_export_end_to_end(capsys, tmp_path, numba_cache):
+def test_run_status_lineage_export_end_to_end(capsys, tmp_path):
     db = f"sqlite:///{tmp_path / 'e2e.db'}"
     code, out, err = softevo(capsys, "run", "--env", "water-land", "--stiffness", "0.1", *TINY, "--db", db)
     assert code == 0, err
@@ -83,7 +83,7 @@ def test_run_status_lineage_export_end_to_end(capsys, tmp_path, numba_cache):
 
 
 @pytest.mark.slow
-def test_tiny_paper_grid_end_to_end(capsys, tmp_path, numba_cache):
+def test_tiny_paper_grid_end_to_end(capsys, tmp_path):
     db = f"sqlite:///{tmp_path / 'grid.db'}"
     code, out, err = softevo(
         capsys, "experiment", "paper", "--scale", "tiny", "--workers", "2", "-q", "--db", db

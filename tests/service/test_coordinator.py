@@ -107,7 +107,7 @@ def test_cancelled_run_stops(engine):
 
 
 @pytest.mark.slow
-def test_local_process_pool_gives_the_inline_results(tmp_path, numba_cache):
+def test_local_process_pool_gives_the_inline_results(tmp_path):
     from service.db import open_database
     from service.executors import LocalExecutor
 

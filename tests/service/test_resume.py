@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory, numba_cache):
+def reference(tmp_path_factory):
     """The uninterrupted run (SQLite)."""
     engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('ref') / 'ref.db'}")
     run_id = tinyrun.new_run(engine)
