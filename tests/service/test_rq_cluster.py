@@ -5,8 +5,8 @@
 - An experiment submitted over HTTP with the token completes although one of two workers is
   SIGKILLed in the middle of a job; its results equal an undisturbed in-process run's, and
   the lineage endpoint returns every ancestor down to the root newcomer.
-- The coordinator SIGKILLed and Redis restarted (empty) mid-run: a new coordinator resumes
-  the run and reaches the same results.
+- Redis restarted (empty) under a live coordinator, then the coordinator SIGKILLed: a new
+  coordinator resumes the run and reaches the same results.
 """
 
 from __future__ import annotations
@@ -75,11 +75,11 @@ def processes(tmp_path):
         print(group.logs())
 
 
-def undisturbed(tmp_path) -> dict:
+def undisturbed(tmp_path, body: dict = TREATMENT) -> dict:
     """The same treatment run in this process, one generation after another."""
     engine = open_database(f"sqlite:///{tmp_path / 'reference.db'}")
-    settings = {k: v for k, v in TREATMENT.items() if k != "workspace"}
-    treatment = Treatment(**settings, workspace=tuple(TREATMENT["workspace"]))
+    settings = {k: v for k, v in body.items() if k != "workspace"}
+    treatment = Treatment(**settings, workspace=tuple(body["workspace"]))
     _, (run_id,) = create(engine, "reference", [treatment])
     Coordinator(engine, InlineExecutor(threads=1)).run([run_id])
     snapshot = tinyrun.snapshot(engine, run_id)
@@ -87,8 +87,8 @@ def undisturbed(tmp_path) -> dict:
     return snapshot
 
 
-def submit(base: str) -> int:
-    body = {"name": "cluster", "treatments": [TREATMENT]}
+def submit(base: str, treatment: dict = TREATMENT) -> int:
+    body = {"name": "cluster", "treatments": [treatment]}
     assert httpx.post(f"{base}/experiments", json=body).status_code == 401
     response = httpx.post(f"{base}/experiments", json=body, headers=auth())
     assert response.status_code == 201, response.text
@@ -165,28 +165,45 @@ def test_experiment_completes_when_a_worker_is_killed_mid_job(db_url, redis_url,
     assert {entry["environment"] for entry in chain} <= {"land", "water"}
 
 
-def test_coordinator_killed_and_redis_restarted_mid_run(db_url, processes, tmp_path):
+def test_redis_restarted_and_coordinator_killed_mid_run(db_url, processes, tmp_path):
+    """Redis restarted empty under a live coordinator (jobs, locks and worker registrations
+    lost), then the coordinator SIGKILLed and a new one started: the run completes with the
+    results of an undisturbed run."""
+    treatment = {**TREATMENT, "generations": 7}
     redis = RedisServer()
     try:
         env = service_env(db_url, redis.url)
         group = processes(env)
         group.worker("w1")
         serve, base = group.serve()
-        run_id = submit(base)
-        wait_for(
-            lambda: httpx.get(f"{base}/runs/{run_id}").json()["generation"] >= 1,
-            120,
-            "generation 1 to be stored",
-        )
+        run_id = submit(base, treatment)
+
+        def generation():
+            return httpx.get(f"{base}/runs/{run_id}", timeout=5).json()["generation"]
+
+        wait_for(lambda: generation() >= 1, 120, "generation 1 to be stored")
+        redis.stop()
+        redis.start()  # empty: no persistence
+        reached = generation()
+        wait_for(lambda: generation() >= reached + 2, 120, "two more generations after Redis")
         os.killpg(serve.pid, signal.SIGKILL)
         serve.wait(5)
+        assert generation_of(db_url, run_id) < 6  # unfinished when its coordinator died
         redis.stop()
-        redis.start()
+        redis.start()  # (also drops the dead coordinator's lock, instead of waiting 30 s)
         _, base = group.serve()
         run = wait_finished(base, run_id, group)
         assert run["status"] == "finished"
         engine = open_database(db_url)
-        assert tinyrun.snapshot(engine, run_id) == undisturbed(tmp_path)
+        assert tinyrun.snapshot(engine, run_id) == undisturbed(tmp_path, treatment)
         engine.dispose()
     finally:
         redis.stop()
+
+
+def generation_of(db_url: str, run_id: int) -> int:
+    engine = open_database(db_url)
+    try:
+        return tinyrun.snapshot(engine, run_id)["run"][1]
+    finally:
+        engine.dispose()
