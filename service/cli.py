@@ -36,9 +36,9 @@ def _group() -> None:
 
 
 def _register() -> None:
-    from service import cli_analysis, cli_dashboard, cli_evolution, cli_runs, cli_sim
+    from service import cli_analysis, cli_dashboard, cli_evolution, cli_runs, cli_service, cli_sim
 
-    for module in (cli_sim, cli_evolution, cli_runs, cli_analysis, cli_dashboard):
+    for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard):
         module.register(app)
 
 
