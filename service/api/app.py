@@ -122,9 +122,6 @@ class Services:
             return int(self.executor.workers), 0, True
         return 0, 0, True
 
-    def wake(self) -> None:
-        """A new experiment: nothing to do, the loop polls the database every second."""
-
     def cancel(self, run_id: int) -> None:
         if self.loop is not None:
             self.loop.request_cancel(run_id)

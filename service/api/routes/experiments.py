@@ -80,8 +80,8 @@ def _treatments(body: ExperimentIn):
 )
 def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     """Create an experiment with one pending run per treatment repetition; the coordinator
-    starts them. Body: ``{"name", "treatments": [...]}`` or ``{"preset": "paper", "scale"}``.
-    """
+    picks them up within a second. Body: ``{"name", "treatments": [...]}`` or
+    ``{"preset": "paper", "scale"}``."""
     from service.experiments import create
     from service.treatments import paper_grid
 
@@ -93,7 +93,6 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
         )
     else:
         experiment_id, run_ids = create(services.engine, body.name, _treatments(body))
-    services.wake()
     return ExperimentCreated(id=experiment_id, runs=run_ids)
 
 
