@@ -91,28 +91,6 @@ class ExperimentData:
         return self.populations[self.populations["generation"] == 0].reset_index(drop=True)
 
 
-def resolve_experiment(conn: Connection, reference: str | int) -> int:
-    """The id of the experiment named by ``reference``: ``3``, ``e3``, ``exp-3`` or a name.
-
-    Raises UserError for an unknown experiment or a name shared by several experiments.
-    """
-    table = Experiment.__table__
-    text = str(reference).strip()
-    number = text.lower().removeprefix("exp-").removeprefix("e")
-    if number.isdigit():
-        found = conn.execute(select(table.c.id).where(table.c.id == int(number))).scalar()
-        if found is None:
-            raise UserError(f"no experiment {text!r} (see `softevo status`)")
-        return int(found)
-    ids = list(conn.execute(select(table.c.id).where(table.c.name == text)).scalars())
-    if not ids:
-        raise UserError(f"no experiment {text!r} (see `softevo status`)")
-    if len(ids) > 1:
-        names = ", ".join(f"e{i}" for i in sorted(ids))
-        raise UserError(f"experiment name {text!r} is ambiguous ({names}); give its id")
-    return int(ids[0])
-
-
 def load_experiment(engine: Engine, experiment_id: int) -> ExperimentData:
     """Read experiment ``experiment_id`` (UserError if it does not exist or has no runs)."""
     with engine.connect() as conn:

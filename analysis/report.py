@@ -301,14 +301,15 @@ def write_report(
     progress: bool = False,
     seed: int = 0,
 ) -> Report:
-    """Write the report of experiment ``experiment_id`` (an id, ``e3`` or a name) into
+    """Write the report of experiment ``experiment_id`` (an id, ``e3``, ``latest`` or a name:
+    ``service.db.store.resolve_experiment``) into
     ``out_dir`` (see the module doc). ``source``: a database URL, Engine, Connection or
     Session. ``seed`` seeds the bootstrap."""
-    from analysis.data import resolve_experiment
+    from service.db.store import resolve_experiment
 
     engine = engine_of(source)
     with engine.connect() as conn:
-        experiment_id = resolve_experiment(conn, experiment_id)
+        experiment_id = resolve_experiment(conn, str(experiment_id))
     out = _output_dir(out_dir)
     figures_dir = out / "figures"
     rng = np.random.default_rng(seed)

@@ -6,10 +6,10 @@
   animate its motion (MP4 needs ffmpeg).
 - ``softevo export-vxa INDIVIDUAL --out FILE.vxa``: the individual as a VoxCAD file.
 
-EXPERIMENT is an id (``3``, ``e3``, ``exp-3``) or an experiment's name; INDIVIDUAL is an
-individual's database id (as ``softevo lineage`` and the exports show). ``show`` and
-``export-vxa`` use the environment of the individual's latest evaluation unless
-``--environment`` is given.
+EXPERIMENT is an id (``3``, ``e3``, ``exp-3``), ``latest`` or a name (the newest of that
+name); INDIVIDUAL is an individual's database id (as ``softevo lineage`` and the exports
+show). ``show`` and ``export-vxa`` use the environment of the individual's latest evaluation
+unless ``--environment`` is given.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ EnvironmentOption = Annotated[
 
 
 def report(
-    experiment: Annotated[str, typer.Argument(metavar="EXPERIMENT", help="id, e3 or name")],
+    experiment: Annotated[str, typer.Argument(metavar="EXPERIMENT", help="id, e3, latest or name")],
     out: Annotated[Path, typer.Option("--out", help="output directory")],
     db: DbOption = None,
     animation: Annotated[

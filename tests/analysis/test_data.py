@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 from scipy import stats as scipy_stats
 
-from analysis.data import TRAITS, load_experiment, resolve_experiment
+from analysis.data import TRAITS, load_experiment
 from analysis.stats_tables import (
     best_distance_per_run,
     fitness_curves,
     statistics_table,
     summary_table,
 )
+from service.db.store import resolve_experiment
 from service.errors import UserError
 
 
@@ -49,7 +50,7 @@ def test_initial_and_final_populations(tiny_data):
 
 def test_resolve_experiment_by_id_and_name(tiny):
     with tiny.engine.connect() as conn:
-        for reference in (tiny.experiment_id, f"e{tiny.experiment_id}", "tiny-analysis"):
+        for reference in (str(tiny.experiment_id), f"e{tiny.experiment_id}", "tiny-analysis", "latest"):
             assert resolve_experiment(conn, reference) == tiny.experiment_id
         with pytest.raises(UserError, match="no experiment 'e999'"):
             resolve_experiment(conn, "e999")
