@@ -7,7 +7,8 @@
    returns instant results, on a SQLite file: what is left per generation is ask (breeding,
    expression), tell (selection), and the transaction that stores the generation.
 2. Evaluation time: one real generation (the initial population) on the local process pool
-   over all cores, with paper-like settings (``--cycles``, ``--workspace``).
+   over all cores, with paper-like settings (``--cycles``, ``--workspace``); with
+   ``--eval-sample N`` only N of its genomes are timed and the time scaled to the population.
 3. Share = overhead / evaluation time per generation (target < 2%).
 4. Evaluations per second of the local executor with 1 process vs 2 (target >= 1.8x),
    on ``--batch`` random genomes, processes warmed first.
@@ -96,6 +97,9 @@ def main() -> None:
     parser.add_argument("--workspace", default="7,7,7")
     parser.add_argument("--batch", type=int, default=16)
     parser.add_argument("--parts", default="overhead,speedup")
+    parser.add_argument(
+        "--eval-sample", type=int, default=0, help="time this many evaluations and scale up (0: all)"
+    )
     args = parser.parse_args()
     args.workspace = tuple(int(n) for n in args.workspace.split(","))
     folder = Path(tempfile.mkdtemp(prefix="softevo-bench-"))
@@ -113,7 +117,9 @@ def overheads(args, folder: Path) -> None:
     print(f"workspace {args.workspace}, {args.cycles} cycles, {pool.workers} processes")
     for population in (int(p) for p in args.populations.split(",")):
         overhead = overhead_per_generation(population, args.generations, args, folder)
-        evaluation = timed(pool, generation_tasks(population, args, folder))
+        tasks = generation_tasks(population, args, folder)
+        sample = tasks[: args.eval_sample or len(tasks)]
+        evaluation = timed(pool, sample) * len(tasks) / len(sample)
         print(
             f"population {population:4d}: overhead {overhead * 1e3:8.1f} ms/generation, "
             f"evaluation {evaluation:7.2f} s/generation, share {overhead / evaluation:6.2%}"
