@@ -86,6 +86,11 @@ def _announce(heartbeat: subprocess.Popen, name: str) -> None:
         log.warning("heartbeat process is gone; a killed job will wait for RQ's own timeout")
 
 
+def _stop_was_asked(worker: SimpleWorker) -> bool:
+    """Whether the worker's loop ended on SIGINT/SIGTERM (RQ keeps that on the worker)."""
+    return bool(worker._stop_requested or worker._shutdown_requested_date)
+
+
 def run_worker(
     redis_url: str,
     queue: str = "softevo",
@@ -106,22 +111,26 @@ def run_worker(
         while True:
             worker_name = base if attempt == 0 else f"{base}-{attempt}"
             attempt += 1
+            worker = None
             try:
                 worker = EvaluationWorker(
                     [queue],
                     name=worker_name,
-                    connection=Redis.from_url(redis_url, socket_timeout=None),
+                    connection=Redis.from_url(
+                        redis_url, socket_timeout=max(20, heartbeat_ttl) + 30, socket_keepalive=True
+                    ),
                     serializer=JSONSerializer,
                     worker_ttl=max(20, heartbeat_ttl),
                 )
                 _announce(heartbeat, worker_name)
                 worker.work(burst=burst, logging_level=logging_level)
+                if burst:
+                    return
             except RedisError as exc:
                 log.warning("redis unreachable (%s); retrying in %.0f s", exc, delay)
-            else:
-                if burst or worker._stop_requested or worker._shutdown_requested_date:
-                    return
-                log.warning("worker loop ended (Redis restarted?); starting again")
+            if worker is not None and _stop_was_asked(worker):
+                return
+            log.warning("worker loop ended (Redis restarted?); starting again")
             time.sleep(delay)
             delay = min(5.0, delay * 2)
     except (StopRequested, KeyboardInterrupt):

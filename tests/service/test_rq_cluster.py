@@ -171,9 +171,9 @@ def test_redis_restarted_and_coordinator_killed_mid_run(db_url, processes, tmp_p
     results of an undisturbed run."""
     treatment = {**TREATMENT, "generations": 7}
     redis = RedisServer()
+    env = service_env(db_url, redis.url)
+    group = processes(env)
     try:
-        env = service_env(db_url, redis.url)
-        group = processes(env)
         group.worker("w1")
         serve, base = group.serve()
         run_id = submit(base, treatment)
@@ -198,6 +198,7 @@ def test_redis_restarted_and_coordinator_killed_mid_run(db_url, processes, tmp_p
         assert tinyrun.snapshot(engine, run_id) == undisturbed(tmp_path, treatment)
         engine.dispose()
     finally:
+        group.stop_all()  # while Redis is up: a worker's warm shutdown talks to Redis
         redis.stop()
 
 
