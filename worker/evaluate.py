@@ -176,10 +176,11 @@ def ensure_compiled() -> None:
     """Fill numba's on-disk cache from a short subprocess, once per process, before this
     process runs the simulator.
 
-    A kernel compiled fresh in a process can differ in its last bits from the same kernel
-    loaded from the cache, so a run started on a cold cache and resumed later (from the
-    cache) would not repeat itself exactly. Loading from the cache everywhere keeps every
-    process, and every resume, on the same machine code.
+    On a cold cache the kernels are then compiled once, not by every pool process at the
+    same time, and every process (a resumed run's included) runs the same cached machine
+    code. (A kernel compiled fresh once rounded differently from the cached one; the
+    simulator has since dropped the fastmath flags that allowed it, and this stays as a
+    guard.)
     """
     global _CACHE_READY
     if _CACHE_READY:
