@@ -183,13 +183,19 @@ def resume(
     workers: WorkersOption = None,
     quiet: QuietOption = False,
 ) -> None:
-    """Continue unfinished runs from their last stored generation."""
+    """Continue unfinished runs from their last stored generation.
+
+    Without an argument: every pending or running run. Runs named explicitly are continued
+    even if they were cancelled or failed.
+    """
     from service.db import open_database
-    from service.db.store import resolve_runs
+    from service.db.store import reopen_runs, resolve_runs
 
     engine = open_database(db)
-    with engine.connect() as conn:
+    with engine.begin() as conn:
         run_ids = resolve_runs(conn, reference)
+        if reference is not None:
+            reopen_runs(conn, run_ids)
     _execute(engine, run_ids, workers, quiet)
 
 

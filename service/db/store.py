@@ -252,6 +252,17 @@ def set_run_status(conn: Connection, run_id: int, status: RunStatus, error: str 
     )
 
 
+def reopen_runs(conn: Connection, run_ids: Sequence[int]) -> None:
+    """Make cancelled or failed runs among ``run_ids`` resumable (status running, no error)."""
+    table = Run.__table__
+    stopped = (RunStatus.CANCELLED.value, RunStatus.FAILED.value)
+    conn.execute(
+        update(table)
+        .where(table.c.id.in_(list(run_ids)), table.c.status.in_(stopped))
+        .values(status=RunStatus.RUNNING.value, error=None, updated_at=utcnow())
+    )
+
+
 def run_row(conn: Connection, run_id: int) -> dict[str, Any]:
     """The run with its treatment and experiment names and settings, as a dict."""
     runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__

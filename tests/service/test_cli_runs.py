@@ -98,3 +98,21 @@ def test_tiny_paper_grid_end_to_end(capsys, tmp_path):
     assert len(switching) == 2
     for run_id in switching:
         assert set(individuals[individuals["run_id"] == run_id]["environment"]) == {"land", "water"}
+
+
+def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
+    from service.db import open_database
+    from service.db.models import RunStatus
+    from service.db.store import run_row, set_run_status
+    from tests.service import tinyrun
+
+    db = f"sqlite:///{tmp_path / 'cancelled.db'}"
+    engine = open_database(db)
+    run_id = tinyrun.new_run(engine)
+    with engine.begin() as conn:
+        set_run_status(conn, run_id, RunStatus.CANCELLED)
+    assert "nothing to do" in softevo(capsys, "resume", "--db", db, "-q", "--workers", "0")[1]
+    code, _, err = softevo(capsys, "resume", f"r{run_id}", "--db", db, "-q", "--workers", "0")
+    assert code == 0, err
+    with engine.connect() as conn:
+        assert run_row(conn, run_id)["status"] == "finished"
