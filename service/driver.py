@@ -203,8 +203,8 @@ class CoordinatorLoop:
 
     def _claim(self) -> None:
         unfinished = unfinished_runs(self.engine)
-        keep = set(unfinished) - self.lost
-        self.lost.clear()
+        lost, self.lost = self.lost, set()  # swapped, not cleared: the renew thread adds to it
+        keep = set(unfinished) - lost
         dropped = [run.run_id for run in self.active if run.run_id not in keep]
         self.active = [run for run in self.active if run.run_id in keep]
         self.locks.release(dropped)
