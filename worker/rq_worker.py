@@ -44,9 +44,10 @@ def warm(threads: int = 1) -> float:
     import numpy as np
 
     from evolution.genotype import EncodingConfig, random_viable_genotype
-    from worker.evaluate import evaluate_batch, warm_up
+    from worker.evaluate import ensure_compiled, evaluate_batch, warm_up
 
     start = time.perf_counter()
+    ensure_compiled()  # load the cached kernels, as local pool processes do: same machine code
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     warm_up(threads=threads)
     config = EncodingConfig(workspace=(3, 3, 3))

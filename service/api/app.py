@@ -131,7 +131,9 @@ class Services:
         API and the coordinator loop must stay responsive."""
         with self._background_mutex:
             if self._background_pool is None:
-                from worker.evaluate import init_pool_process
+                from worker.evaluate import ensure_compiled, init_pool_process
+
+                ensure_compiled()
 
                 self._background_pool = ProcessPoolExecutor(
                     max_workers=1,
@@ -144,7 +146,8 @@ class Services:
         """``worker.frames.record_motion`` in the background process."""
         from worker.frames import record_motion
 
-        future = self._background().submit(record_motion, task, every, max_frames)
+        pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
+        future = pool.submit(record_motion, task, every, max_frames)
         return await asyncio.wrap_future(future)
 
     async def write_report(self, experiment_id: int, out_dir) -> Any:
@@ -152,13 +155,17 @@ class Services:
         for one experiment share one writing."""
         running = self._reports.get(experiment_id)
         if running is None:
-            from analysis.report import write_report
-
-            future = self._background().submit(write_report, self.settings.db, experiment_id, str(out_dir))
-            running = asyncio.wrap_future(future)
+            running = asyncio.ensure_future(self._write_report(experiment_id, out_dir))
             self._reports[experiment_id] = running
             running.add_done_callback(lambda _: self._reports.pop(experiment_id, None))
         return await asyncio.shield(running)
+
+    async def _write_report(self, experiment_id: int, out_dir) -> Any:
+        from analysis.report import write_report
+
+        pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
+        future = pool.submit(write_report, self.settings.db, experiment_id, str(out_dir))
+        return await asyncio.wrap_future(future)
 
 
 # -- errors ------------------------------------------------------------------------------------
