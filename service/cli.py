@@ -23,9 +23,8 @@ app = typer.Typer(
 
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
-    from sim.scene import SceneError
-
     from service.errors import UserError
+    from sim.scene import SceneError
 
     return (UserError, SceneError)
 
