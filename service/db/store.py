@@ -11,7 +11,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from sqlalchemy import Connection, Table, func, select, update
+from sqlalchemy import Connection, Table, case, func, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 
 from service.db.models import (
@@ -227,16 +227,19 @@ def _generation_row(record: GenerationRecord) -> dict[str, Any]:
 
 
 def _advance_run(conn: Connection, record: GenerationRecord) -> None:
-    """Move the run's committed generation forward (never backward) and store the state."""
+    """Move the run's committed generation forward (never backward) and store the state.
+
+    A run cancelled meanwhile (e.g. over HTTP, from another process) stays cancelled."""
     table = Run.__table__
     status = RunStatus.FINISHED if record.finished else RunStatus.RUNNING
+    cancelled = RunStatus.CANCELLED.value
     conn.execute(
         update(table)
         .where(table.c.id == record.run_id, table.c.generation < record.generation)
         .values(
             generation=record.generation,
             algorithm_state=record.state,
-            status=status.value,
+            status=case((table.c.status == cancelled, cancelled), else_=status.value),
             updated_at=utcnow(),
         )
     )

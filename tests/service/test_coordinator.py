@@ -5,6 +5,7 @@ from __future__ import annotations
 import types
 
 import pytest
+from sqlalchemy import text
 
 import sim
 from service.coordinator import Coordinator
@@ -139,3 +140,27 @@ def test_a_genome_that_kills_its_pool_process_is_recorded_not_retried_forever():
         assert executor.evaluate([{"id": 7}])[0]["distance"] == 1.0  # the pool works again
     finally:
         executor.close()
+
+
+def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
+    """A cancel (e.g. over HTTP from another process) is not undone by the generation that
+    was in flight when it came."""
+    from service.db import RunStatus, open_database
+    from service.db.store import GenerationRecord, record_generation, set_run_status
+    from tests.service import tinyrun
+
+    engine = open_database(f"sqlite:///{tmp_path / 'cancel.db'}")
+    run_id = tinyrun.new_run(engine)
+    with engine.begin() as conn:
+        set_run_status(conn, run_id, RunStatus.CANCELLED)
+        record_generation(conn, GenerationRecord(
+            run_id=run_id, generation=1, individuals=[], evaluations=[], members=[],
+            summary={"environment": "land", "evaluations": 0, "best_distance": 0.0,
+                     "mean_distance": 0.0, "front_size": 0}, state={"generation": 1},
+            finished=False))
+    with engine.connect() as conn:
+        row = conn.execute(text("SELECT status, generation FROM runs WHERE id = :id"),
+                           {"id": run_id}).one()
+    assert row.status == RunStatus.CANCELLED.value
+    assert row.generation == 1
+    engine.dispose()
