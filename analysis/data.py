@@ -34,6 +34,7 @@ from sqlalchemy import Connection, Engine, and_, or_, select
 
 from service.db.export import INDIVIDUAL_COLUMNS, runs_frame
 from service.db.models import (
+    TRAITS,
     Evaluation,
     Experiment,
     Generation,
@@ -44,15 +45,6 @@ from service.db.models import (
 )
 from service.errors import UserError
 
-TRAITS = (
-    "distance",
-    "active_share",
-    "voxel_count",
-    "frequency",
-    "branching",
-    "shape_entropy",
-    "symmetry",
-)
 TRAIT_LABELS = {
     "distance": "distance (voxel lengths)",
     "best_distance": "best distance (voxel lengths)",

@@ -16,6 +16,7 @@ from typing import Any
 from sqlalchemy import Connection, func, select
 
 from service.db.models import (
+    EVALUATION_FIELDS,
     Evaluation,
     Experiment,
     Generation,
@@ -26,23 +27,7 @@ from service.db.models import (
     Treatment,
 )
 
-EVALUATION_COLUMNS = (
-    "generation",
-    "environment",
-    "stiffness",
-    "age",
-    "distance",
-    "active_share",
-    "voxel_count",
-    "frequency",
-    "symmetry",
-    "branching",
-    "shape_entropy",
-    "descriptors",
-    "stable",
-    "error",
-    "seconds",
-)
+EVALUATION_COLUMNS = EVALUATION_FIELDS
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
 
 

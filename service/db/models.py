@@ -52,6 +52,30 @@ class Base(DeclarativeBase):
     type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON}
 
 
+# What each evaluation measures (SPEC.md sections 3-4): objectives and descriptors.
+TRAITS = (
+    "distance",
+    "active_share",
+    "voxel_count",
+    "frequency",
+    "symmetry",
+    "branching",
+    "shape_entropy",
+)
+# The per-evaluation fields stored in the ``evaluations`` table beside the individual.
+EVALUATION_FIELDS = (
+    "generation",
+    "environment",
+    "stiffness",
+    "age",
+    *TRAITS,
+    "descriptors",
+    "stable",
+    "error",
+    "seconds",
+)
+
+
 class RunStatus(enum.StrEnum):
     """Life cycle of a run; stored as plain strings."""
 

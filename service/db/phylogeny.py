@@ -13,19 +13,10 @@ from typing import Literal
 import pandas as pd
 from sqlalchemy import Connection, Engine, and_, func, literal, select
 
-from service.db.models import Evaluation, Individual, PopulationMember, Run, Treatment
+from service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
 from service.errors import UserError
 
 Which = Literal["birth", "latest"]
-TRAITS = (
-    "distance",
-    "active_share",
-    "voxel_count",
-    "frequency",
-    "symmetry",
-    "branching",
-    "shape_entropy",
-)
 _EVALUATION_COLUMNS = ("generation", "environment", "stiffness", "age", *TRAITS, "stable", "error")
 
 

@@ -15,6 +15,7 @@ from sqlalchemy import Connection, Table, case, func, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 
 from service.db.models import (
+    EVALUATION_FIELDS,
     Evaluation,
     Experiment,
     Generation,
@@ -26,24 +27,6 @@ from service.db.models import (
     utcnow,
 )
 from service.errors import UserError
-
-EVALUATION_FIELDS = (
-    "generation",
-    "age",
-    "environment",
-    "stiffness",
-    "distance",
-    "active_share",
-    "voxel_count",
-    "frequency",
-    "symmetry",
-    "branching",
-    "shape_entropy",
-    "descriptors",
-    "stable",
-    "error",
-    "seconds",
-)
 
 
 @dataclass(frozen=True)
