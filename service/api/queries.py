@@ -26,6 +26,7 @@ from service.db.models import (
     RunStatus,
     Treatment,
 )
+from service.db.status import run_summary_select
 
 EVALUATION_COLUMNS = EVALUATION_FIELDS
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
@@ -52,31 +53,6 @@ def _rows(conn: Connection, query) -> list[dict[str, Any]]:
 # -- runs ----------------------------------------------------------------------------------
 
 
-def _run_summary_query():
-    runs, treatments, generations = Run.__table__, Treatment.__table__, Generation.__table__
-    best = (
-        select(generations.c.run_id, func.max(generations.c.best_distance).label("best_distance"))
-        .group_by(generations.c.run_id)
-        .subquery("best")
-    )
-    return (
-        select(
-            runs.c.id,
-            treatments.c.experiment_id,
-            treatments.c.name.label("treatment"),
-            runs.c.repetition,
-            runs.c.seed,
-            runs.c.status,
-            runs.c.generation,
-            runs.c.generations,
-            best.c.best_distance,
-        )
-        .join(treatments, runs.c.treatment_id == treatments.c.id)
-        .outerjoin(best, best.c.run_id == runs.c.id)
-        .order_by(runs.c.id)
-    )
-
-
 def list_runs(
     conn: Connection,
     experiment_id: int | None = None,
@@ -85,7 +61,7 @@ def list_runs(
     offset: int = 0,
 ) -> list[dict[str, Any]]:
     """Run summaries (schemas.RunSummary), optionally of one experiment and/or one status."""
-    query = _run_summary_query()
+    query = run_summary_select(id_label="id")
     if experiment_id is not None:
         query = query.where(Treatment.__table__.c.experiment_id == experiment_id)
     if status is not None:
@@ -192,7 +168,7 @@ def list_experiments(
     experiments = _rows(conn, query.order_by(table.c.id).limit(limit).offset(offset))
     if not experiments:
         return []
-    runs_query = _run_summary_query().where(
+    runs_query = run_summary_select(id_label="id").where(
         Treatment.__table__.c.experiment_id.in_([e["id"] for e in experiments])
     )
     runs_of: dict[int, list[dict[str, Any]]] = {}

@@ -13,9 +13,10 @@ from service.db.phylogeny import ancestors
 from service.errors import UserError
 
 
-def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]]:
-    """Per run: run_id, experiment_id, experiment, treatment, repetition, seed, status,
-    generation (last committed), generations, best_distance (best ever, None before any)."""
+def run_summary_select(id_label: str = "run_id"):
+    """SELECT of every run's summary, ordered by id: ``id_label`` (the run id),
+    experiment_id, experiment, treatment, repetition, seed, status, generation (last
+    committed), generations, best_distance (best ever, None before any). Add ``.where``."""
     runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
     generations = Generation.__table__
     best = (
@@ -23,9 +24,9 @@ def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]
         .group_by(generations.c.run_id)
         .subquery("best")
     )
-    query = (
+    return (
         select(
-            runs.c.id.label("run_id"),
+            runs.c.id.label(id_label),
             treatments.c.experiment_id,
             experiments.c.name.label("experiment"),
             treatments.c.name.label("treatment"),
@@ -39,9 +40,13 @@ def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]
         .join(treatments, runs.c.treatment_id == treatments.c.id)
         .join(experiments, treatments.c.experiment_id == experiments.c.id)
         .outerjoin(best, best.c.run_id == runs.c.id)
-        .where(runs.c.id.in_(list(run_ids)))
         .order_by(runs.c.id)
     )
+
+
+def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]]:
+    """Per run, the columns of ``run_summary_select`` for the runs ``run_ids``."""
+    query = run_summary_select().where(Run.__table__.c.id.in_(list(run_ids)))
     with engine.connect() as conn:
         return [dict(row) for row in conn.execute(query).mappings()]
 
