@@ -7,7 +7,6 @@ scenes raise ``SceneError`` before anything runs.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,7 +21,6 @@ from sim.system import (
     F_L,
     I_N_FRAMES,
     I_RECORD,
-    I_SETTLE_STEPS,
     I_STEPS,
     Robot,
     build_robot,
@@ -188,14 +186,3 @@ def simulate(scene: dict | Scene, threads: int | None = 1) -> Result:
     """Simulate one robot (SPEC.md section 1)."""
     return simulate_many([scene], threads=threads)[0]
 
-
-def settle_steps(scene: dict | Scene) -> int:
-    """Number of settling steps the scene asks for (handy in tests)."""
-    robot = build_robot(parse_scene(scene))
-    return int(robot.iparams[I_SETTLE_STEPS])
-
-
-def steps_for(seconds: float, scene: dict | Scene) -> int:
-    """How many steps ``seconds`` of simulated time take for this scene's dt."""
-    robot = build_robot(parse_scene(scene))
-    return int(math.ceil(seconds / robot.fparams[F_DT]))
