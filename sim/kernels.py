@@ -232,7 +232,8 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
         cw, cx, cy, cz = 1.0, 0.0, 0.0, 0.0
     else:
         length = math.sqrt(rx * rx + ry * ry + rz * rz)
-        ux, uy, uz = rx / length, ry / length, rz / length
+        inv_length = 1.0 / length
+        ux, uy, uz = rx * inv_length, ry * inv_length, rz * inv_length
         if ux > -0.9999:  # rotation taking u onto +x, by the half-angle identity
             cw, cx, cy, cz = 1.0 + ux, 0.0, uz, -uy
             norm = 1.0 / math.sqrt(cw * cw + cy * cy + cz * cz)
@@ -274,10 +275,17 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
     mbz = b2 * ey - b3 * (e1z + 2.0 * e2z)
 
     mbx = -max_
-    if not small[l]:  # undo the large-angle alignment
-        fax, fay, faz = qrot(cw, -cx, -cy, -cz, fax, fay, faz)
-        max_, may, maz = qrot(cw, -cx, -cy, -cz, max_, may, maz)
-        mbx, mby, mbz = qrot(cw, -cx, -cy, -cz, mbx, mby, mbz)
+    if not small[l]:  # undo the large-angle alignment: rotate by conj(c), c = (cw, 0, cy, cz)
+        c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
+        c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
+        c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
+        c22 = 1.0 - 2.0 * cy * cy
+        fax, fay, faz = (c00 * fax + c01 * fay + c02 * faz, -c01 * fax + c11 * fay + c12 * faz,
+                         -c02 * fax + c12 * fay + c22 * faz)
+        max_, may, maz = (c00 * max_ + c01 * may + c02 * maz, -c01 * max_ + c11 * may + c12 * maz,
+                          -c02 * max_ + c12 * may + c22 * maz)
+        mbx, mby, mbz = (c00 * mbx + c01 * mby + c02 * mbz, -c01 * mbx + c11 * mby + c12 * mbz,
+                         -c02 * mbx + c12 * mby + c22 * mbz)
     # back to world axes: undo the axis permutation, then the voxel frame
     fx, fy, fz = from_link(ax, fax, fay, faz)
     fax = r00 * fx + r01 * fy + r02 * fz
