@@ -12,7 +12,7 @@ from pathlib import Path
 import pandas as pd
 from sqlalchemy import Connection, Engine, select
 
-from service.db.models import Evaluation, Experiment, Individual, PopulationMember, Run, Treatment
+from service.db.models import TRAITS, Evaluation, Experiment, Individual, PopulationMember, Run, Treatment
 from service.errors import UserError
 
 FORMATS = ("csv", "parquet")
@@ -36,13 +36,7 @@ INDIVIDUAL_COLUMNS = [
     "generation_born",
     "age",
     "environment",
-    "distance",
-    "active_share",
-    "voxel_count",
-    "frequency",
-    "symmetry",
-    "branching",
-    "shape_entropy",
+    *TRAITS,
     "stable",
     "error",
 ]
