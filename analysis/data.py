@@ -32,7 +32,7 @@ from typing import Any
 import pandas as pd
 from sqlalchemy import Connection, Engine, and_, or_, select
 
-from service.db.export import INDIVIDUAL_COLUMNS, runs_frame
+from service.db.export import INDIVIDUAL_COLUMNS, evaluation_rows, runs_frame
 from service.db.models import (
     TRAITS,
     Evaluation,
@@ -182,27 +182,14 @@ def _end_members(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
 def _member_evaluations(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
     """Every evaluation of the individuals in ``_end_members``, with the export's
     individuals columns (``service.db.export.INDIVIDUAL_COLUMNS``)."""
-    evaluations, individuals = Evaluation.__table__, Individual.__table__
+    evaluations = Evaluation.__table__
     members, runs = PopulationMember.__table__, Run.__table__
     wanted = (
         select(members.c.individual_id)
         .join(runs, members.c.run_id == runs.c.id)
         .where(_end_member_filter(run_ids))
     )
-    result = conn.execute(
-        select(
-            individuals.c.id.label("individual_id"),
-            evaluations.c.run_id,
-            individuals.c.parent_id,
-            evaluations.c.generation,
-            individuals.c.generation_born,
-            evaluations.c.age,
-            *[evaluations.c[name] for name in INDIVIDUAL_COLUMNS[6:]],
-        )
-        .join(individuals, evaluations.c.individual_id == individuals.c.id)
-        .where(evaluations.c.individual_id.in_(wanted))
-        .order_by(evaluations.c.run_id, evaluations.c.generation, individuals.c.id)
-    )
+    result = conn.execute(evaluation_rows(evaluations.c.individual_id.in_(wanted)))
     frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))
     frame["parent_id"] = frame["parent_id"].astype("Int64")
     return frame[INDIVIDUAL_COLUMNS]

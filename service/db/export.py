@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
-from sqlalchemy import Connection, Engine, select
+from sqlalchemy import Connection, Engine, Select, select
 
 from service.db.models import TRAITS, Evaluation, Experiment, Individual, PopulationMember, Run, Treatment
 from service.errors import UserError
@@ -77,10 +77,12 @@ def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     return frame[RUN_COLUMNS]
 
 
-def individuals_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
-    """One row per evaluation, ordered by run, generation and individual."""
+def evaluation_rows(where) -> Select:
+    """SELECT of one row per evaluation with the ``INDIVIDUAL_COLUMNS``, filtered by
+    ``where`` (a condition on the evaluations/individuals tables), ordered by run,
+    generation and individual."""
     evaluations, individuals = Evaluation.__table__, Individual.__table__
-    query = (
+    return (
         select(
             individuals.c.id.label("individual_id"),
             evaluations.c.run_id,
@@ -91,9 +93,14 @@ def individuals_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
             *[evaluations.c[name] for name in INDIVIDUAL_COLUMNS[6:]],
         )
         .join(individuals, evaluations.c.individual_id == individuals.c.id)
-        .where(evaluations.c.run_id.in_(list(run_ids)))
+        .where(where)
         .order_by(evaluations.c.run_id, evaluations.c.generation, individuals.c.id)
     )
+
+
+def individuals_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
+    """One row per evaluation, ordered by run, generation and individual."""
+    query = evaluation_rows(Evaluation.__table__.c.run_id.in_(list(run_ids)))
     frame = _read(conn, query)
     frame["parent_id"] = frame["parent_id"].astype("Int64")
     return frame[INDIVIDUAL_COLUMNS]
