@@ -132,7 +132,7 @@ def _result(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, 
     )
 
 
-def _unrun(scene: Scene, robot: Robot, reason: str) -> Result:
+def _unrun(robot: Robot, reason: str) -> Result:
     com0 = robot.pos.mean(axis=0)
     return Result(False, reason, float(robot.fparams[F_DT]), 0, 0.0, robot.voxels,
                   robot.pos.copy(), com0, com0.copy(), np.zeros(3), 0.0,
@@ -152,7 +152,7 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None) -> lis
     for k, (scene, robot) in enumerate(zip(parsed, robots, strict=True)):
         reason = _budget_reason(scene, robot)
         if reason:
-            results[k] = _unrun(scene, robot, reason)
+            results[k] = _unrun(robot, reason)
         else:
             runnable.append(k)
     if runnable:
