@@ -78,9 +78,10 @@ def _work_arrays(batch, n_voxels: int):
         np.zeros((n_voxels, 3)),  # moment
         np.ones(n_voxels, dtype=np.bool_),  # static friction (everything starts at rest)
         np.ones(n_links, dtype=np.bool_),  # small-angle link frames
-        np.zeros((n_links, 9)),  # previous link deformation, for bond damping
+        np.zeros((9, n_links)),  # previous link deformation, for bond damping
         np.zeros(n_links, dtype=np.bool_),  # previous deformation valid
         np.zeros((int(batch.poff[-1]), 2), dtype=np.int64),  # collision pair buffer
+        np.zeros((9, n_links + 1)),  # link forces and moments; the last column stays zero
     )
 
 

@@ -5,7 +5,7 @@ Each robot's run is one task of a ``prange`` over robots; inside it a step is, i
 All state is struct-of-arrays (see ``sim.system``); no Python runs per voxel or per step.
 
 Maths conventions: quaternions are (w, x, y, z); a link's local frame has x along the link
-(see ``_to_link``); rotation vectors are axis * angle in radians.
+(see ``to_link``); rotation vectors are axis * angle in radians.
 """
 
 from __future__ import annotations
@@ -90,17 +90,22 @@ def qrot(w, x, y, z, vx, vy, vz):
 
 @njit(**INLINE)
 def rotvec(w, x, y, z):
-    """Rotation vector (axis * angle) of a unit quaternion; a series for small angles."""
-    if w < 0.0:
-        w, x, y, z = -w, -x, -y, -z
-    s2 = x * x + y * y + z * z
-    if s2 < 0.04 * w * w:  # |v| / w < 0.2 (angle < 0.39 rad): atan series, rel. error < 1e-8
-        inv_w = 1.0 / w
-        r2 = s2 * inv_w * inv_w
-        f = 2.0 * inv_w * (1.0 - r2 * (1.0 / 3.0 - r2 * (0.2 - r2 * (1.0 / 7.0 - r2 / 9.0))))
+    """Rotation vector (axis * angle) of a unit quaternion.
+
+    The vector part times f = 2 acos(|w|) / sqrt(1 - w^2), which in u = 1 - |w| is the series
+    2 sum_k (2^k k!^2 / (2k + 1)!) u^k. Up to 0.49 rad (u < 0.03) seven terms give 5e-14
+    relative, evaluated in parallel pairs (Estrin) to keep the dependency chain short: the
+    link loop is latency-bound. Larger angles take atan2.
+    """
+    u = 1.0 - abs(w)
+    if u < 0.03:
+        u2 = u * u
+        f = ((2.0 + (2.0 / 3.0) * u) + u2 * ((4.0 / 15.0) + (4.0 / 35.0) * u)
+             + (u2 * u2) * ((16.0 / 315.0) + (16.0 / 693.0) * u + (32.0 / 3003.0) * u2))
     else:
-        s = math.sqrt(s2)
-        f = 2.0 * math.atan2(s, w) / s
+        s = math.sqrt(x * x + y * y + z * z)
+        f = 2.0 * math.atan2(s, abs(w)) / s
+    f = math.copysign(f, w)  # q and -q: the same rotation
     return f * x, f * y, f * z
 
 
@@ -116,26 +121,6 @@ def quat_from_rotvec(px, py, pz):
         c = math.cos(h)
         f = math.sin(h) / (2.0 * h)
     return c, f * px, f * py, f * pz
-
-
-@njit(**INLINE)
-def to_link(axis, x, y, z):
-    """Proper rotation taking the world axis ``axis`` (0 x, 1 y, 2 z) onto +x."""
-    if axis == 0:
-        return x, y, z
-    if axis == 1:
-        return y, -x, z
-    return z, y, -x
-
-
-@njit(**INLINE)
-def from_link(axis, x, y, z):
-    """Inverse of ``to_link``."""
-    if axis == 0:
-        return x, y, z
-    if axis == 1:
-        return -y, x, z
-    return -z, y, x
 
 
 # ---------------------------------------------------------------- actuation
@@ -181,91 +166,36 @@ def actuate(v0, v1, t, fp, wave, flags, cos_phase, sin_phase, phase, size):
 
 # ---------------------------------------------------------------- links
 @njit(**INLINE)
-def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, prev_valid,
-               force, moment, a1, a2, b1, b2, b3, damp, inv_l):
-    """Beam forces of link l, added to both ends. Returns |elongation| - MAX_STRAIN * rest.
+def rotation_matrix(w, x, y, z):
+    """Rows of the rotation matrix of the unit quaternion (w, x, y, z): world = R local."""
+    return (
+        1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y),
+    )
 
-    Co-rotational: the frame follows the negative-side voxel while the bend is small and the
-    centre-to-centre line when it is large (hysteresis as Voxelyze). Bond damping is
-    stiffness-proportional: the beam sees d + damp * (change of d per step), which gives every
-    beam term the damping coefficient 2 zeta sqrt(m k).
-    """
-    i = link_neg[l]
-    j = link_pos[l]
-    ax = link_axis[l]
-    qw, qx, qy, qz = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
-    # rotation matrix of the negative voxel (world = R local), cheaper than repeated qrot
-    r00 = 1.0 - 2.0 * (qy * qy + qz * qz)
-    r01 = 2.0 * (qx * qy - qw * qz)
-    r02 = 2.0 * (qx * qz + qw * qy)
-    r10 = 2.0 * (qx * qy + qw * qz)
-    r11 = 1.0 - 2.0 * (qx * qx + qz * qz)
-    r12 = 2.0 * (qy * qz - qw * qx)
-    r20 = 2.0 * (qx * qz - qw * qy)
-    r21 = 2.0 * (qy * qz + qw * qx)
-    r22 = 1.0 - 2.0 * (qx * qx + qy * qy)
-    wx, wy, wz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
-    rx = r00 * wx + r10 * wy + r20 * wz
-    ry = r01 * wx + r11 * wy + r21 * wz
-    rz = r02 * wx + r12 * wy + r22 * wz
-    ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
-    rx, ry, rz = to_link(ax, rx, ry, rz)
-    ox, oy, oz = to_link(ax, ox, oy, oz)
-    rest = 0.5 * (size[i] + size[j])
 
-    # hysteresis between the two frames, compared without divisions
-    turn = abs(ry) + abs(rz)  # compared against SMALL_TURN * rx
-    extend = abs(rx - rest)  # compared against SMALL_EXTEND * rest
-    if small[l]:
-        if turn > SMALL_TURN * rx or extend > SMALL_EXTEND * rest:
-            small[l] = False
-            prev_valid[l] = False
-    elif (turn < (SMALL_TURN / HYSTERESIS) * rx
-          and extend < (SMALL_EXTEND / HYSTERESIS) * rest):
-        small[l] = True
-        prev_valid[l] = False
+@njit(**INLINE)
+def to_link(axis, x, y, z):
+    """Proper rotation taking the world axis ``axis`` (0 x, 1 y, 2 z) onto +x, as selects
+    (links of mixed axes share one vector loop)."""
+    return (x if axis == 0 else (y if axis == 1 else z),
+            y if axis != 1 else -x,
+            z if axis != 2 else -x)
 
-    if small[l]:
-        dx, dy, dz = rx - rest, ry, rz
-        t1x, t1y, t1z = 0.0, 0.0, 0.0
-        t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
-        cw, cx, cy, cz = 1.0, 0.0, 0.0, 0.0
-    else:
-        length = math.sqrt(rx * rx + ry * ry + rz * rz)
-        inv_length = 1.0 / length
-        ux, uy, uz = rx * inv_length, ry * inv_length, rz * inv_length
-        if ux > -0.9999:  # rotation taking u onto +x, by the half-angle identity
-            cw, cx, cy, cz = 1.0 + ux, 0.0, uz, -uy
-            norm = 1.0 / math.sqrt(cw * cw + cy * cy + cz * cz)
-            cw, cy, cz = cw * norm, cy * norm, cz * norm
-        else:
-            cw, cx, cy, cz = 0.0, 0.0, 0.0, 1.0
-        dx, dy, dz = length - rest, 0.0, 0.0
-        t1x, t1y, t1z = rotvec(cw, cx, cy, cz)
-        pw, px, py, pz = qmul(cw, cx, cy, cz, ow, ox, oy, oz)
-        t2x, t2y, t2z = rotvec(pw, px, py, pz)
 
-    # stiffness-proportional damping from the change since the last step
-    ex, ey, ez = dx, dy, dz
-    e1x, e1y, e1z, e2x, e2y, e2z = t1x, t1y, t1z, t2x, t2y, t2z
-    if prev_valid[l]:
-        ex += damp * (dx - prev[l, 0])
-        ey += damp * (dy - prev[l, 1])
-        ez += damp * (dz - prev[l, 2])
-        e1x += damp * (t1x - prev[l, 3])
-        e1y += damp * (t1y - prev[l, 4])
-        e1z += damp * (t1z - prev[l, 5])
-        e2x += damp * (t2x - prev[l, 6])
-        e2y += damp * (t2y - prev[l, 7])
-        e2z += damp * (t2z - prev[l, 8])
-    prev[l, 0], prev[l, 1], prev[l, 2] = dx, dy, dz
-    prev[l, 3], prev[l, 4], prev[l, 5] = t1x, t1y, t1z
-    prev[l, 6], prev[l, 7], prev[l, 8] = t2x, t2y, t2z
-    prev_valid[l] = True
+@njit(**INLINE)
+def from_link(axis, x, y, z):
+    """Inverse of ``to_link``."""
+    return (x if axis == 0 else -(y if axis == 1 else z),
+            y if axis != 1 else x,
+            z if axis != 2 else x)
 
-    # 3-D frame element (Euler-Bernoulli), forces and moments on the negative end (a) and the
-    # moments on the positive end (b); the force on b is -fa.
-    fax = a1 * ex * (rest * inv_l)  # E A_current strain: area and rest length both scale
+
+@njit(**INLINE)
+def beam(ex, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3):
+    """3-D frame element (Euler-Bernoulli) in the link frame: the force on the negative end
+    (the positive end gets its opposite) and the moments on both ends."""
     fay = b1 * ey - b2 * (e1z + e2z)
     faz = b1 * ez + b2 * (e1y + e2y)
     max_ = a2 * (e2x - e1x)
@@ -273,74 +203,160 @@ def link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev, p
     maz = b2 * ey - b3 * (2.0 * e1z + e2z)
     mby = -b2 * ez - b3 * (e1y + 2.0 * e2y)
     mbz = b2 * ey - b3 * (e1z + 2.0 * e2z)
+    return a1 * ex, fay, faz, max_, may, maz, -max_, mby, mbz
 
-    mbx = -max_
-    if not small[l]:  # undo the large-angle alignment: rotate by conj(c), c = (cw, 0, cy, cz)
-        c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
-        c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
-        c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
-        c22 = 1.0 - 2.0 * cy * cy
-        fax, fay, faz = (c00 * fax + c01 * fay + c02 * faz, -c01 * fax + c11 * fay + c12 * faz,
-                         -c02 * fax + c12 * fay + c22 * faz)
-        max_, may, maz = (c00 * max_ + c01 * may + c02 * maz, -c01 * max_ + c11 * may + c12 * maz,
-                          -c02 * max_ + c12 * may + c22 * maz)
-        mbx, mby, mbz = (c00 * mbx + c01 * mby + c02 * mbz, -c01 * mbx + c11 * mby + c12 * mbz,
-                         -c02 * mbx + c12 * mby + c22 * mbz)
-    # back to world axes: undo the axis permutation, then the voxel frame
-    fx, fy, fz = from_link(ax, fax, fay, faz)
-    fax = r00 * fx + r01 * fy + r02 * fz
-    fay = r10 * fx + r11 * fy + r12 * fz
-    faz = r20 * fx + r21 * fy + r22 * fz
-    fx, fy, fz = from_link(ax, max_, may, maz)
-    max_ = r00 * fx + r01 * fy + r02 * fz
-    may = r10 * fx + r11 * fy + r12 * fz
-    maz = r20 * fx + r21 * fy + r22 * fz
-    fx, fy, fz = from_link(ax, mbx, mby, mbz)
-    mbx = r00 * fx + r01 * fy + r02 * fz
-    mby = r10 * fx + r11 * fy + r12 * fz
-    mbz = r20 * fx + r21 * fy + r22 * fz
 
-    force[i, 0] += fax
-    force[i, 1] += fay
-    force[i, 2] += faz
-    force[j, 0] -= fax
-    force[j, 1] -= fay
-    force[j, 2] -= faz
-    moment[i, 0] += max_
-    moment[i, 1] += may
-    moment[i, 2] += maz
-    moment[j, 0] += mbx
-    moment[j, 1] += mby
-    moment[j, 2] += mbz
-    return abs(dx) - MAX_STRAIN * rest  # > 0: diverged
+@njit(**INLINE)
+def from_link_matrix(axis, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """R times the inverse axis permutation: world axes from link axes, as selects."""
+    return (r00 if axis == 0 else (r01 if axis == 1 else r02),
+            -r00 if axis == 1 else r01, -r00 if axis == 2 else r02,
+            r10 if axis == 0 else (r11 if axis == 1 else r12),
+            -r10 if axis == 1 else r11, -r10 if axis == 2 else r12,
+            r20 if axis == 0 else (r21 if axis == 1 else r22),
+            -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
 
 
 @njit(**JIT)
-def link_forces(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
-                prev_valid, force, moment):
-    """Add the forces of links l0..l1 of one robot; return the largest excess of |axial
-    strain| over MAX_STRAIN (times rest length): > 0, or NaN, means diverged."""
+def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
+                prev_valid, out):
+    """Beam forces of links l0..l1 of one robot, in world axes, into ``out[:, l]``: rows 0-2
+    the force on the negative voxel (the positive one gets its opposite), 3-5 the moment on
+    the negative voxel, 6-8 the moment on the positive voxel. Returns how many links
+    diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
+
+    Co-rotational: the frame follows the negative-side voxel while the bend is small and the
+    centre-to-centre line when it is large (hysteresis as Voxelyze). In the large-angle frame
+    the link is rotated by c = (cw, 0, cy, cz) onto the centre line, so shear is zero and the
+    bend shows in both end rotations. Bond damping is stiffness-proportional: the beam sees
+    d + damp * (change of d per step), which gives every beam term the damping coefficient
+    2 zeta sqrt(m k). ``prev`` is (9, links): elongation, then the two end rotations.
+
+    Written for SIMD: no scatter (``link_sums`` gathers per voxel), no call and no branch the
+    compiler cannot turn into a select, so each link is independent and LLVM vectorizes it.
+    """
     damp = fp[F_GAMMA] * 0.5 / fp[F_DT]
     a1, a2, b1, b2, b3 = fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3]
     inv_l = 1.0 / fp[F_L]
-    worst = -1e300
+    bad = 0
     for l in range(l0, l1):
-        excess = link_force(l, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
-                            prev_valid, force, moment, a1, a2, b1, b2, b3, damp, inv_l)
-        if excess > worst or excess != excess:  # a NaN sticks
-            worst = excess
-    return worst
+        i = link_neg[l]
+        j = link_pos[l]
+        ax = link_axis[l]
+        qw, qx, qy, qz = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
+        wx, wy, wz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
+        rx, ry, rz = to_link(ax, r00 * wx + r10 * wy + r20 * wz,
+                             r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
+        ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
+        ox, oy, oz = to_link(ax, ox, oy, oz)
+        rest = 0.5 * (size[i] + size[j])
+
+        # hysteresis between the two frames, compared without divisions
+        turn = abs(ry) + abs(rz)
+        extend = abs(rx - rest)
+        was_small = small[l]
+        if was_small:
+            now_small = not (turn > SMALL_TURN * rx or extend > SMALL_EXTEND * rest)
+        else:
+            now_small = (turn < (SMALL_TURN / HYSTERESIS) * rx
+                         and extend < (SMALL_EXTEND / HYSTERESIS) * rest)
+        g = damp if (prev_valid[l] and now_small == was_small) else 0.0
+        small[l] = now_small
+        prev_valid[l] = True
+
+        if now_small:
+            dx, dy, dz = rx - rest, ry, rz
+            t1x, t1y, t1z = 0.0, 0.0, 0.0
+            t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
+            # back to world axes: undo the axis permutation, then the voxel's rotation
+            m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
+                ax, r00, r01, r02, r10, r11, r12, r20, r21, r22)
+        else:
+            # c takes the centre line onto +x (half-angle identity): c = k (|r| + rx, 0, rz, -ry)
+            # with k = 1 / sqrt(2 |r| (|r| + rx)); a half turn about z if r points back.
+            # Products with the unnormalised c run while k is computed.
+            length = math.sqrt(rx * rx + ry * ry + rz * rz)
+            h = length + rx
+            if h > 1e-4 * length:
+                cw, cy, cz = h, rz, -ry
+                k = 1.0 / math.sqrt(2.0 * length * h)
+            else:
+                cw, cy, cz = 0.0, 0.0, 1.0
+                k = 1.0
+            pw, px, py, pz = qmul(cw, 0.0, cy, cz, ow, ox, oy, oz)
+            cw, cy, cz = cw * k, cy * k, cz * k
+            dx, dy, dz = length - rest, 0.0, 0.0
+            t1x, t1y, t1z = rotvec(cw, 0.0, cy, cz)
+            t2x, t2y, t2z = rotvec(pw * k, px * k, py * k, pz * k)
+            # world from the aligned frame: voxel rotation, axis permutation, conj(c), composed
+            # while the beam is evaluated
+            m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
+                ax, r00, r01, r02, r10, r11, r12, r20, r21, r22)
+            c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
+            c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
+            c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
+            c22 = 1.0 - 2.0 * cy * cy
+            m00, m01, m02 = (m00 * c00 - m01 * c01 - m02 * c02, m00 * c01 + m01 * c11 + m02 * c12,
+                             m00 * c02 + m01 * c12 + m02 * c22)
+            m10, m11, m12 = (m10 * c00 - m11 * c01 - m12 * c02, m10 * c01 + m11 * c11 + m12 * c12,
+                             m10 * c02 + m11 * c12 + m12 * c22)
+            m20, m21, m22 = (m20 * c00 - m21 * c01 - m22 * c02, m20 * c01 + m21 * c11 + m22 * c12,
+                             m20 * c02 + m21 * c12 + m22 * c22)
+
+        # stiffness-proportional damping from the change since the last step
+        ex = dx + g * (dx - prev[0, l])
+        ey = dy + g * (dy - prev[1, l])
+        ez = dz + g * (dz - prev[2, l])
+        e1x = t1x + g * (t1x - prev[3, l])
+        e1y = t1y + g * (t1y - prev[4, l])
+        e1z = t1z + g * (t1z - prev[5, l])
+        e2x = t2x + g * (t2x - prev[6, l])
+        e2y = t2y + g * (t2y - prev[7, l])
+        e2z = t2z + g * (t2z - prev[8, l])
+        prev[0, l], prev[1, l], prev[2, l] = dx, dy, dz
+        prev[3, l], prev[4, l], prev[5, l] = t1x, t1y, t1z
+        prev[6, l], prev[7, l], prev[8, l] = t2x, t2y, t2z
+
+        # E A_current strain: area and rest length both scale with the voxel size
+        fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
+            ex * rest * inv_l, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3)
+        out[0, l] = m00 * fax + m01 * fay + m02 * faz
+        out[1, l] = m10 * fax + m11 * fay + m12 * faz
+        out[2, l] = m20 * fax + m21 * fay + m22 * faz
+        out[3, l] = m00 * max_ + m01 * may + m02 * maz
+        out[4, l] = m10 * max_ + m11 * may + m12 * maz
+        out[5, l] = m20 * max_ + m21 * may + m22 * maz
+        out[6, l] = m00 * mbx + m01 * mby + m02 * mbz
+        out[7, l] = m10 * mbx + m11 * mby + m12 * mbz
+        out[8, l] = m20 * mbx + m21 * mby + m22 * mbz
+        bad += 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
+    return bad
+
+
+@njit(**JIT)
+def link_sums(v0, v1, vlink, out, force, moment):
+    """Force and moment on voxels v0..v1 from their links (overwrites ``force``/``moment``).
+
+    ``vlink[v, 2a + 1]`` is the link on v's +a face (v its negative end), ``vlink[v, 2a]`` the
+    one on its -a face (v its positive end); a missing link points at a zero column of ``out``.
+    """
+    for v in range(v0, v1):
+        fx = fy = fz = mx = my = mz = 0.0
+        for a in range(3):
+            p = vlink[v, 2 * a + 1]
+            n = vlink[v, 2 * a]
+            fx += out[0, p] - out[0, n]
+            fy += out[1, p] - out[1, n]
+            fz += out[2, p] - out[2, n]
+            mx += out[3, p] + out[6, n]
+            my += out[4, p] + out[7, n]
+            mz += out[5, p] + out[8, n]
+        force[v, 0], force[v, 1], force[v, 2] = fx, fy, fz
+        moment[v, 0], moment[v, 1], moment[v, 2] = mx, my, mz
 
 
 # ---------------------------------------------------------------- self-collisions
-@njit(**INLINE)
-def bonded(nbr, i, j):
-    for k in range(6):
-        if nbr[i, k] == j:
-            return True
-    return False
-
-
 @njit(**JIT)
 def collision_pairs(s0, s1, p0, p1, surface, pos, nbr, reach, pairs):
     """Candidate pairs of unbonded surface voxels closer than ``reach`` (sweep along x)."""
@@ -361,7 +377,9 @@ def collision_pairs(s0, s1, p0, p1, surface, pos, nbr, reach, pairs):
                 break
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
-            if dx * dx + dy * dy + dz * dz < reach2 and not bonded(nbr, i, j):
+            if dx * dx + dy * dy + dz * dz < reach2 and not (
+                    nbr[i, 0] == j or nbr[i, 1] == j or nbr[i, 2] == j or nbr[i, 3] == j
+                    or nbr[i, 4] == j or nbr[i, 5] == j):  # not bonded
                 if count < cap:
                     pairs[p0 + count, 0] = i
                     pairs[p0 + count, 1] = j
@@ -500,7 +518,7 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
     s0, s1, p0, p1 = soff[r], soff[r + 1], poff[r], poff[r + 1]
     fp, ip = batch.fparams[r], batch.iparams[r]
     pos, quat, lin_mom, ang_mom = state.pos, state.quat, state.lin_mom, state.ang_mom
-    size, force, moment, static, small, prev, prev_valid, pairs = work
+    size, force, moment, static, small, prev, prev_valid, pairs, link_out = work
     dt, steps, settle = fp[F_DT], ip[I_STEPS], ip[I_SETTLE_STEPS]
     env, wave, record, collide = ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE]
     com_every = ip[I_COM_EVERY]
@@ -521,12 +539,9 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
             break
         actuate(v0, v1, (step - settle) * dt, fp, wave, batch.flags, batch.cos_phase,
                 batch.sin_phase, batch.phase, size)
-        for v in range(v0, v1):
-            for c in range(3):
-                force[v, c] = 0.0
-                moment[v, c] = 0.0
-        worst = link_forces(l0, l1, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos,
-                            quat, size, small, prev, prev_valid, force, moment)
+        bad = link_kernel(l0, l1, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
+                          size, small, prev, prev_valid, link_out)
+        link_sums(v0, v1, batch.vlink, link_out, force, moment)
         if collide:
             if step % COLLIDE_EVERY == 0:
                 n_pairs = collision_pairs(s0, s1, p0, p1, batch.surface, pos, batch.nbr, reach,
@@ -534,7 +549,7 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
             collision_forces(p0, n_pairs, pairs, pos, lin_mom, size, fp, force)
         ok = integrate(v0, v1, fp, env, batch.flags, batch.ext_force, batch.nbr, size, static,
                        force, moment, pos, quat, lin_mom, ang_mom)
-        if not worst <= 0.0:  # also true for NaN
+        if bad:
             status[r] = STATUS_STRAIN
             steps_done[r] = step + 1
             break

@@ -67,6 +67,7 @@ class Robot(NamedTuple):
     link_neg: np.ndarray  # (m,) int64
     link_pos: np.ndarray  # (m,) int64
     link_axis: np.ndarray  # (m,) int64
+    vlink: np.ndarray  # (n, 6) int64 link on each face, ordered as nbr (-1: none)
     surface: np.ndarray  # (s,) int64 voxels with at least one exposed face
     fparams: np.ndarray  # (N_FPARAMS,)
     iparams: np.ndarray  # (N_IPARAMS,)
@@ -89,6 +90,7 @@ class Batch(NamedTuple):
     link_neg: np.ndarray  # global voxel indices
     link_pos: np.ndarray
     link_axis: np.ndarray
+    vlink: np.ndarray  # global link indices; a missing link is the zero column loff[-1]
     surface: np.ndarray  # global voxel indices
     fparams: np.ndarray  # (R, N_FPARAMS)
     iparams: np.ndarray  # (R, N_IPARAMS)
@@ -122,14 +124,17 @@ def _lattice(body: np.ndarray):
     link_neg = np.concatenate([n for n, _, _ in links]).astype(np.int64)
     link_pos = np.concatenate([p for _, p, _ in links]).astype(np.int64)
     link_axis = np.concatenate([np.full(len(n), a) for n, _, a in links]).astype(np.int64)
-    return idx, lookup, nbr, link_neg, link_pos, link_axis
+    vlink = -np.ones((len(idx), 6), dtype=np.int64)
+    vlink[link_neg, 2 * link_axis + 1] = np.arange(len(link_neg))
+    vlink[link_pos, 2 * link_axis] = np.arange(len(link_neg))
+    return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink
 
 
 def build_robot(scene: Scene) -> Robot:
     """Static arrays, parameters and initial momenta of one robot from a validated Scene."""
     body = largest_component(scene.body)
     removed = int((scene.body > 0).sum() - (body > 0).sum())
-    idx, lookup, nbr, link_neg, link_pos, link_axis = _lattice(body)
+    idx, lookup, nbr, link_neg, link_pos, link_axis, vlink = _lattice(body)
     n = len(idx)
     L = scene.voxel_size
     mat, env, act = scene.material, scene.environment, scene.actuation
@@ -189,7 +194,7 @@ def build_robot(scene: Scene) -> Robot:
 
     surface = np.flatnonzero((nbr < 0).any(axis=1)).astype(np.int64)
     return Robot(idx, pos, flags, scene.phase[tuple(idx.T)].astype(np.float64), ext, lin_mom,
-                 ang_mom, nbr, link_neg, link_pos, link_axis, surface, f, i, removed)
+                 ang_mom, nbr, link_neg, link_pos, link_axis, vlink, surface, f, i, removed)
 
 
 def _offsets(counts) -> np.ndarray:
@@ -199,10 +204,11 @@ def _offsets(counts) -> np.ndarray:
 def pack(robots: list[Robot]) -> tuple[Batch, State]:
     """Concatenate robots into one Batch and its initial State."""
     voff = _offsets([len(r.pos) for r in robots])
+    loff = _offsets([len(r.link_neg) for r in robots])
     shift = lambda arr, r: np.where(arr >= 0, arr + voff[r], -1)  # noqa: E731
     batch = Batch(
         voff=voff,
-        loff=_offsets([len(r.link_neg) for r in robots]),
+        loff=loff,
         soff=_offsets([len(r.surface) for r in robots]),
         poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
         flags=np.concatenate([r.flags for r in robots]),
@@ -214,6 +220,8 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         link_neg=np.concatenate([r.link_neg + voff[k] for k, r in enumerate(robots)]),
         link_pos=np.concatenate([r.link_pos + voff[k] for k, r in enumerate(robots)]),
         link_axis=np.concatenate([r.link_axis for r in robots]),
+        vlink=np.concatenate([np.where(r.vlink >= 0, r.vlink + loff[k], loff[-1])
+                              for k, r in enumerate(robots)]),
         surface=np.concatenate([r.surface + voff[k] for k, r in enumerate(robots)]),
         fparams=np.stack([r.fparams for r in robots]),
         iparams=np.stack([r.iparams for r in robots]),

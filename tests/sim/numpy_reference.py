@@ -55,8 +55,8 @@ def link_forces(batch, pos, quat, size, small, prev, prev_valid, fp):
         t1 = align.as_rotvec() if not small[l] else np.zeros(3)
         t2 = (align * rel_link).as_rotvec()
         now = np.concatenate([d, t1, t2])
-        e = now + (damp * (now - prev[l]) if prev_valid[l] else 0.0)
-        prev[l], prev_valid[l] = now, True
+        e = now + (damp * (now - prev[:, l]) if prev_valid[l] else 0.0)
+        prev[:, l], prev_valid[l] = now, True
         ed, e1, e2 = e[:3], e[3:6], e[6:]
         fa = np.array([a1 * ed[0] * rest / L, b1 * ed[1] - b2 * (e1[2] + e2[2]),
                        b1 * ed[2] + b2 * (e1[1] + e2[1])])

@@ -39,28 +39,45 @@ def _work(batch, n):
     return engine._work_arrays(batch, n)
 
 
+def _link_forces(batch, fp, pos, quat, size, small, prev, prev_valid, force, moment, out):
+    """The two link kernels as the step runs them: per-link beams, then per-voxel sums.
+    The sums are also checked against a NumPy scatter of the per-link forces."""
+    m, n = len(batch.link_neg), len(pos)
+    bad = kernels.link_kernel(0, m, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos,
+                              quat, size, small, prev, prev_valid, out)
+    kernels.link_sums(0, n, batch.vlink, out, force, moment)
+    f, mo = np.zeros((n, 3)), np.zeros((n, 3))
+    np.add.at(f, batch.link_neg, out[0:3, :m].T)
+    np.add.at(f, batch.link_pos, -out[0:3, :m].T)
+    np.add.at(mo, batch.link_neg, out[3:6, :m].T)
+    np.add.at(mo, batch.link_pos, out[6:9, :m].T)
+    np.testing.assert_allclose(force, f, rtol=1e-12, atol=1e-12 * np.abs(f).max())
+    np.testing.assert_allclose(moment, mo, rtol=1e-12, atol=1e-12 * np.abs(mo).max())
+    assert np.all(out[:, m] == 0.0), "the missing-link column stays zero"
+    return bad
+
+
 @pytest.mark.parametrize("angle,shift", [(0.01, 0.01), (0.4, 0.3), (1.2, 0.5)])
 def test_link_forces_match_numpy(angle, shift):
     """Small-angle and large-angle link frames, with bond damping from a previous state."""
     batch, state, rng = _robot("void", seed=3)
     _perturb(state, rng, angle, shift, 0.0)
     n = len(state.pos)
-    size, force, moment, _static, small, prev, prev_valid, _pairs = _work(batch, n)
+    size, force, moment, _static, small, prev, prev_valid, _pairs, out = _work(batch, n)
     size[:] = 0.05 * rng.uniform(0.8, 1.2, n)
     fp = batch.fparams[0]
     small_ref, prev_ref, valid_ref = small.copy(), prev.copy(), prev_valid.copy()
     for _ in range(2):  # the second call exercises the damping term
-        force[:], moment[:] = 0.0, 0.0
-        kernels.link_forces(0, len(batch.link_neg), fp, batch.link_neg, batch.link_pos,
-                            batch.link_axis, state.pos, state.quat, size, small, prev,
-                            prev_valid, force, moment)
+        bad = _link_forces(batch, fp, state.pos, state.quat, size, small, prev, prev_valid,
+                           force, moment, out)
+        assert bad == 0
         f_ref, m_ref = ref.link_forces(batch, state.pos, state.quat, size, small_ref, prev_ref,
                                        valid_ref, fp)
         scale = np.abs(f_ref).max()
         np.testing.assert_array_equal(small, small_ref)
-        # the kernel's rotation-vector series is accurate to 1e-8 relative (see kernels.rotvec)
-        np.testing.assert_allclose(force, f_ref, atol=5e-8 * scale)
-        np.testing.assert_allclose(moment, m_ref, atol=5e-8 * scale * 0.05)
+        # the kernel's rotation-vector series is accurate to 5e-14 relative (see kernels.rotvec)
+        np.testing.assert_allclose(force, f_ref, atol=1e-10 * scale)
+        np.testing.assert_allclose(moment, m_ref, atol=1e-10 * scale * 0.05)
         state.pos[:] += rng.normal(0, 1e-5, state.pos.shape)
     if angle > 1:
         assert not small.all(), "large deformations must use the large-angle frame"
@@ -75,7 +92,7 @@ def test_trajectory_matches_numpy(env):
         state.pos[:, 2] -= 0.002  # press into the floor so contact and friction act
     n = len(state.pos)
     work = _work(batch, n)
-    size, _f, _m, static, small, prev, prev_valid, _pairs = work
+    size, _f, _m, static, small, prev, prev_valid, _pairs, out = work
     size[:] = 0.05
     fp = batch.fparams[0].copy()
     mine = system.State(*(a.copy() for a in state))
@@ -83,10 +100,7 @@ def test_trajectory_matches_numpy(env):
     static_ref, small_ref = static.copy(), small.copy()
     prev_ref, valid_ref = prev.copy(), prev_valid.copy()
     for _ in range(60):
-        _f[:], _m[:] = 0.0, 0.0
-        kernels.link_forces(0, len(batch.link_neg), fp, batch.link_neg, batch.link_pos,
-                            batch.link_axis, mine.pos, mine.quat, size, small, prev,
-                            prev_valid, _f, _m)
+        _link_forces(batch, fp, mine.pos, mine.quat, size, small, prev, prev_valid, _f, _m, out)
         kernels.integrate(0, n, fp, ENVS[env], batch.flags, batch.ext_force, batch.nbr, size,
                           static, _f, _m, mine.pos, mine.quat, mine.lin_mom, mine.ang_mom)
         ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env])
@@ -131,7 +145,7 @@ def test_collision_pairs_and_forces_match_brute_force():
     batch, state = system.pack([robot])
     state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
     n = len(state.pos)
-    size, force, *_rest, pairs = _work(batch, n)
+    size, force, *_rest, pairs, _out = _work(batch, n)
     size[:] = 0.05
     reach = 0.06
     count = kernels.collision_pairs(0, len(batch.surface), 0, len(pairs), batch.surface,
@@ -154,3 +168,19 @@ def test_collision_pairs_and_forces_match_brute_force():
     assert touching, "the perturbed cup must have overlapping voxels"
     i, j = touching[0]
     assert (force[j] - force[i]) @ (state.pos[j] - state.pos[i]) > 0, "contacts push apart"
+
+
+def test_rotation_vector_matches_scipy():
+    """The series (up to 0.49 rad) and atan2 (beyond) branches of kernels.rotvec, either sign."""
+    rng = np.random.default_rng(11)
+    angles = np.concatenate([[0.0, 1e-9, 1e-4, 0.48, 0.4925, 0.4935, 0.5, 2.0, 3.1, np.pi],
+                             rng.uniform(0, np.pi, 200)])
+    for angle in angles:
+        axis = rng.normal(size=3)
+        r = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis))
+        q = ref.wxyz(r) * rng.choice([-1.0, 1.0])
+        got = np.array(kernels.rotvec(*q))
+        want = r.as_rotvec()
+        if angle > np.pi - 1e-6:  # a half turn: +/- the same axis
+            want = want if got @ want > 0 else -want
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
