@@ -58,7 +58,9 @@ STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
 MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
 SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2
-COLLIDE_EVERY = 8  # steps between refreshes of the self-collision candidate pairs
+# Self-collision candidates are unbonded surface pairs within the largest contact distance plus
+# this margin (in voxel lengths); the list is rebuilt once voxels may have closed the margin.
+COLLIDE_MARGIN = 0.2
 FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
 MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
 
@@ -419,12 +421,14 @@ def collision_forces(p0, count, pairs, pos, lin_mom, size, fp, force):
 def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, moment, pos, quat,
               lin_mom, ang_mom):
     """World forces (gravity, damping, floor and friction, drag) and one semi-implicit Euler
-    step for voxels v0..v1. Returns False if any voxel left the sane range (or went NaN)."""
+    step for voxels v0..v1. Returns the largest squared speed of a voxel after the step, or
+    -1 if any voxel left the sane range (or went NaN)."""
     m, inertia, dt = fp[F_MASS], fp[F_INERTIA], fp[F_DT]
     inv_m, inv_i = 1.0 / m, 1.0 / inertia
     g, k_floor, c_coll = fp[F_GRAVITY], fp[F_KFLOOR], fp[F_CCOLL]
     c_lin, c_ang, mu_s, mu_k, drag = fp[F_CGLIN], fp[F_CGANG], fp[F_MUS], fp[F_MUK], fp[F_DRAG]
     ok = True
+    speed2 = 0.0
     for v in range(v0, v1):
         if flags[v] & FLAG_FIXED:
             lin_mom[v, 0] = lin_mom[v, 1] = lin_mom[v, 2] = 0.0
@@ -483,6 +487,8 @@ def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, momen
         pos[v, 0] += lin_mom[v, 0] * inv_m * dt
         pos[v, 1] += lin_mom[v, 1] * inv_m * dt
         pos[v, 2] += lin_mom[v, 2] * inv_m * dt
+        speed2 = max(speed2, (lin_mom[v, 0] * lin_mom[v, 0] + lin_mom[v, 1] * lin_mom[v, 1]
+                              + lin_mom[v, 2] * lin_mom[v, 2]) * (inv_m * inv_m))
 
         ang_mom[v, 0] += mx * dt
         ang_mom[v, 1] += my * dt
@@ -495,7 +501,7 @@ def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, momen
         if not (abs(pos[v, 0]) < POSITION_BOUND and abs(pos[v, 1]) < POSITION_BOUND
                 and abs(pos[v, 2]) < POSITION_BOUND and abs(qw) <= 1.0 + 1e-9):
             ok = False
-    return ok
+    return speed2 if ok else -1.0
 
 
 # ---------------------------------------------------------------- the rollout
@@ -522,7 +528,9 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
     dt, steps, settle = fp[F_DT], ip[I_STEPS], ip[I_SETTLE_STEPS]
     env, wave, record, collide = ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE]
     com_every = ip[I_COM_EVERY]
-    reach = 1.5 * fp[F_L] * (1.0 + fp[F_AMP])
+    margin = COLLIDE_MARGIN * fp[F_L]
+    reach = fp[F_L] * (1.0 + fp[F_AMP]) + margin
+    travel = margin  # bound on any voxel's displacement since the list was built
     n_pairs = 0
     n_com = 0
     for step in range(steps + 1):
@@ -543,17 +551,19 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
                           size, small, prev, prev_valid, link_out)
         link_sums(v0, v1, batch.vlink, link_out, force, moment)
         if collide:
-            if step % COLLIDE_EVERY == 0:
+            if 2.0 * travel >= margin:  # two voxels may have closed the margin: rebuild
                 n_pairs = collision_pairs(s0, s1, p0, p1, batch.surface, pos, batch.nbr, reach,
                                           pairs)
+                travel = 0.0
             collision_forces(p0, n_pairs, pairs, pos, lin_mom, size, fp, force)
-        ok = integrate(v0, v1, fp, env, batch.flags, batch.ext_force, batch.nbr, size, static,
-                       force, moment, pos, quat, lin_mom, ang_mom)
+        speed2 = integrate(v0, v1, fp, env, batch.flags, batch.ext_force, batch.nbr, size, static,
+                           force, moment, pos, quat, lin_mom, ang_mom)
+        travel += math.sqrt(max(speed2, 0.0)) * dt
         if bad:
             status[r] = STATUS_STRAIN
             steps_done[r] = step + 1
             break
-        if not ok:
+        if speed2 < 0.0:
             status[r] = STATUS_NONFINITE
             steps_done[r] = step + 1
             break
