@@ -77,11 +77,10 @@ def _work_arrays(batch, n_voxels: int):
         np.zeros((n_voxels, 3)),  # force
         np.zeros((n_voxels, 3)),  # moment
         np.ones(n_voxels, dtype=np.bool_),  # static friction (everything starts at rest)
-        np.ones(n_links, dtype=np.bool_),  # small-angle link frames
-        np.zeros((9, n_links)),  # previous link deformation, for bond damping
-        np.zeros(n_links, dtype=np.bool_),  # previous deformation valid
         np.zeros((int(batch.poff[-1]), 2), dtype=np.int64),  # collision pair buffer
-        np.zeros((9, n_links + 1)),  # link forces and moments; the last column stays zero
+        np.zeros(kernels.LINK_IN_ROWS * n_links),  # link inputs gathered from the voxels
+        np.zeros(kernels.LINK_STATE_ROWS * n_links),  # previous deformation; frame mode 0
+        np.zeros(kernels.LINK_OUT_ROWS * n_links),  # link forces and moments
     )
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import llvmlite.binding
 import numpy as np
 from numba import njit, prange
 
@@ -54,6 +55,11 @@ FASTMATH = {"arcp", "nsz", "afn"}
 JIT = dict(cache=True, fastmath=FASTMATH, error_model="numpy")
 INLINE = dict(inline="always", **JIT)
 
+# The link loop's vectorized form needs LLVM to emit more runtime alias checks than its default
+# budget of 128 (one per pair of link rows that could overlap); a process-wide setting that only
+# lets the vectorizer take loops it would otherwise leave scalar.
+llvmlite.binding.set_option("softevo", "-vectorize-memory-check-threshold=1024")
+
 STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
 MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
@@ -90,24 +96,49 @@ def qrot(w, x, y, z, vx, vy, vz):
     )
 
 
+# f(u) = 2 acos(1 - u) / sqrt(1 - (1 - u)^2) over u in [0, 1]: a unit quaternion's rotation
+# vector is f(1 - |w|) times its vector part. Degree-16 polynomial from a Chebyshev fit to the
+# exact function (relative error < 5e-14 everywhere; its nearest singularity is u = 2), so
+# rotation vectors need no division, no libm call and no branch, and the link loop vectorizes.
+ANGLE_OVER_SIN = (
+    2.000000000000085,
+    0.666666666619135,
+    0.26666667113455084,
+    0.11428554822756917,
+    0.05079689174055483,
+    0.023049764284205198,
+    0.010952681225704275,
+    0.0033813071236987804,
+    0.008445614662157971,
+    -0.015982869178300427,
+    0.03578579361845359,
+    -0.053358252114567725,
+    0.05957216182258554,
+    -0.0468218000572629,
+    0.025036407949616243,
+    -0.008136146214563936,
+    0.0012522127460549246,
+)
+
+
+@njit(**INLINE)
+def angle_over_sin(u):
+    """``ANGLE_OVER_SIN`` at u, by Estrin's scheme (short dependency chains)."""
+    c = ANGLE_OVER_SIN
+    u2 = u * u
+    u4 = u2 * u2
+    u8 = u4 * u4
+    lo = ((c[0] + c[1] * u) + u2 * (c[2] + c[3] * u)
+          + u4 * ((c[4] + c[5] * u) + u2 * (c[6] + c[7] * u)))
+    hi = ((c[8] + c[9] * u) + u2 * (c[10] + c[11] * u)
+          + u4 * ((c[12] + c[13] * u) + u2 * (c[14] + c[15] * u)))
+    return lo + u8 * (hi + u8 * c[16])
+
+
 @njit(**INLINE)
 def rotvec(w, x, y, z):
-    """Rotation vector (axis * angle) of a unit quaternion.
-
-    The vector part times f = 2 acos(|w|) / sqrt(1 - w^2), which in u = 1 - |w| is the series
-    2 sum_k (2^k k!^2 / (2k + 1)!) u^k. Up to 0.49 rad (u < 0.03) seven terms give 5e-14
-    relative, evaluated in parallel pairs (Estrin) to keep the dependency chain short: the
-    link loop is latency-bound. Larger angles take atan2.
-    """
-    u = 1.0 - abs(w)
-    if u < 0.03:
-        u2 = u * u
-        f = ((2.0 + (2.0 / 3.0) * u) + u2 * ((4.0 / 15.0) + (4.0 / 35.0) * u)
-             + (u2 * u2) * ((16.0 / 315.0) + (16.0 / 693.0) * u + (32.0 / 3003.0) * u2))
-    else:
-        s = math.sqrt(x * x + y * y + z * z)
-        f = 2.0 * math.atan2(s, abs(w)) / s
-    f = math.copysign(f, w)  # q and -q: the same rotation
+    """Rotation vector (axis * angle) of a unit quaternion; q and -q give the same one."""
+    f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
     return f * x, f * y, f * z
 
 
@@ -219,141 +250,181 @@ def from_link_matrix(axis, r00, r01, r02, r10, r11, r12, r20, r21, r22):
             -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
 
 
+# Per-link buffers are flat, one block per robot: robot r's links l0..l1 (m = l1 - l0) own
+# entries ROWS * l0 ... ROWS * l1 as ROWS rows of m values, so that row k of link l0 + j is
+# at ROWS * l0 + k * m + j. With unsigned indices LLVM sees rows as whole trip-counts apart
+# and proves the link loop free of dependences between iterations.
+LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
+LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
+LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on the positive end
+
+
 @njit(**JIT)
-def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, small, prev,
-                prev_valid, out):
-    """Beam forces of links l0..l1 of one robot, in world axes, into ``out[:, l]``: rows 0-2
-    the force on the negative voxel (the positive one gets its opposite), 3-5 the moment on
-    the negative voxel, 6-8 the moment on the positive voxel. Returns how many links
-    diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
+def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, link_in,
+                link_state, link_out):
+    """Beam forces of links l0..l1 of one robot, in world axes, into ``link_out``. Returns
+    how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
 
     Co-rotational: the frame follows the negative-side voxel while the bend is small and the
     centre-to-centre line when it is large (hysteresis as Voxelyze). In the large-angle frame
     the link is rotated by c = (cw, 0, cy, cz) onto the centre line, so shear is zero and the
     bend shows in both end rotations. Bond damping is stiffness-proportional: the beam sees
     d + damp * (change of d per step), which gives every beam term the damping coefficient
-    2 zeta sqrt(m k). ``prev`` is (9, links): elongation, then the two end rotations.
+    2 zeta sqrt(m k). The mode row holds +1 (small-angle frame) or -1 (large), and 0 before
+    the first step (small, no previous deformation to damp against).
 
-    Written for SIMD: no scatter (``link_sums`` gathers per voxel), no call and no branch the
-    compiler cannot turn into a select, so each link is independent and LLVM vectorizes it.
+    Two loops: a gather of each link's inputs from its two voxels, then the beam maths over
+    contiguous rows with both frames computed and one selected, so that LLVM compiles it to
+    SIMD (four links per instruction on AVX2 and up).
     """
     damp = fp[F_GAMMA] * 0.5 / fp[F_DT]
     a1, a2, b1, b2, b3 = fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3]
     inv_l = 1.0 / fp[F_L]
+    m = l1 - l0
+    U = np.uint64
+    I0, I1, I2, I3 = U(12 * l0), U(12 * l0 + m), U(12 * l0 + 2 * m), U(12 * l0 + 3 * m)
+    I4, I5, I6, I7 = U(12 * l0 + 4 * m), U(12 * l0 + 5 * m), U(12 * l0 + 6 * m), U(12 * l0 + 7 * m)
+    I8, I9, I10, I11 = U(12 * l0 + 8 * m), U(12 * l0 + 9 * m), U(12 * l0 + 10 * m), U(12 * l0 + 11 * m)
+    S0, S1, S2, S3 = U(10 * l0), U(10 * l0 + m), U(10 * l0 + 2 * m), U(10 * l0 + 3 * m)
+    S4, S5, S6, S7 = U(10 * l0 + 4 * m), U(10 * l0 + 5 * m), U(10 * l0 + 6 * m), U(10 * l0 + 7 * m)
+    S8, S9 = U(10 * l0 + 8 * m), U(10 * l0 + 9 * m)
+    O0, O1, O2, O3 = U(9 * l0), U(9 * l0 + m), U(9 * l0 + 2 * m), U(9 * l0 + 3 * m)
+    O4, O5, O6, O7 = U(9 * l0 + 4 * m), U(9 * l0 + 5 * m), U(9 * l0 + 6 * m), U(9 * l0 + 7 * m)
+    O8 = U(9 * l0 + 8 * m)
+    for j in range(m):  # gather: the one loop with indirect access
+        J = U(j)
+        i = link_neg[l0 + j]
+        k = link_pos[l0 + j]
+        link_in[I0 + J], link_in[I1 + J] = quat[i, 0], quat[i, 1]
+        link_in[I2 + J], link_in[I3 + J] = quat[i, 2], quat[i, 3]
+        link_in[I4 + J], link_in[I5 + J] = quat[k, 0], quat[k, 1]
+        link_in[I6 + J], link_in[I7 + J] = quat[k, 2], quat[k, 3]
+        link_in[I8 + J] = pos[k, 0] - pos[i, 0]
+        link_in[I9 + J] = pos[k, 1] - pos[i, 1]
+        link_in[I10 + J] = pos[k, 2] - pos[i, 2]
+        link_in[I11 + J] = 0.5 * (size[i] + size[k])
     bad = 0
-    for l in range(l0, l1):
-        i = link_neg[l]
-        j = link_pos[l]
-        ax = link_axis[l]
-        qw, qx, qy, qz = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+    for j in range(m):
+        J = U(j)
+        ax = link_axis[l0 + j]
+        qw, qx, qy, qz = link_in[I0 + J], link_in[I1 + J], link_in[I2 + J], link_in[I3 + J]
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
-        wx, wy, wz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
+        wx, wy, wz = link_in[I8 + J], link_in[I9 + J], link_in[I10 + J]
         rx, ry, rz = to_link(ax, r00 * wx + r10 * wy + r20 * wz,
                              r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
-        ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
+        ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, link_in[I4 + J], link_in[I5 + J],
+                              link_in[I6 + J], link_in[I7 + J])
         ox, oy, oz = to_link(ax, ox, oy, oz)
-        rest = 0.5 * (size[i] + size[j])
+        rest = link_in[I11 + J]
 
         # hysteresis between the two frames, compared without divisions
         turn = abs(ry) + abs(rz)
         extend = abs(rx - rest)
-        was_small = small[l]
-        if was_small:
-            now_small = not (turn > SMALL_TURN * rx or extend > SMALL_EXTEND * rest)
-        else:
-            now_small = (turn < (SMALL_TURN / HYSTERESIS) * rx
-                         and extend < (SMALL_EXTEND / HYSTERESIS) * rest)
-        g = damp if (prev_valid[l] and now_small == was_small) else 0.0
-        small[l] = now_small
-        prev_valid[l] = True
+        leave = turn > SMALL_TURN * rx or extend > SMALL_EXTEND * rest
+        enter = (turn < (SMALL_TURN / HYSTERESIS) * rx
+                 and extend < (SMALL_EXTEND / HYSTERESIS) * rest)
+        mode = link_state[S9 + J]
+        was_small = mode >= 0.0
+        now_small = (not leave) if was_small else enter
+        g = damp if (mode != 0.0 and now_small == was_small) else 0.0
+        link_state[S9 + J] = 1.0 if now_small else -1.0
 
-        if now_small:
+        # large-angle frame: c takes the centre line onto +x (half-angle identity),
+        # c = k (|r| + rx, 0, rz, -ry) with k = 1 / sqrt(2 |r| (|r| + rx)); a half turn about
+        # z when r points back. Products with the unnormalised c run while k is computed.
+        length = math.sqrt(rx * rx + ry * ry + rz * rz)
+        h = length + rx
+        back = h > 1e-4 * length
+        cw = h if back else 0.0
+        cy = rz if back else 0.0
+        cz = -ry if back else 1.0
+        k = 1.0 / math.sqrt(2.0 * length * h) if back else 1.0
+        pw, px, py, pz = qmul(cw, 0.0, cy, cz, ow, ox, oy, oz)
+        cw, cy, cz = cw * k, cy * k, cz * k
+        t1x, t1y, t1z = rotvec(cw, 0.0, cy, cz)
+        lx, ly, lz = rotvec(pw * k, px * k, py * k, pz * k)
+        sx, sy, sz = rotvec(ow, ox, oy, oz)
+        if now_small:  # the voxel's own frame: the offset off the axis is shear
             dx, dy, dz = rx - rest, ry, rz
-            t1x, t1y, t1z = 0.0, 0.0, 0.0
-            t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
-            # back to world axes: undo the axis permutation, then the voxel's rotation
-            m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
-                ax, r00, r01, r02, r10, r11, r12, r20, r21, r22)
+            t1x, t1y, t1z, t2x, t2y, t2z = 0.0, 0.0, 0.0, sx, sy, sz
+            cw, cy, cz = 1.0, 0.0, 0.0
         else:
-            # c takes the centre line onto +x (half-angle identity): c = k (|r| + rx, 0, rz, -ry)
-            # with k = 1 / sqrt(2 |r| (|r| + rx)); a half turn about z if r points back.
-            # Products with the unnormalised c run while k is computed.
-            length = math.sqrt(rx * rx + ry * ry + rz * rz)
-            h = length + rx
-            if h > 1e-4 * length:
-                cw, cy, cz = h, rz, -ry
-                k = 1.0 / math.sqrt(2.0 * length * h)
-            else:
-                cw, cy, cz = 0.0, 0.0, 1.0
-                k = 1.0
-            pw, px, py, pz = qmul(cw, 0.0, cy, cz, ow, ox, oy, oz)
-            cw, cy, cz = cw * k, cy * k, cz * k
             dx, dy, dz = length - rest, 0.0, 0.0
-            t1x, t1y, t1z = rotvec(cw, 0.0, cy, cz)
-            t2x, t2y, t2z = rotvec(pw * k, px * k, py * k, pz * k)
-            # world from the aligned frame: voxel rotation, axis permutation, conj(c), composed
-            # while the beam is evaluated
-            m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
-                ax, r00, r01, r02, r10, r11, r12, r20, r21, r22)
-            c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
-            c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
-            c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
-            c22 = 1.0 - 2.0 * cy * cy
-            m00, m01, m02 = (m00 * c00 - m01 * c01 - m02 * c02, m00 * c01 + m01 * c11 + m02 * c12,
-                             m00 * c02 + m01 * c12 + m02 * c22)
-            m10, m11, m12 = (m10 * c00 - m11 * c01 - m12 * c02, m10 * c01 + m11 * c11 + m12 * c12,
-                             m10 * c02 + m11 * c12 + m12 * c22)
-            m20, m21, m22 = (m20 * c00 - m21 * c01 - m22 * c02, m20 * c01 + m21 * c11 + m22 * c12,
-                             m20 * c02 + m21 * c12 + m22 * c22)
+            t2x, t2y, t2z = lx, ly, lz
+
+        # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
+        m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
+            ax, r00, r01, r02, r10, r11, r12, r20, r21, r22)
+        c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
+        c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
+        c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
+        c22 = 1.0 - 2.0 * cy * cy
+        m00, m01, m02 = (m00 * c00 - m01 * c01 - m02 * c02, m00 * c01 + m01 * c11 + m02 * c12,
+                         m00 * c02 + m01 * c12 + m02 * c22)
+        m10, m11, m12 = (m10 * c00 - m11 * c01 - m12 * c02, m10 * c01 + m11 * c11 + m12 * c12,
+                         m10 * c02 + m11 * c12 + m12 * c22)
+        m20, m21, m22 = (m20 * c00 - m21 * c01 - m22 * c02, m20 * c01 + m21 * c11 + m22 * c12,
+                         m20 * c02 + m21 * c12 + m22 * c22)
 
         # stiffness-proportional damping from the change since the last step
-        ex = dx + g * (dx - prev[0, l])
-        ey = dy + g * (dy - prev[1, l])
-        ez = dz + g * (dz - prev[2, l])
-        e1x = t1x + g * (t1x - prev[3, l])
-        e1y = t1y + g * (t1y - prev[4, l])
-        e1z = t1z + g * (t1z - prev[5, l])
-        e2x = t2x + g * (t2x - prev[6, l])
-        e2y = t2y + g * (t2y - prev[7, l])
-        e2z = t2z + g * (t2z - prev[8, l])
-        prev[0, l], prev[1, l], prev[2, l] = dx, dy, dz
-        prev[3, l], prev[4, l], prev[5, l] = t1x, t1y, t1z
-        prev[6, l], prev[7, l], prev[8, l] = t2x, t2y, t2z
+        ex = dx + g * (dx - link_state[S0 + J])
+        ey = dy + g * (dy - link_state[S1 + J])
+        ez = dz + g * (dz - link_state[S2 + J])
+        e1x = t1x + g * (t1x - link_state[S3 + J])
+        e1y = t1y + g * (t1y - link_state[S4 + J])
+        e1z = t1z + g * (t1z - link_state[S5 + J])
+        e2x = t2x + g * (t2x - link_state[S6 + J])
+        e2y = t2y + g * (t2y - link_state[S7 + J])
+        e2z = t2z + g * (t2z - link_state[S8 + J])
+        link_state[S0 + J], link_state[S1 + J], link_state[S2 + J] = dx, dy, dz
+        link_state[S3 + J], link_state[S4 + J], link_state[S5 + J] = t1x, t1y, t1z
+        link_state[S6 + J], link_state[S7 + J], link_state[S8 + J] = t2x, t2y, t2z
 
         # E A_current strain: area and rest length both scale with the voxel size
         fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
             ex * rest * inv_l, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3)
-        out[0, l] = m00 * fax + m01 * fay + m02 * faz
-        out[1, l] = m10 * fax + m11 * fay + m12 * faz
-        out[2, l] = m20 * fax + m21 * fay + m22 * faz
-        out[3, l] = m00 * max_ + m01 * may + m02 * maz
-        out[4, l] = m10 * max_ + m11 * may + m12 * maz
-        out[5, l] = m20 * max_ + m21 * may + m22 * maz
-        out[6, l] = m00 * mbx + m01 * mby + m02 * mbz
-        out[7, l] = m10 * mbx + m11 * mby + m12 * mbz
-        out[8, l] = m20 * mbx + m21 * mby + m22 * mbz
+        link_out[O0 + J] = m00 * fax + m01 * fay + m02 * faz
+        link_out[O1 + J] = m10 * fax + m11 * fay + m12 * faz
+        link_out[O2 + J] = m20 * fax + m21 * fay + m22 * faz
+        link_out[O3 + J] = m00 * max_ + m01 * may + m02 * maz
+        link_out[O4 + J] = m10 * max_ + m11 * may + m12 * maz
+        link_out[O5 + J] = m20 * max_ + m21 * may + m22 * maz
+        link_out[O6 + J] = m00 * mbx + m01 * mby + m02 * mbz
+        link_out[O7 + J] = m10 * mbx + m11 * mby + m12 * mbz
+        link_out[O8 + J] = m20 * mbx + m21 * mby + m22 * mbz
         bad += 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
     return bad
 
 
 @njit(**JIT)
-def link_sums(v0, v1, vlink, out, force, moment):
-    """Force and moment on voxels v0..v1 from their links (overwrites ``force``/``moment``).
+def link_sums(v0, v1, l0, l1, vlink, link_out, force, moment):
+    """Force and moment on voxels v0..v1 from their links l0..l1 (overwrites the rows).
 
     ``vlink[v, 2a + 1]`` is the link on v's +a face (v its negative end), ``vlink[v, 2a]`` the
-    one on its -a face (v its positive end); a missing link points at a zero column of ``out``.
+    one on its -a face (v its positive end); -1 where there is none.
     """
+    m = l1 - l0
     for v in range(v0, v1):
         fx = fy = fz = mx = my = mz = 0.0
         for a in range(3):
             p = vlink[v, 2 * a + 1]
             n = vlink[v, 2 * a]
-            fx += out[0, p] - out[0, n]
-            fy += out[1, p] - out[1, n]
-            fz += out[2, p] - out[2, n]
-            mx += out[3, p] + out[6, n]
-            my += out[4, p] + out[7, n]
-            mz += out[5, p] + out[8, n]
+            if p >= 0:
+                q = 9 * l0 + p - l0
+                fx += link_out[q]
+                fy += link_out[q + m]
+                fz += link_out[q + 2 * m]
+                mx += link_out[q + 3 * m]
+                my += link_out[q + 4 * m]
+                mz += link_out[q + 5 * m]
+            if n >= 0:
+                q = 9 * l0 + n - l0
+                fx -= link_out[q]
+                fy -= link_out[q + m]
+                fz -= link_out[q + 2 * m]
+                mx += link_out[q + 6 * m]
+                my += link_out[q + 7 * m]
+                mz += link_out[q + 8 * m]
         force[v, 0], force[v, 1], force[v, 2] = fx, fy, fz
         moment[v, 0], moment[v, 1], moment[v, 2] = mx, my, mz
 
@@ -524,7 +595,7 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
     s0, s1, p0, p1 = soff[r], soff[r + 1], poff[r], poff[r + 1]
     fp, ip = batch.fparams[r], batch.iparams[r]
     pos, quat, lin_mom, ang_mom = state.pos, state.quat, state.lin_mom, state.ang_mom
-    size, force, moment, static, small, prev, prev_valid, pairs, link_out = work
+    size, force, moment, static, pairs, link_in, link_state, link_out = work
     dt, steps, settle = fp[F_DT], ip[I_STEPS], ip[I_SETTLE_STEPS]
     env, wave, record, collide = ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE]
     com_every = ip[I_COM_EVERY]
@@ -548,8 +619,8 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
         actuate(v0, v1, (step - settle) * dt, fp, wave, batch.flags, batch.cos_phase,
                 batch.sin_phase, batch.phase, size)
         bad = link_kernel(l0, l1, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
-                          size, small, prev, prev_valid, link_out)
-        link_sums(v0, v1, batch.vlink, link_out, force, moment)
+                          size, link_in, link_state, link_out)
+        link_sums(v0, v1, l0, l1, batch.vlink, link_out, force, moment)
         if collide:
             if 2.0 * travel >= margin:  # two voxels may have closed the margin: rebuild
                 n_pairs = collision_pairs(s0, s1, p0, p1, batch.surface, pos, batch.nbr, reach,

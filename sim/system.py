@@ -90,7 +90,7 @@ class Batch(NamedTuple):
     link_neg: np.ndarray  # global voxel indices
     link_pos: np.ndarray
     link_axis: np.ndarray
-    vlink: np.ndarray  # global link indices; a missing link is the zero column loff[-1]
+    vlink: np.ndarray  # global link indices (-1: no link on that face)
     surface: np.ndarray  # global voxel indices
     fparams: np.ndarray  # (R, N_FPARAMS)
     iparams: np.ndarray  # (R, N_IPARAMS)
@@ -220,7 +220,7 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         link_neg=np.concatenate([r.link_neg + voff[k] for k, r in enumerate(robots)]),
         link_pos=np.concatenate([r.link_pos + voff[k] for k, r in enumerate(robots)]),
         link_axis=np.concatenate([r.link_axis for r in robots]),
-        vlink=np.concatenate([np.where(r.vlink >= 0, r.vlink + loff[k], loff[-1])
+        vlink=np.concatenate([np.where(r.vlink >= 0, r.vlink + loff[k], -1)
                               for k, r in enumerate(robots)]),
         surface=np.concatenate([r.surface + voff[k] for k, r in enumerate(robots)]),
         fparams=np.stack([r.fparams for r in robots]),

@@ -39,22 +39,30 @@ def _work(batch, n):
     return engine._work_arrays(batch, n)
 
 
-def _link_forces(batch, fp, pos, quat, size, small, prev, prev_valid, force, moment, out):
+def _link_forces(batch, fp, pos, quat, size, work, force, moment):
     """The two link kernels as the step runs them: per-link beams, then per-voxel sums.
     The sums are also checked against a NumPy scatter of the per-link forces."""
     m, n = len(batch.link_neg), len(pos)
+    link_in, link_state, link_out = work[-3:]
     bad = kernels.link_kernel(0, m, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos,
-                              quat, size, small, prev, prev_valid, out)
-    kernels.link_sums(0, n, batch.vlink, out, force, moment)
+                              quat, size, link_in, link_state, link_out)
+    kernels.link_sums(0, n, 0, m, batch.vlink, link_out, force, moment)
+    out = link_out.reshape(9, m)
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
-    np.add.at(f, batch.link_neg, out[0:3, :m].T)
-    np.add.at(f, batch.link_pos, -out[0:3, :m].T)
-    np.add.at(mo, batch.link_neg, out[3:6, :m].T)
-    np.add.at(mo, batch.link_pos, out[6:9, :m].T)
+    np.add.at(f, batch.link_neg, out[0:3].T)
+    np.add.at(f, batch.link_pos, -out[0:3].T)
+    np.add.at(mo, batch.link_neg, out[3:6].T)
+    np.add.at(mo, batch.link_pos, out[6:9].T)
     np.testing.assert_allclose(force, f, rtol=1e-12, atol=1e-12 * np.abs(f).max())
     np.testing.assert_allclose(moment, mo, rtol=1e-12, atol=1e-12 * np.abs(mo).max())
-    assert np.all(out[:, m] == 0.0), "the missing-link column stays zero"
     return bad
+
+
+def _link_state(work, m):
+    """The kernel's link state as the reference keeps it: small-angle flags, previous
+    deformation (9, m), and whether that previous deformation exists."""
+    state = work[-2].reshape(10, m)
+    return state[9] >= 0, state[:9], state[9] != 0
 
 
 @pytest.mark.parametrize("angle,shift", [(0.01, 0.01), (0.4, 0.3), (1.2, 0.5)])
@@ -63,19 +71,22 @@ def test_link_forces_match_numpy(angle, shift):
     batch, state, rng = _robot("void", seed=3)
     _perturb(state, rng, angle, shift, 0.0)
     n = len(state.pos)
-    size, force, moment, _static, small, prev, prev_valid, _pairs, out = _work(batch, n)
+    work = _work(batch, n)
+    size, force, moment = work[:3]
     size[:] = 0.05 * rng.uniform(0.8, 1.2, n)
     fp = batch.fparams[0]
-    small_ref, prev_ref, valid_ref = small.copy(), prev.copy(), prev_valid.copy()
+    m = len(batch.link_neg)
+    small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, m))
     for _ in range(2):  # the second call exercises the damping term
-        bad = _link_forces(batch, fp, state.pos, state.quat, size, small, prev, prev_valid,
-                           force, moment, out)
+        bad = _link_forces(batch, fp, state.pos, state.quat, size, work, force, moment)
         assert bad == 0
         f_ref, m_ref = ref.link_forces(batch, state.pos, state.quat, size, small_ref, prev_ref,
                                        valid_ref, fp)
         scale = np.abs(f_ref).max()
+        small = _link_state(work, m)[0]
         np.testing.assert_array_equal(small, small_ref)
-        # the kernel's rotation-vector series is accurate to 5e-14 relative (see kernels.rotvec)
+        np.testing.assert_allclose(_link_state(work, m)[1], prev_ref, rtol=1e-10, atol=1e-14)
+        # the kernel's rotation-vector polynomial is accurate to 5e-14 relative (kernels.rotvec)
         np.testing.assert_allclose(force, f_ref, atol=1e-10 * scale)
         np.testing.assert_allclose(moment, m_ref, atol=1e-10 * scale * 0.05)
         state.pos[:] += rng.normal(0, 1e-5, state.pos.shape)
@@ -92,15 +103,15 @@ def test_trajectory_matches_numpy(env):
         state.pos[:, 2] -= 0.002  # press into the floor so contact and friction act
     n = len(state.pos)
     work = _work(batch, n)
-    size, _f, _m, static, small, prev, prev_valid, _pairs, out = work
+    size, _f, _m, static = work[:4]
     size[:] = 0.05
     fp = batch.fparams[0].copy()
     mine = system.State(*(a.copy() for a in state))
     theirs = [a.copy() for a in state]
-    static_ref, small_ref = static.copy(), small.copy()
-    prev_ref, valid_ref = prev.copy(), prev_valid.copy()
+    static_ref = static.copy()
+    small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, len(batch.link_neg)))
     for _ in range(60):
-        _link_forces(batch, fp, mine.pos, mine.quat, size, small, prev, prev_valid, _f, _m, out)
+        _link_forces(batch, fp, mine.pos, mine.quat, size, work, _f, _m)
         kernels.integrate(0, n, fp, ENVS[env], batch.flags, batch.ext_force, batch.nbr, size,
                           static, _f, _m, mine.pos, mine.quat, mine.lin_mom, mine.ang_mom)
         ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env])
@@ -145,7 +156,7 @@ def test_collision_pairs_and_forces_match_brute_force():
     batch, state = system.pack([robot])
     state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
     n = len(state.pos)
-    size, force, *_rest, pairs, _out = _work(batch, n)
+    size, force, _m, _s, pairs = _work(batch, n)[:5]
     size[:] = 0.05
     reach = 0.06
     count = kernels.collision_pairs(0, len(batch.surface), 0, len(pairs), batch.surface,
@@ -171,7 +182,7 @@ def test_collision_pairs_and_forces_match_brute_force():
 
 
 def test_rotation_vector_matches_scipy():
-    """The series (up to 0.49 rad) and atan2 (beyond) branches of kernels.rotvec, either sign."""
+    """kernels.rotvec over the whole range of angles, either sign of the quaternion."""
     rng = np.random.default_rng(11)
     angles = np.concatenate([[0.0, 1e-9, 1e-4, 0.48, 0.4925, 0.4935, 0.5, 2.0, 3.1, np.pi],
                              rng.uniform(0, np.pi, 200)])
