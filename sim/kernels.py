@@ -1,8 +1,11 @@
 """Compiled kernels: the whole rollout of many robots in one call.
 
 Each robot's run is one task of a ``prange`` over robots; inside it a step is, in order:
-``actuate -> clear -> link forces -> self-collisions -> voxel forces + integrate -> record``.
-All state is struct-of-arrays (see ``sim.system``); no Python runs per voxel or per step.
+``actuate -> link kernel (gather, then beams as SIMD) -> link sums per voxel ->
+self-collisions -> voxel forces + integrate -> record``. All state is struct-of-arrays (see
+``sim.system``); no Python runs per voxel or per step. Helpers called per link or per voxel
+take and return scalars only: an array passed to an inlined helper costs two atomic
+reference-count updates per call, which once took most of the link loop's time.
 
 Maths conventions: quaternions are (w, x, y, z); a link's local frame has x along the link
 (see ``to_link``); rotation vectors are axis * angle in radians.

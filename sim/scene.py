@@ -69,11 +69,12 @@ class Scene:
     initial_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # metres, added to start positions
     duration_seconds: float = 0.0  # simulated after settling
     settle_seconds: float = 0.0
-    # Step = min(dt_fraction x the link stability step, actuation period / 2000). 0.2 is the
-    # largest fraction that kept a walker's and a swimmer's distance within 1% of a
-    # dt_fraction-0.1 reference at every stiffness from 1 kPa to 10 MPa (bench/dt_accuracy.py);
-    # the engine itself stays stable up to about 1.0 with bond damping 1 (3.0 without).
-    dt_fraction: float = 0.2
+    # Step = min(dt_fraction x the link stability step, actuation period / 2000). 0.5 is the
+    # largest fraction that kept a walker's and a swimmer's distance (8, 10 and 12 cycles)
+    # within 1% of a dt_fraction-0.1 reference at every stiffness from 1 kPa to 10 MPa, with
+    # every smaller fraction too (bench/dt_accuracy.py); 0.7 drifts 2% on a stiff walker. The
+    # engine itself stays stable up to about 1.0 with bond damping 1 (3.0 without).
+    dt_fraction: float = 0.5
     self_collisions: bool = True
     record_every: int = 0  # 0: no frames
     max_steps: int = DEFAULT_MAX_STEPS

@@ -31,6 +31,7 @@ SCENE = {
     "actuation": {"frequency": 2.0},
     "duration": {"cycles": 4},
     "settle_seconds": 0.5,
+    "dt_fraction": 0.2,  # as the hand-written file says, whatever the default
 }
 
 
