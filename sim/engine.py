@@ -70,20 +70,6 @@ class Result:
         return out
 
 
-def _work_arrays(batch, n_voxels: int):
-    n_links = len(batch.link_neg)
-    return (
-        np.zeros(n_voxels),  # size
-        np.zeros((n_voxels, 3)),  # force
-        np.zeros((n_voxels, 3)),  # moment
-        np.ones(n_voxels, dtype=np.bool_),  # static friction (everything starts at rest)
-        np.zeros((int(batch.poff[-1]), 2), dtype=np.int64),  # collision pair buffer
-        np.zeros(kernels.LINK_IN_ROWS * n_links),  # link inputs gathered from the voxels
-        np.zeros(kernels.LINK_STATE_ROWS * n_links),  # previous deformation; frame mode 0
-        np.zeros(kernels.LINK_OUT_ROWS * n_links),  # link forces and moments
-    )
-
-
 def _budget_reason(scene: Scene, robot: Robot) -> str | None:
     steps = int(robot.iparams[I_STEPS])
     if steps > scene.max_steps:
@@ -168,12 +154,11 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None) -> lis
         com_count = np.zeros(len(sub), dtype=np.int64)
         status = np.zeros(len(sub), dtype=np.int64)
         steps_done = np.zeros(len(sub), dtype=np.int64)
-        work = _work_arrays(batch, n)
         previous = numba.get_num_threads()
         if threads is not None:
             numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
         try:
-            kernels.run_batch(batch, state, work, frames, com_traj, com_count, status, steps_done)
+            kernels.run_batch(batch, state, frames, com_traj, com_count, status, steps_done)
         finally:
             numba.set_num_threads(previous)
         for r, k in enumerate(runnable):

@@ -591,14 +591,51 @@ def com(v0, v1, pos, out, row):
 
 
 @njit(**JIT)
-def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_done):
-    """Run robot r of the batch to its step count or to divergence."""
-    voff, loff, soff, poff = batch.voff, batch.loff, batch.soff, batch.poff
-    v0, v1, l0, l1 = voff[r], voff[r + 1], loff[r], loff[r + 1]
-    s0, s1, p0, p1 = soff[r], soff[r + 1], poff[r], poff[r + 1]
-    fp, ip = batch.fparams[r], batch.iparams[r]
-    pos, quat, lin_mom, ang_mom = state.pos, state.quat, state.lin_mom, state.ang_mom
-    size, force, moment, static, pairs, link_in, link_state, link_out = work
+def robot_work(n_voxels, n_links, n_pairs):
+    """Scratch and per-link state of one robot's run: size, force, moment, static friction
+    flags, collision pair buffer, link inputs, link state (frame mode 0: small-angle, nothing
+    to damp against yet), link outputs."""
+    return (np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
+            np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
+            np.zeros(LINK_IN_ROWS * n_links), np.zeros(LINK_STATE_ROWS * n_links),
+            np.zeros(LINK_OUT_ROWS * n_links))
+
+
+@njit(**INLINE)
+def local_index(a, offset):
+    """Global indices to one robot's (-1 stays -1)."""
+    out = a.copy()
+    for k in range(out.size):
+        v = out.flat[k]
+        out.flat[k] = v - offset if v >= 0 else -1
+    return out
+
+
+@njit(**JIT)
+def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
+    """Run robot r of the batch to its step count or to divergence.
+
+    The robot runs on private copies of its arrays, written back at the end: robots of one
+    batch share arrays, and threads writing neighbouring entries of one array every step
+    (and updating its reference count on every call) slow each other down several-fold.
+    """
+    v0, v1 = batch.voff[r], batch.voff[r + 1]
+    l0, l1 = batch.loff[r], batch.loff[r + 1]
+    s0, s1 = batch.soff[r], batch.soff[r + 1]
+    n, m = v1 - v0, l1 - l0
+    fp, ip = batch.fparams[r].copy(), batch.iparams[r].copy()
+    flags, ext_force = batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy()
+    cos_phase, sin_phase = batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy()
+    phase = batch.phase[v0:v1].copy()
+    nbr, vlink = local_index(batch.nbr[v0:v1], v0), local_index(batch.vlink[v0:v1], l0)
+    link_neg, link_pos = batch.link_neg[l0:l1] - v0, batch.link_pos[l0:l1] - v0
+    link_axis, surface = batch.link_axis[l0:l1].copy(), batch.surface[s0:s1] - v0
+    pos, quat = state.pos[v0:v1].copy(), state.quat[v0:v1].copy()
+    lin_mom, ang_mom = state.lin_mom[v0:v1].copy(), state.ang_mom[v0:v1].copy()
+    size, force, moment, static, pairs, link_in, link_state, link_out = robot_work(
+        n, m, batch.poff[r + 1] - batch.poff[r])
+    traj = np.zeros((com_traj.shape[1], 4))
+
     dt, steps, settle = fp[F_DT], ip[I_STEPS], ip[I_SETTLE_STEPS]
     env, wave, record, collide = ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE]
     com_every = ip[I_COM_EVERY]
@@ -607,49 +644,51 @@ def run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_
     travel = margin  # bound on any voxel's displacement since the list was built
     n_pairs = 0
     n_com = 0
+    code = STATUS_OK
+    done = steps
     for step in range(steps + 1):
         if record > 0 and step % record == 0:
             f = step // record
-            for v in range(v0, v1):
+            for v in range(n):
                 for c in range(3):
-                    frames[f, v, c] = pos[v, c]
-        if step >= settle and (step - settle) % com_every == 0 and n_com < com_traj.shape[1] - 1:
-            com_traj[r, n_com, 0] = step * dt
-            com(v0, v1, pos, com_traj[r], n_com)
+                    frames[f, v0 + v, c] = pos[v, c]
+        if step >= settle and (step - settle) % com_every == 0 and n_com < traj.shape[0] - 1:
+            traj[n_com, 0] = step * dt
+            com(0, n, pos, traj, n_com)
             n_com += 1
         if step == steps:
             break
-        actuate(v0, v1, (step - settle) * dt, fp, wave, batch.flags, batch.cos_phase,
-                batch.sin_phase, batch.phase, size)
-        bad = link_kernel(l0, l1, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
-                          size, link_in, link_state, link_out)
-        link_sums(v0, v1, l0, l1, batch.vlink, link_out, force, moment)
+        actuate(0, n, (step - settle) * dt, fp, wave, flags, cos_phase, sin_phase, phase, size)
+        bad = link_kernel(0, m, fp, link_neg, link_pos, link_axis, pos, quat, size, link_in,
+                          link_state, link_out)
+        link_sums(0, n, 0, m, vlink, link_out, force, moment)
         if collide:
             if 2.0 * travel >= margin:  # two voxels may have closed the margin: rebuild
-                n_pairs = collision_pairs(s0, s1, p0, p1, batch.surface, pos, batch.nbr, reach,
-                                          pairs)
+                n_pairs = collision_pairs(0, len(surface), 0, len(pairs), surface, pos, nbr,
+                                          reach, pairs)
                 travel = 0.0
-            collision_forces(p0, n_pairs, pairs, pos, lin_mom, size, fp, force)
-        speed2 = integrate(v0, v1, fp, env, batch.flags, batch.ext_force, batch.nbr, size, static,
-                           force, moment, pos, quat, lin_mom, ang_mom)
+            collision_forces(0, n_pairs, pairs, pos, lin_mom, size, fp, force)
+        speed2 = integrate(0, n, fp, env, flags, ext_force, nbr, size, static, force, moment, pos,
+                           quat, lin_mom, ang_mom)
         travel += math.sqrt(max(speed2, 0.0)) * dt
         if bad:
-            status[r] = STATUS_STRAIN
-            steps_done[r] = step + 1
+            code, done = STATUS_STRAIN, step + 1
             break
         if speed2 < 0.0:
-            status[r] = STATUS_NONFINITE
-            steps_done[r] = step + 1
+            code, done = STATUS_NONFINITE, step + 1
             break
-        steps_done[r] = step + 1
     # always keep the final centre of mass as the last sample
-    com_traj[r, n_com, 0] = steps_done[r] * dt
-    com(v0, v1, pos, com_traj[r], n_com)
+    traj[n_com, 0] = done * dt
+    com(0, n, pos, traj, n_com)
+    com_traj[r, : n_com + 1] = traj[: n_com + 1]
     com_count[r] = n_com + 1
+    status[r], steps_done[r] = code, done
+    state.pos[v0:v1], state.quat[v0:v1] = pos, quat
+    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = lin_mom, ang_mom
 
 
 @njit(parallel=True, **JIT)
-def run_batch(batch, state, work, frames, com_traj, com_count, status, steps_done):
+def run_batch(batch, state, frames, com_traj, com_count, status, steps_done):
     """Run every robot of the batch, one robot per parallel task."""
     for r in prange(len(batch.voff) - 1):
-        run_robot(r, batch, state, work, frames, com_traj, com_count, status, steps_done)
+        run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done)

@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import sim
-from sim import engine, kernels, system
+from sim import kernels, system
 from tests.sim import numpy_reference as ref
 
 ENVS = {"land": 0, "water": 1, "void": 2}
@@ -36,7 +36,7 @@ def _perturb(state, rng, angle: float, shift: float, speed: float):
 
 
 def _work(batch, n):
-    return engine._work_arrays(batch, n)
+    return kernels.robot_work(n, len(batch.link_neg), int(batch.poff[-1]))
 
 
 def _link_forces(batch, fp, pos, quat, size, work, force, moment):
