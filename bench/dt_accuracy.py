@@ -7,6 +7,7 @@ largest fraction within 1%. Then evaluations per second of the paper-like robot 
 50 cycles) at each stiffness with the default fraction, one core.
 
 Usage: python bench/dt_accuracy.py [--cycles 10] [--reference 0.1] [--skip-speed]
+       [--skip-accuracy]
 """
 
 from __future__ import annotations
@@ -107,8 +108,10 @@ def main() -> None:
     parser.add_argument("--cycles", type=float, default=10)
     parser.add_argument("--reference", type=float, default=0.1)
     parser.add_argument("--skip-speed", action="store_true")
+    parser.add_argument("--skip-accuracy", action="store_true")
     args = parser.parse_args()
-    accuracy(args.cycles, args.reference)
+    if not args.skip_accuracy:
+        accuracy(args.cycles, args.reference)
     if not args.skip_speed:
         speed()
 
