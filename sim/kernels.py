@@ -3,9 +3,11 @@
 Each robot's run is one task of a ``prange`` over robots; inside it a step is, in order:
 ``actuate -> link kernel (gather, then beams as SIMD) -> link sums per voxel ->
 self-collisions -> voxel forces + integrate -> record``. All state is struct-of-arrays (see
-``sim.system``); no Python runs per voxel or per step. Helpers called per link or per voxel
-take and return scalars only: an array passed to an inlined helper costs two atomic
-reference-count updates per call, which once took most of the link loop's time.
+``sim.system``); no Python runs per voxel or per step. Every kernel below ``run_robot`` takes
+one robot's own arrays (indices local to the robot), so their lengths are the ranges.
+Helpers called per link or per voxel take and return scalars only: an array passed to an
+inlined helper costs two atomic reference-count updates per call, which once took most of
+the link loop's time.
 
 Maths conventions: quaternions are (w, x, y, z); a link's local frame has x along the link
 (see ``to_link``); rotation vectors are axis * angle in radians.
@@ -179,17 +181,17 @@ def waveform(kind, angle):
 
 
 @njit(**JIT)
-def actuate(v0, v1, t, fp, wave, flags, cos_phase, sin_phase, phase, size):
-    """Current size of every voxel of one robot at time t (t < 0: no actuation yet)."""
+def actuate(t, fp, wave, flags, cos_phase, sin_phase, phase, size):
+    """Current size of every voxel at time t (t < 0: no actuation yet)."""
     L = fp[F_L]
     if t < 0.0:
-        for v in range(v0, v1):
+        for v in range(len(size)):
             size[v] = L
         return
     amp = fp[F_AMP]
     wt = fp[F_OMEGA] * t
     s_wt, c_wt = math.sin(wt), math.cos(wt)
-    for v in range(v0, v1):
+    for v in range(len(size)):
         if flags[v] & FLAG_ACTIVE:
             if wave == 0:  # sin(wt + phi) without libm per voxel
                 w = s_wt * cos_phase[v] + c_wt * sin_phase[v]
@@ -221,14 +223,6 @@ def to_link(axis, x, y, z):
 
 
 @njit(**INLINE)
-def from_link(axis, x, y, z):
-    """Inverse of ``to_link``."""
-    return (x if axis == 0 else -(y if axis == 1 else z),
-            y if axis != 1 else x,
-            z if axis != 2 else x)
-
-
-@njit(**INLINE)
 def beam(ex, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3):
     """3-D frame element (Euler-Bernoulli) in the link frame: the force on the negative end
     (the positive end gets its opposite) and the moments on both ends."""
@@ -253,19 +247,18 @@ def from_link_matrix(axis, r00, r01, r02, r10, r11, r12, r20, r21, r22):
             -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
 
 
-# Per-link buffers are flat, one block per robot: robot r's links l0..l1 (m = l1 - l0) own
-# entries ROWS * l0 ... ROWS * l1 as ROWS rows of m values, so that row k of link l0 + j is
-# at ROWS * l0 + k * m + j. With unsigned indices LLVM sees rows as whole trip-counts apart
-# and proves the link loop free of dependences between iterations.
+# Per-link buffers are flat: ROWS rows of m values (m links), row k of link j at k * m + j.
+# With unsigned indices LLVM sees rows as whole trip counts apart and proves the link loop
+# free of dependences between iterations (a 2-D array's runtime row stride would not be).
 LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
 LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
 LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on the positive end
 
 
 @njit(**JIT)
-def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, link_in,
-                link_state, link_out):
-    """Beam forces of links l0..l1 of one robot, in world axes, into ``link_out``. Returns
+def link_kernel(fp, link_neg, link_pos, link_axis, pos, quat, size, link_in, link_state,
+                link_out):
+    """Beam forces of every link, in world axes, into ``link_out``. Returns
     how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
 
     Co-rotational: the frame follows the negative-side voxel while the bend is small and the
@@ -283,21 +276,17 @@ def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, link
     damp = fp[F_GAMMA] * 0.5 / fp[F_DT]
     a1, a2, b1, b2, b3 = fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3]
     inv_l = 1.0 / fp[F_L]
-    m = l1 - l0
+    m = len(link_neg)
     U = np.uint64
-    I0, I1, I2, I3 = U(12 * l0), U(12 * l0 + m), U(12 * l0 + 2 * m), U(12 * l0 + 3 * m)
-    I4, I5, I6, I7 = U(12 * l0 + 4 * m), U(12 * l0 + 5 * m), U(12 * l0 + 6 * m), U(12 * l0 + 7 * m)
-    I8, I9, I10, I11 = U(12 * l0 + 8 * m), U(12 * l0 + 9 * m), U(12 * l0 + 10 * m), U(12 * l0 + 11 * m)
-    S0, S1, S2, S3 = U(10 * l0), U(10 * l0 + m), U(10 * l0 + 2 * m), U(10 * l0 + 3 * m)
-    S4, S5, S6, S7 = U(10 * l0 + 4 * m), U(10 * l0 + 5 * m), U(10 * l0 + 6 * m), U(10 * l0 + 7 * m)
-    S8, S9 = U(10 * l0 + 8 * m), U(10 * l0 + 9 * m)
-    O0, O1, O2, O3 = U(9 * l0), U(9 * l0 + m), U(9 * l0 + 2 * m), U(9 * l0 + 3 * m)
-    O4, O5, O6, O7 = U(9 * l0 + 4 * m), U(9 * l0 + 5 * m), U(9 * l0 + 6 * m), U(9 * l0 + 7 * m)
-    O8 = U(9 * l0 + 8 * m)
+    I0, I1, I2, I3, I4, I5 = U(0), U(m), U(2 * m), U(3 * m), U(4 * m), U(5 * m)
+    I6, I7, I8, I9, I10, I11 = U(6 * m), U(7 * m), U(8 * m), U(9 * m), U(10 * m), U(11 * m)
+    S0, S1, S2, S3, S4 = I0, I1, I2, I3, I4  # the same row offsets, other buffers
+    S5, S6, S7, S8, S9 = I5, I6, I7, I8, I9
+    O0, O1, O2, O3, O4, O5, O6, O7, O8 = I0, I1, I2, I3, I4, I5, I6, I7, I8
     for j in range(m):  # gather: the one loop with indirect access
         J = U(j)
-        i = link_neg[l0 + j]
-        k = link_pos[l0 + j]
+        i = link_neg[j]
+        k = link_pos[j]
         link_in[I0 + J], link_in[I1 + J] = quat[i, 0], quat[i, 1]
         link_in[I2 + J], link_in[I3 + J] = quat[i, 2], quat[i, 3]
         link_in[I4 + J], link_in[I5 + J] = quat[k, 0], quat[k, 1]
@@ -309,7 +298,7 @@ def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, link
     bad = 0
     for j in range(m):
         J = U(j)
-        ax = link_axis[l0 + j]
+        ax = link_axis[j]
         qw, qx, qy, qz = link_in[I0 + J], link_in[I1 + J], link_in[I2 + J], link_in[I3 + J]
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
         wx, wy, wz = link_in[I8 + J], link_in[I9 + J], link_in[I10 + J]
@@ -400,54 +389,53 @@ def link_kernel(l0, l1, fp, link_neg, link_pos, link_axis, pos, quat, size, link
 
 
 @njit(**JIT)
-def link_sums(v0, v1, l0, l1, vlink, link_out, force, moment):
-    """Force and moment on voxels v0..v1 from their links l0..l1 (overwrites the rows).
+def link_sums(vlink, link_out, force, moment):
+    """Force and moment on every voxel from its links (overwrites ``force``/``moment``).
 
     ``vlink[v, 2a + 1]`` is the link on v's +a face (v its negative end), ``vlink[v, 2a]`` the
     one on its -a face (v its positive end); -1 where there is none.
     """
-    m = l1 - l0
-    for v in range(v0, v1):
+    m = len(link_out) // LINK_OUT_ROWS
+    for v in range(len(vlink)):
         fx = fy = fz = mx = my = mz = 0.0
         for a in range(3):
             p = vlink[v, 2 * a + 1]
             n = vlink[v, 2 * a]
             if p >= 0:
-                q = 9 * l0 + p - l0
-                fx += link_out[q]
-                fy += link_out[q + m]
-                fz += link_out[q + 2 * m]
-                mx += link_out[q + 3 * m]
-                my += link_out[q + 4 * m]
-                mz += link_out[q + 5 * m]
+                fx += link_out[p]
+                fy += link_out[p + m]
+                fz += link_out[p + 2 * m]
+                mx += link_out[p + 3 * m]
+                my += link_out[p + 4 * m]
+                mz += link_out[p + 5 * m]
             if n >= 0:
-                q = 9 * l0 + n - l0
-                fx -= link_out[q]
-                fy -= link_out[q + m]
-                fz -= link_out[q + 2 * m]
-                mx += link_out[q + 6 * m]
-                my += link_out[q + 7 * m]
-                mz += link_out[q + 8 * m]
+                fx -= link_out[n]
+                fy -= link_out[n + m]
+                fz -= link_out[n + 2 * m]
+                mx += link_out[n + 6 * m]
+                my += link_out[n + 7 * m]
+                mz += link_out[n + 8 * m]
         force[v, 0], force[v, 1], force[v, 2] = fx, fy, fz
         moment[v, 0], moment[v, 1], moment[v, 2] = mx, my, mz
 
 
 # ---------------------------------------------------------------- self-collisions
 @njit(**JIT)
-def collision_pairs(s0, s1, p0, p1, surface, pos, nbr, reach, pairs):
-    """Candidate pairs of unbonded surface voxels closer than ``reach`` (sweep along x)."""
-    ns = s1 - s0
+def collision_pairs(surface, pos, nbr, reach, pairs):
+    """Candidate pairs of unbonded surface voxels closer than ``reach`` (sweep along x), into
+    ``pairs``; returns how many (at most its length)."""
+    ns = len(surface)
     xs = np.empty(ns)
     for a in range(ns):
-        xs[a] = pos[surface[s0 + a], 0]
+        xs[a] = pos[surface[a], 0]
     order = np.argsort(xs)
     count = 0
-    cap = p1 - p0
+    cap = len(pairs)
     reach2 = reach * reach
     for a in range(ns):
-        i = surface[s0 + order[a]]
+        i = surface[order[a]]
         for b in range(a + 1, ns):
-            j = surface[s0 + order[b]]
+            j = surface[order[b]]
             dx = pos[j, 0] - pos[i, 0]
             if dx > reach:
                 break
@@ -457,19 +445,19 @@ def collision_pairs(s0, s1, p0, p1, surface, pos, nbr, reach, pairs):
                     nbr[i, 0] == j or nbr[i, 1] == j or nbr[i, 2] == j or nbr[i, 3] == j
                     or nbr[i, 4] == j or nbr[i, 5] == j):  # not bonded
                 if count < cap:
-                    pairs[p0 + count, 0] = i
-                    pairs[p0 + count, 1] = j
+                    pairs[count, 0] = i
+                    pairs[count, 1] = j
                     count += 1
     return count
 
 
 @njit(**JIT)
-def collision_forces(p0, count, pairs, pos, lin_mom, size, fp, force):
+def collision_forces(count, pairs, pos, lin_mom, size, fp, force):
     """Penalty contact between unbonded voxels: equal and opposite, so momentum is kept."""
     k = fp[F_KFLOOR]  # harmonic mean of the two voxels' 2 E L: the same for one material
     c = fp[F_CCOLL]
     inv_m = 1.0 / fp[F_MASS]
-    for q in range(p0, p0 + count):
+    for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
         dx = pos[j, 0] - pos[i, 0]
         dy = pos[j, 1] - pos[i, 1]
@@ -492,10 +480,10 @@ def collision_forces(p0, count, pairs, pos, lin_mom, size, fp, force):
 
 # ---------------------------------------------------------------- voxels
 @njit(**JIT)
-def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, moment, pos, quat,
+def integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, quat,
               lin_mom, ang_mom):
     """World forces (gravity, damping, floor and friction, drag) and one semi-implicit Euler
-    step for voxels v0..v1. Returns the largest squared speed of a voxel after the step, or
+    step for every voxel. Returns the largest squared speed of a voxel after the step, or
     -1 if any voxel left the sane range (or went NaN)."""
     m, inertia, dt = fp[F_MASS], fp[F_INERTIA], fp[F_DT]
     inv_m, inv_i = 1.0 / m, 1.0 / inertia
@@ -503,7 +491,7 @@ def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, momen
     c_lin, c_ang, mu_s, mu_k, drag = fp[F_CGLIN], fp[F_CGANG], fp[F_MUS], fp[F_MUK], fp[F_DRAG]
     ok = True
     speed2 = 0.0
-    for v in range(v0, v1):
+    for v in range(len(pos)):
         if flags[v] & FLAG_FIXED:
             lin_mom[v, 0] = lin_mom[v, 1] = lin_mom[v, 2] = 0.0
             ang_mom[v, 0] = ang_mom[v, 1] = ang_mom[v, 2] = 0.0
@@ -580,12 +568,12 @@ def integrate(v0, v1, fp, env, flags, ext_force, nbr, size, static, force, momen
 
 # ---------------------------------------------------------------- the rollout
 @njit(**JIT)
-def com(v0, v1, pos, out, row):
-    """Centre of mass (one material: the mean position) of voxels v0..v1 into out[row, 1:4]."""
-    n = v1 - v0
+def com(pos, out, row):
+    """Centre of mass (one material: the mean position) into out[row, 1:4]."""
+    n = len(pos)
     for c in range(3):
         acc = 0.0
-        for v in range(v0, v1):
+        for v in range(n):
             acc += pos[v, c]
         out[row, 1 + c] = acc / n
 
@@ -599,16 +587,6 @@ def robot_work(n_voxels, n_links, n_pairs):
             np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
             np.zeros(LINK_IN_ROWS * n_links), np.zeros(LINK_STATE_ROWS * n_links),
             np.zeros(LINK_OUT_ROWS * n_links))
-
-
-@njit(**INLINE)
-def local_index(a, offset):
-    """Global indices to one robot's (-1 stays -1)."""
-    out = a.copy()
-    for k in range(out.size):
-        v = out.flat[k]
-        out.flat[k] = v - offset if v >= 0 else -1
-    return out
 
 
 @njit(**JIT)
@@ -627,9 +605,9 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     flags, ext_force = batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy()
     cos_phase, sin_phase = batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy()
     phase = batch.phase[v0:v1].copy()
-    nbr, vlink = local_index(batch.nbr[v0:v1], v0), local_index(batch.vlink[v0:v1], l0)
-    link_neg, link_pos = batch.link_neg[l0:l1] - v0, batch.link_pos[l0:l1] - v0
-    link_axis, surface = batch.link_axis[l0:l1].copy(), batch.surface[s0:s1] - v0
+    nbr, vlink = batch.nbr[v0:v1].copy(), batch.vlink[v0:v1].copy()
+    link_neg, link_pos = batch.link_neg[l0:l1].copy(), batch.link_pos[l0:l1].copy()
+    link_axis, surface = batch.link_axis[l0:l1].copy(), batch.surface[s0:s1].copy()
     pos, quat = state.pos[v0:v1].copy(), state.quat[v0:v1].copy()
     lin_mom, ang_mom = state.lin_mom[v0:v1].copy(), state.ang_mom[v0:v1].copy()
     size, force, moment, static, pairs, link_in, link_state, link_out = robot_work(
@@ -654,22 +632,21 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
                     frames[f, v0 + v, c] = pos[v, c]
         if step >= settle and (step - settle) % com_every == 0 and n_com < traj.shape[0] - 1:
             traj[n_com, 0] = step * dt
-            com(0, n, pos, traj, n_com)
+            com(pos, traj, n_com)
             n_com += 1
         if step == steps:
             break
-        actuate(0, n, (step - settle) * dt, fp, wave, flags, cos_phase, sin_phase, phase, size)
-        bad = link_kernel(0, m, fp, link_neg, link_pos, link_axis, pos, quat, size, link_in,
+        actuate((step - settle) * dt, fp, wave, flags, cos_phase, sin_phase, phase, size)
+        bad = link_kernel(fp, link_neg, link_pos, link_axis, pos, quat, size, link_in,
                           link_state, link_out)
-        link_sums(0, n, 0, m, vlink, link_out, force, moment)
+        link_sums(vlink, link_out, force, moment)
         if collide:
             if 2.0 * travel >= margin:  # two voxels may have closed the margin: rebuild
-                n_pairs = collision_pairs(0, len(surface), 0, len(pairs), surface, pos, nbr,
-                                          reach, pairs)
+                n_pairs = collision_pairs(surface, pos, nbr, reach, pairs)
                 travel = 0.0
-            collision_forces(0, n_pairs, pairs, pos, lin_mom, size, fp, force)
-        speed2 = integrate(0, n, fp, env, flags, ext_force, nbr, size, static, force, moment, pos,
-                           quat, lin_mom, ang_mom)
+            collision_forces(n_pairs, pairs, pos, lin_mom, size, fp, force)
+        speed2 = integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, quat,
+                           lin_mom, ang_mom)
         travel += math.sqrt(max(speed2, 0.0)) * dt
         if bad:
             code, done = STATUS_STRAIN, step + 1
@@ -679,7 +656,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
             break
     # always keep the final centre of mass as the last sample
     traj[n_com, 0] = done * dt
-    com(0, n, pos, traj, n_com)
+    com(pos, traj, n_com)
     com_traj[r, : n_com + 1] = traj[: n_com + 1]
     com_count[r] = n_com + 1
     status[r], steps_done[r] = code, done

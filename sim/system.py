@@ -75,7 +75,9 @@ class Robot(NamedTuple):
 
 
 class Batch(NamedTuple):
-    """Many robots concatenated; robot r owns voxels voff[r]:voff[r+1] and so on."""
+    """Many robots concatenated; robot r owns voxels voff[r]:voff[r+1] and so on. Index
+    arrays (nbr, link_neg, link_pos, vlink, surface) stay local to their robot: each robot's
+    run takes its own slices."""
 
     voff: np.ndarray  # (R + 1,) int64
     loff: np.ndarray  # (R + 1,) int64
@@ -86,12 +88,12 @@ class Batch(NamedTuple):
     sin_phase: np.ndarray
     phase: np.ndarray
     ext_force: np.ndarray
-    nbr: np.ndarray  # global voxel indices
-    link_neg: np.ndarray  # global voxel indices
+    nbr: np.ndarray  # voxel indices within the robot (-1: exposed face)
+    link_neg: np.ndarray  # voxel indices within the robot
     link_pos: np.ndarray
     link_axis: np.ndarray
-    vlink: np.ndarray  # global link indices (-1: no link on that face)
-    surface: np.ndarray  # global voxel indices
+    vlink: np.ndarray  # link indices within the robot (-1: no link on that face)
+    surface: np.ndarray  # voxel indices within the robot
     fparams: np.ndarray  # (R, N_FPARAMS)
     iparams: np.ndarray  # (R, N_IPARAMS)
 
@@ -204,11 +206,9 @@ def _offsets(counts) -> np.ndarray:
 def pack(robots: list[Robot]) -> tuple[Batch, State]:
     """Concatenate robots into one Batch and its initial State."""
     voff = _offsets([len(r.pos) for r in robots])
-    loff = _offsets([len(r.link_neg) for r in robots])
-    shift = lambda arr, r: np.where(arr >= 0, arr + voff[r], -1)  # noqa: E731
     batch = Batch(
         voff=voff,
-        loff=loff,
+        loff=_offsets([len(r.link_neg) for r in robots]),
         soff=_offsets([len(r.surface) for r in robots]),
         poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
         flags=np.concatenate([r.flags for r in robots]),
@@ -216,13 +216,12 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         sin_phase=np.concatenate([np.sin(r.phase) for r in robots]),
         phase=np.concatenate([r.phase for r in robots]),
         ext_force=np.concatenate([r.ext_force for r in robots]),
-        nbr=np.concatenate([shift(r.nbr, k) for k, r in enumerate(robots)]),
-        link_neg=np.concatenate([r.link_neg + voff[k] for k, r in enumerate(robots)]),
-        link_pos=np.concatenate([r.link_pos + voff[k] for k, r in enumerate(robots)]),
+        nbr=np.concatenate([r.nbr for r in robots]),
+        link_neg=np.concatenate([r.link_neg for r in robots]),
+        link_pos=np.concatenate([r.link_pos for r in robots]),
         link_axis=np.concatenate([r.link_axis for r in robots]),
-        vlink=np.concatenate([np.where(r.vlink >= 0, r.vlink + loff[k], -1)
-                              for k, r in enumerate(robots)]),
-        surface=np.concatenate([r.surface + voff[k] for k, r in enumerate(robots)]),
+        vlink=np.concatenate([r.vlink for r in robots]),
+        surface=np.concatenate([r.surface for r in robots]),
         fparams=np.stack([r.fparams for r in robots]),
         iparams=np.stack([r.iparams for r in robots]),
     )

@@ -44,9 +44,9 @@ def _link_forces(batch, fp, pos, quat, size, work, force, moment):
     The sums are also checked against a NumPy scatter of the per-link forces."""
     m, n = len(batch.link_neg), len(pos)
     link_in, link_state, link_out = work[-3:]
-    bad = kernels.link_kernel(0, m, fp, batch.link_neg, batch.link_pos, batch.link_axis, pos,
-                              quat, size, link_in, link_state, link_out)
-    kernels.link_sums(0, n, 0, m, batch.vlink, link_out, force, moment)
+    bad = kernels.link_kernel(fp, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
+                              size, link_in, link_state, link_out)
+    kernels.link_sums(batch.vlink, link_out, force, moment)
     out = link_out.reshape(9, m)
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
     np.add.at(f, batch.link_neg, out[0:3].T)
@@ -112,7 +112,7 @@ def test_trajectory_matches_numpy(env):
     small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, len(batch.link_neg)))
     for _ in range(60):
         _link_forces(batch, fp, mine.pos, mine.quat, size, work, _f, _m)
-        kernels.integrate(0, n, fp, ENVS[env], batch.flags, batch.ext_force, batch.nbr, size,
+        kernels.integrate(fp, ENVS[env], batch.flags, batch.ext_force, batch.nbr, size,
                           static, _f, _m, mine.pos, mine.quat, mine.lin_mom, mine.ang_mom)
         ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env])
     np.testing.assert_array_equal(static, static_ref)
@@ -128,7 +128,7 @@ def test_actuation_matches_numpy(wave):
     size = np.zeros(n)
     fp = batch.fparams[0]
     for t in rng.uniform(0, 2, 5):
-        kernels.actuate(0, n, t, fp, system.WAVE_CODES[wave], batch.flags, batch.cos_phase,
+        kernels.actuate(t, fp, system.WAVE_CODES[wave], batch.flags, batch.cos_phase,
                         batch.sin_phase, batch.phase, size)
         angle = fp[system.F_OMEGA] * t + batch.phase
         if wave == "sine":
@@ -141,7 +141,7 @@ def test_actuation_matches_numpy(wave):
         active = (batch.flags & system.FLAG_ACTIVE) > 0
         expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
         np.testing.assert_allclose(size, expected, rtol=1e-12)
-    kernels.actuate(0, n, -0.1, fp, 0, batch.flags, batch.cos_phase, batch.sin_phase,
+    kernels.actuate(-0.1, fp, 0, batch.flags, batch.cos_phase, batch.sin_phase,
                     batch.phase, size)
     assert np.all(size == 0.05), "no actuation while settling"
 
@@ -159,8 +159,7 @@ def test_collision_pairs_and_forces_match_brute_force():
     size, force, _m, _s, pairs = _work(batch, n)[:5]
     size[:] = 0.05
     reach = 0.06
-    count = kernels.collision_pairs(0, len(batch.surface), 0, len(pairs), batch.surface,
-                                    state.pos, batch.nbr, reach, pairs)
+    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, reach, pairs)
     got = {tuple(sorted(p)) for p in pairs[:count]}
     want = set()
     surf = batch.surface
@@ -171,7 +170,7 @@ def test_collision_pairs_and_forces_match_brute_force():
                 want.add(tuple(sorted((i, j))))
     assert got == want and len(want) > 0
     force[:] = 0.0
-    kernels.collision_forces(0, count, pairs, state.pos, state.lin_mom, size,
+    kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size,
                              batch.fparams[0], force)
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12)
     touching = [(i, j) for i, j in want
