@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import matplotlib
 import numpy as np
 import pytest
 from matplotlib import animation
@@ -77,8 +78,9 @@ def test_show_command_writes_a_gif(capsys, tiny, best, tmp_path):
     assert out.stat().st_size > 0 and stdout.startswith(f"{out}: individual {individual}")
 
 
-@pytest.mark.skipif(animation.writers.is_available("ffmpeg"), reason="ffmpeg is installed")
-def test_show_mp4_without_ffmpeg_is_a_clear_error(capsys, tiny, best, tmp_path):
+def test_show_mp4_without_ffmpeg_is_a_clear_error(capsys, tiny, best, tmp_path, monkeypatch):
+    monkeypatch.setitem(matplotlib.rcParams, "animation.ffmpeg_path", str(tmp_path / "no-ffmpeg"))
+    assert not animation.writers.is_available("ffmpeg")
     individual = str(int(best["individual_id"]))
     code, _, err = softevo(capsys, "show", individual, "--out", str(tmp_path / "m.mp4"), "--db", tiny.url)
     assert code == 2 and "MP4 needs ffmpeg" in err
