@@ -4,7 +4,7 @@ Public API: ``simulate``, ``simulate_many``, ``parse_scene``, ``Scene``, ``Scene
 ``Result``. See SPEC.md section 1 and docs/contracts.md.
 """
 
-from sim.engine import Result, simulate, simulate_many
-from sim.scene import Scene, SceneError, parse_scene
+from .engine import Result, simulate, simulate_many
+from .scene import Scene, SceneError, parse_scene
 
 __all__ = ["Result", "Scene", "SceneError", "parse_scene", "simulate", "simulate_many"]

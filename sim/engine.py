@@ -13,9 +13,9 @@ from typing import Any
 import numba
 import numpy as np
 
-from sim import kernels
-from sim.scene import Scene, parse_scene
-from sim.system import (
+from . import kernels
+from .scene import Scene, parse_scene
+from .system import (
     COM_SAMPLES,
     F_DT,
     F_L,

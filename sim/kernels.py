@@ -21,7 +21,7 @@ import llvmlite.binding
 import numpy as np
 from numba import njit, prange
 
-from sim.system import (
+from .system import (
     F_A1,
     F_A2,
     F_AMP,

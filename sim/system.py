@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import ndimage
 
-from sim.scene import Scene
+from .scene import Scene
 
 # Columns of the per-robot float parameter table ``fparams``.
 F_L, F_MASS, F_INERTIA, F_A1, F_A2, F_B1, F_B2, F_B3, F_GAMMA = range(9)
