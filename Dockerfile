@@ -12,6 +12,7 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
 # site-packages, where the migrations are package data.
 WORKDIR /src
 COPY pyproject.toml README.md ./
+COPY softevo ./softevo
 COPY sim ./sim
 COPY evolution ./evolution
 COPY service ./service
@@ -24,7 +25,7 @@ RUN pip install ".[postgres]" && rm -rf /src
 WORKDIR /data
 RUN useradd --create-home --uid 1000 softevo \
     && mkdir -p "$NUMBA_CACHE_DIR" /data/reports \
-    && python -c "from worker.rq_worker import warm; warm()" \
+    && python -c "from softevo.worker.rq_worker import warm; warm()" \
     && chown -R softevo "$NUMBA_CACHE_DIR" /data
 USER softevo
 

@@ -30,10 +30,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
-from sqlalchemy import Connection, Engine, and_, or_, select
-
-from service.db.export import INDIVIDUAL_COLUMNS, evaluation_rows, runs_frame
-from service.db.models import (
+from softevo.service.db.export import INDIVIDUAL_COLUMNS, evaluation_rows, runs_frame
+from softevo.service.db.models import (
     TRAITS,
     Evaluation,
     Experiment,
@@ -43,7 +41,9 @@ from service.db.models import (
     Run,
     Treatment,
 )
-from service.errors import UserError
+from sqlalchemy import Connection, Engine, and_, or_, select
+
+from softevo.errors import UserError
 
 TRAIT_LABELS = {
     "distance": "distance (voxel lengths)",
@@ -111,7 +111,7 @@ def _experiment_row(conn: Connection, experiment_id: int) -> dict[str, Any]:
 
 
 def _treatments_frame(conn: Connection, experiment_id: int) -> pd.DataFrame:
-    from service.treatments import Treatment as Settings
+    from softevo.service.treatments import Treatment as Settings
 
     table = Treatment.__table__
     rows = conn.execute(
@@ -240,8 +240,8 @@ def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
     """The stored individual (id, run_id, genome, generation_born, ...), its run's treatment
     (``service.treatments.Treatment``) and seed, and its evaluations (a DataFrame, oldest
     first). UserError if there is no such individual."""
-    from service.db.store import run_row
-    from service.treatments import Treatment as Settings
+    from softevo.service.db.store import run_row
+    from softevo.service.treatments import Treatment as Settings
 
     table = Individual.__table__
     with engine.connect() as conn:

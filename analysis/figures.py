@@ -25,10 +25,9 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
-
-from analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
-from analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
-from analysis.stats_tables import ALPHA, best_distance_per_run, ci_table  # noqa: E402
+from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
+from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
+from softevo.analysis.stats_tables import ALPHA, best_distance_per_run, ci_table  # noqa: E402
 
 DPI = 100
 ENVIRONMENT_ORDER = ("land", "water", "land-water", "water-land")
@@ -270,7 +269,7 @@ def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path)
 def pareto_front(frame: pd.DataFrame) -> pd.DataFrame:
     """Rows of ``frame`` not dominated on (max distance, min active_share), sorted by
     active_share; duplicates of a front point are all kept."""
-    from evolution.selection import non_dominated_sort
+    from softevo.evolution.selection import non_dominated_sort
 
     valid = frame.dropna(subset=["distance", "active_share"])
     if valid.empty:
@@ -415,7 +414,7 @@ def front_samples(front: pd.DataFrame, k: int = SAMPLES_PER_FRONT) -> pd.DataFra
 def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
     """3-D renders of robots sampled from each treatment's aggregated front (active voxels
     red, passive cyan), with their distance and active share."""
-    from analysis.robots import phenotypes
+    from softevo.analysis.robots import phenotypes
 
     final = data.final_populations()
     names = data.treatment_names

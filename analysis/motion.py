@@ -22,10 +22,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import animation  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+from softevo.analysis.render import ACTIVE_COLOR, EDGE_COLOR, PASSIVE_COLOR, VIEW  # noqa: E402
 from sqlalchemy import Engine  # noqa: E402
 
-from analysis.render import ACTIVE_COLOR, EDGE_COLOR, PASSIVE_COLOR, VIEW  # noqa: E402
-from service.errors import UserError  # noqa: E402
+from softevo.errors import UserError  # noqa: E402
 
 FORMATS = (".gif", ".mp4")
 PLAYBACK_FPS = 20
@@ -70,9 +70,10 @@ class Motion:
 
 def record_motion(engine: Engine, individual_id: int, environment: str | None = None) -> Motion:
     """Re-simulate a stored individual with frames recorded (see the module doc)."""
-    import sim
-    from analysis.robots import individual_scene
-    from service.cli_sim import _default_record_every
+    from softevo.analysis.robots import individual_scene
+    from softevo.service.cli_sim import _default_record_every
+
+    from softevo import sim
 
     scene, record = individual_scene(engine, individual_id, environment)
     scene["record"] = {"every": _default_record_every(scene)}

@@ -26,18 +26,18 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import Connection, Engine
-
-from analysis import figures as fig
-from analysis.data import TRAIT_LABELS, ExperimentData, load_experiment
-from analysis.stats_tables import (
+from softevo.analysis import figures as fig
+from softevo.analysis.data import TRAIT_LABELS, ExperimentData, load_experiment
+from softevo.analysis.stats_tables import (
     CURVE_RESAMPLES,
     N_RESAMPLES,
     fitness_curves,
     statistics_table,
     summary_table,
 )
-from service.errors import UserError
+from sqlalchemy import Connection, Engine
+
+from softevo.errors import UserError
 
 METHODS = (
     "Confidence intervals: percentile bootstrap of the mean over repetitions "
@@ -269,7 +269,7 @@ def engine_of(source: str | Engine | Connection | Any | None) -> Engine:
     if isinstance(source, Connection):
         return source.engine
     if source is None or isinstance(source, str):
-        from service.db import open_database
+        from softevo.service.db import open_database
 
         return open_database(source)
     if hasattr(source, "get_bind"):
@@ -305,7 +305,7 @@ def write_report(
     ``service.db.store.resolve_experiment``) into
     ``out_dir`` (see the module doc). ``source``: a database URL, Engine, Connection or
     Session. ``seed`` seeds the bootstrap."""
-    from service.db.store import resolve_experiment
+    from softevo.service.db.store import resolve_experiment
 
     engine = engine_of(source)
     with engine.connect() as conn:
@@ -365,8 +365,9 @@ def _figure_makers(data, engine, stats, curves, rng, figures_dir):
 def evaluation_text(engine: Engine, data: ExperimentData) -> str | None:
     """The physics and encoding every evaluation used, read from one stored individual's
     scene (the same for all but stiffness, cycles and environment, given per treatment)."""
-    import sim
-    from analysis.robots import encoding_of, individual_scene
+    from softevo.analysis.robots import encoding_of, individual_scene
+
+    from softevo import sim
 
     best = best_individual(data)
     if best is None:
@@ -400,7 +401,7 @@ def best_individual(data: ExperimentData) -> dict[str, Any] | None:
 
 def _best_animation(engine: Engine, data: ExperimentData, out_dir: Path) -> Path | None:
     """A GIF of the best final robot; None (the report says so) if it cannot be made."""
-    from analysis.motion import animate, record_motion
+    from softevo.analysis.motion import animate, record_motion
 
     best = best_individual(data)
     if best is None:

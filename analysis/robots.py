@@ -11,18 +11,18 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+from softevo.analysis.data import individual_record
+from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
+from softevo.service.db.models import Individual, Run, Treatment
+from softevo.service.treatments import Treatment as Settings
 from sqlalchemy import Engine, select
 
-from analysis.data import individual_record
-from evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
-from service.db.models import Individual, Run, Treatment
-from service.errors import UserError
-from service.treatments import Treatment as Settings
+from softevo.errors import UserError
 
 
 def encoding_of(treatment: Settings, seed: int = 0) -> EncodingConfig:
     """The encoding the run of ``treatment`` expressed its genomes with."""
-    from service.experiments import evolution_config
+    from softevo.service.experiments import evolution_config
 
     return evolution_config(treatment, seed).encoding
 

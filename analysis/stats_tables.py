@@ -26,9 +26,8 @@ from itertools import combinations
 
 import numpy as np
 import pandas as pd
-
-from analysis.data import TRAITS, ExperimentData
-from evolution.stats import bonferroni, bootstrap_ci, mann_whitney
+from softevo.analysis.data import TRAITS, ExperimentData
+from softevo.evolution.stats import bonferroni, bootstrap_ci, mann_whitney
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 10_000

@@ -262,7 +262,7 @@ def _vxc(scene, indent: str) -> list[str]:
 
 def scene_to_vxa(scene: dict[str, Any]) -> str:
     """The ``.vxa`` document of a simulator scene (SPEC.md section 1 schema)."""
-    import sim
+    from softevo import sim
 
     parsed = sim.parse_scene(scene)
     lines = [
@@ -286,7 +286,7 @@ def write_vxa(scene: dict[str, Any], out: str | Path) -> Path:
 def individual_vxa(engine, individual_id: int, environment: str | None = None) -> str:
     """The ``.vxa`` document of a stored individual, in the environment of its latest
     evaluation unless ``environment`` is given."""
-    from analysis.robots import individual_scene
+    from softevo.analysis.robots import individual_scene
 
     scene, _ = individual_scene(engine, individual_id, environment)
     return scene_to_vxa(scene)

@@ -23,12 +23,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from service.coordinator import Coordinator, ask, load_run
-from service.db import open_database
-from service.executors import LocalExecutor
-from service.experiments import create
-from service.treatments import Treatment
+from softevo.service.coordinator import Coordinator, ask, load_run
+from softevo.service.db import open_database
+from softevo.service.executors import LocalExecutor
+from softevo.service.experiments import create
+from softevo.service.treatments import Treatment
 
 
 class InstantExecutor:
@@ -130,7 +129,7 @@ def overheads(args, folder: Path) -> None:
 def timed_batch(tasks: list[dict]) -> list[dict]:
     """``evaluate_batch`` that also reports its whole time (expression, simulation,
     descriptors) as ``job_seconds`` per result."""
-    from worker.evaluate import evaluate_batch
+    from softevo.worker.evaluate import evaluate_batch
 
     start = time.perf_counter()
     results = evaluate_batch(tasks)

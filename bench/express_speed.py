@@ -10,10 +10,9 @@ from __future__ import annotations
 import timeit
 
 import numpy as np
-
-from evolution.cppn import CPPN, express, minimal_cppn
-from evolution.genotype import EncodingConfig, Genotype, develop
-from evolution.mutation import add_link, add_node
+from softevo.evolution.cppn import CPPN, express, minimal_cppn
+from softevo.evolution.genotype import EncodingConfig, Genotype, develop
+from softevo.evolution.mutation import add_link, add_node
 
 WORKSPACE = (7, 7, 7)
 

@@ -30,10 +30,9 @@ from pathlib import Path
 
 import numpy as np
 from redis import Redis
-
-from evolution.genotype import EncodingConfig, random_viable_genotype
-from service.executors import LocalExecutor
-from service.rq_executor import Batch, RQExecutor
+from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
+from softevo.service.executors import LocalExecutor
+from softevo.service.rq_executor import Batch, RQExecutor
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -111,7 +110,7 @@ def start_workers(n: int, redis_url: str, queue: str) -> list[subprocess.Popen]:
     env = {**os.environ, "SOFTEVO_REDIS_URL": redis_url, "SOFTEVO_QUEUE": queue}
     return [
         subprocess.Popen(
-            [sys.executable, "-m", "service.cli", "worker", "--name", f"bench-{queue}-{i}"],
+            [sys.executable, "-m", "softevo.service.cli", "worker", "--name", f"bench-{queue}-{i}"],
             cwd=REPO,
             env=env,
             stdout=subprocess.DEVNULL,

@@ -14,7 +14,7 @@ import time
 import numba
 import numpy as np
 
-import sim
+from softevo import sim
 
 VOXELYZE = 2.8e6
 

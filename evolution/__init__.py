@@ -12,12 +12,12 @@ Main entry points:
 - ``run``: a local run loop (``evolution.runner``).
 """
 
-from evolution.afpo import Evolution, EvolutionConfig
-from evolution.cppn import CPPN, express
-from evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
-from evolution.individual import Evaluation, Individual
-from evolution.runner import run
-from evolution.selection import Objective, crowding_distance, non_dominated_sort
+from softevo.evolution.afpo import Evolution, EvolutionConfig
+from softevo.evolution.cppn import CPPN, express
+from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
+from softevo.evolution.individual import Evaluation, Individual
+from softevo.evolution.runner import run
+from softevo.evolution.selection import Objective, crowding_distance, non_dominated_sort
 
 __all__ = [
     "CPPN",
@@ -40,7 +40,7 @@ __all__ = [
 
 def __getattr__(name: str):
     if name == "describe":
-        from evolution.descriptors import describe
+        from softevo.evolution.descriptors import describe
 
         return describe
     raise AttributeError(f"module 'evolution' has no attribute {name!r}")

@@ -28,14 +28,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from evolution.genotype import (
+from softevo.evolution.genotype import (
     EncodingConfig,
     mutate_genotype,
     random_viable_genotype,
 )
-from evolution.individual import FAILED_DISTANCE, Evaluation, Individual
-from evolution.selection import (
+from softevo.evolution.individual import FAILED_DISTANCE, Evaluation, Individual
+from softevo.evolution.selection import (
     AGE_OBJECTIVE,
     PAPER_OBJECTIVES,
     Objective,
@@ -217,7 +216,7 @@ class Evolution:
         ind.stable, ind.error = evaluation.stable, evaluation.error
         ind.evaluated_generation = self.generation
         if self.config.descriptors and phenotype.voxel_count:
-            from evolution.descriptors import describe_phenotype
+            from softevo.evolution.descriptors import describe_phenotype
 
             ind.descriptors = describe_phenotype(phenotype)
 

@@ -29,9 +29,8 @@ from typing import Any
 
 import numpy as np
 from scipy import ndimage
-
-from evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
-from evolution.mutation import mutate_cppn
+from softevo.evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
+from softevo.evolution.mutation import mutate_cppn
 
 FACE_CONNECTIVITY = ndimage.generate_binary_structure(3, 1)
 
@@ -235,7 +234,7 @@ def random_cppn(
 ) -> CPPN:
     """A newcomer: inputs fully linked to outputs (weights U(-1, 1)), then a few structural
     mutations (``initial_hidden_nodes`` node additions, ``initial_links`` link additions)."""
-    from evolution.mutation import add_link, add_node
+    from softevo.evolution.mutation import add_link, add_node
 
     cppn = minimal_cppn(output_names, rng.uniform(-1, 1, (len(INPUT_NAMES), len(output_names))))
     for _ in range(config.initial_hidden_nodes):

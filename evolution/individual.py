@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
+from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
 
 FAILED_DISTANCE = 0.0
 """Distance given to a failed or unstable evaluation (the simulator's own convention).

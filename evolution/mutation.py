@@ -11,8 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-
-from evolution.cppn import CPPN, HIDDEN_ACTIVATIONS, Link, Node
+from softevo.evolution.cppn import CPPN, HIDDEN_ACTIVATIONS, Link, Node
 
 WEIGHT_SIGMA = 0.5
 """Standard deviation of the Gaussian added by a weight change."""

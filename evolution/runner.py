@@ -12,9 +12,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-
-from evolution.afpo import Evolution, EvolutionConfig
-from evolution.individual import Individual
+from softevo.evolution.afpo import Evolution, EvolutionConfig
+from softevo.evolution.individual import Individual
 
 Evaluate = Callable[[list[dict[str, Any]]], Sequence[Any]]
 OnGeneration = Callable[[Evolution], None]

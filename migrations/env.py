@@ -7,8 +7,7 @@ the engine from ``SOFTEVO_DB`` like the CLI does.
 from __future__ import annotations
 
 from alembic import context
-
-from service.db.models import Base
+from softevo.service.db.models import Base
 
 config = context.config
 target_metadata = Base.metadata
@@ -17,7 +16,7 @@ target_metadata = Base.metadata
 def _engine():
     engine = config.attributes.get("engine")
     if engine is None:
-        from service.db.engine import make_engine
+        from softevo.service.db.engine import make_engine
 
         engine = make_engine(config.get_main_option("sqlalchemy.url") or None)
     return engine

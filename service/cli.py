@@ -23,8 +23,9 @@ app = typer.Typer(
 
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
-    from service.errors import UserError
-    from sim.scene import SceneError
+    from softevo.sim.scene import SceneError
+
+    from softevo.errors import UserError
 
     return (UserError, SceneError)
 
@@ -35,7 +36,7 @@ def _group() -> None:
 
 
 def _register() -> None:
-    from service import cli_analysis, cli_dashboard, cli_evolution, cli_runs, cli_service, cli_sim
+    from softevo.service import cli_analysis, cli_dashboard, cli_evolution, cli_runs, cli_service, cli_sim
 
     for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard):
         module.register(app)

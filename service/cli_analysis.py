@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from softevo.service.cli_runs import DbOption
 
-from service.cli_runs import DbOption
-from service.errors import UserError
+from softevo.errors import UserError
 
 EnvironmentOption = Annotated[
     str | None,
@@ -38,7 +38,7 @@ def report(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Write an experiment's report: report.html (self-contained), report.md, figures, CSVs."""
-    from analysis.report import write_report
+    from softevo.analysis.report import write_report
 
     result = write_report(db, experiment, out, animation=animation, progress=not quiet)
     typer.echo(str(result.html))
@@ -54,8 +54,8 @@ def show(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Animate a stored individual's evaluated motion (re-simulated, frames recorded)."""
-    from analysis.motion import animate, movie_writer, record_motion
-    from service.db import open_database
+    from softevo.analysis.motion import animate, movie_writer, record_motion
+    from softevo.service.db import open_database
 
     if fps < 1:
         raise UserError(f"--fps must be >= 1 (got {fps})")
@@ -74,8 +74,8 @@ def export_vxa(
     db: DbOption = None,
 ) -> None:
     """Write a stored individual as a VoxCAD .vxa file."""
-    from analysis.vxa import individual_vxa
-    from service.db import open_database
+    from softevo.analysis.vxa import individual_vxa
+    from softevo.service.db import open_database
 
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")

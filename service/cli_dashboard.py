@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 
 def _check_database_exists(url: str) -> None:
@@ -46,9 +46,8 @@ def dashboard(
     import logging
 
     import uvicorn
-
-    from service.api.app import create_app
-    from service.cli_service import _settings
+    from softevo.service.api.app import create_app
+    from softevo.service.cli_service import _settings
 
     settings = _settings(db=db, host=host, port=port, coordinator=False)
     settings.check_safe()

@@ -8,12 +8,12 @@ from typing import Annotated
 
 import typer
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 
 def _read_scene(path: Path):
     """The validated scene in ``path`` (sim.parse_scene); a UserError for an unreadable file."""
-    import sim
+    from softevo import sim
 
     try:
         data = json.loads(path.read_text())
@@ -30,7 +30,7 @@ def describe(
 ) -> None:
     """Shape descriptors of the scene's body: symmetry, branching, shape entropy, voxel
     count, active share and frequency (largest face-connected component, as simulated)."""
-    from evolution.descriptors import describe as describe_body
+    from softevo.evolution.descriptors import describe as describe_body
 
     scene = _read_scene(scene_path)
     if not scene.body.any():

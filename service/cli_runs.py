@@ -14,7 +14,7 @@ from typing import Annotated
 
 import typer
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 DbOption = Annotated[
     str | None,
@@ -47,9 +47,9 @@ def _workers(workers: int | None) -> int:
 
 def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = 4) -> None:
     """Advance ``run_ids`` to their end with a progress bar; print a summary line per run."""
-    from service.coordinator import Coordinator, unfinished_runs
-    from service.executors import make_executor
-    from service.progress import progress_bar
+    from softevo.service.coordinator import Coordinator, unfinished_runs
+    from softevo.service.executors import make_executor
+    from softevo.service.progress import progress_bar
 
     runs = unfinished_runs(engine, run_ids)
     if not runs:
@@ -69,7 +69,7 @@ def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool, genom
 
 
 def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
-    from service.db.store import run_row
+    from softevo.service.db.store import run_row
 
     with engine.connect() as conn:
         rows = [run_row(conn, run_id) for run_id in run_ids]
@@ -92,9 +92,9 @@ def run(
     quiet: QuietOption = False,
 ) -> None:
     """Evolve one treatment (one run) and store every individual."""
-    from service.db import open_database
-    from service.experiments import create
-    from service.treatments import Treatment
+    from softevo.service.db import open_database
+    from softevo.service.experiments import create
+    from softevo.service.treatments import Treatment
 
     treatment = Treatment(
         env,
@@ -122,9 +122,9 @@ def experiment(
     quiet: QuietOption = False,
 ) -> None:
     """Run a preset experiment: every treatment and repetition."""
-    from service.db import open_database
-    from service.experiments import create_paper
-    from service.treatments import paper_grid
+    from softevo.service.db import open_database
+    from softevo.service.experiments import create_paper
+    from softevo.service.treatments import paper_grid
 
     if preset != "paper":
         raise UserError(f"unknown experiment preset {preset!r}; choose paper")
@@ -141,8 +141,7 @@ def _print_status(engine, run_ids: list[int]) -> None:
     from rich import box
     from rich.console import Console
     from rich.table import Table
-
-    from service.db.status import run_summaries
+    from softevo.service.db.status import run_summaries
 
     table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "best", box=box.SIMPLE)
     for r in run_summaries(engine, run_ids):
@@ -165,8 +164,8 @@ def status(
     db: DbOption = None,
 ) -> None:
     """Show runs: status, generation, best distance."""
-    from service.db import open_database
-    from service.db.store import resolve_runs
+    from softevo.service.db import open_database
+    from softevo.service.db.store import resolve_runs
 
     engine = open_database(db)
     with engine.connect() as conn:
@@ -188,8 +187,8 @@ def resume(
     Without an argument: every pending or running run. Runs named explicitly are continued
     even if they were cancelled or failed.
     """
-    from service.db import open_database
-    from service.db.store import reopen_runs, resolve_runs
+    from softevo.service.db import open_database
+    from softevo.service.db.store import reopen_runs, resolve_runs
 
     engine = open_database(db)
     with engine.begin() as conn:
@@ -206,9 +205,9 @@ def export(
     db: DbOption = None,
 ) -> None:
     """Write runs, individuals (one row per evaluation) and populations files."""
-    from service.db import open_database
-    from service.db.export import export_runs
-    from service.db.store import resolve_runs
+    from softevo.service.db import open_database
+    from softevo.service.db.export import export_runs
+    from softevo.service.db.store import resolve_runs
 
     engine = open_database(db)
     with engine.connect() as conn:
@@ -223,8 +222,8 @@ def lineage(
     db: DbOption = None,
 ) -> None:
     """An individual's ancestors, newest first, to its root newcomer."""
-    from service.db import open_database
-    from service.db.status import lineage_records
+    from softevo.service.db import open_database
+    from softevo.service.db.status import lineage_records
 
     records = lineage_records(open_database(db), individual)
     if as_json:

@@ -10,14 +10,13 @@ from typing import Annotated
 
 import typer
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 
 def _settings(**overrides):
     """Settings from the environment, ``overrides`` (options given) winning."""
     from pydantic import ValidationError
-
-    from service.settings import Settings
+    from softevo.service.settings import Settings
 
     try:
         return Settings(**{key: value for key, value in overrides.items() if value is not None})
@@ -48,8 +47,7 @@ def serve(
     import logging
 
     import uvicorn
-
-    from service.api.app import create_app
+    from softevo.service.api.app import create_app
 
     settings = _settings(
         host=host, port=port, db=db, redis_url=redis_url, coordinator=False if no_coordinator else None
@@ -74,7 +72,7 @@ def worker(
 
     Needs only the Redis URL (no database). Run one per core.
     """
-    from worker.rq_worker import run_worker
+    from softevo.worker.rq_worker import run_worker
 
     settings = _settings(redis_url=redis_url, queue=queue, heartbeat_ttl=heartbeat_ttl)
     if not settings.redis_url:

@@ -21,7 +21,7 @@ from typing import Annotated, Any
 
 import typer
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 DEFAULT_RECORD_FPS = 60.0  # frames per simulated second when the scene has no `record`
 
@@ -53,7 +53,7 @@ def _default_record_every(scene_dict: dict[str, Any]) -> int:
     Uses the stable step of PHYSICS.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to pick
     a frame rate; the engine's own dt stays authoritative (the frames carry their times).
     """
-    import sim
+    from softevo import sim
 
     scene = sim.parse_scene(scene_dict)
     m = scene.material
@@ -105,7 +105,7 @@ def simulate(
     ] = None,
 ) -> None:
     """Simulate one scene and print its result."""
-    import sim
+    from softevo import sim
 
     scene_dict = _read_scene(scene_path)
     sim.parse_scene(scene_dict)  # fail fast, before compiling anything, on a malformed scene

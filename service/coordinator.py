@@ -22,13 +22,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from softevo.service.db.models import Run, RunStatus
+from softevo.service.db.store import GenerationRecord, record_generation, run_row, set_run_status
+from softevo.service.executors import Executor
+from softevo.service.experiments import evolution_config
+from softevo.service.treatments import Treatment
 from sqlalchemy import Engine, select
-
-from service.db.models import Run, RunStatus
-from service.db.store import GenerationRecord, record_generation, run_row, set_run_status
-from service.executors import Executor
-from service.experiments import evolution_config
-from service.treatments import Treatment
 
 ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
 
@@ -65,7 +64,7 @@ class ActiveRun:
 
 def load_run(engine: Engine, run_id: int) -> ActiveRun:
     """The run as stored: a new algorithm, or the one saved after its last generation."""
-    from evolution.afpo import Evolution
+    from softevo.evolution.afpo import Evolution
 
     with engine.connect() as conn:
         row = run_row(conn, run_id)
@@ -173,7 +172,7 @@ def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
 def front_ranks(run: ActiveRun) -> list[int]:
     """Front rank (0 = non-dominated) of each survivor over the treatment's objectives
     (age excluded); failed evaluations rank behind every successful one."""
-    from evolution.selection import non_dominated_sort, objective_matrix
+    from softevo.evolution.selection import non_dominated_sort, objective_matrix
 
     population = run.algorithm.population
     valid = np.array([not ind.failed for ind in population], dtype=bool)

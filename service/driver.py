@@ -22,12 +22,11 @@ import uuid
 from collections.abc import Iterable
 from typing import Protocol
 
+from softevo.service.coordinator import ActiveRun, Coordinator, GenerationReport, load_run, unfinished_runs
+from softevo.service.db.models import Run, RunStatus, utcnow
+from softevo.service.db.store import set_run_status
+from softevo.service.executors import Executor
 from sqlalchemy import Engine, update
-
-from service.coordinator import ActiveRun, Coordinator, GenerationReport, load_run, unfinished_runs
-from service.db.models import Run, RunStatus, utcnow
-from service.db.store import set_run_status
-from service.executors import Executor
 
 log = logging.getLogger("softevo.coordinator")
 
@@ -84,7 +83,7 @@ class RedisLocks:
     """One Redis key per run, ``softevo:<database>:run:<id>:coordinator`` = owner token."""
 
     def __init__(self, redis_url: str, namespace: str, ttl: float = 30.0) -> None:
-        from service.rq_executor import connect
+        from softevo.service.rq_executor import connect
 
         self.connection = connect(redis_url)
         self.namespace = namespace
@@ -177,7 +176,7 @@ class CoordinatorLoop:
     # -- the loop ----------------------------------------------------------------------------
 
     def _loop(self) -> None:
-        from service.rq_executor import ExecutorStopped
+        from softevo.service.rq_executor import ExecutorStopped
 
         while not self.stop_event.is_set():
             try:

@@ -37,14 +37,14 @@ class InlineExecutor:
     """Evaluates in the calling process, all robots in one ``simulate_many`` call."""
 
     def __init__(self, threads: int | None = 1) -> None:
-        from worker.evaluate import ensure_compiled
+        from softevo.worker.evaluate import ensure_compiled
 
         ensure_compiled()
         self.threads = threads
         self.workers = threads or 1
 
     def evaluate(self, tasks: list[Task]) -> list[Task]:
-        from worker.evaluate import evaluate_batch
+        from softevo.worker.evaluate import evaluate_batch
 
         return evaluate_batch(tasks, threads=self.threads) if tasks else []
 
@@ -70,7 +70,7 @@ class LocalExecutor:
     def __init__(
         self, workers: int | None = None, genomes_per_task: int = 4, job: Callable[..., list] | None = None
     ) -> None:
-        from worker.evaluate import ensure_compiled, evaluate_batch
+        from softevo.worker.evaluate import ensure_compiled, evaluate_batch
 
         ensure_compiled()  # before the pool: its processes then all load the cached kernels
         self.workers = workers or os.cpu_count() or 1
@@ -79,7 +79,7 @@ class LocalExecutor:
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        from worker.evaluate import init_pool_process
+        from softevo.worker.evaluate import init_pool_process
 
         return ProcessPoolExecutor(
             max_workers=self.workers,
@@ -103,7 +103,7 @@ class LocalExecutor:
         return results
 
     def _one_by_one(self, tasks: list[Task]) -> list[Task]:
-        from worker.evaluate import crashed
+        from softevo.worker.evaluate import crashed
 
         results = []
         for task in tasks:

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from softevo.service.db.store import NewRun, NewTreatment, create_experiment
+from softevo.service.treatments import Treatment, paper_grid
 from sqlalchemy import Engine
-
-from service.db.store import NewRun, NewTreatment, create_experiment
-from service.treatments import Treatment, paper_grid
 
 
 def create(
@@ -43,8 +42,8 @@ def evolution_config(treatment: Treatment, seed: int):
 
     Descriptors are computed by the workers (``worker.evaluate``), not at ``tell`` time.
     """
-    from evolution.afpo import EvolutionConfig
-    from evolution.genotype import EncodingConfig
+    from softevo.evolution.afpo import EvolutionConfig
+    from softevo.evolution.genotype import EncodingConfig
 
     return EvolutionConfig(
         population_size=treatment.population,

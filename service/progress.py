@@ -16,8 +16,7 @@ from rich.progress import (
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
-
-from service.coordinator import GenerationReport
+from softevo.service.coordinator import GenerationReport
 
 
 class ProgressReporter:

@@ -41,10 +41,9 @@ from rq.registry import StartedJobRegistry
 from rq.results import Result
 from rq.serializers import JSONSerializer
 from rq.worker_registration import clean_worker_registry
+from softevo.service.executors import Task, chunks
 
-from service.executors import Task, chunks
-
-JOB_FUNCTION = "worker.evaluate.evaluate_batch"
+JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"
 WAITING = {
     JobStatus.QUEUED.value,
     JobStatus.STARTED.value,
@@ -110,7 +109,7 @@ def plan_batches(tasks: list[Task], workers: int, genomes_per_job: int) -> list[
 def failed_result(task: Task, error: str) -> dict[str, Any]:
     """The result of a genome whose job failed for good: worst fitness, the error kept (the
     same shape as the worker's own failures)."""
-    from worker.evaluate import _failure  # the one definition of a failed result's fields
+    from softevo.worker.evaluate import _failure  # the one definition of a failed result's fields
 
     return _failure({"id": task.get("id")}, error)
 

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")

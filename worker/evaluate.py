@@ -31,7 +31,7 @@ FAILED_DISTANCE = 0.0
 
 
 def _encoding(task: dict[str, Any]):
-    from evolution.genotype import EncodingConfig
+    from softevo.evolution.genotype import EncodingConfig
 
     if task.get("encoding"):
         return EncodingConfig.from_dict(task["encoding"])
@@ -40,7 +40,7 @@ def _encoding(task: dict[str, Any]):
 
 def _express(task: dict[str, Any]):
     """(phenotype, scene) of a task; raises on a bad genome."""
-    from evolution.genotype import Genotype, develop
+    from softevo.evolution.genotype import Genotype, develop
 
     phenotype = develop(Genotype.from_dict(task["genome"]), _encoding(task))
     if phenotype.voxel_count == 0:
@@ -82,7 +82,7 @@ def _phenotype_fields(phenotype) -> dict[str, Any]:
 def _descriptors(phenotype) -> dict[str, float] | None:
     """Shape descriptors (symmetry, branching, shape_entropy, ...) or None if unavailable."""
     try:
-        from evolution.descriptors import describe_phenotype
+        from softevo.evolution.descriptors import describe_phenotype
 
         return _plain(describe_phenotype(phenotype))
     except Exception as exc:  # descriptors never fail an evaluation
@@ -102,7 +102,7 @@ def _plain(value: Any) -> Any:
 
 def _simulate(scenes: list[dict], threads: int | None) -> list[Any]:
     """Results of all scenes in one call; one by one (errors isolated) if the batch fails."""
-    import sim
+    from softevo import sim
 
     try:
         return sim.simulate_many(scenes, threads=threads)
@@ -163,7 +163,7 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
 
 def warm_up(threads: int | None = 1) -> None:
     """Compile (or load from numba's cache) the simulator once in this process."""
-    import sim
+    from softevo import sim
 
     body = [[[2]], [[1]]]
     sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads)
@@ -185,7 +185,7 @@ def ensure_compiled() -> None:
     global _CACHE_READY
     if _CACHE_READY:
         return
-    code = "from worker.evaluate import warm_up; warm_up()"
+    code = "from softevo.worker.evaluate import warm_up; warm_up()"
     subprocess.run([sys.executable, "-c", code], check=False, capture_output=True)
     _CACHE_READY = True
 

@@ -29,8 +29,9 @@ def record_motion(
         dt: () float64 time step, seconds; stable: () bool.
     Raises ValueError for a genome with an empty body.
     """
-    import sim
-    from worker.evaluate import _express  # the one genome -> scene path of the workers
+    from softevo.worker.evaluate import _express  # the one genome -> scene path of the workers
+
+    from softevo import sim
 
     phenotype, scene = _express(task)
     scene["record"] = {"every": int(every)}

@@ -42,9 +42,8 @@ def warm(threads: int = 1) -> float:
     descriptor code too); return the seconds it took."""
     import numba
     import numpy as np
-
-    from evolution.genotype import EncodingConfig, random_viable_genotype
-    from worker.evaluate import ensure_compiled, evaluate_batch, warm_up
+    from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
+    from softevo.worker.evaluate import ensure_compiled, evaluate_batch, warm_up
 
     start = time.perf_counter()
     ensure_compiled()  # load the cached kernels, as local pool processes do: same machine code
@@ -72,7 +71,7 @@ def default_name() -> str:
 def start_heartbeat(redis_url: str, queue: str, ttl: int) -> subprocess.Popen:
     """The companion heartbeat process (see ``worker.heartbeat``), fed names on its stdin."""
     return subprocess.Popen(
-        [sys.executable, "-m", "worker.heartbeat", queue, str(ttl)],
+        [sys.executable, "-m", "softevo.worker.heartbeat", queue, str(ttl)],
         stdin=subprocess.PIPE,
         text=True,
         env={**os.environ, "SOFTEVO_HEARTBEAT_REDIS": redis_url},

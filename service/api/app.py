@@ -22,14 +22,14 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from softevo.service.api.schemas import EXPERIMENT_TAGS
+from softevo.service.settings import Settings
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
-from service.api.schemas import EXPERIMENT_TAGS
-from service.errors import UserError
-from service.settings import Settings
+from softevo.errors import UserError
 
 log = logging.getLogger("softevo.api")
 
@@ -57,8 +57,7 @@ class Services:
         if settings.redis_url:
             from rq import Queue
             from rq.serializers import JSONSerializer
-
-            from service.rq_executor import connect
+            from softevo.service.rq_executor import connect
 
             self._status_queue = Queue(
                 settings.queue, connection=connect(settings.redis_url), serializer=JSONSerializer
@@ -67,7 +66,7 @@ class Services:
         if not settings.coordinator:
             return
         self.executor = self._make_executor()
-        from service.driver import CoordinatorLoop, LocalLocks, RedisLocks
+        from softevo.service.driver import CoordinatorLoop, LocalLocks, RedisLocks
 
         if settings.redis_url:
             locks = RedisLocks(settings.redis_url, settings.database_namespace())
@@ -79,7 +78,7 @@ class Services:
     def _make_executor(self):
         settings = self.settings
         if settings.redis_url:
-            from service.rq_executor import RQExecutor
+            from softevo.service.rq_executor import RQExecutor
 
             return RQExecutor(
                 settings.redis_url,
@@ -90,7 +89,7 @@ class Services:
                 result_ttl=settings.result_ttl,
                 stop=self.stop,
             )
-        from service.executors import make_executor
+        from softevo.service.executors import make_executor
 
         self.executor_kind = "local"
         return make_executor(settings.workers, settings.genomes_per_job)
@@ -131,7 +130,7 @@ class Services:
         API and the coordinator loop must stay responsive."""
         with self._background_mutex:
             if self._background_pool is None:
-                from worker.evaluate import ensure_compiled, init_pool_process
+                from softevo.worker.evaluate import ensure_compiled, init_pool_process
 
                 ensure_compiled()
 
@@ -144,7 +143,7 @@ class Services:
 
     async def record_motion(self, task: dict, every: int, max_frames: int) -> dict:
         """``worker.frames.record_motion`` in the background process."""
-        from worker.frames import record_motion
+        from softevo.worker.frames import record_motion
 
         pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
         future = pool.submit(record_motion, task, every, max_frames)
@@ -161,7 +160,7 @@ class Services:
         return await asyncio.shield(running)
 
     async def _write_report(self, experiment_id: int, out_dir) -> Any:
-        from analysis.report import write_report
+        from softevo.analysis.report import write_report
 
         pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
         future = pool.submit(write_report, self.settings.db, experiment_id, str(out_dir))
@@ -245,15 +244,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     Raises UserError when no token is set and ``settings.host`` is not a loopback address.
     """
-    from service.api.routes import experiments, health, individuals, runs
-    from service.dashboard import dashboard_router
+    from softevo.service.api.routes import experiments, health, individuals, runs
+    from softevo.service.dashboard import dashboard_router
 
     settings = settings or Settings()
     settings.check_safe()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        from service.db import open_database
+        from softevo.service.db import open_database
 
         services = Services(settings, open_database(settings.db))
         app.state.services = services

@@ -8,13 +8,12 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from softevo.service.api.schemas import ErrorOut, ValidationErrorOut
+from softevo.service.settings import Settings
 from sqlalchemy import Connection
 
-from service.api.schemas import ErrorOut, ValidationErrorOut
-from service.settings import Settings
-
 if TYPE_CHECKING:
-    from service.api.app import Services
+    from softevo.service.api.app import Services
 
 bearer = HTTPBearer(auto_error=False, description="SOFTEVO_TOKEN of the server")
 

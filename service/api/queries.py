@@ -13,9 +13,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import Connection, func, select
-
-from service.db.models import (
+from softevo.service.db.models import (
     EVALUATION_FIELDS,
     Evaluation,
     Experiment,
@@ -26,7 +24,8 @@ from service.db.models import (
     RunStatus,
     Treatment,
 )
-from service.db.status import run_summary_select
+from softevo.service.db.status import run_summary_select
+from sqlalchemy import Connection, func, select
 
 EVALUATION_COLUMNS = EVALUATION_FIELDS
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")

@@ -26,7 +26,7 @@ PREFIX = "/dashboard"
 
 def dashboard_router() -> APIRouter:
     """The dashboard's pages, assets and helper endpoint under ``/dashboard``."""
-    from service.dashboard import assets, body, pages
+    from softevo.service.dashboard import assets, body, pages
 
     router = APIRouter(prefix=PREFIX, include_in_schema=False)
     for module in (assets, body, pages):

@@ -13,9 +13,8 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, Path, Query
-
-from service.api.deps import ServicesDep
-from service.api.schemas import MAX_INT32
+from softevo.service.api.deps import ServicesDep
+from softevo.service.api.schemas import MAX_INT32
 
 router = APIRouter()
 
@@ -54,8 +53,8 @@ def body(
 ) -> dict[str, Any]:
     """The individual's body and actuation in ``environment`` (default: that of its latest
     evaluation, as for the frames). 404 for an unknown or never evaluated individual."""
-    from service.api.routes.individuals import _frames_task  # the task the frames replay
-    from worker.evaluate import _express  # the workers' one genome -> scene path
+    from softevo.service.api.routes.individuals import _frames_task  # the task the frames replay
+    from softevo.worker.evaluate import _express  # the workers' one genome -> scene path
 
     task = _frames_task(services, individual_id, environment)
     try:

@@ -15,12 +15,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Request
 from fastapi.responses import HTMLResponse
+from softevo.service.api import queries
+from softevo.service.api.deps import ConnectionDep
+from softevo.service.api.schemas import MAX_INT32
+from softevo.service.db.models import Individual
 from sqlalchemy import select
-
-from service.api import queries
-from service.api.deps import ConnectionDep
-from service.api.schemas import MAX_INT32
-from service.db.models import Individual
 
 TEMPLATES = FilePath(__file__).parent / "templates"
 

@@ -4,7 +4,7 @@ Public API: ``open_database`` (engine + migrations), the models in ``models``, w
 reads in ``store``, phylogeny queries in ``phylogeny``, CSV/Parquet export in ``export``.
 """
 
-from service.db.engine import database_url, make_engine, open_database
-from service.db.models import RunStatus
+from softevo.service.db.engine import database_url, make_engine, open_database
+from softevo.service.db.models import RunStatus
 
 __all__ = ["RunStatus", "database_url", "make_engine", "open_database"]

@@ -15,7 +15,7 @@ from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError
 
-from service.errors import UserError
+from softevo.errors import UserError
 
 DEFAULT_URL = "sqlite:///softevo.db"
 SQLITE_BUSY_TIMEOUT_MS = 30_000
@@ -66,7 +66,7 @@ def make_engine(url: str | None = None) -> Engine:
 
 def open_database(url: str | None = None) -> Engine:
     """Engine for ``url`` with the schema upgraded to the newest migration."""
-    from service.db.migrate import upgrade
+    from softevo.service.db.migrate import upgrade
 
     engine = make_engine(url)
     upgrade(engine)

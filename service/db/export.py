@@ -10,10 +10,18 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
+from softevo.service.db.models import (
+    TRAITS,
+    Evaluation,
+    Experiment,
+    Individual,
+    PopulationMember,
+    Run,
+    Treatment,
+)
 from sqlalchemy import Connection, Engine, Select, select
 
-from service.db.models import TRAITS, Evaluation, Experiment, Individual, PopulationMember, Run, Treatment
-from service.errors import UserError
+from softevo.errors import UserError
 
 FORMATS = ("csv", "parquet")
 RUN_COLUMNS = [
@@ -50,7 +58,7 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per run: treatment settings flattened to the export columns."""
-    from service.treatments import Treatment as TreatmentSettings
+    from softevo.service.treatments import Treatment as TreatmentSettings
 
     runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
     query = (

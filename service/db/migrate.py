@@ -17,7 +17,7 @@ from sqlalchemy import Engine
 
 def script_location() -> Path:
     """Directory of the installed ``migrations`` package."""
-    import migrations
+    from softevo import migrations
 
     return Path(migrations.__file__).resolve().parent
 

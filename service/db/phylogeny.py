@@ -11,10 +11,10 @@ from __future__ import annotations
 from typing import Literal
 
 import pandas as pd
+from softevo.service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
 from sqlalchemy import Connection, Engine, and_, func, literal, select
 
-from service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
-from service.errors import UserError
+from softevo.errors import UserError
 
 Which = Literal["birth", "latest"]
 _EVALUATION_COLUMNS = ("generation", "environment", "stiffness", "age", *TRAITS, "stable", "error")
@@ -103,7 +103,7 @@ def switch_generation(bind: Connection | Engine, run_id: int) -> int | None:
     frame = _frame(bind, query)
     if frame.empty:
         raise UserError(f"no run {run_id}")
-    from service.treatments import Treatment as TreatmentSettings
+    from softevo.service.treatments import Treatment as TreatmentSettings
 
     return TreatmentSettings.from_settings(frame.iloc[0]["settings"]).switch_generation()
 

@@ -11,10 +11,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from sqlalchemy import Connection, Table, case, func, select, update
-from sqlalchemy.dialects import postgresql, sqlite
-
-from service.db.models import (
+from softevo.service.db.models import (
     EVALUATION_FIELDS,
     Evaluation,
     Experiment,
@@ -26,7 +23,10 @@ from service.db.models import (
     Treatment,
     utcnow,
 )
-from service.errors import UserError
+from sqlalchemy import Connection, Table, case, func, select, update
+from sqlalchemy.dialects import postgresql, sqlite
+
+from softevo.errors import UserError
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from service.cli import main
+from softevo.service.cli import main
 
 
 def softevo(capsys, *args: str) -> tuple[int, str, str]:

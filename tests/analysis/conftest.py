@@ -8,13 +8,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from softevo.service.coordinator import Coordinator
+from softevo.service.db import open_database
+from softevo.service.executors import InlineExecutor
+from softevo.service.experiments import create
+from softevo.service.treatments import Treatment
 from sqlalchemy import Engine
-
-from service.coordinator import Coordinator
-from service.db import open_database
-from service.executors import InlineExecutor
-from service.experiments import create
-from service.treatments import Treatment
 
 COMMON = {"population": 4, "generations": 3, "workspace": (4, 4, 4), "cycles": 2, "repetitions": 2}
 TREATMENTS = (
@@ -46,6 +45,6 @@ def tiny(tmp_path_factory) -> TinyExperiment:
 
 @pytest.fixture(scope="session")
 def tiny_data(tiny):
-    from analysis.data import load_experiment
+    from softevo.analysis.data import load_experiment
 
     return load_experiment(tiny.engine, tiny.experiment_id)

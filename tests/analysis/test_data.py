@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import stats as scipy_stats
-
-from analysis.data import TRAITS, load_experiment
-from analysis.stats_tables import (
+from softevo.analysis.data import TRAITS, load_experiment
+from softevo.analysis.stats_tables import (
     best_distance_per_run,
     fitness_curves,
     statistics_table,
     summary_table,
 )
-from service.db.store import resolve_experiment
-from service.errors import UserError
+from softevo.service.db.store import resolve_experiment
+
+from softevo.errors import UserError
 
 
 def test_the_experiment_is_read_back(tiny, tiny_data):

@@ -7,9 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 from PIL import Image
-
-from analysis import figures
-from analysis.stats_tables import fitness_curves, statistics_table
+from softevo.analysis import figures
+from softevo.analysis.stats_tables import fitness_curves, statistics_table
 
 # 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
 EXPECTED_PX = {

@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 from matplotlib import animation
 from PIL import Image
-
-from analysis.motion import (
+from softevo.analysis.motion import (
     ANIMATION_DPI,
     SIZE_INCHES,
     animate,
@@ -18,6 +17,7 @@ from analysis.motion import (
     surface_faces,
     voxel_sizes,
 )
+
 from tests.analysis.cli import softevo
 
 

@@ -6,9 +6,9 @@ import base64
 import re
 
 import pytest
+from softevo.analysis.figures import FIGURES, TITLES
+from softevo.analysis.report import report_html, write_report
 
-from analysis.figures import FIGURES, TITLES
-from analysis.report import report_html, write_report
 from tests.analysis.cli import softevo
 
 
@@ -90,9 +90,9 @@ def test_unknown_experiment_is_one_line_and_exit_2(capsys, tiny, tmp_path, refer
 
 
 def test_an_experiment_with_nothing_stored_yet_is_a_user_error(capsys, tmp_path):
-    from service.db import open_database
-    from service.experiments import create
-    from service.treatments import Treatment
+    from softevo.service.db import open_database
+    from softevo.service.experiments import create
+    from softevo.service.treatments import Treatment
 
     url = f"sqlite:///{tmp_path / 'empty.db'}"
     engine = open_database(url)

@@ -6,15 +6,14 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats as scipy_stats
-
-from analysis.stats_tables import (
+from softevo.analysis.stats_tables import (
     adjust_families,
     ci_table,
     compare,
     comparison_pairs,
     significance_mark,
 )
-from service.treatments import paper_grid
+from softevo.service.treatments import paper_grid
 
 
 def test_ci_table_matches_scipy_bootstrap_per_group():
@@ -109,7 +108,7 @@ def test_comparison_pairs_on_the_paper_grid():
 
 
 def test_long_curves_are_thinned_but_keep_both_ends_and_the_switch():
-    from analysis.stats_tables import plotted_generations
+    from softevo.analysis.stats_tables import plotted_generations
 
     assert plotted_generations(np.arange(10), [5], 20).tolist() == list(range(10))
     kept = plotted_generations(np.arange(9000), [4500], 100)

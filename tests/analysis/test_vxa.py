@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from softevo.analysis.robots import individual_scene
+from softevo.analysis.vxa import data_layers, phase_layers, scene_to_vxa, write_vxa
 
-from analysis.robots import individual_scene
-from analysis.vxa import data_layers, phase_layers, scene_to_vxa, write_vxa
 from tests.analysis.cli import softevo
 
 EXPECTED = Path(__file__).parent / "data" / "small.vxa"

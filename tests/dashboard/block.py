@@ -4,9 +4,8 @@ with x >= 0 active, phases varying along x and z."""
 from __future__ import annotations
 
 import numpy as np
-
-from evolution.cppn import INPUT_NAMES, minimal_cppn
-from evolution.genotype import EncodingConfig, Genotype, develop
+from softevo.evolution.cppn import INPUT_NAMES, minimal_cppn
+from softevo.evolution.genotype import EncodingConfig, Genotype, develop
 
 WORKSPACE = (7, 7, 7)
 

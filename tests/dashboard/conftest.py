@@ -21,9 +21,9 @@ from pathlib import Path
 
 import httpx
 import pytest
+from softevo.service.db.models import Individual
 from sqlalchemy import create_engine, select, update
 
-from service.db.models import Individual
 from tests.dashboard.block import WORKSPACE, block_genome
 from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
 
@@ -42,7 +42,7 @@ class TinyDatabase:
 def softevo(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     """Run the CLI in a subprocess (as a user would), failing the test on a non-zero exit."""
     done = subprocess.run(
-        [sys.executable, "-m", "service.cli", *args],
+        [sys.executable, "-m", "softevo.service.cli", *args],
         capture_output=True,
         text=True,
         timeout=CLI_TIMEOUT_S,
@@ -116,7 +116,7 @@ def start_server():
             [
                 sys.executable,
                 "-m",
-                "service.cli",
+                "softevo.service.cli",
                 command,
                 "--db",
                 url,

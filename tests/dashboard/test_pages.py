@@ -11,9 +11,8 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-
-from service.api.frames import decode_frames
-from service.dashboard.assets import STATIC_DIR, plotly_js
+from softevo.service.api.frames import decode_frames
+from softevo.service.dashboard.assets import STATIC_DIR, plotly_js
 
 TEMPLATES = Path(STATIC_DIR).parent / "templates"
 OWN_FILES = [*TEMPLATES.glob("*.html"), *STATIC_DIR.glob("*.css"), *STATIC_DIR.glob("js/*.js")]
@@ -109,7 +108,8 @@ def test_no_dashboard_file_names_an_outside_url(path):
 
 def test_dashboard_command_refuses_a_missing_database(tmp_path):
     done = subprocess.run(
-        [sys.executable, "-m", "service.cli", "dashboard", "--db", f"sqlite:///{tmp_path / 'none.db'}"],
+        [sys.executable, "-m", "softevo.service.cli", "dashboard",
+         "--db", f"sqlite:///{tmp_path / 'none.db'}"],  # fmt: skip
         capture_output=True,
         text=True,
         timeout=120,

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from evolution.cppn import CPPN, INPUT_NAMES, Link, Node
+from softevo.evolution.cppn import CPPN, INPUT_NAMES, Link, Node
 
 
 def hand_cppn(output_names, links, hidden=()):

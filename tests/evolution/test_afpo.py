@@ -2,10 +2,9 @@ import json
 
 import numpy as np
 import pytest
-
-from evolution import EncodingConfig, Evolution, EvolutionConfig, run
-from evolution.individual import Evaluation
-from evolution.selection import non_dominated_sort, objective_matrix
+from softevo.evolution import EncodingConfig, Evolution, EvolutionConfig, run
+from softevo.evolution.individual import Evaluation
+from softevo.evolution.selection import non_dominated_sort, objective_matrix
 
 SMALL = EncodingConfig(workspace=(4, 4, 4))
 

@@ -2,8 +2,7 @@ import json
 
 import numpy as np
 import pytest
-
-from service.cli import main
+from softevo.service.cli import main
 
 
 def write(tmp_path, scene):

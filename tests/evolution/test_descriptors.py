@@ -11,8 +11,7 @@ The three flat shapes lie in the xy plane, one voxel thick (z = 0):
 
 import numpy as np
 import pytest
-
-from evolution.descriptors import (
+from softevo.evolution.descriptors import (
     branching_index,
     describe,
     shape_entropy,

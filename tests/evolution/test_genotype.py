@@ -1,7 +1,6 @@
 import numpy as np
 import pytest
-
-from evolution.genotype import (
+from softevo.evolution.genotype import (
     EncodingConfig,
     Genotype,
     Phenotype,

@@ -1,14 +1,13 @@
 import numpy as np
-
-from evolution.cppn import CPPN, express
-from evolution.genotype import (
+from softevo.evolution.cppn import CPPN, express
+from softevo.evolution.genotype import (
     EncodingConfig,
     develop,
     mutate_genotype,
     random_cppn,
     random_viable_genotype,
 )
-from evolution.mutation import OPERATORS, add_link, add_node, candidate_links, mutate_cppn
+from softevo.evolution.mutation import OPERATORS, add_link, add_node, candidate_links, mutate_cppn
 
 
 def test_ten_thousand_mutations_never_make_an_invalid_genome():

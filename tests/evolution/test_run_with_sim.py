@@ -1,9 +1,8 @@
 """Acceptance: a 20-generation run with the real simulator improves the best distance."""
 
 import pytest
-
-from evolution import EncodingConfig, EvolutionConfig, run
-from evolution.runner import best_distance
+from softevo.evolution import EncodingConfig, EvolutionConfig, run
+from softevo.evolution.runner import best_distance
 
 sim = pytest.importorskip("sim")
 

@@ -1,8 +1,7 @@
 import numpy as np
 import pytest
 from scipy import stats as scipy_stats
-
-from evolution.stats import bonferroni, bootstrap_ci, mann_whitney
+from softevo.evolution.stats import bonferroni, bootstrap_ci, mann_whitney
 
 
 def test_bootstrap_ci_brackets_the_mean_and_matches_scipy():

@@ -6,10 +6,9 @@ from __future__ import annotations
 import os
 
 import pytest
+from softevo.service.db import open_database
+from softevo.service.db.models import Base
 from sqlalchemy import Engine, text
-
-from service.db import open_database
-from service.db.models import Base
 
 POSTGRES_URL = os.environ.get("SOFTEVO_TEST_POSTGRES")
 BACKENDS = [
@@ -25,7 +24,7 @@ BACKENDS = [
 
 
 def _reset_postgres(url: str) -> None:
-    from service.db import make_engine
+    from softevo.service.db import make_engine
 
     engine = make_engine(url)
     with engine.begin() as conn:

@@ -11,16 +11,15 @@ active_share 0.5 for all but 7 (0.25) and its child 10 (0.25).
 
 from __future__ import annotations
 
-from sqlalchemy import Engine
-
-from service.db.store import (
+from softevo.service.db.store import (
     GenerationRecord,
     NewRun,
     NewTreatment,
     create_experiment,
     record_generation,
 )
-from service.treatments import Treatment
+from softevo.service.treatments import Treatment
+from sqlalchemy import Engine
 
 TREATMENT = Treatment("land-water", 0.1, population=3, generations=4, switch_at=2)
 PARENTS = {4: 1, 5: 2, 7: 4, 8: 5, 10: 7, 11: 8}
@@ -108,7 +107,7 @@ def build(engine: Engine) -> int:
 
 
 def db_id(engine: Engine, run_id: int, local_id: int) -> int:
-    from service.db.store import local_to_db_ids
+    from softevo.service.db.store import local_to_db_ids
 
     with engine.connect() as conn:
         return local_to_db_ids(conn, run_id, [local_id])[local_id]

@@ -10,10 +10,10 @@ import os
 import signal
 import sys
 
-from service.coordinator import Coordinator
-from service.db import open_database, store
-from service.db.models import PopulationMember
-from service.executors import InlineExecutor
+from softevo.service.coordinator import Coordinator
+from softevo.service.db import open_database, store
+from softevo.service.db.models import PopulationMember
+from softevo.service.executors import InlineExecutor
 
 
 def _die() -> None:

@@ -118,7 +118,7 @@ class Processes:
         path = self.tmp_path / f"{log}.log"
         handle = open(path, "w")  # noqa: SIM115 - closed with the process
         process = subprocess.Popen(
-            [sys.executable, "-m", "service.cli", *args],
+            [sys.executable, "-m", "softevo.service.cli", *args],
             cwd=REPO,
             env=self.env,
             stdout=handle,

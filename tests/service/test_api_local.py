@@ -82,7 +82,7 @@ def test_no_token_means_loopback_only(tmp_path):
         "PATH": "/usr/bin:/bin",
     }
     done = subprocess.run(
-        [sys.executable, "-m", "service.cli", "serve"],
+        [sys.executable, "-m", "softevo.service.cli", "serve"],
         cwd=REPO,
         env=env,
         capture_output=True,

@@ -15,9 +15,9 @@ import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance
+from softevo.service.api.frames import decode_frames
+from softevo.service.db import open_database
 
-from service.api.frames import decode_frames
-from service.db import open_database
 from tests.service import tinyrun
 from tests.service.rq_support import TOKEN, Processes, auth, service_env
 

@@ -6,8 +6,7 @@ import json
 
 import pandas as pd
 import pytest
-
-from service.cli import main
+from softevo.service.cli import main
 
 TINY = [
     "--population",
@@ -101,9 +100,10 @@ def test_tiny_paper_grid_end_to_end(capsys, tmp_path):
 
 
 def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
-    from service.db import open_database
-    from service.db.models import RunStatus
-    from service.db.store import run_row, set_run_status
+    from softevo.service.db import open_database
+    from softevo.service.db.models import RunStatus
+    from softevo.service.db.store import run_row, set_run_status
+
     from tests.service import tinyrun
 
     db = f"sqlite:///{tmp_path / 'cancelled.db'}"

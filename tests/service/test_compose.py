@@ -9,9 +9,8 @@ from pathlib import Path
 import pytest
 import typer
 import yaml
+from softevo.service.settings import Settings
 from sqlalchemy.engine import make_url
-
-from service.settings import Settings
 
 REPO = Path(__file__).resolve().parents[2]
 SETTINGS_VARIABLES = {f"SOFTEVO_{name.upper()}": name for name in Settings.model_fields}
@@ -45,7 +44,7 @@ def environment_of(service: dict, variables: dict[str, str] | None = None) -> di
 
 
 def cli_commands() -> set[str]:
-    from service import cli
+    from softevo.service import cli
 
     cli._register()
     return set(typer.main.get_command(cli.app).commands)
@@ -101,7 +100,7 @@ def test_workers_need_the_redis_url_alone(compose):
 def test_dockerfile_installs_the_package_with_postgres(compose):
     dockerfile = (REPO / "Dockerfile").read_text()
     assert re.search(r'pip install "?\.\[postgres\]"?', dockerfile)
-    for package in ("sim", "evolution", "service", "worker", "migrations"):
+    for package in ("softevo", "sim", "evolution", "service", "worker", "migrations"):
         assert f"COPY {package} " in dockerfile
     assert 'CMD ["softevo", "serve"]' in dockerfile
     assert "warm()" in dockerfile  # numba's cache is filled at build time

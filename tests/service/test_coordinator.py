@@ -5,13 +5,13 @@ from __future__ import annotations
 import types
 
 import pytest
+from softevo.service.coordinator import Coordinator
+from softevo.service.db import phylogeny
+from softevo.service.db.store import local_to_db_ids
+from softevo.service.executors import InlineExecutor, chunks
 from sqlalchemy import text
 
-import sim
-from service.coordinator import Coordinator
-from service.db import phylogeny
-from service.db.store import local_to_db_ids
-from service.executors import InlineExecutor, chunks
+from softevo import sim
 from tests.service import tinyrun
 
 
@@ -59,7 +59,7 @@ def test_lineage_on_a_real_run(engine):
 
 
 def test_a_failing_and_an_unstable_evaluation_are_stored_and_the_run_goes_on(engine, monkeypatch):
-    import worker.evaluate as evaluate
+    import softevo.worker.evaluate as evaluate
 
     real_express, real_simulate = evaluate._express, sim.simulate_many
 
@@ -93,8 +93,8 @@ def test_chunks_spread_tasks_over_workers():
 
 
 def test_cancelled_run_stops(engine):
-    from service.db.models import RunStatus
-    from service.db.store import run_row, set_run_status
+    from softevo.service.db.models import RunStatus
+    from softevo.service.db.store import run_row, set_run_status
 
     run_id = tinyrun.new_run(engine)
     coordinator = Coordinator(engine, InlineExecutor())
@@ -109,8 +109,8 @@ def test_cancelled_run_stops(engine):
 
 @pytest.mark.slow
 def test_local_process_pool_gives_the_inline_results(tmp_path):
-    from service.db import open_database
-    from service.executors import LocalExecutor
+    from softevo.service.db import open_database
+    from softevo.service.executors import LocalExecutor
 
     snaps = []
     for name, executor in (("inline", InlineExecutor()), ("pool", LocalExecutor(2, 2))):
@@ -126,7 +126,8 @@ def test_local_process_pool_gives_the_inline_results(tmp_path):
 
 @pytest.mark.slow
 def test_a_genome_that_kills_its_pool_process_is_recorded_not_retried_forever():
-    from service.executors import LocalExecutor
+    from softevo.service.executors import LocalExecutor
+
     from tests.service import crashy
 
     executor = LocalExecutor(2, genomes_per_task=2, job=crashy.evaluate_batch)
@@ -145,8 +146,9 @@ def test_a_genome_that_kills_its_pool_process_is_recorded_not_retried_forever():
 def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
     """A cancel (e.g. over HTTP from another process) is not undone by the generation that
     was in flight when it came."""
-    from service.db import RunStatus, open_database
-    from service.db.store import GenerationRecord, record_generation, set_run_status
+    from softevo.service.db import RunStatus, open_database
+    from softevo.service.db.store import GenerationRecord, record_generation, set_run_status
+
     from tests.service import tinyrun
 
     engine = open_database(f"sqlite:///{tmp_path / 'cancel.db'}")

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 from alembic import command
+from softevo.service.db import make_engine, open_database
+from softevo.service.db.migrate import alembic_config, script_location
+from softevo.service.db.models import Evaluation, Generation, Individual, PopulationMember, Run
+from softevo.service.db.store import count_rows, record_generation, resolve_experiment, resolve_runs, run_row
 from sqlalchemy import select, text
 
-from service.db import make_engine, open_database
-from service.db.migrate import alembic_config, script_location
-from service.db.models import Evaluation, Generation, Individual, PopulationMember, Run
-from service.db.store import count_rows, record_generation, resolve_experiment, resolve_runs, run_row
-from service.errors import UserError
+from softevo.errors import UserError
 from tests.service import handbuilt
 
 
@@ -125,10 +125,10 @@ def test_migrations_are_packaged_for_an_installed_coordinator():
     import tomllib
     from pathlib import Path
 
-    from setuptools import find_packages
 
     root = Path(__file__).resolve().parents[2]
     config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
-    packages = find_packages(str(root), include=config["packages"]["find"]["include"])
-    assert {"migrations", "migrations.versions"} <= set(packages)
+    packages = config["packages"]
+    assert {"softevo.migrations", "softevo.migrations.versions"} <= set(packages)
+    assert config["package-dir"]["softevo.migrations"] == "migrations"
     assert "*.mako" in config["package-data"]["*"]

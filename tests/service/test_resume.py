@@ -10,10 +10,10 @@ import time
 from pathlib import Path
 
 import pytest
+from softevo.service.db import open_database
+from softevo.service.db.models import Run
 from sqlalchemy import select
 
-from service.db import open_database
-from service.db.models import Run
 from tests.service import tinyrun
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -58,7 +58,7 @@ def test_sigkill_then_resume_is_identical(engine, db_url, reference, mode, gener
 @pytest.mark.slow
 def test_external_sigkill_of_the_cli_then_resume(engine, db_url, reference):
     assert tinyrun.new_run(engine) == 1
-    process = _python("-m", "service.cli", "resume", "r1", "--db", db_url, "--workers", "0", "-q")
+    process = _python("-m", "softevo.service.cli", "resume", "r1", "--db", db_url, "--workers", "0", "-q")
     deadline = time.monotonic() + 300
     while _generation(engine) < 1 and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)

@@ -13,11 +13,11 @@ import pytest
 from redis import Redis
 from rq.job import Job
 from rq.serializers import JSONSerializer
+from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
+from softevo.service.driver import RedisLocks
+from softevo.service.executors import InlineExecutor
+from softevo.service.rq_executor import RQExecutor, plan_batches
 
-from evolution.genotype import EncodingConfig, random_viable_genotype
-from service.driver import RedisLocks
-from service.executors import InlineExecutor
-from service.rq_executor import RQExecutor, plan_batches
 from tests.service.rq_support import Processes, redis_for_test, wait_for
 
 pytestmark = pytest.mark.redis

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from softevo.service.coordinator import Coordinator
+from softevo.service.db.models import Evaluation, Individual, PopulationMember, Run
+from softevo.service.executors import Executor, InlineExecutor
+from softevo.service.experiments import create
+from softevo.service.treatments import Treatment
 from sqlalchemy import Engine, select
-
-from service.coordinator import Coordinator
-from service.db.models import Evaluation, Individual, PopulationMember, Run
-from service.executors import Executor, InlineExecutor
-from service.experiments import create
-from service.treatments import Treatment
 
 TINY = Treatment(
     "land-water",

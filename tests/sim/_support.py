@@ -43,7 +43,7 @@ def _fmt(v: Any) -> str:
 
 def simulate(scene: dict) -> Any:
     """Run ``scene`` and insist it stayed stable (a physics test never expects a blow-up)."""
-    import sim
+    from softevo import sim
 
     result = sim.simulate(scene)
     assert result.stable, f"unstable: {result.reason}"

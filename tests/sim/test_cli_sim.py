@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import sim
+from softevo import sim
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = REPO / "examples"
@@ -38,7 +38,7 @@ def softevo(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
 
 def softevo_here(capsys, *args: str) -> subprocess.CompletedProcess:
     """The same entry point in this process (fast; any stray exception fails the test)."""
-    from service.cli import main
+    from softevo.service.cli import main
 
     code = 0
     try:

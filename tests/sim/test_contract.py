@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-import sim
+from softevo import sim
 from tests.sim._support import frames, report, simulate, voxel_index
 
 SPEC_FIELDS = {"stable", "reason", "dt", "steps", "simulated_seconds", "voxels",

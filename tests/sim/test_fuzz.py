@@ -14,9 +14,9 @@ import math
 import numpy as np
 import pytest
 from scipy import ndimage
+from softevo.sim.system import STEPS_PER_CYCLE, largest_component
 
-import sim
-from sim.system import STEPS_PER_CYCLE, largest_component
+from softevo import sim
 
 WORLDS = ("land", "water", "void")
 WAVEFORMS = ("sine", "square", "impulse")
@@ -86,7 +86,7 @@ def check_results(scenes: list[dict], results: list) -> tuple[int, int]:
 
 
 def _fuzz(n: int, seed: int) -> None:
-    import sim
+    from softevo import sim
 
     rng = np.random.default_rng(seed)
     scenes = [random_scene(rng, k) for k in range(n)]

@@ -10,8 +10,7 @@ import copy
 
 import numpy as np
 import pytest
-
-from sim.scene import SceneError, parse_scene
+from softevo.sim.scene import SceneError, parse_scene
 
 GOOD = {
     "voxel_size": 0.05,

@@ -12,9 +12,8 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
-
-from service.api import queries
-from service.api.deps import (
+from softevo.service.api import queries
+from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
     UNAUTHORIZED,
@@ -22,7 +21,7 @@ from service.api.deps import (
     ServicesDep,
     WriteAccess,
 )
-from service.api.schemas import (
+from softevo.service.api.schemas import (
     MAX_INT32,
     ErrorOut,
     ExperimentCreated,
@@ -31,7 +30,8 @@ from service.api.schemas import (
     ExperimentRequest,
     PresetIn,
 )
-from service.errors import UserError
+
+from softevo.errors import UserError
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 log = logging.getLogger("softevo.api")
@@ -44,7 +44,7 @@ REPORT_TIMEOUT_S = 900
 def _treatments(body: ExperimentIn):
     """The request's treatments as ``service.treatments.Treatment`` (their own checks apply:
     switch_at within the generations and for a transition only)."""
-    from service.treatments import Treatment
+    from softevo.service.treatments import Treatment
 
     treatments = [
         Treatment(
@@ -82,8 +82,8 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     """Create an experiment with one pending run per treatment repetition; the coordinator
     picks them up within a second. Body: ``{"name", "treatments": [...]}`` or
     ``{"preset": "paper", "scale"}``."""
-    from service.experiments import create
-    from service.treatments import paper_grid
+    from softevo.service.experiments import create
+    from softevo.service.treatments import paper_grid
 
     if isinstance(body, PresetIn):
         treatments = paper_grid(body.scale, repetitions=body.repetitions, seed=body.seed)
@@ -118,7 +118,7 @@ def get_experiment(experiment_id: ExperimentId, conn: ConnectionDep):
 def _report_writer():
     """``analysis.report.write_report`` if issue 6's module is installed, else None."""
     try:
-        module = importlib.import_module("analysis.report")
+        module = importlib.import_module("softevo.analysis.report")
     except ImportError:
         return None
     return getattr(module, "write_report", None)

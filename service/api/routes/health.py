@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
+from softevo.service.api.deps import ServicesDep
+from softevo.service.api.schemas import HealthOut
 from sqlalchemy import text
-
-from service.api.deps import ServicesDep
-from service.api.schemas import HealthOut
 
 router = APIRouter(tags=["health"])
 

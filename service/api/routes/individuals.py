@@ -8,13 +8,13 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, HTTPException, Path, Query
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
+from softevo.service.api import queries
+from softevo.service.api.deps import COMMON, NOT_FOUND, ServicesDep
+from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
+from softevo.service.api.frames import encode_frames
+from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
 
-from service.api import queries
-from service.api.deps import COMMON, NOT_FOUND, ServicesDep
-from service.api.frames import __doc__ as FRAMES_FORMAT
-from service.api.frames import encode_frames
-from service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
-from service.errors import UserError
+from softevo.errors import UserError
 
 router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
 
@@ -41,7 +41,7 @@ def get_individual(individual_id: IndividualId, services: ServicesDep):
 def lineage(individual_id: IndividualId, services: ServicesDep):
     """Ancestors, newest first (the individual itself at depth 0), to the root newcomer
     (``parent_id`` null); traits from each one's evaluation at birth."""
-    from service.db.status import lineage_records
+    from softevo.service.db.status import lineage_records
 
     try:
         return [queries.finite(record) for record in lineage_records(services.engine, individual_id)]
@@ -51,8 +51,8 @@ def lineage(individual_id: IndividualId, services: ServicesDep):
 
 def _frames_task(services, individual_id: int, environment: str | None) -> dict:
     """The evaluation task of a stored individual (as the coordinator built it)."""
-    from service.experiments import evolution_config
-    from service.treatments import Treatment
+    from softevo.service.experiments import evolution_config
+    from softevo.service.treatments import Treatment
 
     context = _with_connection(services, queries.individual_context, individual_id)
     if context is None:

@@ -5,10 +5,8 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path, Query
-from sqlalchemy import update
-
-from service.api import queries
-from service.api.deps import (
+from softevo.service.api import queries
+from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
     UNAUTHORIZED,
@@ -16,7 +14,7 @@ from service.api.deps import (
     ServicesDep,
     WriteAccess,
 )
-from service.api.schemas import (
+from softevo.service.api.schemas import (
     MAX_INT32,
     ErrorOut,
     FrontOut,
@@ -25,7 +23,8 @@ from service.api.schemas import (
     RunStatusName,
     RunSummary,
 )
-from service.db.models import Run, RunStatus, utcnow
+from softevo.service.db.models import Run, RunStatus, utcnow
+from sqlalchemy import update
 
 router = APIRouter(prefix="/runs", tags=["runs"], responses=COMMON)
 

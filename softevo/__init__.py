@@ -1,0 +1,96 @@
+"""softevo: evolve soft voxel robots that walk on land and swim in water.
+
+The project's folders install as one package: ``softevo.sim`` (the physics engine),
+``softevo.evolution`` (CPPN encoding, AFPO), ``softevo.worker`` (tasks in, results out),
+``softevo.service`` (SQL storage, coordinator, CLI, REST API), ``softevo.analysis``
+(statistics, figures, reports) and ``softevo.migrations``.
+
+For notebooks and scripts, four functions cover the common uses::
+
+    import softevo
+    result = softevo.simulate(scene)                 # a scene dict (docs/contracts.md) -> Result
+    softevo.describe(body)                           # shape descriptors of a voxel array
+    algo = softevo.evolve("water", 0.1, generations=10)   # a local run in memory
+    data = softevo.load_experiment("sqlite:///softevo.db", "latest")   # DataFrames
+
+Each imports its layer when called, so that ``import softevo.sim`` in a worker does not load
+pandas, SQLAlchemy or the web stack.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__version__ = "0.1.0"
+__all__ = ["describe", "evolve", "load_experiment", "simulate", "simulate_many"]
+
+
+def simulate(scene: dict[str, Any], **options: Any):
+    """Simulate one scene (a dict, SPEC.md section 1); returns a ``softevo.sim.Result``."""
+    from softevo import sim
+
+    return sim.simulate(scene, **options)
+
+
+def simulate_many(scenes: list[dict[str, Any]], **options: Any):
+    """Simulate many scenes in one call, one thread per robot; results in order."""
+    from softevo import sim
+
+    return sim.simulate_many(scenes, **options)
+
+
+def describe(body, frequency: float | None = None) -> dict[str, Any]:
+    """Shape descriptors (voxel count, active share, symmetry, branching, shape entropy, ...)
+    of a 3-D voxel array (0 empty, 1 passive, 2 active)."""
+    from softevo.evolution.descriptors import describe as describe_body
+
+    return describe_body(body, frequency)
+
+
+def evolve(
+    environment: str = "land",
+    stiffness_mpa: float = 1.0,
+    *,
+    population: int = 8,
+    generations: int = 8,
+    workspace: tuple[int, int, int] = (5, 5, 5),
+    cycles: int = 4,
+    seed: int = 0,
+    progress: bool = False,
+):
+    """A local run in memory (no database): AFPO over CPPN robots in ``environment``
+    ("land" or "water") at ``stiffness_mpa``; returns the ``Evolution`` (its ``population``
+    holds the survivors with their objectives). For stored, resumable runs use
+    ``softevo run`` or the service."""
+    from softevo import sim
+    from softevo.evolution.afpo import EvolutionConfig
+    from softevo.evolution.genotype import EncodingConfig
+    from softevo.evolution.runner import run
+
+    config = EvolutionConfig(
+        population_size=population,
+        seed=seed,
+        environment=environment,
+        youngs_modulus=float(stiffness_mpa) * 1e6,
+        cycles=cycles,
+        encoding=EncodingConfig(workspace=tuple(workspace)),
+    )
+    return run(config, sim.simulate_many, generations, progress=progress)
+
+
+def load_experiment(db: str | None = None, experiment: str = "latest"):
+    """A stored experiment as pandas DataFrames (``softevo.analysis.data.ExperimentData``:
+    treatments, runs, generations, populations, evaluations). ``db``: a SQLAlchemy URL
+    (default ``$SOFTEVO_DB`` or ``sqlite:///softevo.db``); ``experiment``: ``latest``, ``e2``,
+    ``2`` or a name."""
+    from softevo.analysis.data import load_experiment as load
+    from softevo.service.db import open_database
+    from softevo.service.db.store import resolve_experiment
+
+    engine = open_database(db)
+    try:
+        with engine.connect() as conn:
+            experiment_id = resolve_experiment(conn, str(experiment))
+        return load(engine, experiment_id)
+    finally:
+        engine.dispose()
