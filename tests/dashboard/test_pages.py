@@ -127,7 +127,7 @@ def test_every_dashboard_file_is_package_data():
 
     package = Path(STATIC_DIR).parent
     pyproject = tomllib.loads((package.parents[1] / "pyproject.toml").read_text())
-    patterns = pyproject["tool"]["setuptools"]["package-data"]["service.dashboard"]
+    patterns = pyproject["tool"]["setuptools"]["package-data"]["softevo.service.dashboard"]
     included = {path for pattern in patterns for path in package.glob(pattern)}
     files = {
         path for folder in ("static", "templates") for path in (package / folder).rglob("*") if path.is_file()
