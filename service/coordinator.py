@@ -8,9 +8,10 @@ anything. A coordinator killed at any point resumes from the last committed gene
 reaches exactly the results of an uninterrupted run: the state it restarts from is the
 state the uninterrupted run had, and evaluations are deterministic.
 
-Environment switch: at the treatment's switch generation the algorithm first breeds as
-usual, then ``reevaluate_all`` moves survivors and offspring into the new environment, and
-they are all evaluated there in that same generation.
+Environment switch: at the first generation of a new environment in the treatment's
+``Schedule`` the algorithm first breeds as usual, then ``Schedule.switch`` moves survivors
+and offspring into the new environment (``reevaluate_all``), and they are all evaluated
+there in that same generation.
 """
 
 from __future__ import annotations
@@ -89,10 +90,10 @@ def unfinished_runs(engine: Engine, run_ids: Sequence[int] | None = None) -> lis
 def ask(run: ActiveRun) -> list[dict[str, Any]]:
     """Ask the run's algorithm for its next generation; return the evaluation tasks."""
     algorithm, generation = run.algorithm, run.next_generation
-    environment = run.treatment.environment_at(generation)
+    schedule = run.treatment.schedule()
+    environment = schedule.environment_at(generation)
     asked = algorithm.ask()
-    if algorithm.environment != environment:
-        algorithm.reevaluate_all(environment)
+    if schedule.switch(algorithm, generation):
         asked = algorithm.ask()
     if algorithm.generation != generation:
         raise RuntimeError(f"algorithm at generation {algorithm.generation}, run at {generation}")
