@@ -28,6 +28,7 @@ from softevo.service.db.store import GenerationRecord, record_generation, run_ro
 from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
+from softevo.worker.tasks import Task
 from sqlalchemy import Engine, select
 
 ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
@@ -100,17 +101,16 @@ def ask(run: ActiveRun) -> list[dict[str, Any]]:
     run.pending, run.asked = list(algorithm.pending), asked
     encoding = algorithm.config.encoding.to_dict()
     return [
-        {
-            "id": ind.id,
-            "run_id": run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
-            "generation": generation,
-            "genome": ind.genome.to_dict(),
-            "environment": environment,
-            "youngs_modulus": run.treatment.stiffness_pa,
-            "cycles": run.treatment.cycles,
-            "workspace": list(run.treatment.workspace),
-            "encoding": encoding,
-        }
+        Task.from_genome(
+            ind.genome,
+            environment,
+            run.treatment.stiffness_pa,
+            run.treatment.cycles,
+            encoding,
+            id=ind.id,
+            run_id=run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
+            generation=generation,
+        ).to_json()
         for ind in asked
     ]
 
