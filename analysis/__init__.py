@@ -1,4 +1,4 @@
-"""Analyses of stored experiments (issue 6): statistics, figures, motion, report, VoxCAD export.
+"""Analyses of stored experiments: statistics, figures, motion, report, VoxCAD export.
 
 Reads the database written by ``service/`` and never writes to it. Modules:
 
@@ -8,11 +8,13 @@ Reads the database written by ``service/`` and never writes to it. Modules:
   treatments and between start and end, Bonferroni per family (``evolution.stats`` inside);
 - ``analysis.figures``: the report's figures as PNG + SVG (``FIGURES``);
 - ``analysis.render``: 3-D voxel renders (active red, passive cyan);
-- ``analysis.robots``: stored genome -> phenotype -> scene, as the workers built them;
-- ``analysis.motion``: re-simulate an individual with frames and animate it (GIF, MP4);
+- ``analysis.robots``: a stored record -> ``worker.tasks.Task`` -> phenotype and scene, as
+  the workers built them;
+- ``analysis.motion``: re-simulate a task or a stored record with frames
+  (``worker.tasks.replay``) and animate it (GIF, MP4);
 - ``analysis.report``: ``write_report(url_or_engine_or_session, experiment, out_dir)`` and
   ``report_html(...)`` for the REST service;
-- ``analysis.vxa``: ``scene_to_vxa(scene)`` / ``individual_vxa(engine, id)``, VoxCAD files.
+- ``analysis.vxa``: ``scene_to_vxa(scene)`` / ``record_vxa(record)``, VoxCAD files.
 
 Command line (``service/cli_analysis.py``)::
 

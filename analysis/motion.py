@@ -1,8 +1,10 @@
 """Animations of a stored individual's evaluated motion.
 
-``record_motion`` re-simulates the individual's scene (same genome, encoding, stiffness,
-cycles and environment as its evaluation; the simulator is deterministic) with frame
-recording on, at about ``service.cli_sim.DEFAULT_RECORD_FPS`` frames per simulated second.
+``task_motion`` re-simulates a ``worker.tasks.Task`` with frame recording on
+(``worker.tasks.replay``, about ``worker.tasks.DEFAULT_RECORD_FPS`` frames per simulated
+second); ``stored_motion`` does it for a stored record (same genome, encoding, stiffness,
+cycles and environment as its evaluation; the simulator is deterministic) and
+``record_motion`` for a stored individual's id.
 ``animate`` draws the frames as cubes at the voxels' positions (the voxels' surface faces
 only; active red, passive cyan), the centre of mass's path, and the floor on land, and
 writes a GIF (Pillow) or an MP4 (ffmpeg, when it is installed).
@@ -68,35 +70,46 @@ class Motion:
     label: str
 
 
-def record_motion(engine: Engine, individual_id: int, environment: str | None = None) -> Motion:
-    """Re-simulate a stored individual with frames recorded (see the module doc)."""
-    from softevo.analysis.robots import individual_scene
-    from softevo.service.cli_sim import _default_record_every
+def task_motion(task, label: str = "", stored_distance: float | None = None) -> Motion:
+    """The motion of a ``worker.tasks.Task`` (``worker.tasks.replay`` at the default
+    frame rate), labelled ``label``; ``stored_distance`` is the distance its evaluation
+    stored, if known."""
+    from softevo.worker.tasks import replay
 
-    from softevo import sim
-
-    scene, record = individual_scene(engine, individual_id, environment)
-    scene["record"] = {"every": _default_record_every(scene)}
-    result = sim.simulate(scene)
-    if not result.frames or len(result.frames["t"]) == 0:
-        raise UserError(f"individual {individual_id}: the simulation recorded no frames")
-    voxels = np.asarray(result.voxels, dtype=int).reshape(-1, 3)
-    body = record["phenotype_object"].body
-    evaluations = record["evaluations"]
-    same_env = evaluations[evaluations["environment"] == record["environment"]]
-    stored = float(same_env["distance"].iloc[-1]) if not same_env.empty else None
-    label = f"individual {individual_id} \u00b7 {record['treatment_name']} \u00b7 {record['environment']}"
+    try:
+        frames = replay(task)
+    except ValueError as exc:
+        raise UserError(f"individual {task.id} has an empty body: nothing to simulate") from exc
+    if len(frames["t"]) == 0:
+        raise UserError(f"individual {task.id}: the simulation recorded no frames")
     return Motion(
-        t=np.asarray(result.frames["t"], dtype=float),
-        positions=np.asarray(result.frames["positions"], dtype=float).reshape(-1, len(voxels), 3),
-        voxels=voxels,
-        materials=body[tuple(voxels.T)],
-        voxel_size=float(scene["voxel_size"]),
-        environment=record["environment"],
-        distance=float(result.distance) if result.stable else float("nan"),
-        stored_distance=stored,
+        t=frames["t"],
+        positions=frames["positions"],
+        voxels=frames["voxels"].astype(int),
+        materials=frames["material"].astype(int),
+        voxel_size=float(frames["voxel_size"]),
+        environment=task.environment,
+        distance=float(frames["distance"]) if frames["stable"] else float("nan"),
+        stored_distance=stored_distance,
         label=label,
     )
+
+
+def stored_motion(record: dict, environment: str | None = None) -> Motion:
+    """The motion of a stored record (``analysis.data.individual_record``) in
+    ``environment`` (default: that of its latest evaluation)."""
+    from softevo.analysis.robots import stored_distance, stored_task
+
+    task = stored_task(record, environment)
+    label = f"individual {record['id']} \u00b7 {record['treatment_name']} \u00b7 {task.environment}"
+    return task_motion(task, label, stored_distance(record, task.environment))
+
+
+def record_motion(engine: Engine, individual_id: int, environment: str | None = None) -> Motion:
+    """``stored_motion`` of the stored individual ``individual_id``."""
+    from softevo.analysis.data import individual_record
+
+    return stored_motion(individual_record(engine, individual_id), environment)
 
 
 def lattice_links(voxels: np.ndarray) -> np.ndarray:

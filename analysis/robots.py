@@ -1,9 +1,11 @@
 """Stored individuals back to robots: genome -> phenotype -> scene, exactly as the workers
 built them (same encoding, stiffness and cycles as the individual's run).
 
-The encoding is the one the coordinator gives the algorithm
-(``service.experiments.evolution_config(treatment, seed).encoding``), so a re-developed
-phenotype is the phenotype that was evaluated.
+The functions take a stored record (``analysis.data.individual_record``: the individual,
+its treatment's settings, seed and evaluations) and go through ``worker.tasks``, the path
+the evaluations took: ``stored_task(record)`` is the task of its latest evaluation,
+``record_scene(record)`` its scene. ``individual_scene(engine, id)`` and
+``phenotypes(engine, ids)`` read the records first.
 """
 
 from __future__ import annotations
@@ -11,68 +13,97 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-from softevo.analysis.data import individual_record
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
-from softevo.service.db.models import Individual, Run, Treatment
-from softevo.service.treatments import Treatment as Settings
-from sqlalchemy import Engine, select
+from softevo.worker.tasks import Task, scene_of
+from softevo.worker.tasks import encoding_of as settings_encoding
 
 from softevo.errors import UserError
 
-
-def encoding_of(treatment: Settings, seed: int = 0) -> EncodingConfig:
-    """The encoding the run of ``treatment`` expressed its genomes with."""
-    from softevo.service.experiments import evolution_config
-
-    return evolution_config(treatment, seed).encoding
+ENVIRONMENTS = ("land", "water")
 
 
-def develop_genome(genome: dict[str, Any], treatment: Settings, seed: int = 0) -> Phenotype:
+def encoding_of(treatment, seed: int = 0) -> EncodingConfig:
+    """The encoding the run of ``treatment`` (a ``Treatment``: ``to_settings()``) expressed
+    its genomes with (the same for every seed)."""
+    return settings_encoding(treatment.to_settings())
+
+
+def develop_genome(genome: dict[str, Any], treatment, seed: int = 0) -> Phenotype:
     """The phenotype of a stored genome (``Genotype.to_dict()`` JSON) in its run's encoding."""
     return develop(Genotype.from_dict(genome), encoding_of(treatment, seed))
 
 
-def phenotypes(engine: Engine, individual_ids: Iterable[int]) -> dict[int, Phenotype]:
-    """Phenotypes of many stored individuals in one query (unknown ids are left out)."""
-    ids = sorted({int(i) for i in individual_ids})
-    if not ids:
-        return {}
-    individuals, runs, treatments = Individual.__table__, Run.__table__, Treatment.__table__
-    query = (
-        select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
-        .join(runs, individuals.c.run_id == runs.c.id)
-        .join(treatments, runs.c.treatment_id == treatments.c.id)
-        .where(individuals.c.id.in_(ids))
-    )
-    with engine.connect() as conn:
-        rows = conn.execute(query).all()
-    return {
-        int(i): develop_genome(genome, Settings.from_settings(settings), seed)
-        for i, genome, settings, seed in rows
-    }
+def phenotypes(engine, individual_ids: Iterable[int]) -> dict[int, Phenotype]:
+    """Phenotypes of many stored individuals (unknown ids are left out)."""
+    from softevo.analysis.data import individual_record
+
+    found = {}
+    for i in sorted({int(i) for i in individual_ids}):
+        try:
+            record = individual_record(engine, i)
+        except UserError:
+            continue
+        found[i] = develop_genome(record["genome"], record["treatment"], record["seed"])
+    return found
 
 
-def individual_scene(
-    engine: Engine, individual_id: int, environment: str | None = None, **extra: Any
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(scene, record) of a stored individual, ready for ``sim.simulate``.
-
-    ``environment`` defaults to that of the individual's latest evaluation (after an
-    environment switch, the new one). ``extra`` scene fields (e.g. ``record``) are added.
-    ``record`` is ``analysis.data.individual_record`` plus ``phenotype_object`` and
-    ``environment`` (the one used).
-    """
-    record = individual_record(engine, individual_id)
-    evaluations = record["evaluations"]
+def record_environment(record: dict[str, Any], environment: str | None = None) -> str:
+    """``environment``, or that of the record's latest evaluation (after an environment
+    switch, the new one); UserError if there is none or it is unknown."""
+    individual_id, evaluations = record["id"], record["evaluations"]
     if environment is None:
         if evaluations.empty:
             raise UserError(f"individual {individual_id} was never evaluated; give --environment")
         environment = str(evaluations["environment"].iloc[-1])
-    if environment not in ("land", "water"):
+    if environment not in ENVIRONMENTS:
         raise UserError(f"environment must be land or water (got {environment!r})")
-    treatment: Settings = record["treatment"]
-    phenotype = develop_genome(record["genome"], treatment, record["seed"])
-    if phenotype.voxel_count == 0:
-        raise UserError(f"individual {individual_id} has an empty body: nothing to simulate")
-    scene = phenotype.to_scene(environment, treatment.stiffness_pa, treatment.cycles, **extra)
-    return scene, {**record, "phenotype_object": phenotype, "environment": environment}
+    return environment
+
+
+def stored_task(record: dict[str, Any], environment: str | None = None) -> Task:
+    """The ``worker.tasks.Task`` of a stored record in ``environment`` (default: that of its
+    latest evaluation), with its treatment's stiffness and cycles."""
+    treatment = record["treatment"]
+    return Task.from_stored(
+        record["id"],
+        record["genome"],
+        treatment.to_settings(),
+        record_environment(record, environment),
+        treatment.stiffness_pa,
+    )
+
+
+def stored_distance(record: dict[str, Any], environment: str) -> float | None:
+    """The distance of the record's latest evaluation in ``environment`` (None if none)."""
+    evaluations = record["evaluations"]
+    same = evaluations[evaluations["environment"] == environment]
+    return float(same["distance"].iloc[-1]) if not same.empty else None
+
+
+def record_scene(
+    record: dict[str, Any], environment: str | None = None, **extra: Any
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(scene, record) of a stored record, ready for ``sim.simulate``.
+
+    ``environment`` defaults to that of the individual's latest evaluation. ``extra`` scene
+    fields (e.g. ``record``) are added. The record returned is the one given plus
+    ``phenotype_object``, ``environment`` (the one used) and ``task``.
+    """
+    task = stored_task(record, environment)
+    try:
+        phenotype, scene = scene_of(task, **extra)
+    except ValueError as exc:
+        if str(exc) != "empty body":
+            raise
+        raise UserError(f"individual {record['id']} has an empty body: nothing to simulate") from exc
+    return scene, {**record, "phenotype_object": phenotype, "environment": task.environment, "task": task}
+
+
+def individual_scene(
+    engine, individual_id: int, environment: str | None = None, **extra: Any
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``record_scene`` of the stored individual ``individual_id`` (``record`` is
+    ``analysis.data.individual_record`` plus the fields ``record_scene`` adds)."""
+    from softevo.analysis.data import individual_record
+
+    return record_scene(individual_record(engine, individual_id), environment, **extra)

@@ -9,7 +9,8 @@ Main entry points:
 - ``Evolution``, ``EvolutionConfig``: the ask/tell algorithm (``evolution.afpo``);
 - ``Individual``, ``Evaluation`` (``evolution.individual``);
 - ``describe`` (``evolution.descriptors``, needs trimesh; imported lazily);
-- ``run``: a local run loop (``evolution.runner``).
+- ``run``: a local run loop (``evolution.runner``);
+- ``Schedule``: environments by generation, and the switch (``evolution.schedule``).
 """
 
 from softevo.evolution.afpo import Evolution, EvolutionConfig
@@ -17,6 +18,7 @@ from softevo.evolution.cppn import CPPN, express
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
 from softevo.evolution.individual import Evaluation, Individual
 from softevo.evolution.runner import run
+from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import Objective, crowding_distance, non_dominated_sort
 
 __all__ = [
@@ -29,6 +31,7 @@ __all__ = [
     "Individual",
     "Objective",
     "Phenotype",
+    "Schedule",
     "crowding_distance",
     "describe",
     "develop",

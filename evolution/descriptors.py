@@ -29,7 +29,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from softevo.evolution.genotype import Phenotype, largest_component
+from softevo.evolution.genotype import Phenotype
+from softevo.sim.system import largest_component
 
 # ---- surface mesh ------------------------------------------------------------------------------
 _UNIT_SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])

@@ -28,11 +28,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import ndimage
 from softevo.evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
 from softevo.evolution.mutation import mutate_cppn
-
-FACE_CONNECTIVITY = ndimage.generate_binary_structure(3, 1)
+from softevo.sim.system import largest_component
 
 
 @dataclass(frozen=True)
@@ -186,15 +184,6 @@ class Phenotype:
         }
         scene.update(extra)
         return scene
-
-
-def largest_component(full: np.ndarray) -> np.ndarray:
-    """Boolean mask of the largest face-connected component of ``full`` (all False if empty)."""
-    labels, count = ndimage.label(full, structure=FACE_CONNECTIVITY)
-    if count == 0:
-        return np.zeros(full.shape, dtype=bool)
-    sizes = np.bincount(labels.ravel())[1:]
-    return labels == (int(np.argmax(sizes)) + 1)
 
 
 def _map_linear(value: np.ndarray | float, bounds: tuple[float, float]) -> np.ndarray | float:

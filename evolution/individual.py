@@ -1,4 +1,6 @@
-"""Individuals and their evaluations, as plain data with JSON round trips."""
+"""Individuals and their evaluations, as plain data with JSON round trips, and the score of
+a failed evaluation: ``FAILED_DISTANCE``, given by ``score`` to an unstable result or a NaN
+or infinite distance (the workers score every simulation with it)."""
 
 from __future__ import annotations
 
@@ -37,16 +39,26 @@ class Evaluation:
             return cls(FAILED_DISTANCE, False, f"{type(value).__name__}: {value}")
         get = value.get if isinstance(value, dict) else lambda k, d=None: getattr(value, k, d)
         stable = bool(get("stable", True))
-        error = get("error", None) or (None if stable else get("reason", None) or "unstable")
-        distance = float(get("distance", FAILED_DISTANCE))
-        if not math.isfinite(distance):
-            distance, stable, error = FAILED_DISTANCE, False, error or "non-finite distance"
-        if not stable or error is not None:
-            distance = FAILED_DISTANCE
-        return cls(distance, stable, None if error is None else str(error))
+        error = get("error", None) or None
+        reason = error or (None if stable else get("reason", None))
+        evaluation = score(float(get("distance", FAILED_DISTANCE)), stable, reason)
+        if error is not None and evaluation.ok:  # an error fails even a stable result
+            evaluation = cls(FAILED_DISTANCE, True, str(error))
+        return evaluation
 
     def to_dict(self) -> dict[str, Any]:
         return {"distance": self.distance, "stable": self.stable, "error": self.error}
+
+
+def score(distance: float, stable: bool, reason: str | None = None) -> Evaluation:
+    """The score of a finished simulation: an unstable result, or a NaN or infinite
+    distance, scores ``FAILED_DISTANCE`` (unstable, ``reason`` or what went wrong as its
+    error); a stable finite one keeps its distance."""
+    if not stable:
+        return Evaluation(FAILED_DISTANCE, False, str(reason) if reason else "unstable")
+    if not math.isfinite(distance):
+        return Evaluation(FAILED_DISTANCE, False, str(reason) if reason else "non-finite distance")
+    return Evaluation(float(distance), True, None)
 
 
 @dataclass

@@ -11,21 +11,12 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import numpy as np
 from softevo.evolution.afpo import Evolution, EvolutionConfig
 from softevo.evolution.individual import Individual
+from softevo.evolution.schedule import Schedule
 
 Evaluate = Callable[[list[dict[str, Any]]], Sequence[Any]]
 OnGeneration = Callable[[Evolution], None]
-
-
-def environment_at(schedule: Sequence[tuple[str, int]], generation: int) -> str:
-    """The environment of ``generation`` in a schedule [(environment, until_generation), ...]:
-    the first entry whose ``until`` is greater than the generation (the last one after)."""
-    for environment, until in schedule:
-        if generation < until:
-            return environment
-    return schedule[-1][0]
 
 
 def evaluate_pending(algo: Evolution, evaluate: Evaluate) -> list[Individual]:
@@ -53,27 +44,25 @@ def run(
     evaluate: Evaluate,
     generations: int,
     *,
-    schedule: Sequence[tuple[str, int]] | None = None,
+    schedule: Schedule | None = None,
     algo: Evolution | None = None,
     on_generation: OnGeneration | None = None,
     progress: bool = False,
 ) -> Evolution:
     """Run (or continue ``algo``) until ``generations`` generations after generation 0 are
-    complete; returns the algorithm. ``schedule`` switches environments: when the generation
-    about to start belongs to a new environment, the whole population is re-evaluated there
-    first. ``on_generation`` is called after each completed generation."""
+    complete; returns the algorithm. ``schedule`` (default: ``config.environment`` for
+    every generation) switches environments (``Schedule.switch``): when the generation about
+    to start belongs to a new environment, the whole population is re-evaluated there first.
+    ``on_generation`` is called after each completed generation."""
     algo = algo if algo is not None else Evolution(config)
-    schedule = schedule or [(config.environment, np.iinfo(np.int64).max)]
+    schedule = schedule or Schedule.static(config.environment)
     if not algo.started:
-        algo.environment = environment_at(schedule, 0)
+        algo.environment = schedule.environment_at(0)
     bar = _ProgressBar(generations + 1) if progress else None
     while not (algo.generation_complete and algo.generation >= generations):
-        if algo.generation_complete:
-            environment = environment_at(schedule, algo.generation + 1)
-            if environment != algo.environment:
-                algo.reevaluate_all(environment)
-                while algo.pending:
-                    evaluate_pending(algo, evaluate)
+        if algo.generation_complete and schedule.switch(algo, algo.generation + 1):
+            while algo.pending:
+                evaluate_pending(algo, evaluate)
         evaluate_pending(algo, evaluate)
         if algo.generation_complete:
             if on_generation is not None:

@@ -1,4 +1,4 @@
-"""``softevo report | show | export-vxa`` (SPEC.md section 7, issue 6).
+"""``softevo report | show | export-vxa`` (SPEC.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
   statistics and the run settings (``analysis.report.write_report``).
@@ -54,13 +54,14 @@ def show(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Animate a stored individual's evaluated motion (re-simulated, frames recorded)."""
-    from softevo.analysis.motion import animate, movie_writer, record_motion
+    from softevo.analysis.data import individual_record
+    from softevo.analysis.motion import animate, movie_writer, stored_motion
     from softevo.service.db import open_database
 
     if fps < 1:
         raise UserError(f"--fps must be >= 1 (got {fps})")
     movie_writer(out, fps)  # a bad --out fails before the simulation
-    motion = record_motion(open_database(db), individual, environment)
+    motion = stored_motion(individual_record(open_database(db), individual), environment)
     with _frame_progress(not quiet) as on_frame:
         animate(motion, out, fps=fps, on_frame=on_frame)
     stored = "-" if motion.stored_distance is None else f"{motion.stored_distance:.4g}"
@@ -74,12 +75,13 @@ def export_vxa(
     db: DbOption = None,
 ) -> None:
     """Write a stored individual as a VoxCAD .vxa file."""
-    from softevo.analysis.vxa import individual_vxa
+    from softevo.analysis.data import individual_record
+    from softevo.analysis.vxa import record_vxa
     from softevo.service.db import open_database
 
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")
-    document = individual_vxa(open_database(db), individual, environment)
+    document = record_vxa(individual_record(open_database(db), individual), environment)
     try:
         out.write_text(document, encoding="iso-8859-1")
     except OSError as exc:

@@ -3,8 +3,8 @@
 Plain output is a short human summary; ``--json`` prints exactly ``Result.to_dict()`` as one
 JSON object; ``--record out.npz`` also writes the frames (``t`` (n_frames,) seconds,
 ``positions`` (n_frames, n_voxels, 3) metres, ``voxels`` (n_voxels, 3) body indices). A scene
-without a ``record`` field is recorded at about ``DEFAULT_RECORD_FPS`` frames per simulated
-second when ``--record`` is given.
+without a ``record`` field is recorded at about ``worker.tasks.DEFAULT_RECORD_FPS`` frames
+per simulated second (``worker.tasks.default_record_every``) when ``--record`` is given.
 
 Mistakes (missing file, invalid JSON, malformed scene, unwritable output) raise
 ``UserError`` / ``sim.SceneError``; ``service.cli.main`` turns them into one line and exit 2.
@@ -14,16 +14,14 @@ An unstable robot is a result, not an error: it is reported with its reason and 
 from __future__ import annotations
 
 import json
-import math
 import time
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+from softevo.worker.tasks import default_record_every
 
 from softevo.errors import UserError
-
-DEFAULT_RECORD_FPS = 60.0  # frames per simulated second when the scene has no `record`
 
 
 def _read_scene(path: Path) -> dict[str, Any]:
@@ -45,21 +43,6 @@ def _read_scene(path: Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise UserError(f"{path}: scene: must be a JSON object (got {type(data).__name__})")
     return data
-
-
-def _default_record_every(scene_dict: dict[str, Any]) -> int:
-    """Steps between frames for about DEFAULT_RECORD_FPS frames per simulated second.
-
-    Uses the stable step of PHYSICS.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to pick
-    a frame rate; the engine's own dt stays authoritative (the frames carry their times).
-    """
-    from softevo import sim
-
-    scene = sim.parse_scene(scene_dict)
-    m = scene.material
-    dt = scene.dt_fraction * scene.voxel_size * math.sqrt(m.density / m.youngs_modulus)
-    dt /= 2.0 * math.pi
-    return max(1, int(round(1.0 / (DEFAULT_RECORD_FPS * dt))))
 
 
 def _write_record(out: Path, result: Any) -> int:
@@ -110,7 +93,7 @@ def simulate(
     scene_dict = _read_scene(scene_path)
     sim.parse_scene(scene_dict)  # fail fast, before compiling anything, on a malformed scene
     if record is not None and "record" not in scene_dict:
-        scene_dict = {**scene_dict, "record": {"every": _default_record_every(scene_dict)}}
+        scene_dict = {**scene_dict, "record": {"every": default_record_every(scene_dict)}}
     started = time.perf_counter()
     result = sim.simulate(scene_dict)
     wall = time.perf_counter() - started

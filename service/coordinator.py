@@ -8,9 +8,10 @@ anything. A coordinator killed at any point resumes from the last committed gene
 reaches exactly the results of an uninterrupted run: the state it restarts from is the
 state the uninterrupted run had, and evaluations are deterministic.
 
-Environment switch: at the treatment's switch generation the algorithm first breeds as
-usual, then ``reevaluate_all`` moves survivors and offspring into the new environment, and
-they are all evaluated there in that same generation.
+Environment switch: at the first generation of a new environment in the treatment's
+``Schedule`` the algorithm first breeds as usual, then ``Schedule.switch`` moves survivors
+and offspring into the new environment (``reevaluate_all``), and they are all evaluated
+there in that same generation.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from softevo.service.db.store import GenerationRecord, record_generation, run_ro
 from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
+from softevo.worker.tasks import Task
 from sqlalchemy import Engine, select
 
 ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
@@ -89,27 +91,26 @@ def unfinished_runs(engine: Engine, run_ids: Sequence[int] | None = None) -> lis
 def ask(run: ActiveRun) -> list[dict[str, Any]]:
     """Ask the run's algorithm for its next generation; return the evaluation tasks."""
     algorithm, generation = run.algorithm, run.next_generation
-    environment = run.treatment.environment_at(generation)
+    schedule = run.treatment.schedule()
+    environment = schedule.environment_at(generation)
     asked = algorithm.ask()
-    if algorithm.environment != environment:
-        algorithm.reevaluate_all(environment)
+    if schedule.switch(algorithm, generation):
         asked = algorithm.ask()
     if algorithm.generation != generation:
         raise RuntimeError(f"algorithm at generation {algorithm.generation}, run at {generation}")
     run.pending, run.asked = list(algorithm.pending), asked
     encoding = algorithm.config.encoding.to_dict()
     return [
-        {
-            "id": ind.id,
-            "run_id": run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
-            "generation": generation,
-            "genome": ind.genome.to_dict(),
-            "environment": environment,
-            "youngs_modulus": run.treatment.stiffness_pa,
-            "cycles": run.treatment.cycles,
-            "workspace": list(run.treatment.workspace),
-            "encoding": encoding,
-        }
+        Task.from_genome(
+            ind.genome,
+            environment,
+            run.treatment.stiffness_pa,
+            run.treatment.cycles,
+            encoding,
+            id=ind.id,
+            run_id=run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
+            generation=generation,
+        ).to_json()
         for ind in asked
     ]
 

@@ -1,9 +1,10 @@
 """Executors: where evaluation tasks run. One small interface, several implementations.
 
-An executor takes a list of JSON tasks (see ``worker.evaluate``) and returns their JSON
-results in the same order. ``InlineExecutor`` runs them in this process (tests, one core);
-``LocalExecutor`` spreads them over a process pool, one numba thread per process, many
-genomes per pool task. Issue 5 adds an RQ executor with the same interface.
+An executor takes a list of JSON tasks (``worker.tasks.Task.to_json``) and returns their
+JSON results (``worker.tasks.Result.to_json``) in the same order. ``InlineExecutor`` runs
+them in this process (tests, one core); ``LocalExecutor`` spreads them over a process pool,
+one numba thread per process, many genomes per pool task; ``service.rq_executor`` has an
+RQ executor with the same interface.
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ class LocalExecutor:
         return results
 
     def _one_by_one(self, tasks: list[Task]) -> list[Task]:
-        from softevo.worker.evaluate import crashed
+        from softevo.worker.tasks import failed
 
         results = []
         for task in tasks:
@@ -111,7 +112,7 @@ class LocalExecutor:
                 results.extend(self._pool.submit(self.job, [task]).result())
             except BrokenProcessPool:
                 self._restart()
-                results.append(crashed(task, "the evaluation killed its worker process"))
+                results.append(failed(task, "the evaluation killed its worker process").to_json())
         return results
 
     def _restart(self) -> None:

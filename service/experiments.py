@@ -40,10 +40,10 @@ def create_paper(
 def evolution_config(treatment: Treatment, seed: int):
     """The ``evolution.EvolutionConfig`` of one run of ``treatment``.
 
-    Descriptors are computed by the workers (``worker.evaluate``), not at ``tell`` time.
+    Descriptors are computed by the workers (``worker.tasks``), not at ``tell`` time.
     """
     from softevo.evolution.afpo import EvolutionConfig
-    from softevo.evolution.genotype import EncodingConfig
+    from softevo.worker.tasks import encoding_of
 
     return EvolutionConfig(
         population_size=treatment.population,
@@ -52,6 +52,6 @@ def evolution_config(treatment: Treatment, seed: int):
         environment=treatment.environment_at(0),
         youngs_modulus=treatment.stiffness_pa,
         cycles=treatment.cycles,
-        encoding=EncodingConfig(workspace=tuple(treatment.workspace)),
+        encoding=encoding_of(treatment.to_settings()),
         descriptors=False,
     )

@@ -107,11 +107,10 @@ def plan_batches(tasks: list[Task], workers: int, genomes_per_job: int) -> list[
 
 
 def failed_result(task: Task, error: str) -> dict[str, Any]:
-    """The result of a genome whose job failed for good: worst fitness, the error kept (the
-    same shape as the worker's own failures)."""
-    from softevo.worker.evaluate import _failure  # the one definition of a failed result's fields
+    """The JSON result of a genome whose job failed for good (``worker.tasks.failed``)."""
+    from softevo.worker.tasks import failed
 
-    return _failure({"id": task.get("id")}, error)
+    return failed({"id": task.get("id")}, error).to_json()
 
 
 def connect(redis_url: str) -> Redis:

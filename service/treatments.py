@@ -14,6 +14,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from softevo.evolution.schedule import Schedule
+
 from softevo.errors import UserError
 
 ENVIRONMENTS = ("land", "water", "land-water", "water-land")
@@ -93,25 +95,21 @@ class Treatment:
             return None
         return self.switch_at if self.switch_at is not None else max(1, self.generations // 2)
 
-    def schedule(self) -> list[tuple[str, int]]:
-        """[(environment, first generation), ...] in order."""
+    def schedule(self) -> Schedule:
+        """The ``evolution.schedule.Schedule``: [(environment, first generation), ...]."""
         switch = self.switch_generation()
         if switch is None:
-            return [(self.environment, 0)]
+            return Schedule.static(self.environment)
         first, second = self.environment.split("-")
-        return [(first, 0), (second, switch)]
+        return Schedule([(first, 0), (second, switch)])
 
     def schedule_text(self) -> str:
         """The schedule as text, e.g. ``land:0,water:50``."""
-        return ",".join(f"{env}:{start}" for env, start in self.schedule())
+        return self.schedule().format()
 
     def environment_at(self, generation: int) -> str:
         """The environment individuals are evaluated in at ``generation``."""
-        current = self.schedule()[0][0]
-        for env, start in self.schedule():
-            if generation >= start:
-                current = env
-        return current
+        return self.schedule().environment_at(generation)
 
     def seed_of(self, repetition: int) -> int:
         """Seed of repetition ``repetition`` (0-based)."""

@@ -1,10 +1,25 @@
 """softevo's voxel physics engine (Voxelyze kind): voxels as 6-DOF bodies joined by beams.
 
 Public API: ``simulate``, ``simulate_many``, ``parse_scene``, ``Scene``, ``SceneError``,
-``Result``. See SPEC.md section 1 and docs/contracts.md.
+``Result``, and ``largest_component`` (the face-connected part of a body that is
+simulated). See SPEC.md section 1 and docs/contracts.md. The engine (and numba) is imported
+on first use of ``simulate``, ``simulate_many`` or ``Result``, so that reading scenes and
+bodies (``sim.scene``, ``sim.system``) stays light.
 """
 
-from .engine import Result, simulate, simulate_many
-from .scene import Scene, SceneError, parse_scene
+from typing import Any
 
-__all__ = ["Result", "Scene", "SceneError", "parse_scene", "simulate", "simulate_many"]
+from .scene import Scene, SceneError, parse_scene
+from .system import largest_component
+
+_ENGINE = ("Result", "simulate", "simulate_many")
+
+__all__ = ["Result", "Scene", "SceneError", "largest_component", "parse_scene", "simulate", "simulate_many"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _ENGINE:
+        from . import engine
+
+        return getattr(engine, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -141,12 +141,12 @@ class Services:
                 )
             return self._background_pool
 
-    async def record_motion(self, task: dict, every: int, max_frames: int) -> dict:
-        """``worker.frames.record_motion`` in the background process."""
-        from softevo.worker.frames import record_motion
+    async def record_motion(self, task, every: int, max_frames: int) -> dict:
+        """``worker.tasks.replay`` of ``task`` in the background process."""
+        from softevo.worker.tasks import replay
 
         pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
-        future = pool.submit(record_motion, task, every, max_frames)
+        future = pool.submit(replay, task, every, max_frames)
         return await asyncio.wrap_future(future)
 
     async def write_report(self, experiment_id: int, out_dir) -> Any:
@@ -272,5 +272,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     for module in (health, experiments, runs, individuals):
         app.include_router(module.router)
-    app.include_router(dashboard_router())  # issue 7: /dashboard pages and assets
+    app.include_router(dashboard_router())  # /dashboard pages and assets
     return app

@@ -28,7 +28,7 @@ FLOAT = np.dtype("<f4")
 
 
 def encode_frames(motion: dict[str, np.ndarray]) -> bytes:
-    """Bytes of ``worker.frames.record_motion``'s output in the format above."""
+    """Bytes of ``worker.tasks.replay``'s output in the format above."""
     t = np.asarray(motion["t"], dtype=FLOAT)
     voxels = np.column_stack([motion["voxels"], motion["material"]]).astype(FLOAT)
     positions = np.asarray(motion["positions"], dtype=FLOAT)

@@ -53,12 +53,12 @@ def body(
 ) -> dict[str, Any]:
     """The individual's body and actuation in ``environment`` (default: that of its latest
     evaluation, as for the frames). 404 for an unknown or never evaluated individual."""
-    from softevo.service.api.routes.individuals import _frames_task  # the task the frames replay
-    from softevo.worker.evaluate import _express  # the workers' one genome -> scene path
+    from softevo.service.api.routes.individuals import stored_task
+    from softevo.worker.tasks import scene_of
 
-    task = _frames_task(services, individual_id, environment)
+    task = stored_task(services, individual_id, environment)
     try:
-        _, scene = _express(task)
+        _, scene = scene_of(task)
     except ValueError as exc:  # an empty body, as the frames endpoint reports it
         raise HTTPException(404, f"individual {individual_id} has no body: {exc}") from exc
     return scene_body(scene)

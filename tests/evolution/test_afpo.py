@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from softevo.evolution import EncodingConfig, Evolution, EvolutionConfig, run
 from softevo.evolution.individual import Evaluation
+from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 
 SMALL = EncodingConfig(workspace=(4, 4, 4))
@@ -160,7 +161,7 @@ def test_environment_switch_reevaluates_everyone():
         seen.append([s["environment"]["kind"] for s in scenes])
         return fake_evaluate(scenes)
 
-    algo = run(config(), record, generations=4, schedule=[("land", 2), ("water", 10)])
+    algo = run(config(), record, generations=4, schedule=Schedule.from_until([("land", 2), ("water", 10)]))
     water_batches = [batch for batch in seen if batch and batch[0] == "water"]
     assert all(set(batch) == {"water"} for batch in water_batches)
     assert len(seen[0]) == 6 and set(seen[0]) == {"land"}

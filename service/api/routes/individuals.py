@@ -49,10 +49,11 @@ def lineage(individual_id: IndividualId, services: ServicesDep):
         raise HTTPException(404, str(exc)) from exc
 
 
-def _frames_task(services, individual_id: int, environment: str | None) -> dict:
-    """The evaluation task of a stored individual (as the coordinator built it)."""
-    from softevo.service.experiments import evolution_config
+def stored_task(services, individual_id: int, environment: str | None):
+    """The ``worker.tasks.Task`` of a stored individual's latest evaluation (in
+    ``environment`` if given), as the coordinator built it; 404 if there is none."""
     from softevo.service.treatments import Treatment
+    from softevo.worker.tasks import Task
 
     context = _with_connection(services, queries.individual_context, individual_id)
     if context is None:
@@ -64,16 +65,10 @@ def _frames_task(services, individual_id: int, environment: str | None) -> dict:
         where = f" in {environment}" if environment else ""
         raise HTTPException(404, f"individual {individual_id} was never evaluated{where}")
     evaluation = evaluations[-1]
-    treatment = Treatment.from_settings(context["settings"])
-    encoding = evolution_config(treatment, context["seed"]).encoding
-    return {
-        "id": individual_id,
-        "genome": context["genome"],
-        "environment": evaluation["environment"],
-        "youngs_modulus": evaluation["stiffness"],
-        "cycles": treatment.cycles,
-        "encoding": encoding.to_dict(),
-    }
+    settings = Treatment.from_settings(context["settings"]).to_settings()
+    return Task.from_stored(
+        individual_id, context["genome"], settings, evaluation["environment"], evaluation["stiffness"]
+    )
 
 
 @router.get(
@@ -107,7 +102,7 @@ async def frames(
     """The individual's evaluated motion, simulated again with recording on (in a separate
     process: the API stays responsive). The body is the float32 format of
     ``service.api.frames``."""
-    task = await run_in_threadpool(_frames_task, services, individual_id, environment)
+    task = await run_in_threadpool(stored_task, services, individual_id, environment)
     try:
         motion = await asyncio.wait_for(services.record_motion(task, every, max_frames), FRAMES_TIMEOUT_S)
     except TimeoutError as exc:

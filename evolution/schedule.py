@@ -1,0 +1,129 @@
+"""Environment schedules: which world each generation is evaluated in, and the switch.
+
+A ``Schedule`` lists the worlds in order with the first generation of each, e.g.
+``Schedule([("land", 0), ("water", 50)])``: generations 0..49 on land, 50 and later in
+water. Its text form is ``land:0,water:50`` (``parse`` / ``format``). ``switch`` is the one
+place that decides an environment switch: an algorithm whose environment is not the one of
+the generation about to start is moved there (``Evolution.reevaluate_all``: the whole
+population is evaluated again in the new world).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+
+class Schedule:
+    """Worlds with the generation each starts; see the module doc."""
+
+    __slots__ = ("entries",)
+
+    def __init__(self, entries: Iterable[tuple[str, int]]) -> None:
+        checked: list[tuple[str, int]] = []
+        for entry in entries:
+            try:
+                environment, first = entry
+            except (TypeError, ValueError):
+                raise ValueError(f"schedule entry {entry!r} is not (environment, first generation)") from None
+            if not isinstance(environment, str) or not environment or any(c in environment for c in ":, "):
+                raise ValueError(f"schedule: bad environment name {environment!r}")
+            if isinstance(first, bool) or not isinstance(first, int) or first < 0:
+                raise ValueError(
+                    f"schedule: first generation of {environment} must be an integer >= 0 (got {first!r})"
+                )
+            if checked and first <= checked[-1][1]:
+                before, start = checked[-1]
+                raise ValueError(f"schedule: {environment} starts at {first}, not after {before} at {start}")
+            if not checked and first != 0:
+                raise ValueError(f"schedule: the first environment must start at generation 0 (got {first})")
+            checked.append((environment, int(first)))
+        if not checked:
+            raise ValueError("schedule: no environment")
+        self.entries: tuple[tuple[str, int], ...] = tuple(checked)
+
+    @classmethod
+    def static(cls, environment: str) -> Schedule:
+        """One world for every generation."""
+        return cls([(environment, 0)])
+
+    @classmethod
+    def from_until(cls, entries: Iterable[tuple[str, int]]) -> Schedule:
+        """From [(environment, until_generation), ...]: each world until (not including) its
+        ``until``, the last one also after it."""
+        entries = list(entries)
+        starts = [0] + [int(until) for _, until in entries[:-1]]
+        return cls([(environment, start) for (environment, _), start in zip(entries, starts, strict=True)])
+
+    @classmethod
+    def parse(cls, text: str) -> Schedule:
+        """From the text form ``env:first,env:first,...``; ValueError naming the problem."""
+        if not isinstance(text, str) or not text.strip():
+            raise ValueError(f"schedule: empty text {text!r}; expected e.g. land:0,water:50")
+        entries = []
+        for part in text.split(","):
+            environment, colon, first = part.strip().partition(":")
+            if not colon or not environment:
+                raise ValueError(f"schedule: {part.strip()!r} is not environment:first_generation")
+            try:
+                generation = int(first)
+            except ValueError:
+                raise ValueError(
+                    f"schedule: first generation of {environment} is not an integer ({first!r})"
+                ) from None
+            entries.append((environment, generation))
+        return cls(entries)
+
+    def format(self) -> str:
+        """The text form, e.g. ``land:0,water:50``."""
+        return ",".join(f"{environment}:{first}" for environment, first in self.entries)
+
+    def environment_at(self, generation: int) -> str:
+        """The world individuals are evaluated in at ``generation``."""
+        current = self.entries[0][0]
+        for environment, first in self.entries:
+            if generation >= first:
+                current = environment
+        return current
+
+    def switches_at(self, generation: int) -> bool:
+        """True if ``generation`` is evaluated in another world than the one before it."""
+        return generation > 0 and self.environment_at(generation) != self.environment_at(generation - 1)
+
+    @property
+    def environments(self) -> list[str]:
+        return [environment for environment, _ in self.entries]
+
+    def switch(self, algorithm: Any, generation: int) -> bool:
+        """Move ``algorithm`` (an ``Evolution``) into the world of ``generation`` if it is in
+        another one (``reevaluate_all``); True if it moved."""
+        environment = self.environment_at(generation)
+        if algorithm.environment == environment:
+            return False
+        algorithm.reevaluate_all(environment)
+        return True
+
+    def __iter__(self) -> Iterator[tuple[str, int]]:
+        return iter(self.entries)
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def __getitem__(self, index: int) -> tuple[str, int]:
+        return self.entries[index]
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, Schedule):
+            return self.entries == other.entries
+        if isinstance(other, list | tuple):
+            return list(self.entries) == [tuple(entry) for entry in other]
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(self.entries)
+
+    def __repr__(self) -> str:
+        return f"Schedule({list(self.entries)!r})"
+
+    def __str__(self) -> str:
+        return self.format()

@@ -1,0 +1,141 @@
+"""worker.tasks: the wire format, the failed result, and that a stored individual's scene and
+replay are the ones its evaluation simulated."""
+
+from __future__ import annotations
+
+import json
+import types
+
+import numpy as np
+import pytest
+from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
+from softevo.evolution.individual import FAILED_DISTANCE
+from softevo.worker import evaluate
+from softevo.worker.tasks import Result, Task, failed, plain, replay, scene_of
+
+ENCODING = EncodingConfig(workspace=(4, 4, 4))
+
+
+def _task(**extra) -> Task:
+    genome = random_viable_genotype(np.random.default_rng(3), ENCODING)
+    return Task.from_genome(genome, "land", 1e5, 2, ENCODING, id=7, **extra)
+
+
+def test_task_json_is_the_wire_format_and_round_trips_exactly():
+    task = _task(run_id=2, generation=5)
+    data = task.to_json()
+    assert list(data) == [
+        "id", "run_id", "generation", "genome", "environment", "youngs_modulus", "cycles", "workspace",
+        "encoding",
+    ]  # fmt: skip
+    assert data["workspace"] == [4, 4, 4] and data["encoding"] == ENCODING.to_dict()
+    wire = json.loads(json.dumps(data))
+    assert Task.from_json(wire) == task
+    assert Task.from_json(wire).to_json() == wire
+    old = {k: v for k, v in wire.items() if k not in ("run_id", "generation", "encoding")}
+    assert Task.from_json(old).to_json() == old  # a task with a workspace only
+    assert Task.from_json(old).encoding_config() == ENCODING
+
+
+def test_result_json_round_trips_exactly():
+    result = evaluate.evaluate_batch([_task().to_json()], threads=1)[0]
+    assert list(result) == list(Result.__dataclass_fields__)
+    wire = json.loads(json.dumps(result))
+    assert Result.from_json(wire).to_json() == wire
+
+
+def test_failed_is_the_worst_fitness_with_the_reason():
+    for task in (_task(), _task().to_json(), {"id": 7}):
+        result = failed(task, "boom")
+        assert result.id == 7 and result.distance == FAILED_DISTANCE
+        assert not result.stable and result.error == "boom" and not result.ok
+        assert result.to_json() == {
+            "id": 7, "distance": FAILED_DISTANCE, "stable": False, "error": "boom", "voxel_count": 0,
+            "active_share": 0.0, "frequency": None, "descriptors": None, "phenotype": None, "seconds": 0.0,
+        }  # fmt: skip
+
+
+def test_nan_or_unstable_scores_the_failed_distance():
+    task = _task()
+    phenotype, _ = scene_of(task)
+    nan = types.SimpleNamespace(distance=float("nan"), stable=True, reason=None)
+    unstable = types.SimpleNamespace(distance=3.0, stable=False, reason="diverged")
+    for outcome, error in ((nan, "non-finite distance"), (unstable, "diverged")):
+        result = Result.of(task, phenotype, outcome, 0.1)
+        assert (result.distance, result.stable, result.error) == (FAILED_DISTANCE, False, error)
+
+
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory):
+    """A tiny land->water run evaluated inline, with every scene the evaluation simulated."""
+    from softevo.service.coordinator import Coordinator
+    from softevo.service.db import open_database
+    from softevo.service.executors import InlineExecutor
+    from softevo.service.experiments import create
+    from softevo.service.treatments import Treatment
+
+    treatment = Treatment(
+        "land-water", 0.1, population=3, generations=3, switch_at=2, workspace=(4, 4, 4), cycles=2, seed=5
+    )
+    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('tasks') / 'tasks.db'}")
+    _, (run_id,) = create(engine, "tasks", [treatment])
+    simulated = {}
+    real = evaluate.scene_of
+
+    def recording(task):
+        phenotype, scene = real(task)
+        simulated[(task.id, task.generation)] = plain(scene)
+        return phenotype, scene
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(evaluate, "scene_of", recording)
+        Coordinator(engine, InlineExecutor()).run([run_id])
+    yield engine, run_id, simulated
+    engine.dispose()
+
+
+def _stored_evaluations(engine, run_id):
+    from softevo.service.db.models import Evaluation, Individual
+    from sqlalchemy import select
+
+    ind, ev = Individual.__table__, Evaluation.__table__
+    query = (
+        select(ind.c.id, ind.c.local_id, ind.c.genome, ev.c.generation, ev.c.environment, ev.c.stiffness,
+               ev.c.distance, ev.c.stable)
+        .join(ind, ev.c.individual_id == ind.c.id)
+        .where(ev.c.run_id == run_id, ev.c.stable.is_(True))
+        .order_by(ev.c.generation, ind.c.local_id)
+    )  # fmt: skip
+    with engine.connect() as conn:
+        return conn.execute(query).mappings().all()
+
+
+def _task_of(engine, row) -> Task:
+    from softevo.analysis.data import individual_record
+
+    settings = individual_record(engine, row["id"]).get("treatment").to_settings()
+    return Task.from_stored(row["id"], row["genome"], settings, row["environment"], row["stiffness"])
+
+
+def test_the_scene_of_a_stored_genome_is_the_one_evaluated(stored):
+    engine, run_id, simulated = stored
+    rows = _stored_evaluations(engine, run_id)
+    assert {row["environment"] for row in rows} == {"land", "water"}
+    compared = 0
+    for row in rows:
+        key = (row["local_id"], row["generation"])
+        if key in simulated:  # evaluated in that generation (not carried over)
+            _, scene = scene_of(_task_of(engine, row))
+            assert plain(scene) == simulated[key]
+            compared += 1
+    assert compared >= 3
+
+
+def test_replay_gives_the_evaluated_distance(stored):
+    engine, run_id, _ = stored
+    row = max(_stored_evaluations(engine, run_id), key=lambda r: r["distance"])
+    motion = replay(_task_of(engine, row), every=50, max_frames=20)
+    assert float(motion["distance"]) == pytest.approx(row["distance"], rel=1e-9, abs=1e-12)
+    assert bool(motion["stable"]) and len(motion["t"]) == 20
+    assert motion["positions"].shape == (20, len(motion["voxels"]), 3)
+    assert set(np.unique(motion["material"])) <= {1, 2}

@@ -1,0 +1,335 @@
+"""Evaluation tasks and results, and the one path from a genome to a simulated robot.
+
+- ``Task``: one genome to evaluate (genome, environment, Young's modulus, cycles,
+  encoding), built by the coordinator from the algorithm's individuals
+  (``Task.from_genome``) or from a stored individual and its treatment's settings
+  (``Task.from_stored``). ``to_json`` / ``from_json`` are the wire format every executor
+  and RQ job exchanges:
+
+      {"id": int,                      # the algorithm's id of the individual
+       "run_id": int,                  # optional: job ids and logs only
+       "generation": int,              # optional: job ids and logs only
+       "genome": {...},                # Genotype.to_dict()
+       "environment": "land" | "water",
+       "youngs_modulus": float,        # Pa
+       "cycles": int,
+       "workspace": [x, y, z],
+       "encoding": {...}}              # optional EncodingConfig.to_dict(); wins over workspace
+
+- ``Result``: what an evaluation returns, ``to_json`` / ``from_json`` with the keys
+  ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
+  phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
+  not finish (worst fitness, the reason kept); the score of a finished one follows
+  ``evolution.individual.score``.
+- ``scene_of(task)``: (phenotype, scene) of a task, the scene the evaluation simulates.
+- ``replay(task, every)``: the evaluation simulated again with frames recorded (the
+  simulator is deterministic: the motion is the one that was evaluated).
+- ``encoding_of(settings)``: the encoding a treatment's runs express their genomes with;
+  ``default_record_every(scene)``: steps between frames for about ``DEFAULT_RECORD_FPS``
+  frames per simulated second.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+DEFAULT_RECORD_FPS = 60.0  # frames per simulated second of a replay without ``every``
+MAX_FRAMES = 2000  # frames a replay keeps at most when ``max_frames`` is given
+
+
+def encoding_of(settings: Mapping[str, Any]):
+    """The ``EncodingConfig`` of a treatment's runs from its settings
+    (``service.treatments.Treatment.to_settings()``: only ``workspace`` matters)."""
+    from softevo.evolution.genotype import EncodingConfig
+
+    return EncodingConfig(workspace=tuple(int(n) for n in settings["workspace"]))
+
+
+@dataclass(frozen=True)
+class Task:
+    """One genome to evaluate; see the module doc for its JSON."""
+
+    id: int | None
+    genome: dict[str, Any]
+    environment: str
+    youngs_modulus: float
+    cycles: int
+    workspace: tuple[int, int, int]
+    encoding: dict[str, Any] | None = None  # EncodingConfig.to_dict(); None: from workspace
+    run_id: int | None = None
+    generation: int | None = None
+
+    @classmethod
+    def from_genome(
+        cls,
+        genome,
+        environment: str,
+        youngs_modulus: float,
+        cycles: int,
+        encoding,
+        id: int | None = 0,
+        run_id: int | None = None,
+        generation: int | None = None,
+    ) -> Task:
+        """A task of ``genome`` (a ``Genotype`` or its ``to_dict()``) expressed with
+        ``encoding`` (an ``EncodingConfig`` or its ``to_dict()``)."""
+        genome = genome if isinstance(genome, dict) else genome.to_dict()
+        encoding = encoding if isinstance(encoding, dict) else encoding.to_dict()
+        return cls(
+            id=id,
+            genome=genome,
+            environment=environment,
+            youngs_modulus=float(youngs_modulus),
+            cycles=int(cycles),
+            workspace=tuple(int(n) for n in encoding["workspace"]),
+            encoding=encoding,
+            run_id=run_id,
+            generation=generation,
+        )
+
+    @classmethod
+    def from_stored(
+        cls,
+        individual_id: int,
+        genome: dict[str, Any],
+        settings: Mapping[str, Any],
+        environment: str,
+        youngs_modulus: float,
+    ) -> Task:
+        """The task of a stored individual: its genome (``Genotype.to_dict()`` JSON), its
+        treatment's settings (``Treatment.to_settings()``; encoding and cycles) and the
+        environment and Young's modulus (Pa) of the evaluation to reproduce."""
+        return cls.from_genome(
+            genome,
+            environment,
+            youngs_modulus,
+            int(settings["cycles"]),
+            encoding_of(settings),
+            id=int(individual_id),
+        )
+
+    def encoding_config(self):
+        """The ``EncodingConfig`` the genome is expressed with."""
+        from softevo.evolution.genotype import EncodingConfig
+
+        if self.encoding:
+            return EncodingConfig.from_dict(self.encoding)
+        return EncodingConfig(workspace=self.workspace)
+
+    def to_json(self) -> dict[str, Any]:
+        """The wire format (module doc); ``from_json(t.to_json()) == t``."""
+        out: dict[str, Any] = {"id": self.id}
+        if self.run_id is not None:
+            out["run_id"] = self.run_id
+        if self.generation is not None:
+            out["generation"] = self.generation
+        out.update(
+            genome=self.genome,
+            environment=self.environment,
+            youngs_modulus=self.youngs_modulus,
+            cycles=self.cycles,
+            workspace=list(self.workspace),
+        )
+        if self.encoding is not None:
+            out["encoding"] = self.encoding
+        return out
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Task:
+        """A task from its JSON (unknown keys are ignored); KeyError if one is missing."""
+        encoding = data.get("encoding") or None
+        workspace = data["workspace"] if "workspace" in data or not encoding else encoding["workspace"]
+        return cls(
+            id=data["id"],
+            genome=data["genome"],
+            environment=data["environment"],
+            youngs_modulus=data["youngs_modulus"],
+            cycles=data["cycles"],
+            workspace=tuple(int(n) for n in workspace),
+            encoding=encoding,
+            run_id=data.get("run_id"),
+            generation=data.get("generation"),
+        )
+
+
+@dataclass(frozen=True)
+class Result:
+    """The evaluation of one task; see the module doc for its JSON."""
+
+    id: int | None
+    distance: float
+    stable: bool
+    error: str | None
+    voxel_count: int = 0
+    active_share: float = 0.0
+    frequency: float | None = None
+    descriptors: dict[str, Any] | None = None
+    phenotype: dict[str, Any] | None = None
+    seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.stable and self.error is None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "distance": self.distance,
+            "stable": self.stable,
+            "error": self.error,
+            "voxel_count": self.voxel_count,
+            "active_share": self.active_share,
+            "frequency": self.frequency,
+            "descriptors": self.descriptors,
+            "phenotype": self.phenotype,
+            "seconds": self.seconds,
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Result:
+        return cls(**{key: data[key] for key in cls.__dataclass_fields__ if key in data})
+
+    @classmethod
+    def of(cls, task: Task, phenotype, outcome: Any, seconds: float) -> Result:
+        """The result of ``task`` from the simulator's ``outcome`` (a ``sim.Result`` or an
+        exception), scored by ``evolution.individual.score``."""
+        from softevo.evolution.individual import score
+
+        if isinstance(outcome, BaseException):
+            return failed(task, f"{type(outcome).__name__}: {outcome}", phenotype)
+        stable = bool(outcome.stable)
+        evaluation = score(float(outcome.distance), stable, None if stable else outcome.reason)
+        return cls(
+            task.id,
+            evaluation.distance,
+            evaluation.stable,
+            evaluation.error,
+            **_phenotype_fields(phenotype),
+            seconds=seconds,
+        )
+
+
+def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> Result:
+    """The result of an evaluation that could not finish (a bad genome, a crash, a lost
+    job): ``FAILED_DISTANCE``, unstable, ``reason`` as its error. ``task`` may be a ``Task``
+    or its JSON (KeyError without an ``id``)."""
+    from softevo.evolution.individual import FAILED_DISTANCE
+
+    task_id = task.id if isinstance(task, Task) else task["id"]
+    return Result(task_id, FAILED_DISTANCE, False, reason, **_phenotype_fields(phenotype))
+
+
+def _phenotype_fields(phenotype) -> dict[str, Any]:
+    if phenotype is None:
+        return {}
+    return {
+        "voxel_count": int(phenotype.voxel_count),
+        "active_share": float(phenotype.active_share),
+        "frequency": float(phenotype.frequency),
+        "descriptors": _descriptors(phenotype),
+        "phenotype": plain(phenotype.summary()),
+    }
+
+
+def _descriptors(phenotype) -> dict[str, float] | None:
+    """Shape descriptors (symmetry, branching, shape_entropy, ...); never fails."""
+    try:
+        from softevo.evolution.descriptors import describe_phenotype
+
+        return plain(describe_phenotype(phenotype))
+    except Exception as exc:  # descriptors never fail an evaluation
+        return {"error": f"{type(exc).__name__}: {exc}"}
+
+
+def plain(value: Any) -> Any:
+    """Numpy scalars and arrays to plain JSON types (RQ's JSON serialiser needs them)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [plain(v) for v in value]
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return value
+
+
+def scene_of(task: Task, **extra: Any):
+    """(phenotype, scene) of ``task``: the genome developed in its encoding and placed in
+    its environment; ``extra`` scene fields (e.g. ``record``) are added. ValueError
+    ("empty body") for a genome without voxels."""
+    from softevo.evolution.genotype import Genotype, develop
+
+    phenotype = develop(Genotype.from_dict(task.genome), task.encoding_config())
+    if phenotype.voxel_count == 0:
+        raise ValueError("empty body")
+    scene = phenotype.to_scene(task.environment, task.youngs_modulus, task.cycles, **extra)
+    return phenotype, scene
+
+
+def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_FPS) -> int:
+    """Steps between frames for about ``fps`` frames per simulated second of ``scene``.
+
+    Uses the stable step of PHYSICS.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to
+    pick a frame rate; the engine's own dt stays authoritative (the frames carry their times).
+    """
+    from softevo.sim.scene import parse_scene
+
+    parsed = parse_scene(dict(scene))
+    m = parsed.material
+    dt = parsed.dt_fraction * parsed.voxel_size * math.sqrt(m.density / m.youngs_modulus)
+    dt /= 2.0 * math.pi
+    return max(1, int(round(1.0 / (fps * dt))))
+
+
+def replay(
+    task: Task | Mapping[str, Any],
+    every: int | None = None,
+    max_frames: int | None = None,
+    threads: int | None = 1,
+) -> dict[str, np.ndarray]:
+    """Simulate ``task`` again recording voxel positions every ``every`` steps (default
+    ``default_record_every``); with ``max_frames``, keep at most that many frames (and at
+    most ``MAX_FRAMES``) evenly spread, the first and last kept.
+
+    Returns:
+        t: (F,) float64 seconds of simulated time.
+        voxels: (V, 3) int64 lattice indices (i, j, k) of the simulated voxels.
+        material: (V,) int64, 1 passive, 2 active.
+        positions: (F, V, 3) float64 voxel centres, metres.
+        dt: () float64 time step, seconds; stable: () bool.
+        distance: () float64 distance, voxel lengths (the evaluated one when stable).
+        voxel_size: () float64 voxel edge, metres.
+    Raises ValueError for a genome with an empty body.
+    """
+    from softevo import sim
+
+    task = task if isinstance(task, Task) else Task.from_json(task)
+    phenotype, scene = scene_of(task)
+    scene["record"] = {"every": int(every if every is not None else default_record_every(scene))}
+    result = sim.simulate_many([scene], threads=threads)[0]
+    t = np.asarray(result.frames["t"], dtype=float) if result.frames else np.zeros(0)
+    voxels = np.asarray(result.voxels, dtype=np.int64).reshape(-1, 3)
+    positions = (
+        np.asarray(result.frames["positions"], dtype=float).reshape(len(t), len(voxels), 3)
+        if result.frames
+        else np.zeros((0, len(voxels), 3))
+    )
+    index = np.arange(len(t))
+    if max_frames is not None and len(t):
+        keep = min(len(t), max(1, min(int(max_frames), MAX_FRAMES)))
+        index = np.unique(np.linspace(0, len(t) - 1, keep).round().astype(int))
+    material = np.asarray(phenotype.body, dtype=np.int64)[tuple(voxels.T)]
+    return {
+        "t": t[index],
+        "voxels": voxels,
+        "material": material,
+        "positions": positions[index],
+        "dt": np.float64(result.dt),
+        "stable": np.bool_(result.stable),
+        "distance": np.float64(result.distance),
+        "voxel_size": np.float64(scene["voxel_size"]),
+    }
