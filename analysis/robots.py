@@ -11,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-from softevo.analysis.data import individual_record
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
+from softevo.service.db.individuals import individual_record
 from softevo.service.db.models import Individual, Run, Treatment
 from softevo.service.treatments import Treatment as Settings
 from sqlalchemy import Engine, select
@@ -59,7 +59,7 @@ def individual_scene(
 
     ``environment`` defaults to that of the individual's latest evaluation (after an
     environment switch, the new one). ``extra`` scene fields (e.g. ``record``) are added.
-    ``record`` is ``analysis.data.individual_record`` plus ``phenotype_object`` and
+    ``record`` is ``service.db.individuals.individual_record`` plus ``phenotype_object`` and
     ``environment`` (the one used).
     """
     record = individual_record(engine, individual_id)

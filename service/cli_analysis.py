@@ -1,7 +1,7 @@
-"""``softevo report | show | export-vxa`` (SPEC.md section 7, issue 6).
+"""``softevo report | show | export-vxa`` (SPEC.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
-  statistics and the run settings (``analysis.report.write_report``).
+  statistics and the run settings (``service.reports.write_report``).
 - ``softevo show INDIVIDUAL --out FILE.gif|FILE.mp4``: re-simulate a stored individual and
   animate its motion (MP4 needs ffmpeg).
 - ``softevo export-vxa INDIVIDUAL --out FILE.vxa``: the individual as a VoxCAD file.
@@ -38,7 +38,8 @@ def report(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Write an experiment's report: report.html (self-contained), report.md, figures, CSVs."""
-    from softevo.analysis.report import write_report
+    # the report pulls in matplotlib and the analyses: load them only for this command
+    from softevo.service.reports import write_report
 
     result = write_report(db, experiment, out, animation=animation, progress=not quiet)
     typer.echo(str(result.html))

@@ -4,6 +4,9 @@ Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
 ``sqlite:///softevo.db``) and a local process pool. Runs and experiments are named by
 ``RUN_OR_EXPERIMENT``: ``5``, ``r5`` or ``run-5`` for run 5; ``e2`` or ``exp-2`` for
 experiment 2; ``latest`` for the newest experiment; or an experiment's name.
+
+Each command imports what it uses inside its function: ``softevo --help`` and every other
+command start without loading SQLAlchemy, pandas, numba or rich.
 """
 
 from __future__ import annotations

@@ -22,14 +22,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from softevo.service.db.models import Run, RunStatus
+from softevo.service.db.models import RunStatus
+from softevo.service.db.runs import active_run_ids
 from softevo.service.db.store import GenerationRecord, record_generation, run_row, set_run_status
 from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
-from sqlalchemy import Engine, select
-
-ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
+from sqlalchemy import Engine
 
 
 @dataclass(frozen=True)
@@ -78,12 +77,8 @@ def load_run(engine: Engine, run_id: int) -> ActiveRun:
 
 def unfinished_runs(engine: Engine, run_ids: Sequence[int] | None = None) -> list[int]:
     """Ids of pending or running runs (among ``run_ids`` if given)."""
-    table = Run.__table__
-    query = select(table.c.id).where(table.c.status.in_(ACTIVE)).order_by(table.c.id)
-    if run_ids is not None:
-        query = query.where(table.c.id.in_(list(run_ids)))
     with engine.connect() as conn:
-        return list(conn.execute(query).scalars())
+        return active_run_ids(conn, run_ids)
 
 
 def ask(run: ActiveRun) -> list[dict[str, Any]]:

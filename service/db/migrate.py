@@ -14,11 +14,11 @@ from alembic import command
 from alembic.config import Config
 from sqlalchemy import Engine
 
+from softevo import migrations
+
 
 def script_location() -> Path:
     """Directory of the installed ``migrations`` package."""
-    from softevo import migrations
-
     return Path(migrations.__file__).resolve().parent
 
 

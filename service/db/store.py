@@ -1,4 +1,6 @@
-"""Writes and reads of runs, one transaction per use case (SQLAlchemy core, bound parameters).
+"""Writes of experiments and generations, and the run lookups the CLI and coordinator share
+(``run_row``, ``resolve_runs``, ``resolve_experiment``); SQLAlchemy core, bound parameters.
+``set_run_status`` (defined in ``service.db.runs``) is importable from here too.
 
 Every insert ignores rows already present (unique constraints), so recording the same
 generation twice changes nothing: a coordinator killed after its commit but before it
@@ -23,10 +25,27 @@ from softevo.service.db.models import (
     Treatment,
     utcnow,
 )
+from softevo.service.db.runs import set_run_status
 from sqlalchemy import Connection, Table, case, func, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 
 from softevo.errors import UserError
+
+__all__ = [
+    "GenerationRecord",
+    "NewRun",
+    "NewTreatment",
+    "count_rows",
+    "create_experiment",
+    "insert_ignore",
+    "local_to_db_ids",
+    "record_generation",
+    "reopen_runs",
+    "resolve_experiment",
+    "resolve_runs",
+    "run_row",
+    "set_run_status",
+]
 
 
 @dataclass(frozen=True)
@@ -228,25 +247,9 @@ def _advance_run(conn: Connection, record: GenerationRecord) -> None:
     )
 
 
-def set_run_status(conn: Connection, run_id: int, status: RunStatus, error: str | None = None) -> None:
-    """Set a run's status (and error message, for a failed run)."""
-    table = Run.__table__
-    conn.execute(
-        update(table)
-        .where(table.c.id == run_id)
-        .values(status=status.value, error=error, updated_at=utcnow())
-    )
-
-
 def reopen_runs(conn: Connection, run_ids: Sequence[int]) -> None:
     """Make cancelled or failed runs among ``run_ids`` resumable (status running, no error)."""
-    table = Run.__table__
-    stopped = (RunStatus.CANCELLED.value, RunStatus.FAILED.value)
-    conn.execute(
-        update(table)
-        .where(table.c.id.in_(list(run_ids)), table.c.status.in_(stopped))
-        .values(status=RunStatus.RUNNING.value, error=None, updated_at=utcnow())
-    )
+    set_run_status(conn, run_ids, RunStatus.RUNNING, only_from=(RunStatus.CANCELLED, RunStatus.FAILED))
 
 
 def run_row(conn: Connection, run_id: int) -> dict[str, Any]:

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+from functools import partial
 
 import numpy as np
 import pytest
 from PIL import Image
 from softevo.analysis import figures
+from softevo.analysis.robots import phenotypes
 from softevo.analysis.stats_tables import fitness_curves, statistics_table
 
 # 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
@@ -34,7 +36,7 @@ def _make(name, data, tests, curves, engine, out):
         "descriptors": lambda: figures.descriptors_figure(data, tests, out),
         "pareto": lambda: figures.pareto_figure(data, out),
         "transitions": lambda: figures.transitions_figure(data, curves, tests, out),
-        "robots": lambda: figures.robots_figure(data, engine, out),
+        "robots": lambda: figures.robots_figure(data, partial(phenotypes, engine), out),
         "start_end": lambda: figures.start_end_figure(data, tests, rng, out),
     }[name]()
 
