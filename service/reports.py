@@ -15,8 +15,7 @@ from softevo.analysis import motion, robots
 from softevo.analysis import report as analysis_report
 from softevo.analysis.report import Report, Robots
 from softevo.service.db import open_database
-from softevo.service.db.experiments import load_experiment
-from softevo.service.db.store import resolve_experiment
+from softevo.service.db.experiments import load_experiment, resolve_experiment
 from sqlalchemy import Connection, Engine
 
 
@@ -58,7 +57,7 @@ def write_report(
     **options: Any,
 ) -> Report:
     """Write the report of ``experiment`` (an id, ``e3``, ``latest`` or a name:
-    ``service.db.store.resolve_experiment``) into ``out_dir``; ``source``: a database URL,
+    ``service.db.experiments.resolve_experiment``) into ``out_dir``; ``source``: a database URL,
     Engine, Connection or Session; ``options``: those of ``analysis.report.write_report``
     (animation, progress, seed)."""
     engine, data = _load(source, experiment)

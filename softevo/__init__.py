@@ -85,7 +85,7 @@ def load_experiment(db: str | None = None, experiment: str = "latest"):
     ``2`` or a name."""
     from softevo.service.db import open_database
     from softevo.service.db.experiments import load_experiment as load
-    from softevo.service.db.store import resolve_experiment
+    from softevo.service.db.experiments import resolve_experiment
 
     engine = open_database(db)
     try:

@@ -5,15 +5,16 @@ parameters), one module per noun:
 
 - ``engine``: ``open_database`` (engine + migrations), ``make_engine``, ``database_reachable``;
 - ``models``: the tables; ``migrate``: Alembic upgrades;
-- ``experiments``: API listings and ``load_experiment(engine, id) -> ExperimentData``;
-- ``runs``: run summaries and details, ``active_run_ids`` and ``set_run_status`` (every
-  status change goes through it);
-- ``generations``: per-generation summaries and the Pareto front of a generation;
-- ``individuals``: one individual and its evaluations, ``individual_record``;
-- ``store``: the writes (``create_experiment``, ``record_generation``) and the CLI's run
-  lookups (``run_row``, ``resolve_runs``, ``resolve_experiment``);
+- ``experiments``: ``create_experiment``, ``resolve_experiment``, API listings and
+  ``load_experiment(engine, id) -> ExperimentData``;
+- ``runs``: ``run_row``, ``resolve_runs``, run summaries and details, ``active_run_ids`` and
+  ``set_run_status`` (every status change goes through it);
+- ``generations``: ``record_generation``, per-generation summaries, the Pareto front;
+- ``individuals``: one individual and its evaluations, ``individual_record``,
+  ``local_to_db_ids``;
 - ``status``: run summaries and lineage records for displays; ``phylogeny``: lineages;
-  ``export``: CSV/Parquet files; ``rows``: result rows as JSON-ready dicts.
+  ``export``: CSV/Parquet files; ``rows``: result rows as JSON-ready dicts;
+- ``store``: the write and lookup functions re-exported by their former home.
 """
 
 from softevo.service.db.engine import database_url, make_engine, open_database

@@ -1,13 +1,13 @@
-"""Reads of experiments: API listings with run progress, existence and freshness checks, and
-``load_experiment(engine, id) -> analysis.data.ExperimentData`` (the analyses' input).
-
-Writes (``create_experiment``) and reference resolution (``resolve_experiment``) are in
-``service.db.store``.
+"""Experiments: creation with their treatments and pending runs (``create_experiment``),
+``resolve_experiment`` (a CLI reference to an id), API listings with run progress,
+existence and freshness checks, and ``load_experiment(engine, id) ->
+analysis.data.ExperimentData`` (the analyses' input).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
@@ -22,8 +22,10 @@ from softevo.service.db.models import (
     Run,
     RunStatus,
     Treatment,
+    utcnow,
 )
 from softevo.service.db.rows import dict_rows
+from softevo.service.db.runs import parse_reference
 from softevo.service.db.status import run_summary_select
 from softevo.service.treatments import Treatment as Settings
 from sqlalchemy import Connection, Engine, and_, func, or_, select
@@ -31,6 +33,82 @@ from sqlalchemy import Connection, Engine, and_, func, or_, select
 from softevo.errors import UserError
 
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
+
+
+# -- creation and lookup ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NewRun:
+    """A run to create: repetition index and seed."""
+
+    repetition: int
+    seed: int
+    generations: int
+
+
+@dataclass(frozen=True)
+class NewTreatment:
+    """A treatment to create: its name, JSON settings and runs."""
+
+    name: str
+    settings: dict[str, Any]
+    runs: Sequence[NewRun]
+
+
+def create_experiment(
+    conn: Connection,
+    name: str,
+    treatments: Iterable[NewTreatment],
+    preset: str | None = None,
+    scale: str | None = None,
+) -> tuple[int, list[int]]:
+    """Insert an experiment, its treatments and pending runs; return (experiment id, run ids)."""
+    experiment_id = conn.execute(
+        Experiment.__table__.insert().values(name=name, preset=preset, scale=scale, created_at=utcnow())
+    ).inserted_primary_key[0]
+    run_ids: list[int] = []
+    for treatment in treatments:
+        treatment_id = conn.execute(
+            Treatment.__table__.insert().values(
+                experiment_id=experiment_id, name=treatment.name, settings=treatment.settings
+            )
+        ).inserted_primary_key[0]
+        for run in treatment.runs:
+            run_ids.append(_insert_run(conn, treatment_id, run))
+    return experiment_id, run_ids
+
+
+def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
+    now = utcnow()
+    return conn.execute(
+        Run.__table__.insert().values(
+            treatment_id=treatment_id,
+            repetition=run.repetition,
+            seed=run.seed,
+            status=RunStatus.PENDING.value,
+            generation=-1,
+            generations=run.generations,
+            created_at=now,
+            updated_at=now,
+        )
+    ).inserted_primary_key[0]
+
+
+def resolve_experiment(conn: Connection, reference: str) -> int:
+    """The experiment named by ``e2``, ``exp-2``, ``2``, ``latest`` or its name (the newest of
+    that name); UserError if there is none."""
+    experiments = Experiment.__table__
+    kind, number = parse_reference(reference)
+    query = select(func.max(experiments.c.id))
+    if kind in ("experiment", "run"):  # a bare number names an experiment here
+        query = query.where(experiments.c.id == number)
+    elif kind == "name":
+        query = query.where(experiments.c.name == reference)
+    found = conn.execute(query).scalar()
+    if found is None:
+        raise UserError(f"no experiment {reference!r}")
+    return int(found)
 
 
 # -- the REST API's listings ------------------------------------------------------------------

@@ -1,16 +1,18 @@
 """Individuals: one individual with its evaluations (for the API and, as DataFrames, for
-re-simulation), what re-simulating it needs, and the run it belongs to.
+re-simulation), what re-simulating it needs, the run it belongs to, and the map from an
+algorithm's local ids to database ids.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import pandas as pd
 from softevo.analysis.columns import TRAITS
 from softevo.service.db.models import EVALUATION_FIELDS, Evaluation, Individual, Run, Treatment
 from softevo.service.db.rows import dict_rows
-from softevo.service.db.store import run_row
+from softevo.service.db.runs import run_row
 from softevo.service.treatments import Treatment as Settings
 from sqlalchemy import Connection, Engine, select
 
@@ -21,6 +23,18 @@ def individual_run_id(conn: Connection, individual_id: int) -> int | None:
     """The run of an individual, or None if there is no such individual."""
     table = Individual.__table__
     return conn.execute(select(table.c.run_id).where(table.c.id == individual_id)).scalar()
+
+
+def local_to_db_ids(conn: Connection, run_id: int, local_ids: Iterable[int]) -> dict[int, int]:
+    """Map the algorithm's local ids of a run to database ids (missing ones are left out)."""
+    wanted = sorted(set(local_ids))
+    if not wanted:
+        return {}
+    table = Individual.__table__
+    rows = conn.execute(
+        select(table.c.local_id, table.c.id).where(table.c.run_id == run_id, table.c.local_id.in_(wanted))
+    )
+    return {local: db_id for local, db_id in rows}
 
 
 def evaluation_fields(row: dict[str, Any]) -> dict[str, Any]:
