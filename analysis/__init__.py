@@ -1,9 +1,13 @@
-"""Analyses of stored experiments: statistics, figures, motion, report, VoxCAD export.
+"""Analyses of experiments: statistics, figures, motion, report, VoxCAD export.
 
-Reads the database written by ``service/`` and never writes to it. Modules:
+Computes on data it is given and opens no database: ``service`` reads the database into an
+``ExperimentData`` (``service.db.experiments.load_experiment``) and calls these modules.
+Modules:
 
-- ``analysis.data``: ``load_experiment(engine, id) -> ExperimentData`` (pandas frames of the
-  settings, runs, per-generation summaries and the initial and final populations);
+- ``analysis.columns``: the column names shared with ``service.db`` (``TRAITS``,
+  ``INDIVIDUAL_COLUMNS``);
+- ``analysis.data``: ``ExperimentData`` (pandas frames of the settings, runs,
+  per-generation summaries and the initial and final populations);
 - ``analysis.stats_tables``: bootstrap CIs over repetitions, Mann-Whitney U between
   treatments and between start and end, Bonferroni per family (``evolution.stats`` inside);
 - ``analysis.figures``: the report's figures as PNG + SVG (``FIGURES``);
@@ -12,8 +16,8 @@ Reads the database written by ``service/`` and never writes to it. Modules:
   the workers built them;
 - ``analysis.motion``: re-simulate a task or a stored record with frames
   (``worker.tasks.replay``) and animate it (GIF, MP4);
-- ``analysis.report``: ``write_report(url_or_engine_or_session, experiment, out_dir)`` and
-  ``report_html(...)`` for the REST service;
+- ``analysis.report``: ``write_report(data, out_dir, robots=...)`` and ``report_html``
+  (``service.reports`` binds them to a database);
 - ``analysis.vxa``: ``scene_to_vxa(scene)`` / ``record_vxa(record)``, VoxCAD files.
 
 Command line (``service/cli_analysis.py``)::

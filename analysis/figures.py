@@ -12,9 +12,10 @@ water->land green), darker for stiffer material.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -25,9 +26,11 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
 from softevo.analysis.stats_tables import ALPHA, best_distance_per_run, ci_table  # noqa: E402
+from softevo.evolution.selection import non_dominated_sort  # noqa: E402
 
 DPI = 100
 ENVIRONMENT_ORDER = ("land", "water", "land-water", "water-land")
@@ -269,8 +272,6 @@ def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path)
 def pareto_front(frame: pd.DataFrame) -> pd.DataFrame:
     """Rows of ``frame`` not dominated on (max distance, min active_share), sorted by
     active_share; duplicates of a front point are all kept."""
-    from softevo.evolution.selection import non_dominated_sort
-
     valid = frame.dropna(subset=["distance", "active_share"])
     if valid.empty:
         return valid
@@ -411,16 +412,18 @@ def front_samples(front: pd.DataFrame, k: int = SAMPLES_PER_FRONT) -> pd.DataFra
     return unique.iloc[picks]
 
 
-def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
+def robots_figure(
+    data: ExperimentData, phenotypes: Callable[[list[int]], dict[int, Any]], out_dir: Path
+) -> FigureFile:
     """3-D renders of robots sampled from each treatment's aggregated front (active voxels
-    red, passive cyan), with their distance and active share."""
-    from softevo.analysis.robots import phenotypes
-
+    red, passive cyan), with their distance and active share. ``phenotypes(ids)`` gives the
+    stored individuals' phenotypes (``Robots.phenotypes``, which ``service.reports`` binds to
+    a database)."""
     final = data.final_populations()
     names = data.treatment_names
     samples = {n: front_samples(pareto_front(final[final["treatment"] == n])) for n in names}
     ids = [int(i) for s in samples.values() for i in s["individual_id"]]
-    bodies = {i: p.body for i, p in phenotypes(engine, ids).items()}
+    bodies = {i: p.body for i, p in phenotypes(ids).items()}
     fig = _new_figure("robots", data, layout=None)  # fixed margins: 3-D axes need no solver
     per_row = min(2, len(names))
     top = 1.0 - 0.75 / fig.get_size_inches()[1]
@@ -462,8 +465,6 @@ def robots_figure(data: ExperimentData, engine, out_dir: Path) -> FigureFile:
 
 
 def _material_legend(fig: Figure) -> None:
-    from matplotlib.patches import Patch
-
     fig.legend(
         handles=[Patch(color=ACTIVE_COLOR, label="active"), Patch(color=PASSIVE_COLOR, label="passive")],
         loc="lower right",

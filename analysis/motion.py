@@ -25,7 +25,6 @@ import numpy as np  # noqa: E402
 from matplotlib import animation  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, EDGE_COLOR, PASSIVE_COLOR, VIEW  # noqa: E402
-from sqlalchemy import Engine  # noqa: E402
 
 from softevo.errors import UserError  # noqa: E402
 
@@ -96,20 +95,13 @@ def task_motion(task, label: str = "", stored_distance: float | None = None) -> 
 
 
 def stored_motion(record: dict, environment: str | None = None) -> Motion:
-    """The motion of a stored record (``analysis.data.individual_record``) in
+    """The motion of a stored record (``service.db.individuals.individual_record``) in
     ``environment`` (default: that of its latest evaluation)."""
     from softevo.analysis.robots import stored_distance, stored_task
 
     task = stored_task(record, environment)
     label = f"individual {record['id']} \u00b7 {record['treatment_name']} \u00b7 {task.environment}"
     return task_motion(task, label, stored_distance(record, task.environment))
-
-
-def record_motion(engine: Engine, individual_id: int, environment: str | None = None) -> Motion:
-    """``stored_motion`` of the stored individual ``individual_id``."""
-    from softevo.analysis.data import individual_record
-
-    return stored_motion(individual_record(engine, individual_id), environment)
 
 
 def lattice_links(voxels: np.ndarray) -> np.ndarray:

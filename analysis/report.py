@@ -1,8 +1,10 @@
 """The experiment report: every figure, the statistics and the run settings, as one
 self-contained HTML page (figures embedded as base64 PNG) and a Markdown file beside it.
 
-``write_report(source, experiment_id, out_dir)`` is the one entry point (the CLI's
-``softevo report`` and the REST service call it). ``out_dir`` receives::
+``write_report(data, out_dir, robots=...)`` writes it from an ``ExperimentData``; ``robots``
+(a ``Robots``) reaches the stored robots for the renders, the evaluation settings and the
+animation. The database side (``service.reports``, behind ``softevo report`` and the REST
+service) reads the data and binds the robots. ``out_dir`` receives::
 
     report.html          self-contained page
     report.md            the same content; figures linked from figures/
@@ -17,17 +19,22 @@ from __future__ import annotations
 import base64
 import html
 import math
+import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from softevo.analysis import figures as fig
-from softevo.analysis.data import TRAIT_LABELS, ExperimentData, load_experiment
+from softevo.analysis.data import TRAIT_LABELS, ExperimentData
+from softevo.analysis.motion import animate
 from softevo.analysis.stats_tables import (
     CURVE_RESAMPLES,
     N_RESAMPLES,
@@ -35,8 +42,8 @@ from softevo.analysis.stats_tables import (
     statistics_table,
     summary_table,
 )
-from sqlalchemy import Connection, Engine
 
+from softevo import sim
 from softevo.errors import UserError
 
 METHODS = (
@@ -261,20 +268,19 @@ class Report:
     animation: Path | None
 
 
-def engine_of(source: str | Engine | Connection | Any | None) -> Engine:
-    """An engine from a URL (None: the default database), an Engine, a Connection or an ORM
-    Session."""
-    if isinstance(source, Engine):
-        return source
-    if isinstance(source, Connection):
-        return source.engine
-    if source is None or isinstance(source, str):
-        from softevo.service.db import open_database
+@dataclass(frozen=True)
+class Robots:
+    """How the report reaches stored robots; the caller binds these to its database.
 
-        return open_database(source)
-    if hasattr(source, "get_bind"):
-        return source.get_bind()
-    raise TypeError(f"expected a database URL, Engine, Connection or Session, got {source!r}")
+    phenotypes(ids) -> {id: Phenotype}; scene(id, environment) -> (scene, record) as
+    ``Robots.scene`` (record with treatment, seed, phenotype_object);
+    encoding(treatment, seed) -> EncodingConfig; motion(id, environment) -> Motion.
+    """
+
+    phenotypes: Callable[[list[int]], dict[int, Any]]
+    scene: Callable[[int, str | None], tuple[dict[str, Any], dict[str, Any]]]
+    encoding: Callable[[Any, int], Any]
+    motion: Callable[[int, str | None], Any]
 
 
 @contextmanager
@@ -283,9 +289,6 @@ def _steps(total: int, enabled: bool) -> Iterator[Callable[[str], None]]:
     if not enabled:
         yield lambda _description: None
         return
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     columns = (TextColumn("{task.description:<28}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=Console(stderr=True), transient=True) as progress:
         task = progress.add_task("report", total=total)
@@ -293,36 +296,29 @@ def _steps(total: int, enabled: bool) -> Iterator[Callable[[str], None]]:
 
 
 def write_report(
-    source: str | Engine | Connection | Any | None,
-    experiment_id: int | str,
+    data: ExperimentData,
     out_dir: str | Path,
     *,
+    robots: Robots | None = None,
     animation: bool = True,
     progress: bool = False,
     seed: int = 0,
 ) -> Report:
-    """Write the report of experiment ``experiment_id`` (an id, ``e3``, ``latest`` or a name:
-    ``service.db.store.resolve_experiment``) into
-    ``out_dir`` (see the module doc). ``source``: a database URL, Engine, Connection or
-    Session. ``seed`` seeds the bootstrap."""
-    from softevo.service.db.store import resolve_experiment
-
-    engine = engine_of(source)
-    with engine.connect() as conn:
-        experiment_id = resolve_experiment(conn, str(experiment_id))
+    """Write the report of ``data`` into ``out_dir`` (see the module doc). Without ``robots``
+    the robot renders, the evaluation settings and the animation are left out. ``seed``
+    seeds the bootstrap."""
+    if data.generations.empty:
+        raise UserError(f"experiment e{data.experiment['id']} has no stored generation yet")
     out = _output_dir(out_dir)
     figures_dir = out / "figures"
     rng = np.random.default_rng(seed)
-    with _steps(10 if animation else 9, progress) as step:
-        step("reading the database")
-        data = load_experiment(engine, experiment_id)
-        if data.generations.empty:
-            raise UserError(f"experiment e{experiment_id} has no stored generation yet")
+    animation = animation and robots is not None
+    with _steps(9 if animation else 8, progress) as step:
         step("statistics")
         stats, summary = statistics_table(data), summary_table(data, rng)
         curves = fitness_curves(data, rng)
         figures = []
-        for name, make in _figure_makers(data, engine, stats, curves, rng, figures_dir):
+        for name, make in _figure_makers(data, robots, stats, curves, rng, figures_dir):
             step(f"figure: {name}")
             made = make()
             if made is not None:
@@ -330,12 +326,13 @@ def write_report(
         gif = None
         if animation:
             step("animation of the best robot")
-            gif = _best_animation(engine, data, figures_dir)
+            gif = _best_animation(robots, data, figures_dir)
         step("writing the report")
         stats_path, summary_path = out / "statistics.csv", out / "summary.csv"
         stats.to_csv(stats_path, index=False)
         summary.to_csv(summary_path, index=False)
-        doc = build_document(data, stats, summary, figures, gif, evaluation_text(engine, data))
+        evaluation = None if robots is None else evaluation_text(robots, data)
+        doc = build_document(data, stats, summary, figures, gif, evaluation)
         markdown, page = out / "report.md", out / "report.html"
         markdown.write_text(to_markdown(doc, out), encoding="utf-8")
         page.write_text(to_html(doc), encoding="utf-8")
@@ -351,29 +348,26 @@ def _output_dir(out_dir: str | Path) -> Path:
     return out
 
 
-def _figure_makers(data, engine, stats, curves, rng, figures_dir):
-    return [
+def _figure_makers(data, robots, stats, curves, rng, figures_dir):
+    makers = [
         ("fitness", lambda: fig.fitness_figure(data, curves, figures_dir)),
         ("descriptors", lambda: fig.descriptors_figure(data, stats, figures_dir)),
         ("pareto", lambda: fig.pareto_figure(data, figures_dir)),
         ("transitions", lambda: fig.transitions_figure(data, curves, stats, figures_dir)),
-        ("robots", lambda: fig.robots_figure(data, engine, figures_dir)),
+        ("robots", lambda: fig.robots_figure(data, robots.phenotypes, figures_dir)),
         ("start_end", lambda: fig.start_end_figure(data, stats, rng, figures_dir)),
     ]
+    return [(name, make) for name, make in makers if robots is not None or name != "robots"]
 
 
-def evaluation_text(engine: Engine, data: ExperimentData) -> str | None:
+def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
     """The physics and encoding every evaluation used, read from one stored individual's
     scene (the same for all but stiffness, cycles and environment, given per treatment)."""
-    from softevo.analysis.robots import encoding_of, individual_scene
-
-    from softevo import sim
-
     best = best_individual(data)
     if best is None:
         return None
-    scene, record = individual_scene(engine, int(best["individual_id"]), best["environment"])
-    parsed, encoding = sim.parse_scene(scene), encoding_of(record["treatment"], record["seed"])
+    scene, record = robots.scene(int(best["individual_id"]), best["environment"])
+    parsed, encoding = sim.parse_scene(scene), robots.encoding(record["treatment"], record["seed"])
     m, low_high = parsed.material, encoding.frequency_range
     phenotype, modulus = record["phenotype_object"], record["treatment"].stiffness_pa
     settle = {env: phenotype.to_scene(env, modulus)["settle_seconds"] for env in ("land", "water")}
@@ -399,15 +393,13 @@ def best_individual(data: ExperimentData) -> dict[str, Any] | None:
     return final.loc[final["distance"].idxmax()].to_dict()
 
 
-def _best_animation(engine: Engine, data: ExperimentData, out_dir: Path) -> Path | None:
+def _best_animation(robots: Robots, data: ExperimentData, out_dir: Path) -> Path | None:
     """A GIF of the best final robot; None (the report says so) if it cannot be made."""
-    from softevo.analysis.motion import animate, record_motion
-
     best = best_individual(data)
     if best is None:
         return None
     try:
-        motion = record_motion(engine, int(best["individual_id"]), best["environment"])
+        motion = robots.motion(int(best["individual_id"]), best["environment"])
         return animate(motion, out_dir / "best.gif")
     except UserError:
         return None
@@ -475,17 +467,13 @@ def _animation_block(doc: Document, data: ExperimentData, gif: Path | None) -> N
 
 
 def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version("softevo")
     except PackageNotFoundError:
         return "(not installed)"
 
 
-def report_html(source: str | Engine | Connection | Any | None, experiment_id: int | str) -> str:
+def report_html(data: ExperimentData, robots: Robots | None = None, **options: Any) -> str:
     """The report page as a string (for the REST service), built in a temporary directory."""
-    import tempfile
-
     with tempfile.TemporaryDirectory(prefix="softevo-report-") as tmp:
-        return write_report(source, experiment_id, tmp).html.read_text(encoding="utf-8")
+        return write_report(data, tmp, robots=robots, **options).html.read_text(encoding="utf-8")

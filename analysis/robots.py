@@ -1,16 +1,14 @@
 """Stored individuals back to robots: genome -> phenotype -> scene, exactly as the workers
 built them (same encoding, stiffness and cycles as the individual's run).
 
-The functions take a stored record (``analysis.data.individual_record``: the individual,
-its treatment's settings, seed and evaluations) and go through ``worker.tasks``, the path
-the evaluations took: ``stored_task(record)`` is the task of its latest evaluation,
-``record_scene(record)`` its scene. ``individual_scene(engine, id)`` and
-``phenotypes(engine, ids)`` read the records first.
+The functions take a stored record (``service.db.individuals.individual_record``: the
+individual, its treatment's settings, seed and evaluations; the caller reads it) and go
+through ``worker.tasks``, the path the evaluations took: ``stored_task(record)`` is the task
+of its latest evaluation, ``record_scene(record)`` its scene.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from typing import Any
 
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
@@ -31,20 +29,6 @@ def encoding_of(treatment, seed: int = 0) -> EncodingConfig:
 def develop_genome(genome: dict[str, Any], treatment, seed: int = 0) -> Phenotype:
     """The phenotype of a stored genome (``Genotype.to_dict()`` JSON) in its run's encoding."""
     return develop(Genotype.from_dict(genome), encoding_of(treatment, seed))
-
-
-def phenotypes(engine, individual_ids: Iterable[int]) -> dict[int, Phenotype]:
-    """Phenotypes of many stored individuals (unknown ids are left out)."""
-    from softevo.analysis.data import individual_record
-
-    found = {}
-    for i in sorted({int(i) for i in individual_ids}):
-        try:
-            record = individual_record(engine, i)
-        except UserError:
-            continue
-        found[i] = develop_genome(record["genome"], record["treatment"], record["seed"])
-    return found
 
 
 def record_environment(record: dict[str, Any], environment: str | None = None) -> str:
@@ -98,12 +82,3 @@ def record_scene(
         raise UserError(f"individual {record['id']} has an empty body: nothing to simulate") from exc
     return scene, {**record, "phenotype_object": phenotype, "environment": task.environment, "task": task}
 
-
-def individual_scene(
-    engine, individual_id: int, environment: str | None = None, **extra: Any
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``record_scene`` of the stored individual ``individual_id`` (``record`` is
-    ``analysis.data.individual_record`` plus the fields ``record_scene`` adds)."""
-    from softevo.analysis.data import individual_record
-
-    return record_scene(individual_record(engine, individual_id), environment, **extra)

@@ -284,16 +284,9 @@ def write_vxa(scene: dict[str, Any], out: str | Path) -> Path:
 
 
 def record_vxa(record: dict[str, Any], environment: str | None = None) -> str:
-    """The ``.vxa`` document of a stored record (``analysis.data.individual_record``), in
+    """The ``.vxa`` document of a stored record (``service.db.individuals.individual_record``), in
     the environment of its latest evaluation unless ``environment`` is given."""
     from softevo.analysis.robots import record_scene
 
     scene, _ = record_scene(record, environment)
     return scene_to_vxa(scene)
-
-
-def individual_vxa(engine, individual_id: int, environment: str | None = None) -> str:
-    """``record_vxa`` of the stored individual ``individual_id``."""
-    from softevo.analysis.data import individual_record
-
-    return record_vxa(individual_record(engine, individual_id), environment)

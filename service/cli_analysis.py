@@ -1,7 +1,7 @@
 """``softevo report | show | export-vxa`` (SPEC.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
-  statistics and the run settings (``analysis.report.write_report``).
+  statistics and the run settings (``service.reports.write_report``).
 - ``softevo show INDIVIDUAL --out FILE.gif|FILE.mp4``: re-simulate a stored individual and
   animate its motion (MP4 needs ffmpeg).
 - ``softevo export-vxa INDIVIDUAL --out FILE.vxa``: the individual as a VoxCAD file.
@@ -38,7 +38,8 @@ def report(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Write an experiment's report: report.html (self-contained), report.md, figures, CSVs."""
-    from softevo.analysis.report import write_report
+    # the report pulls in matplotlib and the analyses: load them only for this command
+    from softevo.service.reports import write_report
 
     result = write_report(db, experiment, out, animation=animation, progress=not quiet)
     typer.echo(str(result.html))
@@ -54,9 +55,9 @@ def show(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Animate a stored individual's evaluated motion (re-simulated, frames recorded)."""
-    from softevo.analysis.data import individual_record
     from softevo.analysis.motion import animate, movie_writer, stored_motion
     from softevo.service.db import open_database
+    from softevo.service.db.individuals import individual_record
 
     if fps < 1:
         raise UserError(f"--fps must be >= 1 (got {fps})")
@@ -75,9 +76,9 @@ def export_vxa(
     db: DbOption = None,
 ) -> None:
     """Write a stored individual as a VoxCAD .vxa file."""
-    from softevo.analysis.data import individual_record
     from softevo.analysis.vxa import record_vxa
     from softevo.service.db import open_database
+    from softevo.service.db.individuals import individual_record
 
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")

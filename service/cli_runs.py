@@ -4,6 +4,9 @@ Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
 ``sqlite:///softevo.db``) and a local process pool. Runs and experiments are named by
 ``RUN_OR_EXPERIMENT``: ``5``, ``r5`` or ``run-5`` for run 5; ``e2`` or ``exp-2`` for
 experiment 2; ``latest`` for the newest experiment; or an experiment's name.
+
+Each command imports what it uses inside its function: ``softevo --help`` and every other
+command start without loading SQLAlchemy, pandas, numba or rich.
 """
 
 from __future__ import annotations
@@ -69,7 +72,7 @@ def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool, genom
 
 
 def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
-    from softevo.service.db.store import run_row
+    from softevo.service.db.runs import run_row
 
     with engine.connect() as conn:
         rows = [run_row(conn, run_id) for run_id in run_ids]
@@ -165,7 +168,7 @@ def status(
 ) -> None:
     """Show runs: status, generation, best distance."""
     from softevo.service.db import open_database
-    from softevo.service.db.store import resolve_runs
+    from softevo.service.db.runs import resolve_runs
 
     engine = open_database(db)
     with engine.connect() as conn:
@@ -188,7 +191,7 @@ def resume(
     even if they were cancelled or failed.
     """
     from softevo.service.db import open_database
-    from softevo.service.db.store import reopen_runs, resolve_runs
+    from softevo.service.db.runs import reopen_runs, resolve_runs
 
     engine = open_database(db)
     with engine.begin() as conn:
@@ -207,7 +210,7 @@ def export(
     """Write runs, individuals (one row per evaluation) and populations files."""
     from softevo.service.db import open_database
     from softevo.service.db.export import export_runs
-    from softevo.service.db.store import resolve_runs
+    from softevo.service.db.runs import resolve_runs
 
     engine = open_database(db)
     with engine.connect() as conn:

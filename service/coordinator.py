@@ -23,15 +23,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from softevo.service.db.models import Run, RunStatus
-from softevo.service.db.store import GenerationRecord, record_generation, run_row, set_run_status
+from softevo.evolution.afpo import Evolution
+from softevo.evolution.selection import non_dominated_sort, objective_matrix
+from softevo.service.db.generations import GenerationRecord, record_generation
+from softevo.service.db.models import RunStatus
+from softevo.service.db.runs import active_run_ids, run_row, set_run_status
 from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task
-from sqlalchemy import Engine, select
-
-ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
+from sqlalchemy import Engine
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,6 @@ class ActiveRun:
 
 def load_run(engine: Engine, run_id: int) -> ActiveRun:
     """The run as stored: a new algorithm, or the one saved after its last generation."""
-    from softevo.evolution.afpo import Evolution
 
     with engine.connect() as conn:
         row = run_row(conn, run_id)
@@ -80,12 +80,8 @@ def load_run(engine: Engine, run_id: int) -> ActiveRun:
 
 def unfinished_runs(engine: Engine, run_ids: Sequence[int] | None = None) -> list[int]:
     """Ids of pending or running runs (among ``run_ids`` if given)."""
-    table = Run.__table__
-    query = select(table.c.id).where(table.c.status.in_(ACTIVE)).order_by(table.c.id)
-    if run_ids is not None:
-        query = query.where(table.c.id.in_(list(run_ids)))
     with engine.connect() as conn:
-        return list(conn.execute(query).scalars())
+        return active_run_ids(conn, run_ids)
 
 
 def ask(run: ActiveRun) -> list[dict[str, Any]]:
@@ -173,7 +169,6 @@ def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
 def front_ranks(run: ActiveRun) -> list[int]:
     """Front rank (0 = non-dominated) of each survivor over the treatment's objectives
     (age excluded); failed evaluations rank behind every successful one."""
-    from softevo.evolution.selection import non_dominated_sort, objective_matrix
 
     population = run.algorithm.population
     valid = np.array([not ind.failed for ind in population], dtype=bool)

@@ -23,10 +23,10 @@ from collections.abc import Iterable
 from typing import Protocol
 
 from softevo.service.coordinator import ActiveRun, Coordinator, GenerationReport, load_run, unfinished_runs
-from softevo.service.db.models import Run, RunStatus, utcnow
-from softevo.service.db.store import set_run_status
+from softevo.service.db.models import RunStatus
+from softevo.service.db.runs import set_run_status
 from softevo.service.executors import Executor
-from sqlalchemy import Engine, update
+from sqlalchemy import Engine
 
 log = logging.getLogger("softevo.coordinator")
 
@@ -83,7 +83,7 @@ class RedisLocks:
     """One Redis key per run, ``softevo:<database>:run:<id>:coordinator`` = owner token."""
 
     def __init__(self, redis_url: str, namespace: str, ttl: float = 30.0) -> None:
-        from softevo.service.rq_executor import connect
+        from softevo.service.rq_executor import connect  # rq and redis: only for Redis locks
 
         self.connection = connect(redis_url)
         self.namespace = namespace
@@ -176,6 +176,7 @@ class CoordinatorLoop:
     # -- the loop ----------------------------------------------------------------------------
 
     def _loop(self) -> None:
+        # rq_executor loads rq and redis, which a local coordinator never needs
         from softevo.service.rq_executor import ExecutorStopped
 
         while not self.stop_event.is_set():
@@ -252,13 +253,8 @@ class CoordinatorLoop:
 
     def _mark_running(self, run_id: int) -> None:
         """pending -> running (a run cancelled meanwhile stays cancelled)."""
-        table = Run.__table__
         with self.engine.begin() as conn:
-            conn.execute(
-                update(table)
-                .where(table.c.id == run_id, table.c.status == RunStatus.PENDING.value)
-                .values(status=RunStatus.RUNNING.value, updated_at=utcnow())
-            )
+            set_run_status(conn, run_id, RunStatus.RUNNING, only_from=(RunStatus.PENDING,))
 
     def _set_status(self, run_id: int, status: RunStatus, error: str | None = None) -> None:
         with self.engine.begin() as conn:

@@ -17,6 +17,9 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
+from softevo.worker.evaluate import ensure_compiled, evaluate_batch, init_pool_process
+from softevo.worker.tasks import failed
+
 Task = dict[str, Any]
 
 
@@ -38,14 +41,12 @@ class InlineExecutor:
     """Evaluates in the calling process, all robots in one ``simulate_many`` call."""
 
     def __init__(self, threads: int | None = 1) -> None:
-        from softevo.worker.evaluate import ensure_compiled
 
         ensure_compiled()
         self.threads = threads
         self.workers = threads or 1
 
     def evaluate(self, tasks: list[Task]) -> list[Task]:
-        from softevo.worker.evaluate import evaluate_batch
 
         return evaluate_batch(tasks, threads=self.threads) if tasks else []
 
@@ -71,7 +72,6 @@ class LocalExecutor:
     def __init__(
         self, workers: int | None = None, genomes_per_task: int = 4, job: Callable[..., list] | None = None
     ) -> None:
-        from softevo.worker.evaluate import ensure_compiled, evaluate_batch
 
         ensure_compiled()  # before the pool: its processes then all load the cached kernels
         self.workers = workers or os.cpu_count() or 1
@@ -80,7 +80,6 @@ class LocalExecutor:
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        from softevo.worker.evaluate import init_pool_process
 
         return ProcessPoolExecutor(
             max_workers=self.workers,
@@ -104,7 +103,6 @@ class LocalExecutor:
         return results
 
     def _one_by_one(self, tasks: list[Task]) -> list[Task]:
-        from softevo.worker.tasks import failed
 
         results = []
         for task in tasks:

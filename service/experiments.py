@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from softevo.service.db.store import NewRun, NewTreatment, create_experiment
+from softevo.evolution.afpo import EvolutionConfig
+from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
 from softevo.service.treatments import Treatment, paper_grid
+from softevo.worker.tasks import encoding_of
 from sqlalchemy import Engine
 
 
@@ -42,8 +44,6 @@ def evolution_config(treatment: Treatment, seed: int):
 
     Descriptors are computed by the workers (``worker.tasks``), not at ``tell`` time.
     """
-    from softevo.evolution.afpo import EvolutionConfig
-    from softevo.worker.tasks import encoding_of
 
     return EvolutionConfig(
         population_size=treatment.population,

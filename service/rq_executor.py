@@ -42,6 +42,10 @@ from rq.results import Result
 from rq.serializers import JSONSerializer
 from rq.worker_registration import clean_worker_registry
 from softevo.service.executors import Task, chunks
+from softevo.worker.rq_worker import VERSION_KEY
+from softevo.worker.tasks import failed
+
+from softevo import __version__
 
 JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"
 WAITING = {
@@ -108,7 +112,6 @@ def plan_batches(tasks: list[Task], workers: int, genomes_per_job: int) -> list[
 
 def failed_result(task: Task, error: str) -> dict[str, Any]:
     """The JSON result of a genome whose job failed for good (``worker.tasks.failed``)."""
-    from softevo.worker.tasks import failed
 
     return failed({"id": task.get("id")}, error).to_json()
 
@@ -232,6 +235,7 @@ class RQExecutor:
             job_id=batch.job_id,
             description=f"evaluate {len(batch.tasks)} genome(s) ({batch.job_id})",
             retry=Retry(max=self.retries),
+            meta={VERSION_KEY: __version__},
         )
 
     def _delete(self, job_id: str) -> None:

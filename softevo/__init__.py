@@ -83,9 +83,9 @@ def load_experiment(db: str | None = None, experiment: str = "latest"):
     treatments, runs, generations, populations, evaluations). ``db``: a SQLAlchemy URL
     (default ``$SOFTEVO_DB`` or ``sqlite:///softevo.db``); ``experiment``: ``latest``, ``e2``,
     ``2`` or a name."""
-    from softevo.analysis.data import load_experiment as load
     from softevo.service.db import open_database
-    from softevo.service.db.store import resolve_experiment
+    from softevo.service.db.experiments import load_experiment as load
+    from softevo.service.db.experiments import resolve_experiment
 
     engine = open_database(db)
     try:

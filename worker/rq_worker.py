@@ -9,6 +9,10 @@
   worker killed mid-job has its job re-dispatched within ``heartbeat_ttl`` seconds.
 - Redis going away: the worker waits and reconnects (under a fresh RQ worker name, since
   its old registration may still be there).
+- Versions: the coordinator stamps each job with its softevo version (job meta
+  ``VERSION_KEY``). A worker of another version puts the job back at the front of the queue
+  for a worker of the right one, says so in one line and stops (``softevo worker`` exits
+  with status 2): its results could differ, and its code may not even read the job.
 
 It needs the Redis URL and nothing else: no database, no HTTP.
 """
@@ -28,13 +32,32 @@ from rq.exceptions import StopRequested
 from rq.serializers import JSONSerializer
 from rq.worker import SimpleWorker
 
+from softevo import __version__
+from softevo.errors import UserError
+
 log = logging.getLogger("softevo.worker")
+
+VERSION_KEY = "softevo_version"  # job meta: the softevo version of the coordinator that made it
 
 
 class EvaluationWorker(SimpleWorker):
-    """RQ's in-process worker, reconnecting to Redis within 5 s of its return."""
+    """RQ's in-process worker, reconnecting to Redis within 5 s of its return, that runs
+    only the jobs of its own softevo version (``refused`` says why it stopped otherwise)."""
 
     max_connection_wait_time = 5.0
+    refused: str | None = None
+
+    def execute_job(self, job, queue) -> None:
+        made_by = (job.meta or {}).get(VERSION_KEY)
+        if made_by != __version__:
+            queue.push_job_id(job.id, at_front=True)  # untouched, for a worker of that version
+            self.refused = (
+                f"refused job {job.id}: it was made by softevo {made_by or '(unknown version)'}, "
+                f"this worker runs softevo {__version__}; install the coordinator's version here"
+            )
+            log.error(self.refused)
+            raise StopRequested()
+        super().execute_job(job, queue)
 
 
 def warm(threads: int = 1) -> float:
@@ -124,6 +147,8 @@ def run_worker(
                 )
                 _announce(heartbeat, worker_name)
                 worker.work(burst=burst, logging_level=logging_level)
+                if worker.refused:
+                    raise UserError(worker.refused)
                 if burst:
                     return
             except RedisError as exc:

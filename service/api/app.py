@@ -22,8 +22,16 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from softevo.service.api.routes import experiments, health, individuals, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
+from softevo.service.dashboard import dashboard_router
+from softevo.service.db import open_database
+from softevo.service.driver import CoordinatorLoop, LocalLocks, RedisLocks
+from softevo.service.executors import make_executor
+from softevo.service.reports import write_report
 from softevo.service.settings import Settings
+from softevo.worker.evaluate import ensure_compiled, init_pool_process
+from softevo.worker.tasks import replay
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -55,6 +63,7 @@ class Services:
         """Executor and coordinator loop (if this process coordinates)."""
         settings = self.settings
         if settings.redis_url:
+            # rq and redis load only for a service configured with Redis
             from rq import Queue
             from rq.serializers import JSONSerializer
             from softevo.service.rq_executor import connect
@@ -66,8 +75,6 @@ class Services:
         if not settings.coordinator:
             return
         self.executor = self._make_executor()
-        from softevo.service.driver import CoordinatorLoop, LocalLocks, RedisLocks
-
         if settings.redis_url:
             locks = RedisLocks(settings.redis_url, settings.database_namespace())
         else:
@@ -78,7 +85,7 @@ class Services:
     def _make_executor(self):
         settings = self.settings
         if settings.redis_url:
-            from softevo.service.rq_executor import RQExecutor
+            from softevo.service.rq_executor import RQExecutor  # only with Redis, as above
 
             return RQExecutor(
                 settings.redis_url,
@@ -89,8 +96,6 @@ class Services:
                 result_ttl=settings.result_ttl,
                 stop=self.stop,
             )
-        from softevo.service.executors import make_executor
-
         self.executor_kind = "local"
         return make_executor(settings.workers, settings.genomes_per_job)
 
@@ -109,7 +114,7 @@ class Services:
     def executor_status(self) -> tuple[int, int, bool]:
         """(workers, queued jobs, reachable) of the executor."""
         if self._status_queue is not None:
-            from rq import Worker
+            from rq import Worker  # only with Redis, as in start()
             from rq.worker_registration import clean_worker_registry
 
             try:
@@ -130,7 +135,7 @@ class Services:
         API and the coordinator loop must stay responsive."""
         with self._background_mutex:
             if self._background_pool is None:
-                from softevo.worker.evaluate import ensure_compiled, init_pool_process
+                # the simulator (numba) loads only when a background job first needs it
 
                 ensure_compiled()
 
@@ -143,14 +148,13 @@ class Services:
 
     async def record_motion(self, task, every: int, max_frames: int) -> dict:
         """``worker.tasks.replay`` of ``task`` in the background process."""
-        from softevo.worker.tasks import replay
 
         pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
         future = pool.submit(replay, task, every, max_frames)
         return await asyncio.wrap_future(future)
 
     async def write_report(self, experiment_id: int, out_dir) -> Any:
-        """``analysis.report.write_report`` in the background process; concurrent requests
+        """``service.reports.write_report`` in the background process; concurrent requests
         for one experiment share one writing."""
         running = self._reports.get(experiment_id)
         if running is None:
@@ -160,7 +164,7 @@ class Services:
         return await asyncio.shield(running)
 
     async def _write_report(self, experiment_id: int, out_dir) -> Any:
-        from softevo.analysis.report import write_report
+        # matplotlib and the analyses load only when a report is first asked for
 
         pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
         future = pool.submit(write_report, self.settings.db, experiment_id, str(out_dir))
@@ -244,16 +248,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     Raises UserError when no token is set and ``settings.host`` is not a loopback address.
     """
-    from softevo.service.api.routes import experiments, health, individuals, runs
-    from softevo.service.dashboard import dashboard_router
-
     settings = settings or Settings()
     settings.check_safe()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        from softevo.service.db import open_database
-
         services = Services(settings, open_database(settings.db))
         app.state.services = services
         services.start()

@@ -20,13 +20,13 @@ fetched from outside the server. None of these routes is in the OpenAPI schema.
 from __future__ import annotations
 
 from fastapi import APIRouter
+from softevo.service.dashboard import assets, body, pages
 
 PREFIX = "/dashboard"
 
 
 def dashboard_router() -> APIRouter:
     """The dashboard's pages, assets and helper endpoint under ``/dashboard``."""
-    from softevo.service.dashboard import assets, body, pages
 
     router = APIRouter(prefix=PREFIX, include_in_schema=False)
     for module in (assets, body, pages):

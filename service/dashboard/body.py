@@ -14,7 +14,9 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from fastapi import APIRouter, HTTPException, Path, Query
 from softevo.service.api.deps import ServicesDep
+from softevo.service.api.routes.individuals import stored_task
 from softevo.service.api.schemas import MAX_INT32
+from softevo.worker.tasks import scene_of
 
 router = APIRouter()
 
@@ -53,8 +55,6 @@ def body(
 ) -> dict[str, Any]:
     """The individual's body and actuation in ``environment`` (default: that of its latest
     evaluation, as for the frames). 404 for an unknown or never evaluated individual."""
-    from softevo.service.api.routes.individuals import stored_task
-    from softevo.worker.tasks import scene_of
 
     task = stored_task(services, individual_id, environment)
     try:

@@ -15,11 +15,10 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Request
 from fastapi.responses import HTMLResponse
-from softevo.service.api import queries
 from softevo.service.api.deps import ConnectionDep
 from softevo.service.api.schemas import MAX_INT32
-from softevo.service.db.models import Individual
-from sqlalchemy import select
+from softevo.service.db import individuals as db_individuals
+from softevo.service.db import runs as db_runs
 
 TEMPLATES = FilePath(__file__).parent / "templates"
 
@@ -60,7 +59,7 @@ def index(request: Request) -> HTMLResponse:
 @router.get("/runs/{run_id}", response_class=HTMLResponse)
 def run_page(request: Request, run_id: RunId, conn: ConnectionDep) -> HTMLResponse:
     """A run: fitness curves and its Pareto front by generation."""
-    if queries.run_status(conn, run_id) is None:
+    if db_runs.run_status(conn, run_id) is None:
         return not_found(request, f"There is no run {run_id}.")
     return render(request, "run.html", f"Run {run_id}", run_id=run_id)
 
@@ -68,8 +67,7 @@ def run_page(request: Request, run_id: RunId, conn: ConnectionDep) -> HTMLRespon
 @router.get("/individuals/{individual_id}", response_class=HTMLResponse)
 def individual_page(request: Request, individual_id: IndividualId, conn: ConnectionDep) -> HTMLResponse:
     """An individual: genome summary, objectives, descriptors, lineage and 3D replay."""
-    table = Individual.__table__
-    run_id = conn.execute(select(table.c.run_id).where(table.c.id == individual_id)).scalar()
+    run_id = db_individuals.individual_run_id(conn, individual_id)
     if run_id is None:
         return not_found(request, f"There is no individual {individual_id}.")
     return render(

@@ -3,7 +3,8 @@
 ``open_database(url)`` is the one entry point: it resolves the URL (argument, then the
 ``SOFTEVO_DB`` environment variable, then ``sqlite:///softevo.db``), checks that a SQLite
 file can be written, builds the engine (SQLite: WAL journal, foreign keys on, busy timeout)
-and upgrades the schema to the newest Alembic revision.
+and upgrades the schema to the newest Alembic revision. ``database_reachable(engine)`` is
+the health check.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from sqlalchemy import Engine, create_engine, event
+from softevo.service.db.migrate import upgrade
+from sqlalchemy import Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError
 
@@ -66,8 +68,16 @@ def make_engine(url: str | None = None) -> Engine:
 
 def open_database(url: str | None = None) -> Engine:
     """Engine for ``url`` with the schema upgraded to the newest migration."""
-    from softevo.service.db.migrate import upgrade
-
     engine = make_engine(url)
     upgrade(engine)
     return engine
+
+
+def database_reachable(engine: Engine) -> bool:
+    """Whether the database answers a trivial query (for health checks)."""
+    try:
+        with engine.connect() as conn:
+            conn.execute(text("SELECT 1"))
+    except Exception:
+        return False
+    return True

@@ -10,8 +10,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
+from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.service.db.models import (
-    TRAITS,
     Evaluation,
     Experiment,
     Individual,
@@ -19,6 +19,7 @@ from softevo.service.db.models import (
     Run,
     Treatment,
 )
+from softevo.service.treatments import Treatment as TreatmentSettings
 from sqlalchemy import Connection, Engine, Select, select
 
 from softevo.errors import UserError
@@ -36,18 +37,6 @@ RUN_COLUMNS = [
     "generations",
     "status",
 ]
-INDIVIDUAL_COLUMNS = [
-    "individual_id",
-    "run_id",
-    "parent_id",
-    "generation",
-    "generation_born",
-    "age",
-    "environment",
-    *TRAITS,
-    "stable",
-    "error",
-]
 POPULATION_COLUMNS = ["run_id", "generation", "individual_id", "front_rank"]
 
 
@@ -58,8 +47,6 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per run: treatment settings flattened to the export columns."""
-    from softevo.service.treatments import Treatment as TreatmentSettings
-
     runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
     query = (
         select(
@@ -158,6 +145,6 @@ def _write(frame: pd.DataFrame, path: Path, fmt: str) -> Path:
 
 def _require_pyarrow() -> None:
     try:
-        import pyarrow  # noqa: F401
+        import pyarrow  # noqa: F401  (a probe: is the optional Parquet writer installed?)
     except ImportError as exc:
         raise UserError("parquet export needs pyarrow: pip install pyarrow (or use --format csv)") from exc

@@ -1,13 +1,15 @@
 """Run Alembic migrations programmatically.
 
-The migration scripts live in the top-level ``migrations`` package, installed with the
+The migration scripts live in the ``softevo.migrations`` package, installed with the
 project (``env.py``, ``script.py.mako`` and ``versions/*.py`` are package files), so an
-installed coordinator finds them by importing ``migrations`` rather than by a path
-relative to the working directory.
+installed coordinator finds them where that package is installed rather than by a path
+relative to the working directory. The package is located, not imported: its ``env.py``
+imports ``service.db.models``, and runs only under Alembic.
 """
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 from alembic import command
@@ -16,10 +18,9 @@ from sqlalchemy import Engine
 
 
 def script_location() -> Path:
-    """Directory of the installed ``migrations`` package."""
-    from softevo import migrations
-
-    return Path(migrations.__file__).resolve().parent
+    """Directory of the installed ``softevo.migrations`` package."""
+    spec = importlib.util.find_spec("softevo.migrations")
+    return Path(spec.origin).resolve().parent
 
 
 def alembic_config(engine: Engine) -> Config:

@@ -16,6 +16,7 @@ import enum
 from datetime import UTC, datetime
 from typing import Any
 
+from softevo.analysis.columns import TRAITS
 from sqlalchemy import (
     JSON,
     Boolean,
@@ -52,16 +53,6 @@ class Base(DeclarativeBase):
     type_annotation_map = {dict[str, Any]: JSON, list[Any]: JSON}
 
 
-# What each evaluation measures (SPEC.md sections 3-4): objectives and descriptors.
-TRAITS = (
-    "distance",
-    "active_share",
-    "voxel_count",
-    "frequency",
-    "symmetry",
-    "branching",
-    "shape_entropy",
-)
 # The per-evaluation fields stored in the ``evaluations`` table beside the individual.
 EVALUATION_FIELDS = (
     "generation",

@@ -12,6 +12,7 @@ from typing import Literal
 
 import pandas as pd
 from softevo.service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
+from softevo.service.treatments import Treatment as TreatmentSettings
 from sqlalchemy import Connection, Engine, and_, func, literal, select
 
 from softevo.errors import UserError
@@ -103,8 +104,6 @@ def switch_generation(bind: Connection | Engine, run_id: int) -> int | None:
     frame = _frame(bind, query)
     if frame.empty:
         raise UserError(f"no run {run_id}")
-    from softevo.service.treatments import Treatment as TreatmentSettings
-
     return TreatmentSettings.from_settings(frame.iloc[0]["settings"]).switch_generation()
 
 

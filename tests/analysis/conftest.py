@@ -45,6 +45,6 @@ def tiny(tmp_path_factory) -> TinyExperiment:
 
 @pytest.fixture(scope="session")
 def tiny_data(tiny):
-    from softevo.analysis.data import load_experiment
+    from softevo.service.db.experiments import load_experiment
 
     return load_experiment(tiny.engine, tiny.experiment_id)

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import stats as scipy_stats
-from softevo.analysis.data import TRAITS, load_experiment
+from softevo.analysis.data import TRAITS
 from softevo.analysis.stats_tables import (
     best_distance_per_run,
     fitness_curves,
     statistics_table,
     summary_table,
 )
-from softevo.service.db.store import resolve_experiment
+from softevo.service.db.experiments import load_experiment, resolve_experiment
 
 from softevo.errors import UserError
 

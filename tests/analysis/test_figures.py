@@ -9,6 +9,7 @@ import pytest
 from PIL import Image
 from softevo.analysis import figures
 from softevo.analysis.stats_tables import fitness_curves, statistics_table
+from softevo.service.reports import stored_robots
 
 # 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
 EXPECTED_PX = {
@@ -34,7 +35,7 @@ def _make(name, data, tests, curves, engine, out):
         "descriptors": lambda: figures.descriptors_figure(data, tests, out),
         "pareto": lambda: figures.pareto_figure(data, out),
         "transitions": lambda: figures.transitions_figure(data, curves, tests, out),
-        "robots": lambda: figures.robots_figure(data, engine, out),
+        "robots": lambda: figures.robots_figure(data, stored_robots(engine).phenotypes, out),
         "start_end": lambda: figures.start_end_figure(data, tests, rng, out),
     }[name]()
 

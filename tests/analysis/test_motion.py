@@ -13,10 +13,11 @@ from softevo.analysis.motion import (
     animate,
     frame_indices,
     lattice_links,
-    record_motion,
+    stored_motion,
     surface_faces,
     voxel_sizes,
 )
+from softevo.service.db.individuals import individual_record
 
 from tests.analysis.cli import softevo
 
@@ -29,7 +30,7 @@ def best(tiny_data):
 
 @pytest.fixture(scope="module")
 def motion(tiny, best):
-    return record_motion(tiny.engine, int(best["individual_id"]))
+    return stored_motion(individual_record(tiny.engine, int(best["individual_id"])))
 
 
 def test_the_replay_is_the_evaluation(motion, best):

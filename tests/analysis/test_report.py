@@ -7,7 +7,7 @@ import re
 
 import pytest
 from softevo.analysis.figures import FIGURES, TITLES
-from softevo.analysis.report import report_html, write_report
+from softevo.service.reports import report_html, write_report
 
 from tests.analysis.cli import softevo
 
@@ -99,3 +99,12 @@ def test_an_experiment_with_nothing_stored_yet_is_a_user_error(capsys, tmp_path)
     experiment_id, _ = create(engine, "not-started", [Treatment("land", 0.1, population=4, generations=2)])
     code, _, err = softevo(capsys, "report", f"e{experiment_id}", "--out", str(tmp_path / "r"), "--db", url)
     assert code == 2 and f"experiment e{experiment_id} has no stored generation yet" in err
+
+
+def test_the_analysis_report_needs_only_the_data(tiny_data, tmp_path):
+    from softevo.analysis.report import write_report as write_from_data
+
+    result = write_from_data(tiny_data, tmp_path, robots=None)
+    assert [f.name for f in result.figures] == [name for name in FIGURES if name != "robots"]
+    assert result.animation is None
+    assert "Evaluation: voxel edge" not in result.html.read_text(encoding="utf-8")

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from softevo.analysis.robots import individual_scene
+from softevo.analysis.robots import record_scene
 from softevo.analysis.vxa import data_layers, phase_layers, scene_to_vxa, write_vxa
+from softevo.service.db.individuals import individual_record
 
 from tests.analysis.cli import softevo
 
@@ -82,7 +83,7 @@ def test_export_vxa_command_writes_the_stored_individual(capsys, tiny, tiny_data
     assert code == 0, err
     assert stdout.strip() == str(out)
     root = _parse(out.read_text(encoding="iso-8859-1"))
-    scene, _ = individual_scene(tiny.engine, individual)
+    scene, _ = record_scene(individual_record(tiny.engine, individual))
     body = np.array(scene["body"])
     assert body.shape == (4, 4, 4)
     assert [layer.text for layer in root.findall("VXC/Structure/Data/Layer")] == data_layers(body)

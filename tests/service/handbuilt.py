@@ -11,13 +11,8 @@ active_share 0.5 for all but 7 (0.25) and its child 10 (0.25).
 
 from __future__ import annotations
 
-from softevo.service.db.store import (
-    GenerationRecord,
-    NewRun,
-    NewTreatment,
-    create_experiment,
-    record_generation,
-)
+from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
+from softevo.service.db.generations import GenerationRecord, record_generation
 from softevo.service.treatments import Treatment
 from sqlalchemy import Engine
 
@@ -107,7 +102,7 @@ def build(engine: Engine) -> int:
 
 
 def db_id(engine: Engine, run_id: int, local_id: int) -> int:
-    from softevo.service.db.store import local_to_db_ids
+    from softevo.service.db.individuals import local_to_db_ids
 
     with engine.connect() as conn:
         return local_to_db_ids(conn, run_id, [local_id])[local_id]

@@ -11,7 +11,7 @@ import signal
 import sys
 
 from softevo.service.coordinator import Coordinator
-from softevo.service.db import open_database, store
+from softevo.service.db import generations, open_database
 from softevo.service.db.models import PopulationMember
 from softevo.service.executors import InlineExecutor
 
@@ -27,7 +27,7 @@ def main(url: str, mode: str, generation: int) -> None:
         if report.generation == generation:
             _die()
 
-    real_insert = store.insert_ignore
+    real_insert = generations.insert_ignore
 
     def insert_then_die(conn, table, rows):
         real_insert(conn, table, rows)
@@ -35,7 +35,7 @@ def main(url: str, mode: str, generation: int) -> None:
             _die()  # individuals, evaluations and members written, not committed
 
     if mode == "during-write":
-        store.insert_ignore = insert_then_die
+        generations.insert_ignore = insert_then_die
     listener = after_commit if mode == "after-commit" else None
     Coordinator(engine, InlineExecutor(), on_generation=listener).run([1])
 

@@ -102,7 +102,7 @@ def test_tiny_paper_grid_end_to_end(capsys, tmp_path):
 def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
     from softevo.service.db import open_database
     from softevo.service.db.models import RunStatus
-    from softevo.service.db.store import run_row, set_run_status
+    from softevo.service.db.runs import run_row, set_run_status
 
     from tests.service import tinyrun
 

@@ -7,7 +7,7 @@ import types
 import pytest
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import phylogeny
-from softevo.service.db.store import local_to_db_ids
+from softevo.service.db.individuals import local_to_db_ids
 from softevo.service.executors import InlineExecutor, chunks
 from sqlalchemy import text
 
@@ -94,7 +94,7 @@ def test_chunks_spread_tasks_over_workers():
 
 def test_cancelled_run_stops(engine):
     from softevo.service.db.models import RunStatus
-    from softevo.service.db.store import run_row, set_run_status
+    from softevo.service.db.runs import run_row, set_run_status
 
     run_id = tinyrun.new_run(engine)
     coordinator = Coordinator(engine, InlineExecutor())
@@ -147,7 +147,8 @@ def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
     """A cancel (e.g. over HTTP from another process) is not undone by the generation that
     was in flight when it came."""
     from softevo.service.db import RunStatus, open_database
-    from softevo.service.db.store import GenerationRecord, record_generation, set_run_status
+    from softevo.service.db.generations import GenerationRecord, record_generation
+    from softevo.service.db.runs import set_run_status
 
     from tests.service import tinyrun
 

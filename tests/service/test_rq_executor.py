@@ -5,19 +5,25 @@ run."""
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import sys
 import uuid
 
 import numpy as np
 import pytest
 from redis import Redis
+from rq import Queue
 from rq.job import Job
 from rq.serializers import JSONSerializer
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.service.driver import RedisLocks
 from softevo.service.executors import InlineExecutor
-from softevo.service.rq_executor import RQExecutor, plan_batches
+from softevo.service.rq_executor import JOB_FUNCTION, RQExecutor, plan_batches
+from softevo.worker.rq_worker import VERSION_KEY
 
+from softevo import __version__
 from tests.service.rq_support import Processes, redis_for_test, wait_for
 
 pytestmark = pytest.mark.redis
@@ -131,3 +137,21 @@ def test_one_coordinator_per_run(redis_url):
     assert first.acquire(2)
     first.release([2])
     assert second.owner(2) is None
+
+
+def test_a_worker_of_another_version_refuses_the_job_and_leaves_it_queued(redis_url, tmp_path):
+    name = f"test-{uuid.uuid4().hex[:8]}"
+    connection = Redis.from_url(redis_url)
+    rq_queue = Queue(name, connection=connection, serializer=JSONSerializer)
+    job = rq_queue.enqueue(JOB_FUNCTION, args=[tasks(1)], meta={VERSION_KEY: "0.0.1"})
+    env = {**os.environ, "SOFTEVO_REDIS_URL": redis_url, "SOFTEVO_QUEUE": name}
+    done = subprocess.run(
+        [sys.executable, "-m", "softevo.service.cli", "worker", "--burst", "--name", name],
+        env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr[-2000:]
+    error_lines = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
+    assert len(error_lines) == 1 and "made by softevo 0.0.1" in error_lines[0]
+    assert f"this worker runs softevo {__version__}" in error_lines[0]
+    assert rq_queue.job_ids == [job.id]  # back in the queue, untouched
+    assert Job.fetch(job.id, connection=connection, serializer=JSONSerializer).get_status() == "queued"

@@ -111,7 +111,7 @@ def _stored_evaluations(engine, run_id):
 
 
 def _task_of(engine, row) -> Task:
-    from softevo.analysis.data import individual_record
+    from softevo.service.db.individuals import individual_record
 
     settings = individual_record(engine, row["id"]).get("treatment").to_settings()
     return Task.from_stored(row["id"], row["genome"], settings, row["environment"], row["stiffness"])

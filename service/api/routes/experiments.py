@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import importlib
 import logging
 from datetime import UTC, datetime
 from pathlib import Path as FilePath
@@ -12,7 +11,6 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
-from softevo.service.api import queries
 from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
@@ -30,6 +28,9 @@ from softevo.service.api.schemas import (
     ExperimentRequest,
     PresetIn,
 )
+from softevo.service.db import experiments as db_experiments
+from softevo.service.experiments import create
+from softevo.service.treatments import Treatment, paper_grid
 
 from softevo.errors import UserError
 
@@ -44,8 +45,6 @@ REPORT_TIMEOUT_S = 900
 def _treatments(body: ExperimentIn):
     """The request's treatments as ``service.treatments.Treatment`` (their own checks apply:
     switch_at within the generations and for a transition only)."""
-    from softevo.service.treatments import Treatment
-
     treatments = [
         Treatment(
             t.environment,
@@ -82,9 +81,6 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     """Create an experiment with one pending run per treatment repetition; the coordinator
     picks them up within a second. Body: ``{"name", "treatments": [...]}`` or
     ``{"preset": "paper", "scale"}``."""
-    from softevo.service.experiments import create
-    from softevo.service.treatments import paper_grid
-
     if isinstance(body, PresetIn):
         treatments = paper_grid(body.scale, repetitions=body.repetitions, seed=body.seed)
         name = body.name or f"{body.preset}-{body.scale}"
@@ -103,25 +99,16 @@ def list_experiments(
     offset: Annotated[int, Query(ge=0, le=MAX_INT32)] = 0,
 ):
     """Experiments, oldest first, with the status and progress of each run."""
-    return queries.list_experiments(conn, limit=limit, offset=offset)
+    return db_experiments.list_experiments(conn, limit=limit, offset=offset)
 
 
 @router.get("/{experiment_id}", response_model=ExperimentOut, responses=NOT_FOUND)
 def get_experiment(experiment_id: ExperimentId, conn: ConnectionDep):
     """One experiment: its runs' status and progress."""
-    found = queries.list_experiments(conn, experiment_id=experiment_id)
+    found = db_experiments.list_experiments(conn, experiment_id=experiment_id)
     if not found:
         raise HTTPException(404, f"no experiment {experiment_id}")
     return found[0]
-
-
-def _report_writer():
-    """``analysis.report.write_report`` if issue 6's module is installed, else None."""
-    try:
-        module = importlib.import_module("softevo.analysis.report")
-    except ImportError:
-        return None
-    return getattr(module, "write_report", None)
 
 
 def _stale(html: FilePath, updated: datetime | None) -> bool:
@@ -146,22 +133,15 @@ def _stale(html: FilePath, updated: datetime | None) -> bool:
     },
 )
 async def report(experiment_id: ExperimentId, services: ServicesDep):
-    """The experiment's self-contained HTML report (figures, statistics, settings; issue 6).
+    """The experiment's self-contained HTML report (figures, statistics, settings).
 
-    Written by ``analysis.report.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
+    Written by ``service.reports.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
     on the first request, again when runs have stored generations since, and served from
-    there. 404 while the experiment has no stored generation or no report writer is
-    installed."""
+    there. 404 while the experiment has no stored generation."""
     updated = await run_in_threadpool(_last_update, services, experiment_id)
     out_dir = FilePath(services.settings.reports) / f"experiment-{experiment_id}"
     html = out_dir / REPORT_FILE
     if _stale(html, updated):
-        if _report_writer() is None:
-            raise HTTPException(
-                404,
-                f"no report for experiment {experiment_id} yet: the report writer "
-                "(analysis.report, issue 6) is not installed",
-            )
         try:
             written = await asyncio.wait_for(services.write_report(experiment_id, out_dir), REPORT_TIMEOUT_S)
         except TimeoutError as exc:
@@ -181,8 +161,8 @@ def _last_update(services, experiment_id: int) -> datetime | None:
     """Latest update of the experiment's runs; 404 if there is no such experiment or it has
     no stored generation (nothing to report)."""
     with services.engine.connect() as conn:
-        if not queries.experiment_exists(conn, experiment_id):
+        if not db_experiments.experiment_exists(conn, experiment_id):
             raise HTTPException(404, f"no experiment {experiment_id}")
-        if queries.experiment_generations(conn, experiment_id) == 0:
+        if db_experiments.experiment_generations(conn, experiment_id) == 0:
             raise HTTPException(404, f"no report for experiment {experiment_id}: no generation stored yet")
-        return queries.experiment_updated_at(conn, experiment_id)
+        return db_experiments.experiment_updated_at(conn, experiment_id)

@@ -6,7 +6,7 @@ from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.schemas import HealthOut
-from sqlalchemy import text
+from softevo.service.db.engine import database_reachable
 
 router = APIRouter(tags=["health"])
 
@@ -19,12 +19,7 @@ router = APIRouter(tags=["health"])
 def health(services: ServicesDep):
     """``{"status": "ok", "workers": n, "queued": n}`` and which executor and database state.
     503 (same body, status "degraded") when the database or Redis cannot be reached."""
-    database = "ok"
-    try:
-        with services.engine.connect() as conn:
-            conn.execute(text("SELECT 1"))
-    except Exception:
-        database = "unreachable"
+    database = "ok" if database_reachable(services.engine) else "unreachable"
     workers, queued, executor_ok = services.executor_status()
     body = HealthOut(
         status="ok" if database == "ok" and executor_ok else "degraded",

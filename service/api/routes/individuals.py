@@ -8,11 +8,15 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, HTTPException, Path, Query
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
-from softevo.service.api import queries
 from softevo.service.api.deps import COMMON, NOT_FOUND, ServicesDep
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
 from softevo.service.api.frames import encode_frames
 from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
+from softevo.service.db.individuals import individual, individual_context
+from softevo.service.db.rows import finite
+from softevo.service.db.status import lineage_records
+from softevo.service.treatments import Treatment
+from softevo.worker.tasks import Task
 
 from softevo.errors import UserError
 
@@ -31,7 +35,7 @@ def _with_connection(services, function, *args):
 def get_individual(individual_id: IndividualId, services: ServicesDep):
     """Genome, phenotype summary, objectives and descriptors (of the latest evaluation), and
     every evaluation (at birth, and again after an environment switch)."""
-    found = _with_connection(services, queries.individual, individual_id)
+    found = _with_connection(services, individual, individual_id)
     if found is None:
         raise HTTPException(404, f"no individual {individual_id}")
     return found
@@ -41,10 +45,9 @@ def get_individual(individual_id: IndividualId, services: ServicesDep):
 def lineage(individual_id: IndividualId, services: ServicesDep):
     """Ancestors, newest first (the individual itself at depth 0), to the root newcomer
     (``parent_id`` null); traits from each one's evaluation at birth."""
-    from softevo.service.db.status import lineage_records
 
     try:
-        return [queries.finite(record) for record in lineage_records(services.engine, individual_id)]
+        return [finite(record) for record in lineage_records(services.engine, individual_id)]
     except UserError as exc:
         raise HTTPException(404, str(exc)) from exc
 
@@ -52,10 +55,8 @@ def lineage(individual_id: IndividualId, services: ServicesDep):
 def stored_task(services, individual_id: int, environment: str | None):
     """The ``worker.tasks.Task`` of a stored individual's latest evaluation (in
     ``environment`` if given), as the coordinator built it; 404 if there is none."""
-    from softevo.service.treatments import Treatment
-    from softevo.worker.tasks import Task
 
-    context = _with_connection(services, queries.individual_context, individual_id)
+    context = _with_connection(services, individual_context, individual_id)
     if context is None:
         raise HTTPException(404, f"no individual {individual_id}")
     evaluations = context["evaluations"]

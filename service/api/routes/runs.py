@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path, Query
-from softevo.service.api import queries
 from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
@@ -23,13 +22,14 @@ from softevo.service.api.schemas import (
     RunStatusName,
     RunSummary,
 )
-from softevo.service.db.models import Run, RunStatus, utcnow
-from sqlalchemy import update
+from softevo.service.db import generations as db_generations
+from softevo.service.db import runs as db_runs
+from softevo.service.db.models import RunStatus
 
 router = APIRouter(prefix="/runs", tags=["runs"], responses=COMMON)
 
 RunId = Annotated[int, Path(ge=1, le=MAX_INT32, description="run id")]
-STOPPABLE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
+STOPPABLE = (RunStatus.PENDING, RunStatus.RUNNING)
 
 
 @router.get("", response_model=list[RunSummary])
@@ -41,11 +41,11 @@ def list_runs(
     offset: Annotated[int, Query(ge=0, le=MAX_INT32)] = 0,
 ):
     """Runs in id order, optionally of one experiment and/or with one status."""
-    return queries.list_runs(conn, experiment, status, limit, offset)
+    return db_runs.list_runs(conn, experiment, status, limit, offset)
 
 
 def _run_or_404(conn, run_id: int) -> dict:
-    run = queries.run_detail(conn, run_id)
+    run = db_runs.run_detail(conn, run_id)
     if run is None:
         raise HTTPException(404, f"no run {run_id}")
     return run
@@ -70,18 +70,13 @@ def get_run(run_id: RunId, conn: ConnectionDep):
 def cancel(run_id: RunId, services: ServicesDep):
     """Cancel a pending or running run: nothing more is dispatched for it after the
     generation in flight. Cancelling a cancelled run changes nothing."""
-    table = Run.__table__
     with services.engine.begin() as conn:
-        status = queries.run_status(conn, run_id)
+        status = db_runs.run_status(conn, run_id)
         if status is None:
             raise HTTPException(404, f"no run {run_id}")
         if status in (RunStatus.FINISHED.value, RunStatus.FAILED.value):
             raise HTTPException(409, f"run {run_id} is {status}: nothing to cancel")
-        conn.execute(
-            update(table)
-            .where(table.c.id == run_id, table.c.status.in_(STOPPABLE))
-            .values(status=RunStatus.CANCELLED.value, updated_at=utcnow())
-        )
+        db_runs.set_run_status(conn, run_id, RunStatus.CANCELLED, only_from=STOPPABLE)
     services.cancel(run_id)
     with services.engine.connect() as conn:
         return _run_or_404(conn, run_id)
@@ -90,9 +85,9 @@ def cancel(run_id: RunId, services: ServicesDep):
 @router.get("/{run_id}/generations", response_model=list[GenerationOut], responses=NOT_FOUND)
 def generations(run_id: RunId, conn: ConnectionDep):
     """Statistics of every stored generation, oldest first."""
-    if queries.run_status(conn, run_id) is None:
+    if db_runs.run_status(conn, run_id) is None:
         raise HTTPException(404, f"no run {run_id}")
-    return queries.generations(conn, run_id)
+    return db_generations.generations(conn, run_id)
 
 
 @router.get("/{run_id}/front", response_model=FrontOut, responses=NOT_FOUND)
@@ -105,9 +100,9 @@ def front(
 ):
     """The non-dominated individuals (front rank 0 over distance, active share and voxel
     count) of the population kept at ``generation``."""
-    if queries.run_status(conn, run_id) is None:
+    if db_runs.run_status(conn, run_id) is None:
         raise HTTPException(404, f"no run {run_id}")
-    found = queries.front(conn, run_id, generation)
+    found = db_generations.front(conn, run_id, generation)
     if found is None:
         which = "any generation" if generation is None else f"generation {generation}"
         raise HTTPException(404, f"run {run_id} has not stored {which} yet")

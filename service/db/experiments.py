@@ -1,0 +1,312 @@
+"""Experiments: creation with their treatments and pending runs (``create_experiment``),
+``resolve_experiment`` (a CLI reference to an id), API listings with run progress,
+existence and freshness checks, and ``load_experiment(engine, id) ->
+analysis.data.ExperimentData`` (the analyses' input).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+from softevo.analysis.columns import INDIVIDUAL_COLUMNS
+from softevo.analysis.data import ExperimentData, experiment_data
+from softevo.service.db.export import evaluation_rows, runs_frame
+from softevo.service.db.models import (
+    Evaluation,
+    Experiment,
+    Generation,
+    PopulationMember,
+    Run,
+    RunStatus,
+    Treatment,
+    utcnow,
+)
+from softevo.service.db.rows import dict_rows
+from softevo.service.db.runs import parse_reference
+from softevo.service.db.status import run_summary_select
+from softevo.service.treatments import Treatment as Settings
+from sqlalchemy import Connection, Engine, and_, func, or_, select
+
+from softevo.errors import UserError
+
+STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
+
+
+# -- creation and lookup ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NewRun:
+    """A run to create: repetition index and seed."""
+
+    repetition: int
+    seed: int
+    generations: int
+
+
+@dataclass(frozen=True)
+class NewTreatment:
+    """A treatment to create: its name, JSON settings and runs."""
+
+    name: str
+    settings: dict[str, Any]
+    runs: Sequence[NewRun]
+
+
+def create_experiment(
+    conn: Connection,
+    name: str,
+    treatments: Iterable[NewTreatment],
+    preset: str | None = None,
+    scale: str | None = None,
+) -> tuple[int, list[int]]:
+    """Insert an experiment, its treatments and pending runs; return (experiment id, run ids)."""
+    experiment_id = conn.execute(
+        Experiment.__table__.insert().values(name=name, preset=preset, scale=scale, created_at=utcnow())
+    ).inserted_primary_key[0]
+    run_ids: list[int] = []
+    for treatment in treatments:
+        treatment_id = conn.execute(
+            Treatment.__table__.insert().values(
+                experiment_id=experiment_id, name=treatment.name, settings=treatment.settings
+            )
+        ).inserted_primary_key[0]
+        for run in treatment.runs:
+            run_ids.append(_insert_run(conn, treatment_id, run))
+    return experiment_id, run_ids
+
+
+def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
+    now = utcnow()
+    return conn.execute(
+        Run.__table__.insert().values(
+            treatment_id=treatment_id,
+            repetition=run.repetition,
+            seed=run.seed,
+            status=RunStatus.PENDING.value,
+            generation=-1,
+            generations=run.generations,
+            created_at=now,
+            updated_at=now,
+        )
+    ).inserted_primary_key[0]
+
+
+def resolve_experiment(conn: Connection, reference: str) -> int:
+    """The experiment named by ``e2``, ``exp-2``, ``2``, ``latest`` or its name (the newest of
+    that name); UserError if there is none."""
+    experiments = Experiment.__table__
+    kind, number = parse_reference(reference)
+    query = select(func.max(experiments.c.id))
+    if kind in ("experiment", "run"):  # a bare number names an experiment here
+        query = query.where(experiments.c.id == number)
+    elif kind == "name":
+        query = query.where(experiments.c.name == reference)
+    found = conn.execute(query).scalar()
+    if found is None:
+        raise UserError(f"no experiment {reference!r}")
+    return int(found)
+
+
+# -- the REST API's listings ------------------------------------------------------------------
+
+
+def experiment_status(statuses: Sequence[str]) -> str:
+    """An experiment's status from its runs' (see schemas.ExperimentOut.status)."""
+    for status in STATUS_PRECEDENCE:
+        if status in statuses:
+            return status
+    return RunStatus.PENDING.value
+
+
+def list_experiments(
+    conn: Connection, experiment_id: int | None = None, limit: int = 1000, offset: int = 0
+) -> list[dict[str, Any]]:
+    """Experiments (schemas.ExperimentOut) with their runs and progress, oldest first."""
+    table = Experiment.__table__
+    query = select(table.c.id, table.c.name, table.c.preset, table.c.scale, table.c.created_at)
+    if experiment_id is not None:
+        query = query.where(table.c.id == experiment_id)
+    experiments = dict_rows(conn, query.order_by(table.c.id).limit(limit).offset(offset))
+    if not experiments:
+        return []
+    runs_query = run_summary_select(id_label="id").where(
+        Treatment.__table__.c.experiment_id.in_([e["id"] for e in experiments])
+    )
+    runs_of: dict[int, list[dict[str, Any]]] = {}
+    for run in dict_rows(conn, runs_query):
+        runs_of.setdefault(run["experiment_id"], []).append(run)
+    for experiment in experiments:
+        runs = runs_of.get(experiment["id"], [])
+        done = sum(max(0, run["generation"] + 1) for run in runs)
+        total = sum(run["generations"] for run in runs)
+        experiment["runs"] = runs
+        experiment["status"] = experiment_status([run["status"] for run in runs])
+        experiment["progress"] = {
+            "generations_done": done,
+            "generations_total": total,
+            "fraction": done / total if total else 0.0,
+        }
+    return experiments
+
+
+def experiment_exists(conn: Connection, experiment_id: int) -> bool:
+    """Whether there is an experiment ``experiment_id``."""
+    table = Experiment.__table__
+    return conn.execute(select(table.c.id).where(table.c.id == experiment_id)).first() is not None
+
+
+def experiment_generations(conn: Connection, experiment_id: int) -> int:
+    """Generations stored over all runs of the experiment."""
+    generations, runs, treatments = Generation.__table__, Run.__table__, Treatment.__table__
+    return conn.execute(
+        select(func.count())
+        .select_from(generations)
+        .join(runs, generations.c.run_id == runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+    ).scalar_one()
+
+
+def experiment_updated_at(conn: Connection, experiment_id: int):
+    """When a run of the experiment last changed (None without runs)."""
+    runs, treatments = Run.__table__, Treatment.__table__
+    return conn.execute(
+        select(func.max(runs.c.updated_at))
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+    ).scalar()
+
+
+# -- the analyses' input ----------------------------------------------------------------------
+
+
+def load_experiment(engine: Engine, experiment_id: int) -> ExperimentData:
+    """Read experiment ``experiment_id`` (UserError if it does not exist or has no runs); see
+    ``analysis.data`` for the frames."""
+    with engine.connect() as conn:
+        experiment = _experiment_row(conn, experiment_id)
+        treatments = _treatments_frame(conn, experiment_id)
+        run_ids = _run_ids(conn, experiment_id)
+        if not run_ids:
+            raise UserError(f"experiment e{experiment_id} has no runs")
+        runs = _with_last_generation(conn, runs_frame(conn, run_ids))
+        generations = _generations_frame(conn, run_ids)
+        members = _end_members(conn, run_ids)
+        evaluations = _member_evaluations(conn, run_ids)
+    return experiment_data(experiment, treatments, runs, generations, members, evaluations)
+
+
+def _experiment_row(conn: Connection, experiment_id: int) -> dict[str, Any]:
+    table = Experiment.__table__
+    row = conn.execute(select(table).where(table.c.id == experiment_id)).mappings().first()
+    if row is None:
+        raise UserError(f"no experiment e{experiment_id} (see `softevo status`)")
+    return dict(row)
+
+
+def _treatments_frame(conn: Connection, experiment_id: int) -> pd.DataFrame:
+    table = Treatment.__table__
+    rows = conn.execute(
+        select(table.c.name, table.c.settings)
+        .where(table.c.experiment_id == experiment_id)
+        .order_by(table.c.id)
+    ).all()
+    records = []
+    for name, settings in rows:
+        treatment = Settings.from_settings(settings)
+        record = treatment.to_settings()
+        record["name"] = name
+        record["switch_at"] = treatment.switch_generation()
+        record["schedule"] = treatment.schedule_text()
+        record["workspace"] = "x".join(str(n) for n in treatment.workspace)
+        records.append(record)
+    frame = pd.DataFrame.from_records(records)
+    if not frame.empty:
+        frame["switch_at"] = frame["switch_at"].astype("Int64")
+    return frame
+
+
+def _run_ids(conn: Connection, experiment_id: int) -> list[int]:
+    runs, treatments = Run.__table__, Treatment.__table__
+    query = (
+        select(runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+        .order_by(runs.c.id)
+    )
+    return [int(i) for i in conn.execute(query).scalars()]
+
+
+def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
+    table = Run.__table__
+    rows = conn.execute(
+        select(table.c.id.label("run_id"), table.c.generation.label("generation")).where(
+            table.c.id.in_([int(i) for i in runs["run_id"]])
+        )
+    ).all()
+    last = pd.DataFrame(rows, columns=["run_id", "generation"])
+    return runs.merge(last, on="run_id", how="left")
+
+
+def _end_member_filter(run_ids: list[int]):
+    """WHERE clause: population rows of ``run_ids`` at generation 0 or the run's last one."""
+    members, runs = PopulationMember.__table__, Run.__table__
+    return and_(
+        members.c.run_id.in_(run_ids),
+        or_(members.c.generation == 0, members.c.generation == runs.c.generation),
+    )
+
+
+def _end_members(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+    """Population rows (run_id, generation, individual_id, front_rank) of the initial and the
+    last stored generation of each run."""
+    members, runs = PopulationMember.__table__, Run.__table__
+    columns = ["run_id", "generation", "individual_id", "front_rank"]
+    result = conn.execute(
+        select(*[members.c[name] for name in columns])
+        .join(runs, members.c.run_id == runs.c.id)
+        .where(_end_member_filter(run_ids))
+        .order_by(members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id)
+    )
+    return pd.DataFrame(result.fetchall(), columns=columns)
+
+
+def _member_evaluations(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+    """Every evaluation of the individuals in ``_end_members``, with the export's
+    individuals columns (``INDIVIDUAL_COLUMNS``)."""
+    evaluations = Evaluation.__table__
+    members, runs = PopulationMember.__table__, Run.__table__
+    wanted = (
+        select(members.c.individual_id)
+        .join(runs, members.c.run_id == runs.c.id)
+        .where(_end_member_filter(run_ids))
+    )
+    result = conn.execute(evaluation_rows(evaluations.c.individual_id.in_(wanted)))
+    frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))
+    frame["parent_id"] = frame["parent_id"].astype("Int64")
+    return frame[INDIVIDUAL_COLUMNS]
+
+
+def _generations_frame(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+    table = Generation.__table__
+    columns = [
+        "run_id",
+        "generation",
+        "environment",
+        "evaluations",
+        "best_distance",
+        "mean_distance",
+        "front_size",
+        "evaluation_seconds",
+        "created_at",
+    ]
+    result = conn.execute(
+        select(*[table.c[name] for name in columns])
+        .where(table.c.run_id.in_(run_ids))
+        .order_by(table.c.run_id, table.c.generation)
+    )
+    return pd.DataFrame(result.fetchall(), columns=columns)

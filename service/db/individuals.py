@@ -1,0 +1,139 @@
+"""Individuals: one individual with its evaluations (for the API and, as DataFrames, for
+re-simulation), what re-simulating it needs, the run it belongs to, and the map from an
+algorithm's local ids to database ids.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import pandas as pd
+from softevo.analysis.columns import TRAITS
+from softevo.service.db.models import EVALUATION_FIELDS, Evaluation, Individual, Run, Treatment
+from softevo.service.db.rows import dict_rows
+from softevo.service.db.runs import run_row
+from softevo.service.treatments import Treatment as Settings
+from sqlalchemy import Connection, Engine, select
+
+from softevo.errors import UserError
+
+
+def individual_run_id(conn: Connection, individual_id: int) -> int | None:
+    """The run of an individual, or None if there is no such individual."""
+    table = Individual.__table__
+    return conn.execute(select(table.c.run_id).where(table.c.id == individual_id)).scalar()
+
+
+def local_to_db_ids(conn: Connection, run_id: int, local_ids: Iterable[int]) -> dict[int, int]:
+    """Map the algorithm's local ids of a run to database ids (missing ones are left out)."""
+    wanted = sorted(set(local_ids))
+    if not wanted:
+        return {}
+    table = Individual.__table__
+    rows = conn.execute(
+        select(table.c.local_id, table.c.id).where(table.c.run_id == run_id, table.c.local_id.in_(wanted))
+    )
+    return {local: db_id for local, db_id in rows}
+
+
+def evaluation_fields(row: dict[str, Any]) -> dict[str, Any]:
+    """The ``EVALUATION_FIELDS`` of a row."""
+    return {name: row[name] for name in EVALUATION_FIELDS}
+
+
+def objectives(evaluation: dict[str, Any]) -> dict[str, Any]:
+    """The three objectives of an evaluation row."""
+    return {
+        "distance": evaluation["distance"],
+        "active_share": evaluation["active_share"],
+        "voxel_count": evaluation["voxel_count"],
+    }
+
+
+def evaluations_of(conn: Connection, individual_id: int) -> list[dict[str, Any]]:
+    """Every evaluation of an individual, oldest first."""
+    table = Evaluation.__table__
+    query = (
+        select(*[table.c[name] for name in EVALUATION_FIELDS])
+        .where(table.c.individual_id == individual_id)
+        .order_by(table.c.generation, table.c.id)
+    )
+    return dict_rows(conn, query)
+
+
+def individual(conn: Connection, individual_id: int) -> dict[str, Any] | None:
+    """One individual (schemas.IndividualOut) or None."""
+    table = Individual.__table__
+    rows = dict_rows(
+        conn,
+        select(
+            table.c.id,
+            table.c.run_id,
+            table.c.local_id,
+            table.c.parent_id,
+            table.c.generation_born,
+            table.c.genome,
+            table.c.phenotype,
+        ).where(table.c.id == individual_id),
+    )
+    if not rows:
+        return None
+    row = rows[0]
+    row["evaluations"] = evaluations_of(conn, individual_id)
+    latest = row["evaluations"][-1] if row["evaluations"] else None
+    row["objectives"] = objectives(latest) if latest else None
+    row["descriptors"] = latest["descriptors"] if latest else None
+    return row
+
+
+def individual_context(conn: Connection, individual_id: int) -> dict[str, Any] | None:
+    """What re-simulating an individual needs: genome, its run's treatment settings and seed,
+    and its evaluations (environment, stiffness). None if there is no such individual."""
+    individuals, runs, treatments = Individual.__table__, Run.__table__, Treatment.__table__
+    rows = dict_rows(
+        conn,
+        select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
+        .join(runs, individuals.c.run_id == runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(individuals.c.id == individual_id),
+    )
+    if not rows:
+        return None
+    row = rows[0]
+    row["evaluations"] = evaluations_of(conn, individual_id)
+    return row
+
+
+def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
+    """The stored individual (id, run_id, genome, generation_born, ...), its run's treatment
+    (``service.treatments.Treatment``) and seed, and its evaluations (a DataFrame, oldest
+    first). UserError if there is no such individual."""
+    table = Individual.__table__
+    with engine.connect() as conn:
+        row = conn.execute(select(table).where(table.c.id == int(individual_id))).mappings().first()
+        if row is None:
+            raise UserError(f"no individual {individual_id}")
+        run = run_row(conn, row["run_id"])
+        evaluations = evaluation_frame(conn, int(individual_id))
+    return {
+        **dict(row),
+        "treatment": Settings.from_settings(run["settings"]),
+        "treatment_name": run["treatment"],
+        "experiment": run["experiment"],
+        "seed": run["seed"],
+        "repetition": run["repetition"],
+        "evaluations": evaluations,
+    }
+
+
+def evaluation_frame(conn: Connection, individual_id: int) -> pd.DataFrame:
+    """An individual's evaluations as a DataFrame, oldest first."""
+    table = Evaluation.__table__
+    columns = ["generation", "age", "environment", "stiffness", *TRAITS, "stable", "error"]
+    result = conn.execute(
+        select(*[table.c[name] for name in columns])
+        .where(table.c.individual_id == individual_id)
+        .order_by(table.c.generation)
+    )
+    return pd.DataFrame(result.fetchall(), columns=columns)

@@ -1,0 +1,112 @@
+"""The import graph between softevo's packages, read from the sources (ast: nothing is
+imported to check it): each package imports only the packages below it (no cycle), and no
+module imports a ``_private`` name from another package. ``softevo.errors`` and the version
+in ``softevo/__init__.py`` are leaves every package may use; the facade (``softevo``'s
+functions) sits on top of everything."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ALLOWED = {  # package -> the softevo packages it may import
+    "sim": set(),
+    "evolution": {"sim"},
+    "worker": {"evolution", "sim"},
+    "analysis": {"worker", "evolution", "sim"},
+    "service": {"analysis", "worker", "evolution", "sim"},
+    "migrations": {"service"},
+}
+LEAVES = {"softevo", "softevo.errors"}
+
+
+def imports(path: Path, package: str) -> list[tuple[str, list[str]]]:
+    """(absolute module, imported names) of every import in ``path``, at any depth."""
+    module = ".".join(["softevo", package, *path.relative_to(ROOT / package).with_suffix("").parts])
+    parts = module.split(".")[:-1]  # the package a relative import starts from
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found += [(alias.name, []) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = parts[: len(parts) - (node.level - 1)]
+                base = ".".join([*up, base] if base else up)
+            found.append((base, [alias.name for alias in node.names]))
+    return found
+
+
+def package_of(module: str, names: list[str]) -> list[str]:
+    """The softevo packages an import reaches (``from softevo import sim`` reaches sim)."""
+    parts = module.split(".")
+    if parts[0] != "softevo":
+        return []
+    if len(parts) >= 2:
+        return [parts[1]] if parts[1] in ALLOWED else []
+    return [name for name in names if name in ALLOWED]
+
+
+def problems(path: Path, package: str) -> list[str]:
+    found = []
+    for module, names in imports(path, package):
+        for other in package_of(module, names):
+            if other != package and other not in ALLOWED[package]:
+                found.append(f"{package} imports {other} ({module})")
+        reached = package_of(module, names)
+        if reached and reached != [package] and module not in LEAVES:
+            private = [n for n in names if n.startswith("_") and n != "__version__"]
+            found += [f"imports the private {module}.{n}" for n in private]
+    return found
+
+
+MODULES = [(package, path) for package in ALLOWED for path in sorted((ROOT / package).rglob("*.py"))]
+
+
+def test_the_allowed_graph_has_no_cycle():
+    seen: dict[str, int] = {}
+
+    def visit(package: str) -> None:
+        assert seen.get(package) != 1, f"import cycle through {package}"
+        if seen.get(package) == 2:
+            return
+        seen[package] = 1
+        for other in ALLOWED[package]:
+            visit(other)
+        seen[package] = 2
+
+    for package in ALLOWED:
+        visit(package)
+
+
+def test_every_package_is_read():
+    assert {package for package, _ in MODULES} == set(ALLOWED)
+    assert len(MODULES) > 60
+
+
+@pytest.mark.parametrize(("package", "path"), MODULES, ids=[str(p.relative_to(ROOT)) for _, p in MODULES])
+def test_imports_follow_the_layers(package, path):
+    assert problems(path, package) == []
+
+
+def test_the_check_sees_upward_and_private_imports(tmp_path, monkeypatch):
+    fake = tmp_path / "analysis"
+    fake.mkdir()
+    module = fake / "example.py"
+    module.write_text(
+        "from softevo.service.db import open_database\n"
+        "def f():\n    from softevo import service\n"
+        "from softevo.evolution.stats import _private\n"
+        "from softevo.analysis.data import _internal\n"
+        "from .render import _local\n"
+        "from softevo.errors import UserError\n"
+    )
+    monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
+    assert sorted(problems(module, "analysis")) == [
+        "analysis imports service (softevo)",
+        "analysis imports service (softevo.service.db)",
+        "imports the private softevo.evolution.stats._private",
+    ]
