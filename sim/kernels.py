@@ -19,10 +19,12 @@ records frames and centre-of-mass samples and stops at divergence; ``step`` is o
 
 A robot's constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
 ``Voxels``, ``Links``, its body state as ``State`` and its scratch as ``Work``, all private
-copies of its slices of the batch (indices local to the robot). All state is struct-of-arrays;
-no Python runs per voxel or per step. Helpers called per link or per voxel take and return
-scalars only: an array passed to an inlined helper costs two atomic reference-count updates
-per call, which once took most of the link loop's time.
+copies of its slices of the batch (indices local to the robot). Each sub-step is an inlined
+wrapper around a compiled loop (``actuate_kernel``, ``link_kernel`` ...) that takes the arrays
+it uses one by one. All state is struct-of-arrays; no Python runs per voxel or per step.
+Helpers called per link or per voxel take and return scalars only: an array passed to an
+inlined helper costs two atomic reference-count updates per call, which once took most of the
+link loop's time; for the same reason the step loop runs on views that count no references.
 
 Maths conventions: quaternions are (w, x, y, z); a link's local frame has x along the link
 (see ``to_link``); rotation vectors are axis * angle in radians.
@@ -35,7 +37,9 @@ from typing import NamedTuple
 
 import llvmlite.binding
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from .system import (
     ENV_LAND,
@@ -203,10 +207,8 @@ def waveform(kind, angle):
 
 
 @njit(**JIT)
-def actuate(t, p, voxels, size):
+def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, size):
     """Current size of every voxel at time t (t < 0: no actuation yet)."""
-    flags, cos_phase, sin_phase = voxels.flags, voxels.cos_phase, voxels.sin_phase
-    phase = voxels.phase
     L = p.L
     if t < 0.0:
         for v in range(len(size)):
@@ -503,14 +505,27 @@ def collision_forces(count, pairs, pos, lin_mom, size, p, force):
         force[i, 2] -= f * nz
 
 
+@njit(**JIT)
+def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, pairs, force):
+    """Self-collision forces when the robot has them on; rebuilds the candidate list once two
+    voxels may have closed the margin. Returns the updated ``Contacts``."""
+    if not p.collide:
+        return contacts
+    count, travel = contacts.count, contacts.travel
+    margin = COLLIDE_MARGIN * p.L
+    if 2.0 * travel >= margin:
+        reach = p.L * (1.0 + p.amp) + margin
+        count = collision_pairs(surface, pos, nbr, reach, pairs)
+        travel = 0.0
+    collision_forces(count, pairs, pos, lin_mom, size, p, force)
+    return Contacts(count, travel)
+
+
 # ---------------------------------------------------------------- voxels
 @njit(**JIT)
-def world_forces(p, voxels, body, work):
+def world_forces_kernel(p, flags, ext_force, nbr, quat, lin_mom, ang_mom, size, force, moment):
     """Gravity, global damping and, in water, drag, added to the force and moment of every
     free voxel (fixed ones are left alone)."""
-    flags, ext_force, nbr = voxels.flags, voxels.ext_force, voxels.nbr
-    quat, lin_mom, ang_mom = body.quat, body.lin_mom, body.ang_mom
-    size, force, moment = work.size, work.force, work.moment
     m, inv_m, inv_i = p.mass, 1.0 / p.mass, 1.0 / p.inertia
     g, c_lin, c_ang, drag = p.gravity, p.c_lin, p.c_ang, p.drag
     water = p.env == ENV_WATER and drag > 0.0
@@ -544,15 +559,13 @@ def world_forces(p, voxels, body, work):
 
 
 @njit(**JIT)
-def floor_contact(p, voxels, body, work):
+def floor_contact_kernel(p, flags, pos, lin_mom, size, force, static, contact):
     """On land, a penalty floor at z = 0 with static and kinetic (Coulomb) friction, added to
     the force of every free voxel; marks the voxels in contact for ``integrate``. A static
     voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
     sliding one feels mu_k times the normal force against its horizontal velocity."""
     if p.env != ENV_LAND:
         return
-    flags, pos, lin_mom = voxels.flags, body.pos, body.lin_mom
-    size, force, static, contact = work.size, work.force, work.static, work.contact
     inv_m, k_floor, c_coll, mu_s, mu_k = 1.0 / p.mass, p.k_floor, p.c_coll, p.mu_s, p.mu_k
     for v in range(len(flags)):
         if flags[v] & FLAG_FIXED:
@@ -576,15 +589,12 @@ def floor_contact(p, voxels, body, work):
 
 
 @njit(**JIT)
-def integrate(p, voxels, body, work):
+def integrate_kernel(p, flags, pos, quat, lin_mom, ang_mom, force, moment, static, contact):
     """Semi-implicit Euler step of every free voxel from its force and moment: momenta
     first, then position and orientation from the new momenta (fixed voxels: momenta zeroed).
     A sliding voxel in floor contact sticks when friction would reverse it (work-energy),
     and a static one keeps no horizontal momentum. Returns the largest squared speed of a
     voxel after the step, or -1 if any voxel left the sane range (or went NaN)."""
-    flags, pos, quat = voxels.flags, body.pos, body.quat
-    lin_mom, ang_mom = body.lin_mom, body.ang_mom
-    force, moment, static, contact = work.force, work.moment, work.static, work.contact
     inv_m, inv_i, dt = 1.0 / p.mass, 1.0 / p.inertia, p.dt
     ok = True
     speed2 = 0.0
@@ -666,6 +676,16 @@ class Contacts(NamedTuple):
     travel: float  # bound on any voxel's displacement since the list was built, m
 
 
+# The sub-steps of ``step``, inlined: each hands its compiled kernel the arrays it needs one by
+# one and has no branch of its own (those live in the kernels). With ``run_robot`` stepping on
+# borrowed views (``borrow``) that leaves no reference counting in the step loop.
+@njit(**INLINE)
+def actuate(t, p, voxels, work):
+    """Sizes of the voxels at time t into ``work.size``."""
+    actuate_kernel(t, p, voxels.flags, voxels.cos_phase, voxels.sin_phase, voxels.phase,
+                   work.size)
+
+
 @njit(**INLINE)
 def link_forces(p, links, body, work):
     """Beam forces of every link, summed into each voxel's force and moment (overwritten).
@@ -678,16 +698,31 @@ def link_forces(p, links, body, work):
 
 @njit(**INLINE)
 def collide(p, voxels, body, work, contacts):
-    """Self-collision forces, added to each voxel's force; rebuilds the candidate list once
-    two voxels may have closed the margin. Returns the updated ``Contacts``."""
-    count, travel = contacts.count, contacts.travel
-    margin = COLLIDE_MARGIN * p.L
-    if 2.0 * travel >= margin:
-        reach = p.L * (1.0 + p.amp) + margin
-        count = collision_pairs(voxels.surface, body.pos, voxels.nbr, reach, work.pairs)
-        travel = 0.0
-    collision_forces(count, work.pairs, body.pos, body.lin_mom, work.size, p, work.force)
-    return Contacts(count, travel)
+    """Self-collision forces (if on), added to ``work.force``; returns the updated
+    ``Contacts``."""
+    return collide_kernel(p, contacts, voxels.surface, voxels.nbr, body.pos, body.lin_mom,
+                          work.size, work.pairs, work.force)
+
+
+@njit(**INLINE)
+def world_forces(p, voxels, body, work):
+    """Gravity, global damping and water drag, added to ``work.force``/``work.moment``."""
+    world_forces_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, body.quat,
+                        body.lin_mom, body.ang_mom, work.size, work.force, work.moment)
+
+
+@njit(**INLINE)
+def floor_contact(p, voxels, body, work):
+    """Floor and friction forces on land, added to ``work.force``; marks ``work.contact``."""
+    floor_contact_kernel(p, voxels.flags, body.pos, body.lin_mom, work.size, work.force,
+                         work.static, work.contact)
+
+
+@njit(**INLINE)
+def integrate(p, voxels, body, work):
+    """Semi-implicit Euler step of ``body``; returns the largest squared speed or -1."""
+    return integrate_kernel(p, voxels.flags, body.pos, body.quat, body.lin_mom, body.ang_mom,
+                            work.force, work.moment, work.static, work.contact)
 
 
 @njit(**INLINE)
@@ -696,10 +731,9 @@ def step(t, p, voxels, links, body, work, contacts):
     since actuation started (negative while settling). Returns how many links diverged, the
     largest squared voxel speed after the step (-1: a voxel left the sane range) and the
     updated ``Contacts``."""
-    actuate(t, p, voxels, work.size)
+    actuate(t, p, voxels, work)
     bad = link_forces(p, links, body, work)
-    if p.collide:
-        contacts = collide(p, voxels, body, work, contacts)
+    contacts = collide(p, voxels, body, work, contacts)
     world_forces(p, voxels, body, work)
     floor_contact(p, voxels, body, work)
     speed2 = integrate(p, voxels, body, work)
@@ -708,6 +742,34 @@ def step(t, p, voxels, links, body, work, contacts):
 
 
 # ---------------------------------------------------------------- the rollout
+@intrinsic
+def borrow(typingctx, arrays):
+    """The same tuple of arrays as views that own no memory, so that passing them on and
+    taking them out of the tuple costs no reference counting (two atomic updates per array
+    and use otherwise: passed to the sub-steps, those took most of a small robot's step).
+    The owner must keep the memory alive for as long as the views are used."""
+    if not (isinstance(arrays, types.BaseTuple)
+            and all(isinstance(t, types.Array) for t in arrays.types)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        out = args[0]
+        for i, ty in enumerate(arrays.types):
+            view = context.make_array(ty)(context, builder, value=builder.extract_value(out, i))
+            view.meminfo = cgutils.get_null_value(view.meminfo.type)
+            view.parent = cgutils.get_null_value(view.parent.type)
+            out = builder.insert_value(out, view._getvalue(), i)
+        return out
+
+    return arrays(arrays), codegen
+
+
+@njit(**JIT)
+def keep(owners):
+    """Nothing: a use of ``owners`` that keeps their memory alive up to this call."""
+    return len(owners)
+
+
 @njit(**JIT)
 def params(fp, ip):
     """A robot's ``Params`` from its rows of ``Batch.fparams`` and ``Batch.iparams``."""
@@ -766,10 +828,13 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     batch share arrays, and threads writing neighbouring entries of one array every step
     (and updating its reference count on every call) slow each other down several-fold.
     """
-    p, voxels, links, body = take_robot(batch, state, r)
+    p, own_voxels, own_links, own_body = take_robot(batch, state, r)
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
-    work = robot_work(n, len(links.neg), batch.poff[r + 1] - batch.poff[r])
+    own_work = robot_work(n, len(own_links.neg), batch.poff[r + 1] - batch.poff[r])
+    # the steps run on views: no reference counting per step (the owners live to the end)
+    voxels, links, body, work = borrow(own_voxels), borrow(own_links), borrow(own_body), borrow(
+        own_work)
     traj = np.zeros((com_traj.shape[1], 4))
     contacts = Contacts(0, COLLIDE_MARGIN * p.L)  # as if the margin was closed: build the list
     n_com = 0
@@ -801,8 +866,9 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     com_traj[r, : n_com + 1] = traj[: n_com + 1]
     com_count[r] = n_com + 1
     status[r], steps_done[r] = code, done
-    state.pos[v0:v1], state.quat[v0:v1] = body.pos, body.quat
-    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = body.lin_mom, body.ang_mom
+    state.pos[v0:v1], state.quat[v0:v1] = own_body.pos, own_body.quat
+    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = own_body.lin_mom, own_body.ang_mom
+    keep((own_voxels, own_links, own_body, own_work))
 
 
 @njit(parallel=True, **JIT)

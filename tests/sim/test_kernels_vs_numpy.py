@@ -129,10 +129,11 @@ def test_actuation_matches_numpy(wave):
     n = len(batch.flags)
     size = np.zeros(n)
     fp = batch.fparams[0]
-    p, voxels = kernels.take_robot(batch, _state, 0)[:2]
+    p = kernels.params(fp, batch.iparams[0])
     assert p.wave == system.WAVE_CODES[wave]
     for t in rng.uniform(0, 2, 5):
-        kernels.actuate(t, p, voxels, size)
+        kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                               batch.phase, size)
         angle = fp[system.F_OMEGA] * t + batch.phase
         if wave == "sine":
             w = np.sin(angle)
@@ -144,7 +145,8 @@ def test_actuation_matches_numpy(wave):
         active = (batch.flags & system.FLAG_ACTIVE) > 0
         expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
         np.testing.assert_allclose(size, expected, rtol=1e-12)
-    kernels.actuate(-0.1, p, voxels, size)
+    kernels.actuate_kernel(-0.1, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                           batch.phase, size)
     assert np.all(size == 0.05), "no actuation while settling"
 
 
