@@ -833,8 +833,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     n = v1 - v0
     own_work = robot_work(n, len(own_links.neg), batch.poff[r + 1] - batch.poff[r])
     # the steps run on views: no reference counting per step (the owners live to the end)
-    voxels, links, body, work = borrow(own_voxels), borrow(own_links), borrow(own_body), borrow(
-        own_work)
+    voxels, links = borrow(own_voxels), borrow(own_links)
+    body, work = borrow(own_body), borrow(own_work)
     traj = np.zeros((com_traj.shape[1], 4))
     contacts = Contacts(0, COLLIDE_MARGIN * p.L)  # as if the margin was closed: build the list
     n_com = 0
