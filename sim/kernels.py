@@ -1,13 +1,30 @@
 """Compiled kernels: the whole rollout of many robots in one call.
 
-Each robot's run is one task of a ``prange`` over robots; inside it a step is, in order:
-``actuate -> link kernel (gather, then beams as SIMD) -> link sums per voxel ->
-self-collisions -> voxel forces + integrate -> record``. All state is struct-of-arrays (see
-``sim.system``); no Python runs per voxel or per step. Every kernel below ``run_robot`` takes
-one robot's own arrays (indices local to the robot), so their lengths are the ranges.
+``run_batch`` runs each robot as one task of a ``prange``; ``run_robot`` loops over the steps,
+records frames and centre-of-mass samples and stops at divergence; ``step`` is one step:
+
+    actuate -> link_forces -> collide -> world_forces -> floor_contact -> integrate
+
+- ``actuate``: voxel size s = max(L (1 + amp w(omega t + phase)), 0.1 L) for active voxels;
+- ``link_forces``: co-rotational 3-D beams (``link_kernel``: gather, then beams as SIMD), summed
+  per voxel (``link_sums``); stiffness-proportional bond damping;
+- ``collide``: penalty contact k overlap - c v_n (>= 0) between unbonded surface voxels;
+- ``world_forces``: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
+  quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
+- ``floor_contact``: on land, normal force k_floor pen - c_coll v_z for pen = s/2 - z >= 0,
+  static friction up to mu_s N, kinetic friction mu_k N against the horizontal velocity;
+- ``integrate``: semi-implicit Euler, p += F dt then x += p / m dt, and L += M dt then
+  q = exp(L / I dt) q (renormalised); a sliding voxel in floor contact sticks when friction
+  would reverse it.
+
+A robot's constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
+``Voxels``, ``Links``, its body state as ``State`` and its scratch as ``Work``, all private
+copies of its slices of the batch (indices local to the robot). Each sub-step is an inlined
+wrapper around a compiled loop (``actuate_kernel``, ``link_kernel`` ...) that takes the arrays
+it uses one by one. All state is struct-of-arrays; no Python runs per voxel or per step.
 Helpers called per link or per voxel take and return scalars only: an array passed to an
-inlined helper costs two atomic reference-count updates per call, which once took most of
-the link loop's time.
+inlined helper costs two atomic reference-count updates per call, which once took most of the
+link loop's time; for the same reason the step loop runs on views that count no references.
 
 Maths conventions: quaternions are (w, x, y, z); a link's local frame has x along the link
 (see ``to_link``); rotation vectors are axis * angle in radians.
@@ -16,12 +33,17 @@ Maths conventions: quaternions are (w, x, y, z); a link's local frame has x alon
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import llvmlite.binding
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from .system import (
+    ENV_LAND,
+    ENV_WATER,
     F_A1,
     F_A2,
     F_AMP,
@@ -42,15 +64,19 @@ from .system import (
     F_MUK,
     F_MUS,
     F_OMEGA,
+    F_SETTLE,
     FLAG_ACTIVE,
     FLAG_FIXED,
     I_COLLIDE,
     I_COM_EVERY,
     I_ENV,
+    I_N_FRAMES,
     I_RECORD,
     I_SETTLE_STEPS,
     I_STEPS,
     I_WAVE,
+    Params,
+    State,
 )
 
 # fastmath without 'nnan'/'ninf' (divergence stays detectable by comparisons) and without
@@ -181,15 +207,16 @@ def waveform(kind, angle):
 
 
 @njit(**JIT)
-def actuate(t, fp, wave, flags, cos_phase, sin_phase, phase, size):
+def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, size):
     """Current size of every voxel at time t (t < 0: no actuation yet)."""
-    L = fp[F_L]
+    L = p.L
     if t < 0.0:
         for v in range(len(size)):
             size[v] = L
         return
-    amp = fp[F_AMP]
-    wt = fp[F_OMEGA] * t
+    amp = p.amp
+    wave = p.wave
+    wt = p.omega * t
     s_wt, c_wt = math.sin(wt), math.cos(wt)
     for v in range(len(size)):
         if flags[v] & FLAG_ACTIVE:
@@ -256,7 +283,7 @@ LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on t
 
 
 @njit(**JIT)
-def link_kernel(fp, link_neg, link_pos, link_axis, pos, quat, size, link_in, link_state,
+def link_kernel(p, link_neg, link_pos, link_axis, pos, quat, size, link_in, link_state,
                 link_out):
     """Beam forces of every link, in world axes, into ``link_out``. Returns
     how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
@@ -273,9 +300,9 @@ def link_kernel(fp, link_neg, link_pos, link_axis, pos, quat, size, link_in, lin
     contiguous rows with both frames computed and one selected, so that LLVM compiles it to
     SIMD (four links per instruction on AVX2 and up).
     """
-    damp = fp[F_GAMMA] * 0.5 / fp[F_DT]
-    a1, a2, b1, b2, b3 = fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3]
-    inv_l = 1.0 / fp[F_L]
+    damp = p.gamma * 0.5 / p.dt
+    a1, a2, b1, b2, b3 = p.a1, p.a2, p.b1, p.b2, p.b3
+    inv_l = 1.0 / p.L
     m = len(link_neg)
     U = np.uint64
     I0, I1, I2, I3, I4, I5 = U(0), U(m), U(2 * m), U(3 * m), U(4 * m), U(5 * m)
@@ -452,11 +479,11 @@ def collision_pairs(surface, pos, nbr, reach, pairs):
 
 
 @njit(**JIT)
-def collision_forces(count, pairs, pos, lin_mom, size, fp, force):
+def collision_forces(count, pairs, pos, lin_mom, size, p, force):
     """Penalty contact between unbonded voxels: equal and opposite, so momentum is kept."""
-    k = fp[F_KFLOOR]  # harmonic mean of the two voxels' 2 E L: the same for one material
-    c = fp[F_CCOLL]
-    inv_m = 1.0 / fp[F_MASS]
+    k = p.k_floor  # harmonic mean of the two voxels' 2 E L: the same for one material
+    c = p.c_coll
+    inv_m = 1.0 / p.mass
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
         dx = pos[j, 0] - pos[i, 0]
@@ -478,34 +505,42 @@ def collision_forces(count, pairs, pos, lin_mom, size, fp, force):
         force[i, 2] -= f * nz
 
 
+@njit(**JIT)
+def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, pairs, force):
+    """Self-collision forces when the robot has them on; rebuilds the candidate list once two
+    voxels may have closed the margin. Returns the updated ``Contacts``."""
+    if not p.collide:
+        return contacts
+    count, travel = contacts.count, contacts.travel
+    margin = COLLIDE_MARGIN * p.L
+    if 2.0 * travel >= margin:
+        reach = p.L * (1.0 + p.amp) + margin
+        count = collision_pairs(surface, pos, nbr, reach, pairs)
+        travel = 0.0
+    collision_forces(count, pairs, pos, lin_mom, size, p, force)
+    return Contacts(count, travel)
+
+
 # ---------------------------------------------------------------- voxels
 @njit(**JIT)
-def integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, quat,
-              lin_mom, ang_mom):
-    """World forces (gravity, damping, floor and friction, drag) and one semi-implicit Euler
-    step for every voxel. Returns the largest squared speed of a voxel after the step, or
-    -1 if any voxel left the sane range (or went NaN)."""
-    m, inertia, dt = fp[F_MASS], fp[F_INERTIA], fp[F_DT]
-    inv_m, inv_i = 1.0 / m, 1.0 / inertia
-    g, k_floor, c_coll = fp[F_GRAVITY], fp[F_KFLOOR], fp[F_CCOLL]
-    c_lin, c_ang, mu_s, mu_k, drag = fp[F_CGLIN], fp[F_CGANG], fp[F_MUS], fp[F_MUK], fp[F_DRAG]
-    ok = True
-    speed2 = 0.0
-    for v in range(len(pos)):
+def world_forces_kernel(p, flags, ext_force, nbr, quat, lin_mom, ang_mom, size, force, moment):
+    """Gravity, global damping and, in water, drag, added to the force and moment of every
+    free voxel (fixed ones are left alone)."""
+    m, inv_m, inv_i = p.mass, 1.0 / p.mass, 1.0 / p.inertia
+    g, c_lin, c_ang, drag = p.gravity, p.c_lin, p.c_ang, p.drag
+    water = p.env == ENV_WATER and drag > 0.0
+    for v in range(len(flags)):
         if flags[v] & FLAG_FIXED:
-            lin_mom[v, 0] = lin_mom[v, 1] = lin_mom[v, 2] = 0.0
-            ang_mom[v, 0] = ang_mom[v, 1] = ang_mom[v, 2] = 0.0
             continue
         vx, vy, vz = lin_mom[v, 0] * inv_m, lin_mom[v, 1] * inv_m, lin_mom[v, 2] * inv_m
         fx = force[v, 0] + ext_force[v, 0] - c_lin * vx
         fy = force[v, 1] + ext_force[v, 1] - c_lin * vy
         fz = force[v, 2] + ext_force[v, 2] - c_lin * vz - m * g
-        mx = moment[v, 0] - c_ang * ang_mom[v, 0] * inv_i
-        my = moment[v, 1] - c_ang * ang_mom[v, 1] * inv_i
-        mz = moment[v, 2] - c_ang * ang_mom[v, 2] * inv_i
-        qw, qx, qy, qz = quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3]
-
-        if env == 1 and drag > 0.0:  # water: quadratic drag on exposed faces moving outward
+        moment[v, 0] = moment[v, 0] - c_ang * ang_mom[v, 0] * inv_i
+        moment[v, 1] = moment[v, 1] - c_ang * ang_mom[v, 1] * inv_i
+        moment[v, 2] = moment[v, 2] - c_ang * ang_mom[v, 2] * inv_i
+        if water:  # quadratic drag on exposed faces moving outward
+            qw, qx, qy, qz = quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3]
             area = size[v] * size[v]
             for a in range(3):
                 ex, ey, ez = qrot(qw, qx, qy, qz, 1.0 if a == 0 else 0.0,
@@ -520,28 +555,60 @@ def integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, 
                         fx += f * ex
                         fy += f * ey
                         fz += f * ez
+        force[v, 0], force[v, 1], force[v, 2] = fx, fy, fz
 
-        in_contact = False
-        if env == 0:  # land: penalty floor at z = 0, static and kinetic friction
-            pen = 0.5 * size[v] - pos[v, 2]
-            if pen >= 0.0:
-                in_contact = True
-                normal = k_floor * pen
-                fz += normal - c_coll * vz
-                if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
-                    static[v] = False
-                elif not static[v]:
-                    hv = math.sqrt(vx * vx + vy * vy)
-                    if hv > FRICTION_EPS * fp[F_L] / dt:
-                        fx -= mu_k * normal * vx / hv
-                        fy -= mu_k * normal * vy / hv
-            else:
+
+@njit(**JIT)
+def floor_contact_kernel(p, flags, pos, lin_mom, size, force, static, contact):
+    """On land, a penalty floor at z = 0 with static and kinetic (Coulomb) friction, added to
+    the force of every free voxel; marks the voxels in contact for ``integrate``. A static
+    voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
+    sliding one feels mu_k times the normal force against its horizontal velocity."""
+    if p.env != ENV_LAND:
+        return
+    inv_m, k_floor, c_coll, mu_s, mu_k = 1.0 / p.mass, p.k_floor, p.c_coll, p.mu_s, p.mu_k
+    for v in range(len(flags)):
+        if flags[v] & FLAG_FIXED:
+            continue
+        pen = 0.5 * size[v] - pos[v, 2]
+        contact[v] = pen >= 0.0
+        if pen >= 0.0:
+            vx, vy, vz = lin_mom[v, 0] * inv_m, lin_mom[v, 1] * inv_m, lin_mom[v, 2] * inv_m
+            normal = k_floor * pen
+            force[v, 2] += normal - c_coll * vz
+            fx, fy = force[v, 0], force[v, 1]
+            if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
                 static[v] = False
+            elif not static[v]:
+                hv = math.sqrt(vx * vx + vy * vy)
+                if hv > FRICTION_EPS * p.L / p.dt:
+                    force[v, 0] = fx - mu_k * normal * vx / hv
+                    force[v, 1] = fy - mu_k * normal * vy / hv
+        else:
+            static[v] = False
+
+
+@njit(**JIT)
+def integrate_kernel(p, flags, pos, quat, lin_mom, ang_mom, force, moment, static, contact):
+    """Semi-implicit Euler step of every free voxel from its force and moment: momenta
+    first, then position and orientation from the new momenta (fixed voxels: momenta zeroed).
+    A sliding voxel in floor contact sticks when friction would reverse it (work-energy),
+    and a static one keeps no horizontal momentum. Returns the largest squared speed of a
+    voxel after the step, or -1 if any voxel left the sane range (or went NaN)."""
+    inv_m, inv_i, dt = 1.0 / p.mass, 1.0 / p.inertia, p.dt
+    ok = True
+    speed2 = 0.0
+    for v in range(len(flags)):
+        if flags[v] & FLAG_FIXED:
+            lin_mom[v, 0] = lin_mom[v, 1] = lin_mom[v, 2] = 0.0
+            ang_mom[v, 0] = ang_mom[v, 1] = ang_mom[v, 2] = 0.0
+            continue
+        fx, fy, fz = force[v, 0], force[v, 1], force[v, 2]
         lin_mom[v, 2] += fz * dt
         px, py = lin_mom[v, 0] + fx * dt, lin_mom[v, 1] + fy * dt
-        if in_contact:  # a sliding voxel sticks when friction would reverse it (work-energy)
-            work = (fx * px + fy * py) * inv_m * dt
-            if 0.5 * inv_m * (px * px + py * py) + work <= 0.0:
+        if contact[v]:
+            work_ = (fx * px + fy * py) * inv_m * dt
+            if 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
                 static[v] = True
             if static[v]:
                 px, py = 0.0, 0.0
@@ -552,12 +619,12 @@ def integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, 
         speed2 = max(speed2, (lin_mom[v, 0] * lin_mom[v, 0] + lin_mom[v, 1] * lin_mom[v, 1]
                               + lin_mom[v, 2] * lin_mom[v, 2]) * (inv_m * inv_m))
 
-        ang_mom[v, 0] += mx * dt
-        ang_mom[v, 1] += my * dt
-        ang_mom[v, 2] += mz * dt
+        ang_mom[v, 0] += moment[v, 0] * dt
+        ang_mom[v, 1] += moment[v, 1] * dt
+        ang_mom[v, 2] += moment[v, 2] * dt
         dw, dx, dy, dz = quat_from_rotvec(ang_mom[v, 0] * inv_i * dt, ang_mom[v, 1] * inv_i * dt,
                                           ang_mom[v, 2] * inv_i * dt)
-        qw, qx, qy, qz = qmul(dw, dx, dy, dz, qw, qx, qy, qz)
+        qw, qx, qy, qz = qmul(dw, dx, dy, dz, quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
         norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3] = qw * norm, qx * norm, qy * norm, qz * norm
         if not (abs(pos[v, 0]) < POSITION_BOUND and abs(pos[v, 1]) < POSITION_BOUND
@@ -566,7 +633,181 @@ def integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, 
     return speed2 if ok else -1.0
 
 
+# ---------------------------------------------------------------- the step
+class Voxels(NamedTuple):
+    """One robot's per-voxel constants (indices local to the robot)."""
+
+    flags: np.ndarray  # (n,) int8: FLAG_FIXED | FLAG_ACTIVE
+    ext_force: np.ndarray  # (n, 3) newtons
+    cos_phase: np.ndarray  # (n,) cos of the actuation phase
+    sin_phase: np.ndarray  # (n,)
+    phase: np.ndarray  # (n,) radians
+    nbr: np.ndarray  # (n, 6) face neighbours (-1: exposed face)
+    surface: np.ndarray  # (s,) voxels with an exposed face
+
+
+class Links(NamedTuple):
+    """One robot's links: the voxels at their ends, their axes, and each voxel's links."""
+
+    neg: np.ndarray  # (m,) voxel on the negative side
+    pos: np.ndarray  # (m,) voxel on the positive side
+    axis: np.ndarray  # (m,) 0 x, 1 y, 2 z
+    vlink: np.ndarray  # (n, 6) link on each face, ordered as nbr (-1: none)
+
+
+class Work(NamedTuple):
+    """Scratch and per-link state of one robot's run, overwritten step by step."""
+
+    size: np.ndarray  # (n,) current (actuated) voxel size
+    force: np.ndarray  # (n, 3) total force on each voxel
+    moment: np.ndarray  # (n, 3) total moment on each voxel
+    static: np.ndarray  # (n,) bool: held by static friction
+    pairs: np.ndarray  # (p, 2) self-collision candidates
+    contact: np.ndarray  # (n,) bool: touching the floor this step
+    link_in: np.ndarray  # LINK_IN_ROWS * m
+    link_state: np.ndarray  # LINK_STATE_ROWS * m
+    link_out: np.ndarray  # LINK_OUT_ROWS * m
+
+
+class Contacts(NamedTuple):
+    """Self-collision candidates carried from step to step."""
+
+    count: int  # pairs in use at the head of ``Work.pairs``
+    travel: float  # bound on any voxel's displacement since the list was built, m
+
+
+# The sub-steps of ``step``, inlined: each hands its compiled kernel the arrays it needs one by
+# one and has no branch of its own (those live in the kernels). With ``run_robot`` stepping on
+# borrowed views (``borrow``) that leaves no reference counting in the step loop.
+@njit(**INLINE)
+def actuate(t, p, voxels, work):
+    """Sizes of the voxels at time t into ``work.size``."""
+    actuate_kernel(t, p, voxels.flags, voxels.cos_phase, voxels.sin_phase, voxels.phase,
+                   work.size)
+
+
+@njit(**INLINE)
+def link_forces(p, links, body, work):
+    """Beam forces of every link, summed into each voxel's force and moment (overwritten).
+    Returns how many links diverged."""
+    bad = link_kernel(p, links.neg, links.pos, links.axis, body.pos, body.quat, work.size,
+                      work.link_in, work.link_state, work.link_out)
+    link_sums(links.vlink, work.link_out, work.force, work.moment)
+    return bad
+
+
+@njit(**INLINE)
+def collide(p, voxels, body, work, contacts):
+    """Self-collision forces (if on), added to ``work.force``; returns the updated
+    ``Contacts``."""
+    return collide_kernel(p, contacts, voxels.surface, voxels.nbr, body.pos, body.lin_mom,
+                          work.size, work.pairs, work.force)
+
+
+@njit(**INLINE)
+def world_forces(p, voxels, body, work):
+    """Gravity, global damping and water drag, added to ``work.force``/``work.moment``."""
+    world_forces_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, body.quat,
+                        body.lin_mom, body.ang_mom, work.size, work.force, work.moment)
+
+
+@njit(**INLINE)
+def floor_contact(p, voxels, body, work):
+    """Floor and friction forces on land, added to ``work.force``; marks ``work.contact``."""
+    floor_contact_kernel(p, voxels.flags, body.pos, body.lin_mom, work.size, work.force,
+                         work.static, work.contact)
+
+
+@njit(**INLINE)
+def integrate(p, voxels, body, work):
+    """Semi-implicit Euler step of ``body``; returns the largest squared speed or -1."""
+    return integrate_kernel(p, voxels.flags, body.pos, body.quat, body.lin_mom, body.ang_mom,
+                            work.force, work.moment, work.static, work.contact)
+
+
+@njit(**INLINE)
+def step(t, p, voxels, links, body, work, contacts):
+    """One step of ``p.dt`` of one robot, its body state updated in place; t is the time
+    since actuation started (negative while settling). Returns how many links diverged, the
+    largest squared voxel speed after the step (-1: a voxel left the sane range) and the
+    updated ``Contacts``."""
+    actuate(t, p, voxels, work)
+    bad = link_forces(p, links, body, work)
+    contacts = collide(p, voxels, body, work, contacts)
+    world_forces(p, voxels, body, work)
+    floor_contact(p, voxels, body, work)
+    speed2 = integrate(p, voxels, body, work)
+    travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
+    return bad, speed2, Contacts(contacts.count, travel)
+
+
 # ---------------------------------------------------------------- the rollout
+@intrinsic
+def borrow(typingctx, arrays):
+    """The same tuple of arrays as views that own no memory, so that passing them on and
+    taking them out of the tuple costs no reference counting (two atomic updates per array
+    and use otherwise: passed to the sub-steps, those took most of a small robot's step).
+    The owner must keep the memory alive for as long as the views are used."""
+    if not (isinstance(arrays, types.BaseTuple)
+            and all(isinstance(t, types.Array) for t in arrays.types)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        out = args[0]
+        for i, ty in enumerate(arrays.types):
+            view = context.make_array(ty)(context, builder, value=builder.extract_value(out, i))
+            view.meminfo = cgutils.get_null_value(view.meminfo.type)
+            view.parent = cgutils.get_null_value(view.parent.type)
+            out = builder.insert_value(out, view._getvalue(), i)
+        return out
+
+    return arrays(arrays), codegen
+
+
+@njit(**JIT)
+def keep(owners):
+    """Nothing: a use of ``owners`` that keeps their memory alive up to this call."""
+    return len(owners)
+
+
+@njit(**JIT)
+def params(fp, ip):
+    """A robot's ``Params`` from its rows of ``Batch.fparams`` and ``Batch.iparams``."""
+    return Params(
+        fp[F_L], fp[F_MASS], fp[F_INERTIA], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3],
+        fp[F_GAMMA], fp[F_DT], fp[F_GRAVITY], fp[F_KFLOOR], fp[F_CCOLL], fp[F_CGLIN],
+        fp[F_CGANG], fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE],
+        ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
+        ip[I_COM_EVERY], ip[I_N_FRAMES])
+
+
+@njit(**JIT)
+def take_robot(batch, state, r):
+    """Private copies of robot r's parameters, voxels, links and body state."""
+    v0, v1 = batch.voff[r], batch.voff[r + 1]
+    l0, l1 = batch.loff[r], batch.loff[r + 1]
+    s0, s1 = batch.soff[r], batch.soff[r + 1]
+    voxels = Voxels(batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy(),
+                    batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy(),
+                    batch.phase[v0:v1].copy(), batch.nbr[v0:v1].copy(),
+                    batch.surface[s0:s1].copy())
+    links = Links(batch.link_neg[l0:l1].copy(), batch.link_pos[l0:l1].copy(),
+                  batch.link_axis[l0:l1].copy(), batch.vlink[v0:v1].copy())
+    body = State(state.pos[v0:v1].copy(), state.quat[v0:v1].copy(),
+                 state.lin_mom[v0:v1].copy(), state.ang_mom[v0:v1].copy())
+    return params(batch.fparams[r], batch.iparams[r]), voxels, links, body
+
+
+@njit(**JIT)
+def robot_work(n_voxels, n_links, n_pairs):
+    """``Work`` of one robot's run: static friction flags set, link frame mode 0
+    (small-angle, nothing to damp against yet), everything else zero."""
+    return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
+                np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
+                np.zeros(n_voxels, dtype=np.bool_), np.zeros(LINK_IN_ROWS * n_links),
+                np.zeros(LINK_STATE_ROWS * n_links), np.zeros(LINK_OUT_ROWS * n_links))
+
+
 @njit(**JIT)
 def com(pos, out, row):
     """Centre of mass (one material: the mean position) into out[row, 1:4]."""
@@ -579,89 +820,55 @@ def com(pos, out, row):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, n_links, n_pairs):
-    """Scratch and per-link state of one robot's run: size, force, moment, static friction
-    flags, collision pair buffer, link inputs, link state (frame mode 0: small-angle, nothing
-    to damp against yet), link outputs."""
-    return (np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
-            np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
-            np.zeros(LINK_IN_ROWS * n_links), np.zeros(LINK_STATE_ROWS * n_links),
-            np.zeros(LINK_OUT_ROWS * n_links))
-
-
-@njit(**JIT)
 def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
-    """Run robot r of the batch to its step count or to divergence.
+    """Run robot r of the batch to its step count or to divergence, recording frames and
+    centre-of-mass samples.
 
     The robot runs on private copies of its arrays, written back at the end: robots of one
     batch share arrays, and threads writing neighbouring entries of one array every step
     (and updating its reference count on every call) slow each other down several-fold.
     """
+    p, own_voxels, own_links, own_body = take_robot(batch, state, r)
     v0, v1 = batch.voff[r], batch.voff[r + 1]
-    l0, l1 = batch.loff[r], batch.loff[r + 1]
-    s0, s1 = batch.soff[r], batch.soff[r + 1]
-    n, m = v1 - v0, l1 - l0
-    fp, ip = batch.fparams[r].copy(), batch.iparams[r].copy()
-    flags, ext_force = batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy()
-    cos_phase, sin_phase = batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy()
-    phase = batch.phase[v0:v1].copy()
-    nbr, vlink = batch.nbr[v0:v1].copy(), batch.vlink[v0:v1].copy()
-    link_neg, link_pos = batch.link_neg[l0:l1].copy(), batch.link_pos[l0:l1].copy()
-    link_axis, surface = batch.link_axis[l0:l1].copy(), batch.surface[s0:s1].copy()
-    pos, quat = state.pos[v0:v1].copy(), state.quat[v0:v1].copy()
-    lin_mom, ang_mom = state.lin_mom[v0:v1].copy(), state.ang_mom[v0:v1].copy()
-    size, force, moment, static, pairs, link_in, link_state, link_out = robot_work(
-        n, m, batch.poff[r + 1] - batch.poff[r])
+    n = v1 - v0
+    own_work = robot_work(n, len(own_links.neg), batch.poff[r + 1] - batch.poff[r])
+    # the steps run on views: no reference counting per step (the owners live to the end)
+    voxels, links = borrow(own_voxels), borrow(own_links)
+    body, work = borrow(own_body), borrow(own_work)
     traj = np.zeros((com_traj.shape[1], 4))
-
-    dt, steps, settle = fp[F_DT], ip[I_STEPS], ip[I_SETTLE_STEPS]
-    env, wave, record, collide = ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE]
-    com_every = ip[I_COM_EVERY]
-    margin = COLLIDE_MARGIN * fp[F_L]
-    reach = fp[F_L] * (1.0 + fp[F_AMP]) + margin
-    travel = margin  # bound on any voxel's displacement since the list was built
-    n_pairs = 0
+    contacts = Contacts(0, COLLIDE_MARGIN * p.L)  # as if the margin was closed: build the list
     n_com = 0
     code = STATUS_OK
-    done = steps
-    for step in range(steps + 1):
-        if record > 0 and step % record == 0:
-            f = step // record
+    done = p.steps
+    for k in range(p.steps + 1):
+        if p.record > 0 and k % p.record == 0:
+            f = k // p.record
             for v in range(n):
                 for c in range(3):
-                    frames[f, v0 + v, c] = pos[v, c]
-        if step >= settle and (step - settle) % com_every == 0 and n_com < traj.shape[0] - 1:
-            traj[n_com, 0] = step * dt
-            com(pos, traj, n_com)
+                    frames[f, v0 + v, c] = body.pos[v, c]
+        after = k - p.settle_steps
+        if after >= 0 and after % p.com_every == 0 and n_com < traj.shape[0] - 1:
+            traj[n_com, 0] = k * p.dt
+            com(body.pos, traj, n_com)
             n_com += 1
-        if step == steps:
+        if k == p.steps:
             break
-        actuate((step - settle) * dt, fp, wave, flags, cos_phase, sin_phase, phase, size)
-        bad = link_kernel(fp, link_neg, link_pos, link_axis, pos, quat, size, link_in,
-                          link_state, link_out)
-        link_sums(vlink, link_out, force, moment)
-        if collide:
-            if 2.0 * travel >= margin:  # two voxels may have closed the margin: rebuild
-                n_pairs = collision_pairs(surface, pos, nbr, reach, pairs)
-                travel = 0.0
-            collision_forces(n_pairs, pairs, pos, lin_mom, size, fp, force)
-        speed2 = integrate(fp, env, flags, ext_force, nbr, size, static, force, moment, pos, quat,
-                           lin_mom, ang_mom)
-        travel += math.sqrt(max(speed2, 0.0)) * dt
+        bad, speed2, contacts = step(after * p.dt, p, voxels, links, body, work, contacts)
         if bad:
-            code, done = STATUS_STRAIN, step + 1
+            code, done = STATUS_STRAIN, k + 1
             break
         if speed2 < 0.0:
-            code, done = STATUS_NONFINITE, step + 1
+            code, done = STATUS_NONFINITE, k + 1
             break
     # always keep the final centre of mass as the last sample
-    traj[n_com, 0] = done * dt
-    com(pos, traj, n_com)
+    traj[n_com, 0] = done * p.dt
+    com(body.pos, traj, n_com)
     com_traj[r, : n_com + 1] = traj[: n_com + 1]
     com_count[r] = n_com + 1
     status[r], steps_done[r] = code, done
-    state.pos[v0:v1], state.quat[v0:v1] = pos, quat
-    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = lin_mom, ang_mom
+    state.pos[v0:v1], state.quat[v0:v1] = own_body.pos, own_body.quat
+    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = own_body.lin_mom, own_body.ang_mom
+    keep((own_voxels, own_links, own_body, own_work))
 
 
 @njit(parallel=True, **JIT)

@@ -2,7 +2,9 @@
 
 ``build_robot(scene)`` turns a validated Scene into plain arrays for one robot;
 ``pack(robots)`` concatenates many robots into one ``Batch`` (struct of arrays with offsets)
-that a single compiled kernel call steps in parallel.
+that a single compiled kernel call steps in parallel. Per-robot constants travel packed as
+rows of ``fparams``/``iparams`` (columns ``F_*``/``I_*``); the kernels read them as one
+``Params`` named tuple per robot, built from its two rows in the same order.
 
 Conventions (all SI):
 - voxels are numbered in x-major order of the body over the largest face-connected component;
@@ -31,7 +33,8 @@ N_FPARAMS = 21
 I_STEPS, I_SETTLE_STEPS, I_ENV, I_WAVE, I_RECORD, I_COLLIDE, I_COM_EVERY, I_N_FRAMES = range(8)
 N_IPARAMS = 8
 
-ENV_CODES = {"land": 0, "water": 1, "void": 2}
+ENV_LAND, ENV_WATER, ENV_VOID = 0, 1, 2
+ENV_CODES = {"land": ENV_LAND, "water": ENV_WATER, "void": ENV_VOID}
 WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
 STEPS_PER_CYCLE = 2000  # the step also resolves the actuation cycle at least this finely
 COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
@@ -51,6 +54,41 @@ def largest_component(body: np.ndarray) -> np.ndarray:
 def stable_dt(voxel_size: float, density: float, youngs_modulus: float, fraction: float) -> float:
     """Step size: ``fraction`` of 1 / (2 pi f_link), f_link the axial frequency of one link."""
     return fraction * voxel_size * math.sqrt(density / youngs_modulus) / (2.0 * math.pi)
+
+
+class Params(NamedTuple):
+    """One robot's constants as the kernels read them: the ``fparams`` row, then the
+    ``iparams`` row, field for column (SI units)."""
+
+    L: float  # voxel size, m
+    mass: float  # of one voxel, kg
+    inertia: float  # of one voxel about its centre, kg m^2
+    a1: float  # axial stiffness E L, N/m
+    a2: float  # torsional stiffness E L^3 / (12 (1 + nu)), N m
+    b1: float  # shear stiffness E L, N/m
+    b2: float  # bend-shear coupling E L^2 / 2, N
+    b3: float  # bending stiffness E L^3 / 6, N m
+    gamma: float  # bond damping as stiffness-proportional time constant, s
+    dt: float  # step, s
+    gravity: float  # m/s^2, along -z
+    k_floor: float  # penalty stiffness of floor and self-contact, 2 E L, N/m
+    c_coll: float  # contact damping, N s/m
+    c_lin: float  # global linear damping, N s/m
+    c_ang: float  # global angular damping, N m s
+    mu_s: float  # static friction coefficient
+    mu_k: float  # kinetic friction coefficient
+    drag: float  # water: 0.5 rho_fluid C_d, kg/m^3 (0 elsewhere)
+    omega: float  # actuation angular frequency, rad/s
+    amp: float  # actuation amplitude (linear strain)
+    settle: float  # settling time before actuation starts, s
+    steps: int  # total steps, settling included
+    settle_steps: int
+    env: int  # ENV_LAND, ENV_WATER or ENV_VOID
+    wave: int  # WAVE_CODES
+    record: int  # record a frame every this many steps (0: none)
+    collide: int  # 1: self-collisions on
+    com_every: int  # a centre-of-mass sample every this many steps after settling
+    n_frames: int  # frames recorded over the whole run
 
 
 class Robot(NamedTuple):

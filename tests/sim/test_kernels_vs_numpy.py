@@ -39,12 +39,12 @@ def _work(batch, n):
     return kernels.robot_work(n, len(batch.link_neg), int(batch.poff[-1]))
 
 
-def _link_forces(batch, fp, pos, quat, size, work, force, moment):
+def _link_forces(batch, p, pos, quat, size, work, force, moment):
     """The two link kernels as the step runs them: per-link beams, then per-voxel sums.
     The sums are also checked against a NumPy scatter of the per-link forces."""
     m, n = len(batch.link_neg), len(pos)
     link_in, link_state, link_out = work[-3:]
-    bad = kernels.link_kernel(fp, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
+    bad = kernels.link_kernel(p, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
                               size, link_in, link_state, link_out)
     kernels.link_sums(batch.vlink, link_out, force, moment)
     out = link_out.reshape(9, m)
@@ -75,10 +75,11 @@ def test_link_forces_match_numpy(angle, shift):
     size, force, moment = work[:3]
     size[:] = 0.05 * rng.uniform(0.8, 1.2, n)
     fp = batch.fparams[0]
+    p = kernels.params(fp, batch.iparams[0])
     m = len(batch.link_neg)
     small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, m))
     for _ in range(2):  # the second call exercises the damping term
-        bad = _link_forces(batch, fp, state.pos, state.quat, size, work, force, moment)
+        bad = _link_forces(batch, p, state.pos, state.quat, size, work, force, moment)
         assert bad == 0
         f_ref, m_ref = ref.link_forces(batch, state.pos, state.quat, size, small_ref, prev_ref,
                                        valid_ref, fp)
@@ -106,14 +107,15 @@ def test_trajectory_matches_numpy(env):
     size, _f, _m, static = work[:4]
     size[:] = 0.05
     fp = batch.fparams[0].copy()
-    mine = system.State(*(a.copy() for a in state))
+    p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
     theirs = [a.copy() for a in state]
     static_ref = static.copy()
     small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, len(batch.link_neg)))
     for _ in range(60):
-        _link_forces(batch, fp, mine.pos, mine.quat, size, work, _f, _m)
-        kernels.integrate(fp, ENVS[env], batch.flags, batch.ext_force, batch.nbr, size,
-                          static, _f, _m, mine.pos, mine.quat, mine.lin_mom, mine.ang_mom)
+        _link_forces(batch, p, mine.pos, mine.quat, size, work, _f, _m)
+        kernels.world_forces(p, voxels, mine, work)
+        kernels.floor_contact(p, voxels, mine, work)
+        kernels.integrate(p, voxels, mine, work)
         ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env])
     np.testing.assert_array_equal(static, static_ref)
     np.testing.assert_allclose(mine.pos, theirs[0], atol=1e-10)
@@ -127,9 +129,11 @@ def test_actuation_matches_numpy(wave):
     n = len(batch.flags)
     size = np.zeros(n)
     fp = batch.fparams[0]
+    p = kernels.params(fp, batch.iparams[0])
+    assert p.wave == system.WAVE_CODES[wave]
     for t in rng.uniform(0, 2, 5):
-        kernels.actuate(t, fp, system.WAVE_CODES[wave], batch.flags, batch.cos_phase,
-                        batch.sin_phase, batch.phase, size)
+        kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                               batch.phase, size)
         angle = fp[system.F_OMEGA] * t + batch.phase
         if wave == "sine":
             w = np.sin(angle)
@@ -141,8 +145,8 @@ def test_actuation_matches_numpy(wave):
         active = (batch.flags & system.FLAG_ACTIVE) > 0
         expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
         np.testing.assert_allclose(size, expected, rtol=1e-12)
-    kernels.actuate(-0.1, fp, 0, batch.flags, batch.cos_phase, batch.sin_phase,
-                    batch.phase, size)
+    kernels.actuate_kernel(-0.1, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                           batch.phase, size)
     assert np.all(size == 0.05), "no actuation while settling"
 
 
@@ -171,7 +175,7 @@ def test_collision_pairs_and_forces_match_brute_force():
     assert got == want and len(want) > 0
     force[:] = 0.0
     kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size,
-                             batch.fparams[0], force)
+                             kernels.params(batch.fparams[0], batch.iparams[0]), force)
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12)
     touching = [(i, j) for i, j in want
                 if np.linalg.norm(state.pos[i] - state.pos[j]) < 0.05]
