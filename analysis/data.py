@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
+
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS, TRAITS
 
 __all__ = [

@@ -32,6 +32,8 @@ import numpy as np
 import pandas as pd
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from softevo import sim
 from softevo.analysis import figures as fig
 from softevo.analysis.data import TRAIT_LABELS, ExperimentData
 from softevo.analysis.motion import animate
@@ -42,8 +44,6 @@ from softevo.analysis.stats_tables import (
     statistics_table,
     summary_table,
 )
-
-from softevo import sim
 from softevo.errors import UserError
 
 METHODS = (

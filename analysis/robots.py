@@ -11,11 +11,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from softevo.errors import UserError
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
 from softevo.worker.tasks import Task, scene_of
 from softevo.worker.tasks import encoding_of as settings_encoding
-
-from softevo.errors import UserError
 
 ENVIRONMENTS = ("land", "water")
 

@@ -26,6 +26,7 @@ from itertools import combinations
 
 import numpy as np
 import pandas as pd
+
 from softevo.analysis.data import TRAITS, ExperimentData
 from softevo.evolution.stats import bonferroni, bootstrap_ci, mann_whitney
 

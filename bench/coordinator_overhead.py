@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from softevo.service.coordinator import Coordinator, ask, load_run
 from softevo.service.db import open_database
 from softevo.service.executors import LocalExecutor

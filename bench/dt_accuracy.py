@@ -16,9 +16,9 @@ import argparse
 import time
 
 import numpy as np
-from softevo.sim.scene import Scene
 
 from softevo import sim
+from softevo.sim.scene import Scene
 
 STIFFNESS_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 FRACTIONS = (0.15, 0.2, 0.3, 0.5, 0.7, 0.9, 1.2)

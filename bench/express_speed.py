@@ -10,6 +10,7 @@ from __future__ import annotations
 import timeit
 
 import numpy as np
+
 from softevo.evolution.cppn import CPPN, express, minimal_cppn
 from softevo.evolution.genotype import EncodingConfig, Genotype, develop
 from softevo.evolution.mutation import add_link, add_node

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 from redis import Redis
+
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.service.executors import LocalExecutor
 from softevo.service.rq_executor import Batch, RQExecutor

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
 from softevo.evolution.genotype import (
     EncodingConfig,
     mutate_genotype,
@@ -41,6 +42,7 @@ from softevo.evolution.selection import (
     objective_matrix,
     select_survivors,
 )
+from softevo.sim.scene import DEFAULT_CYCLES
 
 MODES = ("afpo", "pareto")
 
@@ -58,7 +60,7 @@ class EvolutionConfig:
     seed: int = 0
     environment: str = "land"
     youngs_modulus: float = 1e6
-    cycles: int = 50
+    cycles: int = DEFAULT_CYCLES
     encoding: EncodingConfig = field(default_factory=EncodingConfig)
     objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
     descriptors: bool = True

@@ -29,6 +29,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+
 from softevo.evolution.genotype import Phenotype
 from softevo.sim.system import largest_component
 

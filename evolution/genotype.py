@@ -28,8 +28,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
 from softevo.evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
 from softevo.evolution.mutation import mutate_cppn
+from softevo.sim.scene import DEFAULT_CYCLES, Actuation, Material, Scene
 from softevo.sim.system import largest_component
 
 
@@ -151,12 +153,12 @@ class Phenotype:
         self,
         environment: str,
         youngs_modulus: float,
-        cycles: int = 50,
+        cycles: int = DEFAULT_CYCLES,
         *,
-        voxel_size: float = 0.05,
-        density: float = 1200.0,
-        poisson_ratio: float = 0.4,
-        amplitude: float = 0.39,
+        voxel_size: float = Scene.voxel_size,
+        density: float = Material.density,
+        poisson_ratio: float = Material.poisson_ratio,
+        amplitude: float = Actuation.amplitude,
         settle_seconds: float | None = None,
         **extra: Any,
     ) -> dict[str, Any]:

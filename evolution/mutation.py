@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+
 from softevo.evolution.cppn import CPPN, HIDDEN_ACTIVATIONS, Link, Node
 
 WEIGHT_SIGMA = 0.5

@@ -7,6 +7,7 @@ the engine from ``SOFTEVO_DB`` like the CLI does.
 from __future__ import annotations
 
 from alembic import context
+
 from softevo.service.db.models import Base
 
 config = context.config

@@ -23,9 +23,8 @@ app = typer.Typer(
 
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
-    from softevo.sim.scene import SceneError
-
     from softevo.errors import UserError
+    from softevo.sim.scene import SceneError
 
     return (UserError, SceneError)
 

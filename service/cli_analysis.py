@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from softevo.service.cli_runs import DbOption
 
 from softevo.errors import UserError
+from softevo.service.cli_runs import DbOption
 
 EnvironmentOption = Annotated[
     str | None,

@@ -1,4 +1,4 @@
-"""``softevo dashboard``: the web dashboard (issue 7) on a database, without a coordinator.
+"""``softevo dashboard``: the web dashboard on a database, without a coordinator.
 
 It serves the same FastAPI app as ``softevo serve`` (REST API and ``/dashboard`` pages) with
 ``SOFTEVO_COORDINATOR=false``: it only reads, so it can watch a ``softevo run`` writing to the
@@ -46,6 +46,7 @@ def dashboard(
     import logging
 
     import uvicorn
+
     from softevo.service.api.app import create_app
     from softevo.service.cli_service import _settings
 

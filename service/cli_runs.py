@@ -18,6 +18,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
+from softevo.service.treatments import Treatment
 
 DbOption = Annotated[
     str | None,
@@ -82,10 +83,14 @@ def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
 def run(
     env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
     stiffness: Annotated[float, typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10)")],
-    population: Annotated[int, typer.Option("--population")] = 30,
-    generations: Annotated[int, typer.Option("--generations")] = 100,
-    workspace: Annotated[str, typer.Option("--workspace", help="X,Y,Z voxels")] = "7,7,7",
-    cycles: Annotated[int, typer.Option("--cycles", help="actuation cycles per evaluation")] = 50,
+    population: Annotated[int, typer.Option("--population")] = Treatment.population,
+    generations: Annotated[int, typer.Option("--generations")] = Treatment.generations,
+    workspace: Annotated[str, typer.Option("--workspace", help="X,Y,Z voxels")] = ",".join(
+        map(str, Treatment.workspace)
+    ),
+    cycles: Annotated[
+        int, typer.Option("--cycles", help="actuation cycles per evaluation")
+    ] = Treatment.cycles,
     seed: Annotated[int, typer.Option("--seed")] = 0,
     switch_at: Annotated[
         int | None, typer.Option("--switch-at", help="first generation in the second environment")
@@ -144,6 +149,7 @@ def _print_status(engine, run_ids: list[int]) -> None:
     from rich import box
     from rich.console import Console
     from rich.table import Table
+
     from softevo.service.db.status import run_summaries
 
     table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "best", box=box.SIMPLE)

@@ -16,6 +16,7 @@ from softevo.errors import UserError
 def _settings(**overrides):
     """Settings from the environment, ``overrides`` (options given) winning."""
     from pydantic import ValidationError
+
     from softevo.service.settings import Settings
 
     try:
@@ -47,6 +48,7 @@ def serve(
     import logging
 
     import uvicorn
+
     from softevo.service.api.app import create_app
 
     settings = _settings(

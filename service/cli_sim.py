@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from softevo.worker.tasks import default_record_every
 
 from softevo.errors import UserError
+from softevo.worker.tasks import default_record_every
 
 
 def _read_scene(path: Path) -> dict[str, Any]:

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from sqlalchemy import Engine
+
 from softevo.evolution.afpo import Evolution
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 from softevo.service.db.generations import GenerationRecord, record_generation
@@ -32,7 +34,6 @@ from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task
-from sqlalchemy import Engine
 
 
 @dataclass(frozen=True)

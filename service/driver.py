@@ -22,11 +22,12 @@ import uuid
 from collections.abc import Iterable
 from typing import Protocol
 
+from sqlalchemy import Engine
+
 from softevo.service.coordinator import ActiveRun, Coordinator, GenerationReport, load_run, unfinished_runs
 from softevo.service.db.models import RunStatus
 from softevo.service.db.runs import set_run_status
 from softevo.service.executors import Executor
-from sqlalchemy import Engine
 
 log = logging.getLogger("softevo.coordinator")
 

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from sqlalchemy import Engine
+
 from softevo.evolution.afpo import EvolutionConfig
 from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
 from softevo.service.treatments import Treatment, paper_grid
 from softevo.worker.tasks import encoding_of
-from sqlalchemy import Engine
 
 
 def create(

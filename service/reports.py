@@ -10,15 +10,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from sqlalchemy import Connection, Engine
+
 from softevo.analysis import motion, robots
 from softevo.analysis import report as analysis_report
 from softevo.analysis.report import Report, Robots
+from softevo.errors import UserError
 from softevo.service.db import open_database
 from softevo.service.db.experiments import load_experiment, resolve_experiment
 from softevo.service.db.individuals import individual_record
-from sqlalchemy import Connection, Engine
-
-from softevo.errors import UserError
 
 
 def engine_of(source: str | Engine | Connection | Any | None) -> Engine:

@@ -41,11 +41,11 @@ from rq.registry import StartedJobRegistry
 from rq.results import Result
 from rq.serializers import JSONSerializer
 from rq.worker_registration import clean_worker_registry
+
+from softevo import __version__
 from softevo.service.executors import Task, chunks
 from softevo.worker.rq_worker import VERSION_KEY
 from softevo.worker.tasks import failed
-
-from softevo import __version__
 
 JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"
 WAITING = {

@@ -20,7 +20,7 @@ SOFTEVO_JOB_RETRIES       re-dispatches of a failed or abandoned RQ job         
 SOFTEVO_RESULT_TTL        seconds Redis keeps a job's result                       600
 SOFTEVO_HEARTBEAT_TTL     a worker silent this long has its job re-dispatched      30
 SOFTEVO_COORDINATOR       ``serve`` also drives runs (false: API only)             true
-SOFTEVO_REPORTS           directory of experiment reports (issue 6)                reports
+SOFTEVO_REPORTS           directory of experiment reports                          reports
 ========================  ======================================================  ==============
 
 With no token the write endpoints are open, so the server refuses to start on any address

@@ -14,9 +14,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from softevo.evolution.schedule import Schedule
-
 from softevo.errors import UserError
+from softevo.evolution.genotype import EncodingConfig
+from softevo.evolution.schedule import Schedule
+from softevo.sim.scene import DEFAULT_CYCLES
 
 ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")
@@ -35,8 +36,8 @@ class Treatment:
     switch_at: int | None = None
     population: int = 30
     generations: int = 100
-    workspace: tuple[int, int, int] = (7, 7, 7)
-    cycles: int = 50
+    workspace: tuple[int, int, int] = EncodingConfig.workspace
+    cycles: int = DEFAULT_CYCLES
     repetitions: int = 1
     seed: int = 0
     algorithm: str = "afpo"

@@ -24,6 +24,9 @@ class SceneError(ValueError):
     """A malformed scene. The message names the field first."""
 
 
+DEFAULT_CYCLES = 50  # actuation cycles of an evaluation when a scene gives no duration
+
+
 @dataclass(frozen=True)
 class Material:
     youngs_modulus: float = 1e6  # Pa
@@ -208,7 +211,9 @@ def parse_scene(data: Any) -> Scene:
     else:
         phase = np.zeros(body.shape)
 
-    voxel_size = _number(data.get("voxel_size", 0.05), "voxel_size", low=0, low_open=True, high=10)
+    voxel_size = _number(
+        data.get("voxel_size", Scene.voxel_size), "voxel_size", low=0, low_open=True, high=10
+    )
     material = _parse_material(data.get("material"))
     environment = _parse_environment(data.get("environment"))
     actuation = _parse_actuation(data.get("actuation"))
@@ -230,7 +235,7 @@ def parse_scene(data: Any) -> Scene:
         fv.append(_voxel_index(item["voxel"], f"forces[{i}].voxel", body))
         ff.append(_vector3(item["force"], f"forces[{i}].force"))
 
-    duration = _section(data.get("duration", {"cycles": 50}), "duration", {"cycles", "seconds"})
+    duration = _section(data.get("duration", {"cycles": DEFAULT_CYCLES}), "duration", {"cycles", "seconds"})
     if len(duration) != 1:
         raise SceneError("duration: give exactly one of {'cycles': n} or {'seconds': s}")
     if "cycles" in duration:

@@ -65,6 +65,7 @@ def warm(threads: int = 1) -> float:
     descriptor code too); return the seconds it took."""
     import numba
     import numpy as np
+
     from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
     from softevo.worker.evaluate import ensure_compiled, evaluate_batch, warm_up
 

@@ -22,6 +22,12 @@ from typing import Any
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy import Engine
+from sqlalchemy.exc import DBAPIError, OperationalError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
+
+from softevo.errors import UserError
 from softevo.service.api.routes import experiments, health, individuals, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
@@ -32,12 +38,6 @@ from softevo.service.reports import write_report
 from softevo.service.settings import Settings
 from softevo.worker.evaluate import ensure_compiled, init_pool_process
 from softevo.worker.tasks import replay
-from sqlalchemy import Engine
-from sqlalchemy.exc import DBAPIError, OperationalError
-from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Match
-
-from softevo.errors import UserError
 
 log = logging.getLogger("softevo.api")
 
@@ -66,6 +66,7 @@ class Services:
             # rq and redis load only for a service configured with Redis
             from rq import Queue
             from rq.serializers import JSONSerializer
+
             from softevo.service.rq_executor import connect
 
             self._status_queue = Queue(

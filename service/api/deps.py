@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy import Connection
+
 from softevo.service.api.schemas import ErrorOut, ValidationErrorOut
 from softevo.service.settings import Settings
-from sqlalchemy import Connection
 
 if TYPE_CHECKING:
     from softevo.service.api.app import Services

@@ -19,6 +19,8 @@ from pydantic import (
     Tag,
 )
 
+from softevo.service.treatments import Treatment
+
 MAX_INT32 = 2**31 - 1
 Name = Annotated[
     str,
@@ -47,12 +49,12 @@ class TreatmentIn(Strict):
         None, ge=1, le=MAX_INT32, description="first generation in the second environment"
     )
     stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
-    population: int = Field(30, ge=2, le=10_000)
-    generations: int = Field(100, ge=1, le=1_000_000)
+    population: int = Field(Treatment.population, ge=2, le=10_000)
+    generations: int = Field(Treatment.generations, ge=1, le=1_000_000)
     workspace: list[Annotated[int, Field(ge=1, le=32)]] = Field(
-        [7, 7, 7], min_length=3, max_length=3, description="voxels along x, y, z"
+        list(Treatment.workspace), min_length=3, max_length=3, description="voxels along x, y, z"
     )
-    cycles: int = Field(50, ge=1, le=10_000, description="actuation cycles per evaluation")
+    cycles: int = Field(Treatment.cycles, ge=1, le=10_000, description="actuation cycles per evaluation")
     repetitions: int = Field(1, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
     algorithm: Literal["afpo", "pareto"] = "afpo"

@@ -1,4 +1,4 @@
-"""The web dashboard (issue 7): experiments, runs and individuals in a browser, with a 3D
+"""The web dashboard: experiments, runs and individuals in a browser, with a 3D
 replay of an individual's evaluated motion.
 
 ``dashboard_router()`` gives the routes the API app includes (``service.api.app``), so
@@ -20,6 +20,7 @@ fetched from outside the server. None of these routes is in the OpenAPI schema.
 from __future__ import annotations
 
 from fastapi import APIRouter
+
 from softevo.service.dashboard import assets, body, pages
 
 PREFIX = "/dashboard"

@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, Path, Query
+
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.routes.individuals import stored_task
 from softevo.service.api.schemas import MAX_INT32

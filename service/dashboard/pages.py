@@ -15,6 +15,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Request
 from fastapi.responses import HTMLResponse
+
 from softevo.service.api.deps import ConnectionDep
 from softevo.service.api.schemas import MAX_INT32
 from softevo.service.db import individuals as db_individuals

@@ -12,12 +12,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from softevo.service.db.migrate import upgrade
 from sqlalchemy import Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError
 
 from softevo.errors import UserError
+from softevo.service.db.migrate import upgrade
 
 DEFAULT_URL = "sqlite:///softevo.db"
 SQLITE_BUSY_TIMEOUT_MS = 30_000

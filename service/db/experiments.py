@@ -11,8 +11,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
+from sqlalchemy import Connection, Engine, and_, func, or_, select
+
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.analysis.data import ExperimentData, experiment_data
+from softevo.errors import UserError
 from softevo.service.db.export import evaluation_rows, runs_frame
 from softevo.service.db.models import (
     Evaluation,
@@ -28,9 +31,6 @@ from softevo.service.db.rows import dict_rows
 from softevo.service.db.runs import parse_reference
 from softevo.service.db.status import run_summary_select
 from softevo.service.treatments import Treatment as Settings
-from sqlalchemy import Connection, Engine, and_, func, or_, select
-
-from softevo.errors import UserError
 
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
 

@@ -10,7 +10,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
+from sqlalchemy import Connection, Engine, Select, select
+
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS
+from softevo.errors import UserError
 from softevo.service.db.models import (
     Evaluation,
     Experiment,
@@ -20,9 +23,6 @@ from softevo.service.db.models import (
     Treatment,
 )
 from softevo.service.treatments import Treatment as TreatmentSettings
-from sqlalchemy import Connection, Engine, Select, select
-
-from softevo.errors import UserError
 
 FORMATS = ("csv", "parquet")
 RUN_COLUMNS = [

@@ -13,6 +13,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from sqlalchemy import Connection, Table, case, func, select, update
+from sqlalchemy.dialects import postgresql, sqlite
+
+from softevo.errors import UserError
 from softevo.service.db.individuals import evaluation_fields, local_to_db_ids, objectives
 from softevo.service.db.models import (
     EVALUATION_FIELDS,
@@ -25,10 +29,6 @@ from softevo.service.db.models import (
     utcnow,
 )
 from softevo.service.db.rows import dict_rows
-from sqlalchemy import Connection, Table, case, func, select, update
-from sqlalchemy.dialects import postgresql, sqlite
-
-from softevo.errors import UserError
 
 
 @dataclass

@@ -9,14 +9,14 @@ from collections.abc import Iterable
 from typing import Any
 
 import pandas as pd
+from sqlalchemy import Connection, Engine, select
+
 from softevo.analysis.columns import TRAITS
+from softevo.errors import UserError
 from softevo.service.db.models import EVALUATION_FIELDS, Evaluation, Individual, Run, Treatment
 from softevo.service.db.rows import dict_rows
 from softevo.service.db.runs import run_row
 from softevo.service.treatments import Treatment as Settings
-from sqlalchemy import Connection, Engine, select
-
-from softevo.errors import UserError
 
 
 def individual_run_id(conn: Connection, individual_id: int) -> int | None:

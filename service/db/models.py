@@ -16,7 +16,6 @@ import enum
 from datetime import UTC, datetime
 from typing import Any
 
-from softevo.analysis.columns import TRAITS
 from sqlalchemy import (
     JSON,
     Boolean,
@@ -31,6 +30,8 @@ from sqlalchemy import (
     UniqueConstraint,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+from softevo.analysis.columns import TRAITS
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",

@@ -11,11 +11,11 @@ from __future__ import annotations
 from typing import Literal
 
 import pandas as pd
-from softevo.service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
-from softevo.service.treatments import Treatment as TreatmentSettings
 from sqlalchemy import Connection, Engine, and_, func, literal, select
 
 from softevo.errors import UserError
+from softevo.service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
+from softevo.service.treatments import Treatment as TreatmentSettings
 
 Which = Literal["birth", "latest"]
 _EVALUATION_COLUMNS = ("generation", "environment", "stiffness", "age", *TRAITS, "stable", "error")

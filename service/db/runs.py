@@ -9,12 +9,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from softevo.service.db.models import Evaluation, Experiment, Run, RunStatus, Treatment, utcnow
-from softevo.service.db.rows import dict_rows
-from softevo.service.db.status import run_summary_select
 from sqlalchemy import Connection, Table, func, select, update
 
 from softevo.errors import UserError
+from softevo.service.db.models import Evaluation, Experiment, Run, RunStatus, Treatment, utcnow
+from softevo.service.db.rows import dict_rows
+from softevo.service.db.status import run_summary_select
 
 ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
 

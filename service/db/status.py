@@ -6,11 +6,11 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from softevo.service.db.models import Experiment, Generation, Run, Treatment
-from softevo.service.db.phylogeny import ancestors
 from sqlalchemy import Engine, func, select
 
 from softevo.errors import UserError
+from softevo.service.db.models import Experiment, Generation, Run, Treatment
+from softevo.service.db.phylogeny import ancestors
 
 
 def run_summary_select(id_label: str = "run_id"):

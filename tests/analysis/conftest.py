@@ -8,12 +8,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from sqlalchemy import Engine
+
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import open_database
 from softevo.service.executors import InlineExecutor
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment
-from sqlalchemy import Engine
 
 COMMON = {"population": 4, "generations": 3, "workspace": (4, 4, 4), "cycles": 2, "repetitions": 2}
 TREATMENTS = (

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import stats as scipy_stats
+
 from softevo.analysis.data import TRAITS
 from softevo.analysis.stats_tables import (
     best_distance_per_run,
@@ -12,9 +13,8 @@ from softevo.analysis.stats_tables import (
     statistics_table,
     summary_table,
 )
-from softevo.service.db.experiments import load_experiment, resolve_experiment
-
 from softevo.errors import UserError
+from softevo.service.db.experiments import load_experiment, resolve_experiment
 
 
 def test_the_experiment_is_read_back(tiny, tiny_data):

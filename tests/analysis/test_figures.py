@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 from PIL import Image
+
 from softevo.analysis import figures
 from softevo.analysis.stats_tables import fitness_curves, statistics_table
 from softevo.service.reports import stored_robots

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from matplotlib import animation
 from PIL import Image
+
 from softevo.analysis.motion import (
     ANIMATION_DPI,
     SIZE_INCHES,
@@ -18,7 +19,6 @@ from softevo.analysis.motion import (
     voxel_sizes,
 )
 from softevo.service.db.individuals import individual_record
-
 from tests.analysis.cli import softevo
 
 

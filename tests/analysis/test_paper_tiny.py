@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from softevo.analysis.figures import FIGURES
 
+from softevo.analysis.figures import FIGURES
 from tests.analysis.cli import softevo
 
 

@@ -6,9 +6,9 @@ import base64
 import re
 
 import pytest
+
 from softevo.analysis.figures import FIGURES, TITLES
 from softevo.service.reports import report_html, write_report
-
 from tests.analysis.cli import softevo
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats as scipy_stats
+
 from softevo.analysis.stats_tables import (
     adjust_families,
     ci_table,

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from softevo.analysis.robots import record_scene
 from softevo.analysis.vxa import data_layers, phase_layers, scene_to_vxa, write_vxa
 from softevo.service.db.individuals import individual_record
-
 from tests.analysis.cli import softevo
 
 EXPECTED = Path(__file__).parent / "data" / "small.vxa"

@@ -4,6 +4,7 @@ with x >= 0 active, phases varying along x and z."""
 from __future__ import annotations
 
 import numpy as np
+
 from softevo.evolution.cppn import INPUT_NAMES, minimal_cppn
 from softevo.evolution.genotype import EncodingConfig, Genotype, develop
 

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import httpx
 import pytest
-from softevo.service.db.models import Individual
 from sqlalchemy import create_engine, select, update
 
+from softevo.service.db.models import Individual
 from tests.dashboard.block import WORKSPACE, block_genome
 from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
 

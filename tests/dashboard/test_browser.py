@@ -11,9 +11,9 @@ import os
 import httpx
 import numpy as np
 import pytest
-from softevo.service.db.models import Individual
 from sqlalchemy import create_engine, select
 
+from softevo.service.db.models import Individual
 from tests.dashboard.chromium import browser_missing
 
 pytestmark = [

@@ -11,6 +11,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
+
 from softevo.service.api.frames import decode_frames
 from softevo.service.dashboard.assets import STATIC_DIR, plotly_js
 

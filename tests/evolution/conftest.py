@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from softevo.evolution.cppn import CPPN, INPUT_NAMES, Link, Node
 
 

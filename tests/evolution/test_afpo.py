@@ -2,6 +2,7 @@ import json
 
 import numpy as np
 import pytest
+
 from softevo.evolution import EncodingConfig, Evolution, EvolutionConfig, run
 from softevo.evolution.individual import Evaluation
 from softevo.evolution.schedule import Schedule

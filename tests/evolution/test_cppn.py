@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from softevo.evolution.cppn import ACTIVATIONS, CPPN, GenomeError, Link, express, workspace_inputs
 from softevo.evolution.genotype import EncodingConfig, random_cppn
 from softevo.evolution.mutation import mutate_cppn

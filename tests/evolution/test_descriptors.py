@@ -11,6 +11,7 @@ The three flat shapes lie in the xy plane, one voxel thick (z = 0):
 
 import numpy as np
 import pytest
+
 from softevo.evolution.descriptors import (
     branching_index,
     describe,

@@ -1,4 +1,5 @@
 import numpy as np
+
 from softevo.evolution.cppn import CPPN, express
 from softevo.evolution.genotype import (
     EncodingConfig,

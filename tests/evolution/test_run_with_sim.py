@@ -1,6 +1,7 @@
 """Acceptance: a 20-generation run with the real simulator improves the best distance."""
 
 import pytest
+
 from softevo.evolution import EncodingConfig, EvolutionConfig, run
 from softevo.evolution.runner import best_distance
 

@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 from scipy import stats as scipy_stats
+
 from softevo.evolution.stats import bonferroni, bootstrap_ci, mann_whitney
 
 

@@ -6,9 +6,10 @@ from __future__ import annotations
 import os
 
 import pytest
+from sqlalchemy import Engine, text
+
 from softevo.service.db import open_database
 from softevo.service.db.models import Base
-from sqlalchemy import Engine, text
 
 POSTGRES_URL = os.environ.get("SOFTEVO_TEST_POSTGRES")
 BACKENDS = [

@@ -11,10 +11,11 @@ active_share 0.5 for all but 7 (0.25) and its child 10 (0.25).
 
 from __future__ import annotations
 
+from sqlalchemy import Engine
+
 from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
 from softevo.service.db.generations import GenerationRecord, record_generation
 from softevo.service.treatments import Treatment
-from sqlalchemy import Engine
 
 TREATMENT = Treatment("land-water", 0.1, population=3, generations=4, switch_at=2)
 PARENTS = {4: 1, 5: 2, 7: 4, 8: 5, 10: 7, 11: 8}

@@ -15,9 +15,9 @@ import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance
+
 from softevo.service.api.frames import decode_frames
 from softevo.service.db import open_database
-
 from tests.service import tinyrun
 from tests.service.rq_support import TOKEN, Processes, auth, service_env
 
@@ -93,12 +93,9 @@ def test_reads_return_the_stored_run(server):
     experiments = httpx.get(f"{base}/experiments").json()
     assert experiments[0]["progress"]["fraction"] == 1.0
     report = httpx.get(f"{base}/experiments/{experiments[0]['id']}/report", timeout=600)
-    assert report.status_code in (200, 404), report.text
-    if report.status_code == 404:  # issue 6's report writer is not installed
-        assert "report" in report.json()["detail"]
-    else:
-        assert report.headers["content-type"].startswith("text/html")
-        assert "<html" in report.text.lower()
+    assert report.status_code == 200, report.text
+    assert report.headers["content-type"].startswith("text/html")
+    assert "<html" in report.text.lower()
 
 
 def test_frames_are_the_recorded_motion(server):

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from softevo.service.settings import Settings
 
 from softevo.errors import UserError
+from softevo.service.settings import Settings
 
 
 @pytest.mark.parametrize("host", ["127.0.0.1", "127.0.0.2", "::1", "localhost"])

@@ -6,6 +6,7 @@ import json
 
 import pandas as pd
 import pytest
+
 from softevo.service.cli import main
 
 TINY = [
@@ -103,7 +104,6 @@ def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
     from softevo.service.db import open_database
     from softevo.service.db.models import RunStatus
     from softevo.service.db.runs import run_row, set_run_status
-
     from tests.service import tinyrun
 
     db = f"sqlite:///{tmp_path / 'cancelled.db'}"

@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 import typer
 import yaml
-from softevo.service.settings import Settings
 from sqlalchemy.engine import make_url
+
+from softevo.service.settings import Settings
 
 REPO = Path(__file__).resolve().parents[2]
 SETTINGS_VARIABLES = {f"SOFTEVO_{name.upper()}": name for name in Settings.model_fields}

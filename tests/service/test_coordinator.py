@@ -5,13 +5,13 @@ from __future__ import annotations
 import types
 
 import pytest
+from sqlalchemy import text
+
+from softevo import sim
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import phylogeny
 from softevo.service.db.individuals import local_to_db_ids
 from softevo.service.executors import InlineExecutor, chunks
-from sqlalchemy import text
-
-from softevo import sim
 from tests.service import tinyrun
 
 
@@ -127,7 +127,6 @@ def test_local_process_pool_gives_the_inline_results(tmp_path):
 @pytest.mark.slow
 def test_a_genome_that_kills_its_pool_process_is_recorded_not_retried_forever():
     from softevo.service.executors import LocalExecutor
-
     from tests.service import crashy
 
     executor = LocalExecutor(2, genomes_per_task=2, job=crashy.evaluate_batch)
@@ -149,7 +148,6 @@ def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
     from softevo.service.db import RunStatus, open_database
     from softevo.service.db.generations import GenerationRecord, record_generation
     from softevo.service.db.runs import set_run_status
-
     from tests.service import tinyrun
 
     engine = open_database(f"sqlite:///{tmp_path / 'cancel.db'}")

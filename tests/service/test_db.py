@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import pytest
 from alembic import command
+from sqlalchemy import select, text
+
+from softevo.errors import UserError
 from softevo.service.db import make_engine, open_database
 from softevo.service.db.experiments import resolve_experiment
 from softevo.service.db.generations import record_generation
 from softevo.service.db.migrate import alembic_config, script_location
 from softevo.service.db.models import Evaluation, Generation, Individual, PopulationMember, Run
 from softevo.service.db.runs import count_rows, resolve_runs, run_row
-from sqlalchemy import select, text
-
-from softevo.errors import UserError
 from tests.service import handbuilt
 
 

@@ -6,14 +6,14 @@ import builtins
 
 import pandas as pd
 import pytest
+
+from softevo.errors import UserError
 from softevo.service.db.export import (
     INDIVIDUAL_COLUMNS,
     POPULATION_COLUMNS,
     RUN_COLUMNS,
     export_runs,
 )
-
-from softevo.errors import UserError
 from tests.service import handbuilt
 
 

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from softevo.service.db import phylogeny
 
 from softevo.errors import UserError
+from softevo.service.db import phylogeny
 from tests.service import handbuilt
 
 

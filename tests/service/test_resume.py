@@ -10,10 +10,10 @@ import time
 from pathlib import Path
 
 import pytest
-from softevo.service.db import open_database
-from softevo.service.db.models import Run
 from sqlalchemy import select
 
+from softevo.service.db import open_database
+from softevo.service.db.models import Run
 from tests.service import tinyrun
 
 ROOT = Path(__file__).resolve().parents[2]

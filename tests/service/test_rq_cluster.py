@@ -20,12 +20,12 @@ from redis import Redis
 from rq import Queue
 from rq.job import Job
 from rq.registry import StartedJobRegistry
+
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import open_database
 from softevo.service.executors import InlineExecutor
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment
-
 from tests.service import tinyrun
 from tests.service.rq_support import (
     Processes,

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
+from sqlalchemy import Engine, select
+
 from softevo.service.coordinator import Coordinator
 from softevo.service.db.models import Evaluation, Individual, PopulationMember, Run
 from softevo.service.executors import Executor, InlineExecutor
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment
-from sqlalchemy import Engine, select
 
 TINY = Treatment(
     "land-water",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
 from softevo.sim import system as S
 
 # proper rotations taking the link's world axis onto +x (x: identity, y: -90 deg about z,

@@ -14,9 +14,9 @@ import math
 import numpy as np
 import pytest
 from scipy import ndimage
-from softevo.sim.system import STEPS_PER_CYCLE, largest_component
 
 from softevo import sim
+from softevo.sim.system import STEPS_PER_CYCLE, largest_component
 
 WORLDS = ("land", "water", "void")
 WAVEFORMS = ("sine", "square", "impulse")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from softevo.sim import kernels, system
 
 from softevo import sim
+from softevo.sim import kernels, system
 from tests.sim import numpy_reference as ref
 
 ENVS = {"land": 0, "water": 1, "void": 2}

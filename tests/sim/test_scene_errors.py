@@ -10,6 +10,7 @@ import copy
 
 import numpy as np
 import pytest
+
 from softevo.sim.scene import SceneError, parse_scene
 
 GOOD = {

@@ -8,6 +8,7 @@ import types
 
 import numpy as np
 import pytest
+
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.evolution.individual import FAILED_DISTANCE
 from softevo.worker import evaluate
@@ -95,8 +96,9 @@ def stored(tmp_path_factory):
 
 
 def _stored_evaluations(engine, run_id):
-    from softevo.service.db.models import Evaluation, Individual
     from sqlalchemy import select
+
+    from softevo.service.db.models import Evaluation, Individual
 
     ind, ev = Individual.__table__, Evaluation.__table__
     query = (

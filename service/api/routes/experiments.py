@@ -11,6 +11,8 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Path, Query, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
+
+from softevo.errors import UserError
 from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
@@ -31,8 +33,6 @@ from softevo.service.api.schemas import (
 from softevo.service.db import experiments as db_experiments
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment, paper_grid
-
-from softevo.errors import UserError
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 log = logging.getLogger("softevo.api")

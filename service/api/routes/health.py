@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
+
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.schemas import HealthOut
 from softevo.service.db.engine import database_reachable

@@ -8,6 +8,8 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, HTTPException, Path, Query
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
+
+from softevo.errors import UserError
 from softevo.service.api.deps import COMMON, NOT_FOUND, ServicesDep
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
 from softevo.service.api.frames import encode_frames
@@ -17,8 +19,6 @@ from softevo.service.db.rows import finite
 from softevo.service.db.status import lineage_records
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task
-
-from softevo.errors import UserError
 
 router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path, Query
+
 from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
