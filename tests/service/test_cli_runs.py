@@ -7,7 +7,7 @@ import json
 import pandas as pd
 import pytest
 
-from softevo.service.cli import main
+from tests.analysis.cli import softevo
 
 TINY = [
     "--population",
@@ -22,16 +22,6 @@ TINY = [
     "0",
     "--quiet",
 ]
-
-
-def softevo(capsys, *args: str) -> tuple[int, str, str]:
-    try:
-        main(list(args))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code or 0
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 @pytest.mark.parametrize(
