@@ -26,3 +26,6 @@ Command line (``service/cli_analysis.py``)::
     softevo show INDIVIDUAL --out FILE.gif|FILE.mp4 [--environment land|water] [--db URL]
     softevo export-vxa INDIVIDUAL --out FILE.vxa [--environment land|water] [--db URL]
 """
+
+if __name__ != "softevo.analysis":  # installed as softevo.analysis (pyproject.toml): one name, one module
+    raise ImportError(f"import softevo.analysis, not {__name__}")

@@ -23,3 +23,6 @@ def __getattr__(name: str) -> Any:
 
         return getattr(engine, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+if __name__ != "softevo.sim":  # installed as softevo.sim (pyproject.toml): one name, one module
+    raise ImportError(f"import softevo.sim, not {__name__}")

@@ -8,12 +8,14 @@ scenes raise ``SceneError`` before anything runs.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numba
 import numpy as np
 
 from . import kernels
+from .cache import drop_foreign_entries
 from .scene import Scene, parse_scene
 from .system import (
     COM_SAMPLES,
@@ -26,6 +28,8 @@ from .system import (
     build_robot,
     pack,
 )
+
+drop_foreign_entries(Path(kernels.__file__).parent / "__pycache__")
 
 
 @dataclass

@@ -100,7 +100,7 @@ def test_to_scene_follows_the_schema():
     import json
 
     json.dumps(land)  # plain JSON types only
-    sim = pytest.importorskip("sim")
+    from softevo import sim
     scene = sim.parse_scene(land)
     assert np.array_equal(scene.body, p.body)
 

@@ -2,10 +2,9 @@
 
 import pytest
 
+from softevo import sim  # noqa: E402
 from softevo.evolution import EncodingConfig, EvolutionConfig, run
 from softevo.evolution.runner import best_distance
-
-sim = pytest.importorskip("sim")
 
 
 @pytest.mark.slow
