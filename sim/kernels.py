@@ -329,9 +329,11 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
     centre-to-centre line when it is large (hysteresis as Voxelyze). In the large-angle frame
     the link is rotated by c = (cw, 0, cy, cz) onto the centre line, so shear is zero and the
     bend shows in both end rotations. Bond damping is stiffness-proportional: the beam sees
-    d + damp * (change of d per step), which gives every beam term the damping coefficient
-    2 zeta sqrt(m k). The mode row holds +1 (small-angle frame) or -1 (large), and 0 before
-    the first step (small, no previous deformation to damp against).
+    d + link_damp[j] * (change of d per step), link_damp = gamma_link / (2 dt), which gives
+    every beam term the damping coefficient 2 zeta sqrt(m_link k). Link j's beam constants
+    are ``p.a1`` ... times ``link_stiff[j]`` = E_link / E_ref. The mode row holds +1
+    (small-angle frame) or -1 (large), and 0 before the first step (small, no previous
+    deformation to damp against).
 
     Two loops: a gather of each link's inputs from its two voxels, then the beam maths over
     contiguous rows with both frames computed and one selected, so that LLVM compiles it to
