@@ -24,7 +24,9 @@ Actuation as VoxCAD models it: the temperature oscillates by ``TEMP_AMPLITUDE`` 
 ``TEMP_BASE`` and the active material's thermal expansion coefficient is
 ``amplitude / TEMP_AMPLITUDE``, so an active voxel's linear strain swings by the scene's
 actuation amplitude (0.39 by default: evosoro's CTE 0.01 at 39 degrees). Only the sine
-waveform exists in VoxCAD. Fixed voxels, forces and initial velocities are not exported.
+waveform exists in VoxCAD. Fixed voxels, forces and initial velocities are not exported, nor
+are per-voxel fields (``youngs_modulus_field``, ``density_field``, ``frequency_field``): the
+palette holds the scene's scalar material and frequency.
 """
 
 from __future__ import annotations

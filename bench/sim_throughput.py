@@ -1,8 +1,11 @@
 """Simulator throughput: voxel-steps per second, single robot and simulate_many (all cores).
 
-Usage: python bench/sim_throughput.py [--seconds 0.5] [--repeats 3]
+Usage: python bench/sim_throughput.py [--seconds 0.5] [--repeats 3] [--fields none|uniform|mixed]
 Prints compile time apart, then voxel-steps/s for actuated solid cubes of 4^3, 7^3, 10^3 on
 land and for random 7^3 robots, with the ratio to Voxelyze (2.8 M voxel-steps/s on one core).
+``--fields uniform`` gives every scene Young's modulus, density and frequency fields holding the
+scalars (the same run, through the per-voxel path); ``mixed`` random ones (Young's modulus
+0.1..1 MPa, density 600..1800 kg/m^3, frequency 2..4 Hz).
 """
 
 from __future__ import annotations
@@ -38,6 +41,20 @@ def random_robot(n: int, rng: np.random.Generator, seconds: float) -> dict:
     return scene
 
 
+def with_fields(scene: dict, kind: str, rng: np.random.Generator) -> dict:
+    """``scene`` with per-voxel material and frequency fields (``kind``: none, uniform, mixed)."""
+    if kind == "none":
+        return scene
+    shape = np.asarray(scene["body"]).shape
+    if kind == "uniform":
+        e, rho, f = np.full(shape, 1e6), np.full(shape, 1200.0), np.full(shape, 3.0)
+    else:
+        e = 10 ** rng.uniform(5, 6, shape)
+        rho, f = rng.uniform(600, 1800, shape), rng.uniform(2, 4, shape)
+    return dict(scene, youngs_modulus_field=e.tolist(), density_field=rho.tolist(),
+                frequency_field=f.tolist())
+
+
 def voxel_steps(results) -> float:
     return float(sum(r.steps * len(r.voxels) for r in results))
 
@@ -56,6 +73,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seconds", type=float, default=0.5, help="simulated seconds per robot")
     parser.add_argument("--repeats", type=int, default=3, help="runs per case; the best counts")
+    parser.add_argument("--fields", choices=("none", "uniform", "mixed"), default="none",
+                        help="per-voxel fields in every scene")
+    parser.add_argument("--single", action="store_true", help="one core only (no simulate_many)")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     cores = numba.config.NUMBA_NUM_THREADS
@@ -71,8 +91,9 @@ def main() -> None:
              for n in (4, 7, 10)]
     cases.append(("random 7^3 robots", [random_robot(7, rng, args.seconds) for _ in range(4 * cores)]))
     for name, scenes in cases:
+        scenes = [with_fields(s, args.fields, rng) for s in scenes]
         single, res = timed(scenes[:1], threads=1, repeats=args.repeats)
-        many, _ = timed(scenes, threads=cores, repeats=args.repeats)
+        many = single if args.single else timed(scenes, threads=cores, repeats=args.repeats)[0]
         voxels = np.mean([len(r.voxels) for r in res])
         print(f"{name:<22}{voxels:>7.0f}{single / 1e6:>14.2f}{single / VOXELYZE:>11.2f}"
               f"{many / 1e6:>17.2f}{many / single:>9.2f}")

@@ -15,9 +15,13 @@ Expression (paper section 2.3.2, SPEC.md section 2), per voxel of the workspace:
 
 Options beyond the paper, off by default (``EncodingConfig``):
 - ``evolve_stiffness``: a third body output ``stiffness`` s maps log-linearly onto
-  ``stiffness_range`` (default 1e3..1e7 Pa, the paper's S1..S5): E = lo (hi/lo)^((s+1)/2).
-- ``frequency_per_voxel``: the per-voxel frequency field (same mapping) is stored too; the
-  simulator still uses the one robot frequency.
+  ``stiffness_range`` (default 1e3..1e7 Pa, the paper's S1..S5): E = lo (hi/lo)^((s+1)/2)
+  per voxel; the scene carries it as ``youngs_modulus_field`` (the treatment's scalar modulus
+  is then unused: the field overrides it).
+- ``frequency_per_voxel``: each voxel's control output ``frequency`` maps (as above) onto its
+  own frequency, carried by the scene as ``frequency_field``; active voxels actuate at their
+  own frequency, and an evaluation's cycles count at the mean over the active voxels (sim.scene).
+  ``Phenotype.frequency`` stays the mapped mean output over present voxels (a descriptor).
 """
 
 from __future__ import annotations
@@ -105,7 +109,8 @@ class Phenotype:
     phase: (nx, ny, nz) float64 radians, 0 where empty.
     frequency: Hz, one for the robot.
     removed_voxels: full voxels dropped because they were outside the largest component.
-    stiffness: (nx, ny, nz) float64 Pa or None; frequency_field: (nx, ny, nz) Hz or None.
+    stiffness: (nx, ny, nz) float64 Pa or None; frequency_field: (nx, ny, nz) Hz or None
+    (0 where empty). Both enter the scene (``to_scene``) and the hash when present.
     """
 
     body: np.ndarray
@@ -137,6 +142,9 @@ class Phenotype:
         digest.update(repr(round(float(self.frequency), 9)).encode())
         if self.stiffness is not None:
             digest.update(np.round(np.log10(self.stiffness + 1e-300), 6).tobytes())
+        if self.frequency_field is not None:
+            digest.update(b"frequency_field")
+            digest.update(np.round(self.frequency_field, 9).astype(np.float64).tobytes())
         return digest.hexdigest()
 
     def summary(self) -> dict[str, Any]:
@@ -165,8 +173,10 @@ class Phenotype:
         """A simulator scene (SPEC.md section 1 schema), plain JSON types.
 
         ``settle_seconds`` defaults to 0.5 on land and 0 elsewhere. ``extra`` fields are copied
-        into the scene as given (e.g. ``record``). The simulator takes one modulus: an evolved
-        stiffness field stays in the phenotype record and does not enter the scene.
+        into the scene as given (e.g. ``record``). An evolved stiffness field enters as
+        ``youngs_modulus_field`` (Pa; it overrides ``youngs_modulus``), a per-voxel frequency
+        field as ``frequency_field`` (Hz; it overrides the robot frequency, and ``cycles`` count
+        at the mean frequency of the active voxels).
         """
         if settle_seconds is None:
             settle_seconds = 0.5 if environment == "land" else 0.0
@@ -184,6 +194,10 @@ class Phenotype:
             "duration": {"cycles": int(cycles)},
             "settle_seconds": float(settle_seconds),
         }
+        if self.stiffness is not None:
+            scene["youngs_modulus_field"] = np.asarray(self.stiffness, np.float64).tolist()
+        if self.frequency_field is not None:
+            scene["frequency_field"] = np.asarray(self.frequency_field, np.float64).tolist()
         scene.update(extra)
         return scene
 

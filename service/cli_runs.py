@@ -41,6 +41,19 @@ def _parse_workspace(text: str) -> tuple[int, int, int]:
     return sizes  # type: ignore[return-value]
 
 
+EVOLVED_STIFFNESS_PLACEHOLDER_MPA = 0.1  # the treatment's scalar when the field is evolved
+
+
+def _parse_range(text: str) -> tuple[float, float]:
+    try:
+        bounds = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        bounds = ()
+    if len(bounds) != 2:
+        raise UserError(f"--stiffness-range must be two numbers LO,HI in MPa (got {text!r})")
+    return bounds  # type: ignore[return-value]
+
+
 def _workers(workers: int | None) -> int:
     if workers is not None and workers < 0:
         raise UserError(f"--workers must be >= 0 (got {workers})")
@@ -82,7 +95,11 @@ def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
 
 def run(
     env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
-    stiffness: Annotated[float, typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10)")],
+    stiffness: Annotated[
+        float | None,
+        typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10); with --evolve-stiffness "
+                     "optional (default 0.1, unused by the physics)"),
+    ] = None,
     population: Annotated[int, typer.Option("--population")] = Treatment.population,
     generations: Annotated[int, typer.Option("--generations")] = Treatment.generations,
     workspace: Annotated[str, typer.Option("--workspace", help="X,Y,Z voxels")] = ",".join(
@@ -95,6 +112,15 @@ def run(
     switch_at: Annotated[
         int | None, typer.Option("--switch-at", help="first generation in the second environment")
     ] = None,
+    evolve_stiffness: Annotated[
+        bool, typer.Option("--evolve-stiffness", help="evolve a Young's modulus per voxel")
+    ] = False,
+    stiffness_range: Annotated[
+        str, typer.Option("--stiffness-range", help="LO,HI MPa of an evolved stiffness")
+    ] = ",".join(f"{x:g}" for x in Treatment.stiffness_range_mpa),
+    frequency_per_voxel: Annotated[
+        bool, typer.Option("--frequency-per-voxel", help="each voxel actuates at its own frequency")
+    ] = False,
     db: DbOption = None,
     workers: WorkersOption = None,
     quiet: QuietOption = False,
@@ -104,6 +130,10 @@ def run(
     from softevo.service.experiments import create
     from softevo.service.treatments import Treatment
 
+    if stiffness is None:
+        if not evolve_stiffness:
+            raise UserError("--stiffness MPA is required (or --evolve-stiffness)")
+        stiffness = EVOLVED_STIFFNESS_PLACEHOLDER_MPA
     treatment = Treatment(
         env,
         stiffness,
@@ -113,6 +143,9 @@ def run(
         cycles=cycles,
         seed=seed,
         switch_at=switch_at,
+        evolve_stiffness=evolve_stiffness,
+        frequency_per_voxel=frequency_per_voxel,
+        stiffness_range_mpa=_parse_range(stiffness_range),
     )
     engine = open_database(db)
     experiment_id, run_ids = create(engine, "run", [treatment])

@@ -5,6 +5,12 @@ transition switches at ``switch_at`` (default: half the generations): generation
 ``0 .. switch_at - 1`` are evaluated in the first environment, ``switch_at ..`` in the
 second, and at ``switch_at`` the whole surviving population is re-evaluated in the new one.
 Repetition ``r`` of a treatment runs with seed ``seed + r``.
+
+Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
+Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,
+0.001..10 MPa; the treatment's ``stiffness_mpa`` is then unused by the physics), and
+``frequency_per_voxel`` gives each voxel its own actuation frequency. Settings stored before
+these options existed read as both off.
 """
 
 from __future__ import annotations
@@ -42,6 +48,9 @@ class Treatment:
     seed: int = 0
     algorithm: str = "afpo"
     genomes_per_task: int = 4
+    evolve_stiffness: bool = False
+    frequency_per_voxel: bool = False
+    stiffness_range_mpa: tuple[float, float] = STIFFNESS_RANGE_MPA
 
     def __post_init__(self) -> None:
         self.validate()
@@ -71,6 +80,14 @@ class Treatment:
             raise UserError(f"seed must be >= 0 (got {self.seed})")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose afpo or pareto")
+        for flag in ("evolve_stiffness", "frequency_per_voxel"):
+            if not isinstance(getattr(self, flag), bool):
+                raise UserError(f"{flag} must be true or false (got {getattr(self, flag)!r})")
+        bounds = self.stiffness_range_mpa
+        if (len(bounds) != 2 or not all(isinstance(b, int | float) and math.isfinite(b) for b in bounds)
+                or not low <= bounds[0] < bounds[1] <= high):
+            raise UserError(f"stiffness range must be two numbers lo < hi within {low}..{high} MPa "
+                            f"(got {bounds!r})")
         self._validate_switch()
 
     def _validate_switch(self) -> None:
@@ -82,8 +99,10 @@ class Treatment:
             raise UserError(f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})")
 
     def default_name(self) -> str:
-        """E.g. ``land-water S=0.1MPa``."""
-        return f"{self.environment} S={self.stiffness_mpa:g}MPa"
+        """E.g. ``land-water S=0.1MPa``; ``land E=evolved f=per-voxel`` with both options."""
+        stiffness = "E=evolved" if self.evolve_stiffness else f"S={self.stiffness_mpa:g}MPa"
+        frequency = " f=per-voxel" if self.frequency_per_voxel else ""
+        return f"{self.environment} {stiffness}{frequency}"
 
     @property
     def stiffness_pa(self) -> float:
@@ -120,6 +139,7 @@ class Treatment:
         """Plain JSON settings (stored in ``treatments.settings``)."""
         settings = dataclasses.asdict(self)
         settings["workspace"] = list(self.workspace)
+        settings["stiffness_range_mpa"] = list(self.stiffness_range_mpa)
         return settings
 
     @classmethod
@@ -132,6 +152,8 @@ class Treatment:
         values = dict(settings)
         if "workspace" in values:
             values["workspace"] = tuple(int(n) for n in values["workspace"])
+        if "stiffness_range_mpa" in values:
+            values["stiffness_range_mpa"] = tuple(values["stiffness_range_mpa"])
         return cls(**values)
 
 

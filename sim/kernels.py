@@ -26,6 +26,30 @@ Helpers called per link or per voxel take and return scalars only: an array pass
 inlined helper costs two atomic reference-count updates per call, which once took most of the
 link loop's time; for the same reason the step loop runs on views that count no references.
 
+Materials and frequencies per voxel (scene fields ``youngs_modulus_field``, ``density_field``,
+``frequency_field``; without them every voxel has the scalar values). Voxel i has E_i, rho_i,
+f_i; L is the voxel size, nu Poisson's ratio (one for the robot):
+- mass m_i = rho_i L^3, inertia I_i = m_i L^2 / 6 (integration, gravity m_i g);
+- floor stiffness 2 E_i L; collision damping c_i = 2 zeta_coll sqrt(m_i E_i L) (floor);
+  global damping -2 zeta_glob sqrt(m_i E_i L) v and -2 zeta_glob sqrt(I_i E_i L^3) omega;
+  friction from each voxel's own normal force; self-contact of voxels i, j: stiffness the
+  harmonic mean of 2 E_i L and 2 E_j L, damping (c_i + c_j) / 2 on the relative normal
+  velocity v_j - v_i;
+- a link between voxels a and b is two half-beams of length L/2 in series:
+  E_link = 2 E_a E_b / (E_a + E_b) (exactly E when E_a = E_b); its beam constants are those
+  of PHYSICS.md with E_link: a1 = b1 = E_link L, a2 = E_link L^3 / (12 (1 + nu)),
+  b2 = E_link L^2 / 2, b3 = E_link L^3 / 6, computed as the robot's reference constants
+  (``Params.a1`` ..., of E_ref = the largest E_i) times ``link_stiff`` = E_link / E_ref;
+  bond damping gamma_link = 2 zeta_bond sqrt(m_link / (E_link L)), m_link = (m_a + m_b) / 2,
+  so each beam term k gets 2 zeta_bond sqrt(m_link k);
+- step: dt = dt_fraction / (2 pi sqrt(max over links of E_link L / min(m_a, m_b)))
+  (= dt_fraction L sqrt(rho / E) / (2 pi) for one material), capped at 1 / (2000 f_max);
+- actuation: active voxel i has size L (1 + a w(2 pi f_i t + phase_i)); when all active voxels
+  share one f (no field or a uniform one) the step computes sin(2 pi f t) once and combines it
+  with each voxel's phase (no libm per voxel); a scene's ``duration.cycles`` counts cycles of
+  the mean f_i over active voxels (``sim.scene``);
+- centre of mass: weighted by m_i.
+
 Maths conventions: quaternions are (w, x, y, z); a link's local frame has x along the link
 (see ``to_link``); rotation vectors are axis * angle in radians.
 """
@@ -50,17 +74,10 @@ from .system import (
     F_B1,
     F_B2,
     F_B3,
-    F_CCOLL,
-    F_CGANG,
-    F_CGLIN,
     F_DRAG,
     F_DT,
-    F_GAMMA,
     F_GRAVITY,
-    F_INERTIA,
-    F_KFLOOR,
     F_L,
-    F_MASS,
     F_MUK,
     F_MUS,
     F_OMEGA,
@@ -70,11 +87,21 @@ from .system import (
     I_COLLIDE,
     I_COM_EVERY,
     I_ENV,
+    I_FREQ_FIELD,
     I_N_FRAMES,
     I_RECORD,
     I_SETTLE_STEPS,
     I_STEPS,
     I_WAVE,
+    V_CCOLL,
+    V_CGANG,
+    V_CGLIN,
+    V_INV_INERTIA,
+    V_INV_MASS,
+    V_KFLOOR,
+    V_MASS,
+    V_OMEGA,
+    V_WEIGHT,
     Params,
     State,
 )
@@ -207,8 +234,10 @@ def waveform(kind, angle):
 
 
 @njit(**JIT)
-def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, size):
-    """Current size of every voxel at time t (t < 0: no actuation yet)."""
+def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, vconst, size):
+    """Current size of every voxel at time t (t < 0: no actuation yet). With per-voxel
+    frequencies (``p.freq_field``) active voxel i follows w(omega_i t + phase_i),
+    omega_i = ``vconst[i, V_OMEGA]``; otherwise every one follows the robot's ``p.omega``."""
     L = p.L
     if t < 0.0:
         for v in range(len(size)):
@@ -216,6 +245,14 @@ def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, size):
         return
     amp = p.amp
     wave = p.wave
+    if p.freq_field:
+        for v in range(len(size)):
+            if flags[v] & FLAG_ACTIVE:
+                w = waveform(wave, vconst[v, V_OMEGA] * t + phase[v])
+                size[v] = max(L * (1.0 + amp * w), MIN_SIZE * L)
+            else:
+                size[v] = L
+        return
     wt = p.omega * t
     s_wt, c_wt = math.sin(wt), math.cos(wt)
     for v in range(len(size)):
@@ -283,8 +320,8 @@ LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on t
 
 
 @njit(**JIT)
-def link_kernel(p, link_neg, link_pos, link_axis, pos, quat, size, link_in, link_state,
-                link_out):
+def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, quat, size,
+                link_in, link_state, link_out):
     """Beam forces of every link, in world axes, into ``link_out``. Returns
     how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
 
@@ -292,15 +329,16 @@ def link_kernel(p, link_neg, link_pos, link_axis, pos, quat, size, link_in, link
     centre-to-centre line when it is large (hysteresis as Voxelyze). In the large-angle frame
     the link is rotated by c = (cw, 0, cy, cz) onto the centre line, so shear is zero and the
     bend shows in both end rotations. Bond damping is stiffness-proportional: the beam sees
-    d + damp * (change of d per step), which gives every beam term the damping coefficient
-    2 zeta sqrt(m k). The mode row holds +1 (small-angle frame) or -1 (large), and 0 before
-    the first step (small, no previous deformation to damp against).
+    d + link_damp[j] * (change of d per step), link_damp = gamma_link / (2 dt), which gives
+    every beam term the damping coefficient 2 zeta sqrt(m_link k). Link j's beam constants
+    are ``p.a1`` ... times ``link_stiff[j]`` = E_link / E_ref. The mode row holds +1
+    (small-angle frame) or -1 (large), and 0 before the first step (small, no previous
+    deformation to damp against).
 
     Two loops: a gather of each link's inputs from its two voxels, then the beam maths over
     contiguous rows with both frames computed and one selected, so that LLVM compiles it to
     SIMD (four links per instruction on AVX2 and up).
     """
-    damp = p.gamma * 0.5 / p.dt
     a1, a2, b1, b2, b3 = p.a1, p.a2, p.b1, p.b2, p.b3
     inv_l = 1.0 / p.L
     m = len(link_neg)
@@ -345,7 +383,7 @@ def link_kernel(p, link_neg, link_pos, link_axis, pos, quat, size, link_in, link
         mode = link_state[S9 + J]
         was_small = mode >= 0.0
         now_small = (not leave) if was_small else enter
-        g = damp if (mode != 0.0 and now_small == was_small) else 0.0
+        g = link_damp[j] if (mode != 0.0 and now_small == was_small) else 0.0
         link_state[S9 + J] = 1.0 if now_small else -1.0
 
         # large-angle frame: c takes the centre line onto +x (half-angle identity),
@@ -400,8 +438,10 @@ def link_kernel(p, link_neg, link_pos, link_axis, pos, quat, size, link_in, link
         link_state[S6 + J], link_state[S7 + J], link_state[S8 + J] = t2x, t2y, t2z
 
         # E A_current strain: area and rest length both scale with the voxel size
+        s = link_stiff[j]  # E_link / E_ref
         fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
-            ex * rest * inv_l, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3)
+            ex * rest * inv_l, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1 * s, a2 * s, b1 * s,
+            b2 * s, b3 * s)
         link_out[O0 + J] = m00 * fax + m01 * fay + m02 * faz
         link_out[O1 + J] = m10 * fax + m11 * fay + m12 * faz
         link_out[O2 + J] = m20 * fax + m21 * fay + m22 * faz
@@ -479,13 +519,16 @@ def collision_pairs(surface, pos, nbr, reach, pairs):
 
 
 @njit(**JIT)
-def collision_forces(count, pairs, pos, lin_mom, size, p, force):
-    """Penalty contact between unbonded voxels: equal and opposite, so momentum is kept."""
-    k = p.k_floor  # harmonic mean of the two voxels' 2 E L: the same for one material
-    c = p.c_coll
-    inv_m = 1.0 / p.mass
+def collision_forces(count, pairs, pos, lin_mom, size, vconst, force):
+    """Penalty contact between unbonded voxels: equal and opposite, so momentum is kept.
+    Stiffness: the harmonic mean of the two voxels' 2 E L (exactly it for one material);
+    damping: the mean of their collision damping coefficients."""
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
+        ki, kj = vconst[i, V_KFLOOR], vconst[j, V_KFLOOR]
+        k = ki if ki == kj else 2.0 * ki * kj / (ki + kj)
+        c = 0.5 * (vconst[i, V_CCOLL] + vconst[j, V_CCOLL])
+        inv_mi, inv_mj = vconst[i, V_INV_MASS], vconst[j, V_INV_MASS]
         dx = pos[j, 0] - pos[i, 0]
         dy = pos[j, 1] - pos[i, 1]
         dz = pos[j, 2] - pos[i, 2]
@@ -494,8 +537,9 @@ def collision_forces(count, pairs, pos, lin_mom, size, p, force):
         if overlap <= 0.0 or dist == 0.0:
             continue
         nx, ny, nz = dx / dist, dy / dist, dz / dist
-        vn = ((lin_mom[j, 0] - lin_mom[i, 0]) * nx + (lin_mom[j, 1] - lin_mom[i, 1]) * ny
-              + (lin_mom[j, 2] - lin_mom[i, 2]) * nz) * inv_m
+        vn = ((lin_mom[j, 0] * inv_mj - lin_mom[i, 0] * inv_mi) * nx
+              + (lin_mom[j, 1] * inv_mj - lin_mom[i, 1] * inv_mi) * ny
+              + (lin_mom[j, 2] * inv_mj - lin_mom[i, 2] * inv_mi) * nz)
         f = max(k * overlap - c * vn, 0.0)
         force[j, 0] += f * nx
         force[j, 1] += f * ny
@@ -506,7 +550,7 @@ def collision_forces(count, pairs, pos, lin_mom, size, p, force):
 
 
 @njit(**JIT)
-def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, pairs, force):
+def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, vconst, pairs, force):
     """Self-collision forces when the robot has them on; rebuilds the candidate list once two
     voxels may have closed the margin. Returns the updated ``Contacts``."""
     if not p.collide:
@@ -517,21 +561,23 @@ def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, pairs, force):
         reach = p.L * (1.0 + p.amp) + margin
         count = collision_pairs(surface, pos, nbr, reach, pairs)
         travel = 0.0
-    collision_forces(count, pairs, pos, lin_mom, size, p, force)
+    collision_forces(count, pairs, pos, lin_mom, size, vconst, force)
     return Contacts(count, travel)
 
 
 # ---------------------------------------------------------------- voxels
 @njit(**JIT)
-def world_forces_kernel(p, flags, ext_force, nbr, quat, lin_mom, ang_mom, size, force, moment):
+def world_forces_kernel(p, flags, ext_force, nbr, vconst, quat, lin_mom, ang_mom, size, force,
+                        moment):
     """Gravity, global damping and, in water, drag, added to the force and moment of every
-    free voxel (fixed ones are left alone)."""
-    m, inv_m, inv_i = p.mass, 1.0 / p.mass, 1.0 / p.inertia
-    g, c_lin, c_ang, drag = p.gravity, p.c_lin, p.c_ang, p.drag
+    free voxel (fixed ones are left alone); each voxel's own mass and damping."""
+    g, drag = p.gravity, p.drag
     water = p.env == ENV_WATER and drag > 0.0
     for v in range(len(flags)):
         if flags[v] & FLAG_FIXED:
             continue
+        m, inv_m, inv_i = vconst[v, V_MASS], vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
+        c_lin, c_ang = vconst[v, V_CGLIN], vconst[v, V_CGANG]
         vx, vy, vz = lin_mom[v, 0] * inv_m, lin_mom[v, 1] * inv_m, lin_mom[v, 2] * inv_m
         fx = force[v, 0] + ext_force[v, 0] - c_lin * vx
         fy = force[v, 1] + ext_force[v, 1] - c_lin * vy
@@ -559,20 +605,21 @@ def world_forces_kernel(p, flags, ext_force, nbr, quat, lin_mom, ang_mom, size, 
 
 
 @njit(**JIT)
-def floor_contact_kernel(p, flags, pos, lin_mom, size, force, static, contact):
+def floor_contact_kernel(p, flags, vconst, pos, lin_mom, size, force, static, contact):
     """On land, a penalty floor at z = 0 with static and kinetic (Coulomb) friction, added to
     the force of every free voxel; marks the voxels in contact for ``integrate``. A static
     voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
     sliding one feels mu_k times the normal force against its horizontal velocity."""
     if p.env != ENV_LAND:
         return
-    inv_m, k_floor, c_coll, mu_s, mu_k = 1.0 / p.mass, p.k_floor, p.c_coll, p.mu_s, p.mu_k
+    mu_s, mu_k = p.mu_s, p.mu_k
     for v in range(len(flags)):
         if flags[v] & FLAG_FIXED:
             continue
         pen = 0.5 * size[v] - pos[v, 2]
         contact[v] = pen >= 0.0
         if pen >= 0.0:
+            inv_m, k_floor, c_coll = vconst[v, V_INV_MASS], vconst[v, V_KFLOOR], vconst[v, V_CCOLL]
             vx, vy, vz = lin_mom[v, 0] * inv_m, lin_mom[v, 1] * inv_m, lin_mom[v, 2] * inv_m
             normal = k_floor * pen
             force[v, 2] += normal - c_coll * vz
@@ -589,13 +636,14 @@ def floor_contact_kernel(p, flags, pos, lin_mom, size, force, static, contact):
 
 
 @njit(**JIT)
-def integrate_kernel(p, flags, pos, quat, lin_mom, ang_mom, force, moment, static, contact):
+def integrate_kernel(p, flags, vconst, pos, quat, lin_mom, ang_mom, force, moment, static,
+                     contact):
     """Semi-implicit Euler step of every free voxel from its force and moment: momenta
     first, then position and orientation from the new momenta (fixed voxels: momenta zeroed).
     A sliding voxel in floor contact sticks when friction would reverse it (work-energy),
     and a static one keeps no horizontal momentum. Returns the largest squared speed of a
     voxel after the step, or -1 if any voxel left the sane range (or went NaN)."""
-    inv_m, inv_i, dt = 1.0 / p.mass, 1.0 / p.inertia, p.dt
+    dt = p.dt
     ok = True
     speed2 = 0.0
     for v in range(len(flags)):
@@ -603,6 +651,7 @@ def integrate_kernel(p, flags, pos, quat, lin_mom, ang_mom, force, moment, stati
             lin_mom[v, 0] = lin_mom[v, 1] = lin_mom[v, 2] = 0.0
             ang_mom[v, 0] = ang_mom[v, 1] = ang_mom[v, 2] = 0.0
             continue
+        inv_m, inv_i = vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
         fx, fy, fz = force[v, 0], force[v, 1], force[v, 2]
         lin_mom[v, 2] += fz * dt
         px, py = lin_mom[v, 0] + fx * dt, lin_mom[v, 1] + fy * dt
@@ -644,6 +693,7 @@ class Voxels(NamedTuple):
     phase: np.ndarray  # (n,) radians
     nbr: np.ndarray  # (n, 6) face neighbours (-1: exposed face)
     surface: np.ndarray  # (s,) voxels with an exposed face
+    vconst: np.ndarray  # (n, N_VCONST) mass, damping, floor stiffness, frequency (V_*)
 
 
 class Links(NamedTuple):
@@ -653,6 +703,8 @@ class Links(NamedTuple):
     pos: np.ndarray  # (m,) voxel on the positive side
     axis: np.ndarray  # (m,) 0 x, 1 y, 2 z
     vlink: np.ndarray  # (n, 6) link on each face, ordered as nbr (-1: none)
+    stiff: np.ndarray  # (m,) E_link / E_ref: the scale of the beam constants
+    damp: np.ndarray  # (m,) bond damping gamma_link / (2 dt)
 
 
 class Work(NamedTuple):
@@ -683,15 +735,15 @@ class Contacts(NamedTuple):
 def actuate(t, p, voxels, work):
     """Sizes of the voxels at time t into ``work.size``."""
     actuate_kernel(t, p, voxels.flags, voxels.cos_phase, voxels.sin_phase, voxels.phase,
-                   work.size)
+                   voxels.vconst, work.size)
 
 
 @njit(**INLINE)
 def link_forces(p, links, body, work):
     """Beam forces of every link, summed into each voxel's force and moment (overwritten).
     Returns how many links diverged."""
-    bad = link_kernel(p, links.neg, links.pos, links.axis, body.pos, body.quat, work.size,
-                      work.link_in, work.link_state, work.link_out)
+    bad = link_kernel(p, links.neg, links.pos, links.axis, links.stiff, links.damp, body.pos,
+                      body.quat, work.size, work.link_in, work.link_state, work.link_out)
     link_sums(links.vlink, work.link_out, work.force, work.moment)
     return bad
 
@@ -701,28 +753,28 @@ def collide(p, voxels, body, work, contacts):
     """Self-collision forces (if on), added to ``work.force``; returns the updated
     ``Contacts``."""
     return collide_kernel(p, contacts, voxels.surface, voxels.nbr, body.pos, body.lin_mom,
-                          work.size, work.pairs, work.force)
+                          work.size, voxels.vconst, work.pairs, work.force)
 
 
 @njit(**INLINE)
 def world_forces(p, voxels, body, work):
     """Gravity, global damping and water drag, added to ``work.force``/``work.moment``."""
-    world_forces_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, body.quat,
+    world_forces_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, body.quat,
                         body.lin_mom, body.ang_mom, work.size, work.force, work.moment)
 
 
 @njit(**INLINE)
 def floor_contact(p, voxels, body, work):
     """Floor and friction forces on land, added to ``work.force``; marks ``work.contact``."""
-    floor_contact_kernel(p, voxels.flags, body.pos, body.lin_mom, work.size, work.force,
-                         work.static, work.contact)
+    floor_contact_kernel(p, voxels.flags, voxels.vconst, body.pos, body.lin_mom, work.size,
+                         work.force, work.static, work.contact)
 
 
 @njit(**INLINE)
 def integrate(p, voxels, body, work):
     """Semi-implicit Euler step of ``body``; returns the largest squared speed or -1."""
-    return integrate_kernel(p, voxels.flags, body.pos, body.quat, body.lin_mom, body.ang_mom,
-                            work.force, work.moment, work.static, work.contact)
+    return integrate_kernel(p, voxels.flags, voxels.vconst, body.pos, body.quat, body.lin_mom,
+                            body.ang_mom, work.force, work.moment, work.static, work.contact)
 
 
 @njit(**INLINE)
@@ -774,11 +826,10 @@ def keep(owners):
 def params(fp, ip):
     """A robot's ``Params`` from its rows of ``Batch.fparams`` and ``Batch.iparams``."""
     return Params(
-        fp[F_L], fp[F_MASS], fp[F_INERTIA], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3],
-        fp[F_GAMMA], fp[F_DT], fp[F_GRAVITY], fp[F_KFLOOR], fp[F_CCOLL], fp[F_CGLIN],
-        fp[F_CGANG], fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE],
+        fp[F_L], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3], fp[F_DT], fp[F_GRAVITY],
+        fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE],
         ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
-        ip[I_COM_EVERY], ip[I_N_FRAMES])
+        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD])
 
 
 @njit(**JIT)
@@ -790,9 +841,10 @@ def take_robot(batch, state, r):
     voxels = Voxels(batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy(),
                     batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy(),
                     batch.phase[v0:v1].copy(), batch.nbr[v0:v1].copy(),
-                    batch.surface[s0:s1].copy())
+                    batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy())
     links = Links(batch.link_neg[l0:l1].copy(), batch.link_pos[l0:l1].copy(),
-                  batch.link_axis[l0:l1].copy(), batch.vlink[v0:v1].copy())
+                  batch.link_axis[l0:l1].copy(), batch.vlink[v0:v1].copy(),
+                  batch.link_stiff[l0:l1].copy(), batch.link_damp[l0:l1].copy())
     body = State(state.pos[v0:v1].copy(), state.quat[v0:v1].copy(),
                  state.lin_mom[v0:v1].copy(), state.ang_mom[v0:v1].copy())
     return params(batch.fparams[r], batch.iparams[r]), voxels, links, body
@@ -809,14 +861,18 @@ def robot_work(n_voxels, n_links, n_pairs):
 
 
 @njit(**JIT)
-def com(pos, out, row):
-    """Centre of mass (one material: the mean position) into out[row, 1:4]."""
+def com(pos, vconst, out, row):
+    """Centre of mass into out[row, 1:4]: positions weighted by ``V_WEIGHT`` (m_i / max m,
+    so exactly the mean position for one density)."""
     n = len(pos)
+    total = 0.0
+    for v in range(n):
+        total += vconst[v, V_WEIGHT]
     for c in range(3):
         acc = 0.0
         for v in range(n):
-            acc += pos[v, c]
-        out[row, 1 + c] = acc / n
+            acc += vconst[v, V_WEIGHT] * pos[v, c]
+        out[row, 1 + c] = acc / total
 
 
 @njit(**JIT)
@@ -849,7 +905,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
         after = k - p.settle_steps
         if after >= 0 and after % p.com_every == 0 and n_com < traj.shape[0] - 1:
             traj[n_com, 0] = k * p.dt
-            com(body.pos, traj, n_com)
+            com(body.pos, voxels.vconst, traj, n_com)
             n_com += 1
         if k == p.steps:
             break
@@ -862,7 +918,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
             break
     # always keep the final centre of mass as the last sample
     traj[n_com, 0] = done * p.dt
-    com(body.pos, traj, n_com)
+    com(body.pos, voxels.vconst, traj, n_com)
     com_traj[r, : n_com + 1] = traj[: n_com + 1]
     com_count[r] = n_com + 1
     status[r], steps_done[r] = code, done

@@ -4,6 +4,22 @@
 whose message starts with the offending field, e.g.
 ``material.youngs_modulus: must be > 0 (got -1.0)``. Everything downstream (system building,
 kernels) may assume a valid Scene.
+
+Per-voxel fields (optional, top level, each a nested list shaped like ``body`` and ``phase``,
+indexed ``[x][y][z]``):
+
+- ``youngs_modulus_field``: Young's modulus of each voxel, Pa;
+- ``density_field``: density of each voxel, kg/m^3;
+- ``frequency_field``: actuation frequency of each voxel, Hz (only active voxels use it).
+
+Values at empty voxels are ignored (any number, even 0 or negative, JSON has no NaN); at every
+present voxel a value must be finite and > 0, else a ``SceneError`` naming the field and the
+voxel, e.g. ``youngs_modulus_field: must be > 0 at [1, 0, 2] (got -3.0)``. An absent field means
+the scalar everywhere: ``material.youngs_modulus``, ``material.density``,
+``actuation.frequency``. With a ``frequency_field``, ``duration.cycles`` counts cycles of the
+robot's mean frequency over its active voxels (those of ``body`` as given: seconds = cycles /
+mean f); with no active voxel the scalar ``actuation.frequency`` counts them. How the engine
+combines two materials at a link: ``sim.kernels``' docstring.
 """
 
 from __future__ import annotations
@@ -60,6 +76,11 @@ class Scene:
 
     body: np.ndarray  # (X, Y, Z) int8: 0 empty, 1 passive, 2 active
     phase: np.ndarray  # (X, Y, Z) float64, radians
+    # per-voxel fields, (X, Y, Z) float64 or None (None: the scalar everywhere); values at
+    # empty voxels are 0
+    youngs_modulus_field: np.ndarray | None = None  # Pa
+    density_field: np.ndarray | None = None  # kg / m^3
+    frequency_field: np.ndarray | None = None  # Hz, used by active voxels
     voxel_size: float = 0.05  # metres
     material: Material = field(default_factory=Material)
     environment: Environment = field(default_factory=Environment)
@@ -91,7 +112,9 @@ _TOP_FIELDS = {
     "voxel_size", "material", "environment", "body", "phase", "actuation", "fixed", "forces",
     "initial_velocity", "initial_angular_velocity", "initial_offset", "duration", "settle_seconds",
     "dt_fraction", "self_collisions", "record", "notes", "max_steps",
+    "youngs_modulus_field", "density_field", "frequency_field",
 }
+FIELDS = ("youngs_modulus_field", "density_field", "frequency_field")
 
 
 def _number(value: Any, name: str, *, low: float | None = None, high: float | None = None,
@@ -135,6 +158,32 @@ def _grid(value: Any, name: str, dtype) -> np.ndarray:
     if min(arr.shape) < 1 or max(arr.shape) > MAX_SIDE:
         raise SceneError(f"{name}: each side must be 1..{MAX_SIDE} (got shape {list(arr.shape)})")
     return arr
+
+
+def _voxel_field(value: Any, name: str, body: np.ndarray) -> np.ndarray | None:
+    """A per-voxel field shaped like body: finite and > 0 at present voxels, 0 elsewhere."""
+    if value is None:
+        return None
+    arr = _grid(value, name, np.float64)
+    if arr.shape != body.shape:
+        raise SceneError(f"{name}: shape {list(arr.shape)} differs from body {list(body.shape)}")
+    present = body > 0
+    for bad, rule in ((present & ~np.isfinite(arr), "be finite"), (present & ~(arr > 0), "be > 0")):
+        if bad.any():
+            where = [int(c) for c in np.argwhere(bad)[0]]
+            raise SceneError(f"{name}: must {rule} at {where} (got {float(arr[tuple(where)])!r})")
+    return np.where(present, arr, 0.0)
+
+
+def mean_active_frequency(body: np.ndarray, field: np.ndarray, default: float) -> float:
+    """The robot's mean actuation frequency over its active voxels (``default`` if none);
+    exactly the common value when they all share one."""
+    values = field[body == 2]
+    if len(values) == 0:
+        return default
+    if np.all(values == values[0]):
+        return float(values[0])
+    return float(values.mean())
 
 
 def _parse_material(data: Any) -> Material:
@@ -211,6 +260,8 @@ def parse_scene(data: Any) -> Scene:
     else:
         phase = np.zeros(body.shape)
 
+    fields = {name: _voxel_field(data.get(name), name, body) for name in FIELDS}
+
     voxel_size = _number(
         data.get("voxel_size", Scene.voxel_size), "voxel_size", low=0, low_open=True, high=10
     )
@@ -240,9 +291,12 @@ def parse_scene(data: Any) -> Scene:
         raise SceneError("duration: give exactly one of {'cycles': n} or {'seconds': s}")
     if "cycles" in duration:
         cycles = _number(duration["cycles"], "duration.cycles", low=0)
-        if actuation.frequency <= 0 and cycles > 0:
+        frequency = actuation.frequency
+        if fields["frequency_field"] is not None:
+            frequency = mean_active_frequency(body, fields["frequency_field"], frequency)
+        if frequency <= 0 and cycles > 0:
             raise SceneError("duration.cycles: needs actuation.frequency > 0 (or give seconds)")
-        seconds = cycles / actuation.frequency if cycles > 0 else 0.0
+        seconds = cycles / frequency if cycles > 0 else 0.0
     else:
         seconds = _number(duration["seconds"], "duration.seconds", low=0)
 
@@ -263,6 +317,7 @@ def parse_scene(data: Any) -> Scene:
     return Scene(
         body=body,
         phase=phase,
+        **fields,
         voxel_size=voxel_size,
         material=material,
         environment=environment,

@@ -25,13 +25,17 @@ from scipy import ndimage
 from .scene import Scene
 
 # Columns of the per-robot float parameter table ``fparams``.
-F_L, F_MASS, F_INERTIA, F_A1, F_A2, F_B1, F_B2, F_B3, F_GAMMA = range(9)
-F_DT, F_GRAVITY, F_KFLOOR, F_CCOLL, F_CGLIN, F_CGANG, F_MUS, F_MUK = range(9, 17)
-F_DRAG, F_OMEGA, F_AMP, F_SETTLE = range(17, 21)
-N_FPARAMS = 21
+F_L, F_A1, F_A2, F_B1, F_B2, F_B3, F_DT, F_GRAVITY, F_MUS, F_MUK = range(10)
+F_DRAG, F_OMEGA, F_AMP, F_SETTLE = range(10, 14)
+N_FPARAMS = 14
 # Columns of the per-robot integer parameter table ``iparams``.
 I_STEPS, I_SETTLE_STEPS, I_ENV, I_WAVE, I_RECORD, I_COLLIDE, I_COM_EVERY, I_N_FRAMES = range(8)
-N_IPARAMS = 8
+I_FREQ_FIELD = 8
+N_IPARAMS = 9
+# Columns of the per-voxel constant table ``vconst`` (one row per voxel).
+V_MASS, V_INV_MASS, V_INV_INERTIA, V_KFLOOR, V_CCOLL, V_CGLIN, V_CGANG, V_OMEGA = range(8)
+V_WEIGHT = 8
+N_VCONST = 9
 
 ENV_LAND, ENV_WATER, ENV_VOID = 0, 1, 2
 ENV_CODES = {"land": ENV_LAND, "water": ENV_WATER, "void": ENV_VOID}
@@ -58,27 +62,23 @@ def stable_dt(voxel_size: float, density: float, youngs_modulus: float, fraction
 
 class Params(NamedTuple):
     """One robot's constants as the kernels read them: the ``fparams`` row, then the
-    ``iparams`` row, field for column (SI units)."""
+    ``iparams`` row, field for column (SI units). The beam constants are those of the
+    robot's reference modulus E_ref (the stiffest voxel's); each link scales them by its
+    ``link_stiff`` = E_link / E_ref. Per-voxel constants (mass, damping, floor stiffness,
+    actuation frequency) are rows of ``vconst``."""
 
     L: float  # voxel size, m
-    mass: float  # of one voxel, kg
-    inertia: float  # of one voxel about its centre, kg m^2
-    a1: float  # axial stiffness E L, N/m
-    a2: float  # torsional stiffness E L^3 / (12 (1 + nu)), N m
-    b1: float  # shear stiffness E L, N/m
-    b2: float  # bend-shear coupling E L^2 / 2, N
-    b3: float  # bending stiffness E L^3 / 6, N m
-    gamma: float  # bond damping as stiffness-proportional time constant, s
+    a1: float  # axial stiffness E_ref L, N/m
+    a2: float  # torsional stiffness E_ref L^3 / (12 (1 + nu)), N m
+    b1: float  # shear stiffness E_ref L, N/m
+    b2: float  # bend-shear coupling E_ref L^2 / 2, N
+    b3: float  # bending stiffness E_ref L^3 / 6, N m
     dt: float  # step, s
     gravity: float  # m/s^2, along -z
-    k_floor: float  # penalty stiffness of floor and self-contact, 2 E L, N/m
-    c_coll: float  # contact damping, N s/m
-    c_lin: float  # global linear damping, N s/m
-    c_ang: float  # global angular damping, N m s
     mu_s: float  # static friction coefficient
     mu_k: float  # kinetic friction coefficient
     drag: float  # water: 0.5 rho_fluid C_d, kg/m^3 (0 elsewhere)
-    omega: float  # actuation angular frequency, rad/s
+    omega: float  # actuation angular frequency, rad/s (when every active voxel shares one)
     amp: float  # actuation amplitude (linear strain)
     settle: float  # settling time before actuation starts, s
     steps: int  # total steps, settling included
@@ -89,6 +89,7 @@ class Params(NamedTuple):
     collide: int  # 1: self-collisions on
     com_every: int  # a centre-of-mass sample every this many steps after settling
     n_frames: int  # frames recorded over the whole run
+    freq_field: int  # 1: active voxels have frequencies of their own (``vconst[:, V_OMEGA]``)
 
 
 class Robot(NamedTuple):
@@ -107,6 +108,9 @@ class Robot(NamedTuple):
     link_axis: np.ndarray  # (m,) int64
     vlink: np.ndarray  # (n, 6) int64 link on each face, ordered as nbr (-1: none)
     surface: np.ndarray  # (s,) int64 voxels with at least one exposed face
+    vconst: np.ndarray  # (n, N_VCONST) per-voxel constants
+    link_stiff: np.ndarray  # (m,) E_link / E_ref
+    link_damp: np.ndarray  # (m,) bond damping gamma_link / (2 dt)
     fparams: np.ndarray  # (N_FPARAMS,)
     iparams: np.ndarray  # (N_IPARAMS,)
     removed: int  # voxels dropped as not connected to the largest component
@@ -132,6 +136,9 @@ class Batch(NamedTuple):
     link_axis: np.ndarray
     vlink: np.ndarray  # link indices within the robot (-1: no link on that face)
     surface: np.ndarray  # voxel indices within the robot
+    vconst: np.ndarray  # (N, N_VCONST)
+    link_stiff: np.ndarray  # (M,)
+    link_damp: np.ndarray  # (M,)
     fparams: np.ndarray  # (R, N_FPARAMS)
     iparams: np.ndarray  # (R, N_IPARAMS)
 
@@ -170,16 +177,45 @@ def _lattice(body: np.ndarray):
     return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink
 
 
+def series_modulus(e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
+    """Young's modulus of a link whose halves (length L/2 each) have moduli e1 and e2, springs
+    in series: 2 e1 e2 / (e1 + e2); exactly e1 where e1 == e2."""
+    return np.where(e1 == e2, e1, 2.0 * e1 * e2 / (e1 + e2))
+
+
+def voxel_values(scene: Scene, body: np.ndarray, idx: np.ndarray):
+    """Young's modulus (Pa), density (kg/m^3) and actuation frequency (Hz) of every simulated
+    voxel: the scene's fields where given, its scalars elsewhere."""
+    def values(grid, scalar):
+        return (np.full(len(idx), float(scalar)) if grid is None
+                else grid[tuple(idx.T)].astype(np.float64))
+
+    return (values(scene.youngs_modulus_field, scene.material.youngs_modulus),
+            values(scene.density_field, scene.material.density),
+            values(scene.frequency_field, scene.actuation.frequency))
+
+
 def build_robot(scene: Scene) -> Robot:
-    """Static arrays, parameters and initial momenta of one robot from a validated Scene."""
+    """Static arrays, parameters and initial momenta of one robot from a validated Scene.
+
+    Per voxel i (E_i, rho_i from the fields or the scalars): m_i = rho_i L^3,
+    I_i = m_i L^2 / 6, floor stiffness 2 E_i L, collision and global damping
+    2 zeta sqrt(m_i E_i L) (angular: 2 zeta_global sqrt(I_i E_i L^3)). Per link j between
+    voxels a, b: E_j = 2 E_a E_b / (E_a + E_b) (``series_modulus``), beam constants scaled by
+    E_j / E_ref, bond damping gamma_j = 2 zeta_bond sqrt(m_j / (E_j L)) with
+    m_j = (m_a + m_b) / 2. Step: dt = dt_fraction / (2 pi sqrt(max_j E_j L / min(m_a, m_b)))
+    (``stable_dt`` exactly when every voxel has the same E and rho), capped at
+    1 / (2000 f_max), f_max the highest frequency of an active voxel.
+    """
     body = largest_component(scene.body)
     removed = int((scene.body > 0).sum() - (body > 0).sum())
     idx, lookup, nbr, link_neg, link_pos, link_axis, vlink = _lattice(body)
     n = len(idx)
     L = scene.voxel_size
     mat, env, act = scene.material, scene.environment, scene.actuation
-    E, rho, nu = mat.youngs_modulus, mat.density, mat.poisson_ratio
-    mass = rho * L**3
+    nu = mat.poisson_ratio
+    E_v, rho_v, freq_v = voxel_values(scene, body, idx)
+    mass = rho_v * L**3
     inertia = mass * L**2 / 6.0
     pos = (idx + 0.5) * L + np.array(scene.initial_offset)
 
@@ -195,34 +231,59 @@ def build_robot(scene: Scene) -> Robot:
     com = pos.mean(axis=0)
     omega = np.array(scene.initial_angular_velocity)
     vel = np.array(scene.initial_velocity) + np.cross(omega, pos - com)
-    lin_mom = mass * vel
-    ang_mom = np.tile(inertia * omega, (n, 1))
+    lin_mom = mass[:, None] * vel
+    ang_mom = inertia[:, None] * omega
     fixed = (flags & FLAG_FIXED) > 0
     lin_mom[fixed] = 0.0
     ang_mom[fixed] = 0.0
 
-    dt = stable_dt(L, rho, E, scene.dt_fraction)
-    if act.frequency > 0 and (flags & FLAG_ACTIVE).any():
-        dt = min(dt, 1.0 / (act.frequency * STEPS_PER_CYCLE))
+    E_link = series_modulus(E_v[link_neg], E_v[link_pos])
+    uniform = bool(np.all(E_v == E_v[0]) and np.all(rho_v == rho_v[0]))
+    if uniform:
+        dt = stable_dt(L, float(rho_v[0]), float(E_v[0]), scene.dt_fraction)
+    else:
+        if len(link_neg):
+            rate = np.max(E_link * L / np.minimum(mass[link_neg], mass[link_pos]))
+        else:
+            rate = np.max(E_v * L / mass)
+        dt = scene.dt_fraction / (2.0 * math.pi * math.sqrt(float(rate)))
+    active = (flags & FLAG_ACTIVE) > 0
+    f_active = freq_v[active]
+    f_max = float(f_active.max()) if active.any() else act.frequency
+    if f_max > 0 and active.any():
+        dt = min(dt, 1.0 / (f_max * STEPS_PER_CYCLE))
+    freq_field = bool(active.any() and not np.all(f_active == f_active[0]))
+    f_common = float(f_active[0]) if active.any() else act.frequency
     settle_steps = int(round(scene.settle_seconds / dt))
     steps = settle_steps + int(math.ceil(scene.duration_seconds / dt - 1e-9))
     gravity = env.gravity
-    k_floor = 2.0 * E * L
-    sqrt_mel = math.sqrt(mass * E * L)
-    f = np.zeros(N_FPARAMS)
-    f[[F_L, F_MASS, F_INERTIA]] = L, mass, inertia
-    f[[F_A1, F_A2, F_B1, F_B2, F_B3]] = (
-        E * L, E * L**3 / (12.0 * (1.0 + nu)), E * L, E * L**2 / 2.0, E * L**3 / 6.0)
+    E_ref = float(E_v.max())
+
+    vc = np.zeros((n, N_VCONST))
+    vc[:, V_MASS], vc[:, V_INV_MASS], vc[:, V_INV_INERTIA] = mass, 1.0 / mass, 1.0 / inertia
+    vc[:, V_KFLOOR] = 2.0 * E_v * L
+    sqrt_mel = np.sqrt(mass * E_v * L)
+    vc[:, V_CCOLL] = 2.0 * mat.damping_collision * sqrt_mel
+    vc[:, V_CGLIN] = 2.0 * mat.damping_global * sqrt_mel
+    vc[:, V_CGANG] = 2.0 * mat.damping_global * np.sqrt(inertia * E_v * L**3)
+    vc[:, V_OMEGA] = 2 * math.pi * freq_v
+    vc[:, V_WEIGHT] = mass / mass.max()  # centre-of-mass weights (1.0 for one density)
+    link_stiff = E_link / E_ref
     # Bond damping as stiffness-proportional (Rayleigh) damping: C = gamma K, which gives each
     # beam term the coefficient 2 zeta sqrt(m k) (sqrt(I k) for the rotational ones).
-    f[F_GAMMA] = 2.0 * mat.damping_bond * math.sqrt(mass / (E * L))
-    f[[F_DT, F_GRAVITY, F_KFLOOR]] = dt, gravity, k_floor
-    f[F_CCOLL] = 2.0 * mat.damping_collision * sqrt_mel
-    f[F_CGLIN] = 2.0 * mat.damping_global * sqrt_mel
-    f[F_CGANG] = 2.0 * mat.damping_global * math.sqrt(inertia * E * L**3)
+    m_link = 0.5 * (mass[link_neg] + mass[link_pos])
+    gamma = 2.0 * mat.damping_bond * np.sqrt(m_link / (E_link * L))
+    link_damp = gamma * 0.5 / dt
+
+    f = np.zeros(N_FPARAMS)
+    f[F_L] = L
+    f[[F_A1, F_A2, F_B1, F_B2, F_B3]] = (
+        E_ref * L, E_ref * L**3 / (12.0 * (1.0 + nu)), E_ref * L, E_ref * L**2 / 2.0,
+        E_ref * L**3 / 6.0)
+    f[[F_DT, F_GRAVITY]] = dt, gravity
     f[[F_MUS, F_MUK]] = mat.friction_static, mat.friction_kinetic
     f[F_DRAG] = 0.5 * env.fluid_density * env.drag_coefficient if env.kind == "water" else 0.0
-    f[[F_OMEGA, F_AMP, F_SETTLE]] = 2 * math.pi * act.frequency, act.amplitude, scene.settle_seconds
+    f[[F_OMEGA, F_AMP, F_SETTLE]] = 2 * math.pi * f_common, act.amplitude, scene.settle_seconds
 
     i = np.zeros(N_IPARAMS, dtype=np.int64)
     i[I_STEPS], i[I_SETTLE_STEPS] = steps, settle_steps
@@ -231,10 +292,12 @@ def build_robot(scene: Scene) -> Robot:
     i[I_COLLIDE] = int(scene.self_collisions)
     i[I_COM_EVERY] = max(1, (steps - settle_steps) // COM_SAMPLES)
     i[I_N_FRAMES] = (steps // scene.record_every + 1) if scene.record_every > 0 else 0
+    i[I_FREQ_FIELD] = int(freq_field)
 
     surface = np.flatnonzero((nbr < 0).any(axis=1)).astype(np.int64)
     return Robot(idx, pos, flags, scene.phase[tuple(idx.T)].astype(np.float64), ext, lin_mom,
-                 ang_mom, nbr, link_neg, link_pos, link_axis, vlink, surface, f, i, removed)
+                 ang_mom, nbr, link_neg, link_pos, link_axis, vlink, surface, vc, link_stiff,
+                 link_damp, f, i, removed)
 
 
 def _offsets(counts) -> np.ndarray:
@@ -260,6 +323,9 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         link_axis=np.concatenate([r.link_axis for r in robots]),
         vlink=np.concatenate([r.vlink for r in robots]),
         surface=np.concatenate([r.surface for r in robots]),
+        vconst=np.concatenate([r.vconst for r in robots]),
+        link_stiff=np.concatenate([r.link_stiff for r in robots]),
+        link_damp=np.concatenate([r.link_damp for r in robots]),
         fparams=np.stack([r.fparams for r in robots]),
         iparams=np.stack([r.iparams for r in robots]),
     )

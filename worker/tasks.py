@@ -31,6 +31,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -44,10 +45,20 @@ MAX_FRAMES = 2000  # frames a replay keeps at most when ``max_frames`` is given
 
 def encoding_of(settings: Mapping[str, Any]):
     """The ``EncodingConfig`` of a treatment's runs from its settings
-    (``service.treatments.Treatment.to_settings()``: only ``workspace`` matters)."""
+    (``service.treatments.Treatment.to_settings()``): ``workspace``, ``evolve_stiffness``,
+    ``frequency_per_voxel`` and ``stiffness_range_mpa`` (MPa; the encoding takes Pa). Settings
+    without the last three (stored before they existed) give the defaults: both off."""
     from softevo.evolution.genotype import EncodingConfig
 
-    return EncodingConfig(workspace=tuple(int(n) for n in settings["workspace"]))
+    config = EncodingConfig(
+        workspace=tuple(int(n) for n in settings["workspace"]),
+        evolve_stiffness=bool(settings.get("evolve_stiffness", False)),
+        frequency_per_voxel=bool(settings.get("frequency_per_voxel", False)),
+    )
+    if "stiffness_range_mpa" in settings and config.evolve_stiffness:
+        low, high = (float(x) * 1e6 for x in settings["stiffness_range_mpa"])
+        config = dataclasses.replace(config, stiffness_range=(low, high))
+    return config
 
 
 @dataclass(frozen=True)

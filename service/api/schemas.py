@@ -58,6 +58,15 @@ class TreatmentIn(Strict):
     repetitions: int = Field(1, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
     algorithm: Literal["afpo", "pareto"] = "afpo"
+    evolve_stiffness: bool = Field(
+        Treatment.evolve_stiffness,
+        description="evolve a Young's modulus per voxel within stiffness_range_mpa "
+        "(stiffness_mpa is then unused by the physics)")
+    frequency_per_voxel: bool = Field(
+        Treatment.frequency_per_voxel, description="each voxel actuates at its own frequency")
+    stiffness_range_mpa: list[Annotated[float, Field(ge=0.001, le=10.0, allow_inf_nan=False)]] = Field(
+        list(Treatment.stiffness_range_mpa), min_length=2, max_length=2,
+        description="[low, high] MPa of an evolved stiffness (default the paper's S1..S5)")
 
 
 class ExperimentIn(Strict):

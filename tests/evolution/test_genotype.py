@@ -123,3 +123,15 @@ def test_stiffness_and_frequency_field_options():
     assert np.allclose(p.frequency_field[:, 0, 0], [1.0, 3.0, 5.0], atol=1e-6)
     assert p.frequency == pytest.approx(3.0)  # mean output 0 -> middle of the range
     assert develop(g, EncodingConfig(workspace=(3, 1, 1))).stiffness is None
+    # both fields enter the scene, which the simulator accepts; without the options, neither
+    scene = p.to_scene("water", 1e5, 4)
+    assert np.array_equal(scene["youngs_modulus_field"], p.stiffness)
+    assert np.array_equal(scene["frequency_field"], p.frequency_field)
+    from softevo.sim import parse_scene
+
+    parsed = parse_scene(scene)
+    active = p.body == 2
+    if active.any():
+        assert parsed.duration_seconds == pytest.approx(4 / p.frequency_field[active].mean())
+    plain = develop(g, EncodingConfig(workspace=(3, 1, 1))).to_scene("water", 1e5)
+    assert "youngs_modulus_field" not in plain and "frequency_field" not in plain

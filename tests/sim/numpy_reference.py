@@ -2,6 +2,12 @@
 
 Written from PHYSICS.md directly, one link and one voxel at a time with SciPy rotations and
 3x3 matrices, no series expansions and no fused arithmetic. Only for small test cases.
+
+Materials per voxel: the reference takes each voxel's E_i and rho_i (``voxel_materials``) and
+derives every constant itself, link by link and voxel by voxel: a link's modulus
+2 E_a E_b / (E_a + E_b), its beam constants from that modulus, its bond damping
+2 zeta sqrt(m_link / (E_link L)) with m_link the mean mass of its two voxels; each voxel's mass
+rho_i L^3, inertia m L^2 / 6, floor stiffness 2 E_i L and damping 2 zeta sqrt(m_i E_i L).
 """
 
 from __future__ import annotations
@@ -26,14 +32,30 @@ def wxyz(r: Rotation) -> np.ndarray:
     return np.array([w, x, y, z])
 
 
-def link_forces(batch, pos, quat, size, small, prev, prev_valid, fp):
+def voxel_materials(scene, batch):
+    """(E, rho) of every simulated voxel of a one-robot batch, from the scene itself."""
+    E = np.full(len(batch.flags), scene.material.youngs_modulus)
+    rho = np.full(len(batch.flags), scene.material.density)
+    idx = np.argwhere(S.largest_component(scene.body) > 0)
+    if scene.youngs_modulus_field is not None:
+        E = scene.youngs_modulus_field[tuple(idx.T)]
+    if scene.density_field is not None:
+        rho = scene.density_field[tuple(idx.T)]
+    return E, rho
+
+
+def link_forces(batch, pos, quat, size, small, prev, prev_valid, fp, mats, scene):
     """Forces and moments of every link (mutates small/prev/prev_valid like the kernel)."""
     n = len(pos)
     force, moment = np.zeros((n, 3)), np.zeros((n, 3))
-    a1, a2, b1, b2, b3 = (fp[k] for k in (S.F_A1, S.F_A2, S.F_B1, S.F_B2, S.F_B3))
-    damp = fp[S.F_GAMMA] * 0.5 / fp[S.F_DT]
+    E_v, rho_v = mats
     L = fp[S.F_L]
+    nu, zeta = scene.material.poisson_ratio, scene.material.damping_bond
     for l, (i, j, ax) in enumerate(zip(batch.link_neg, batch.link_pos, batch.link_axis, strict=True)):
+        E = 2 * E_v[i] * E_v[j] / (E_v[i] + E_v[j])
+        a1, a2, b1, b2, b3 = E * L, E * L**3 / (12 * (1 + nu)), E * L, E * L**2 / 2, E * L**3 / 6
+        m_link = 0.5 * (rho_v[i] + rho_v[j]) * L**3
+        damp = 2 * zeta * np.sqrt(m_link / (E * L)) * 0.5 / fp[S.F_DT]
         P = AXIS_TO_X[ax]
         Ri = rot(quat[i]).as_matrix()
         r = P @ Ri.T @ (pos[j] - pos[i])  # link frame, negative voxel's orientation
@@ -72,18 +94,21 @@ def link_forces(batch, pos, quat, size, small, prev, prev_valid, fp):
     return force, moment
 
 
-def step(batch, state, size, static, small, prev, prev_valid, fp, env):
+def step(batch, state, size, static, small, prev, prev_valid, fp, env, mats, scene):
     """One full step (links, world forces, semi-implicit Euler) without self-collisions."""
     pos, quat, lin, ang = state
-    force, moment = link_forces(batch, pos, quat, size, small, prev, prev_valid, fp)
-    m, inertia, dt, g = fp[S.F_MASS], fp[S.F_INERTIA], fp[S.F_DT], fp[S.F_GRAVITY]
+    force, moment = link_forces(batch, pos, quat, size, small, prev, prev_valid, fp, mats, scene)
+    dt, g, L = fp[S.F_DT], fp[S.F_GRAVITY], fp[S.F_L]
+    zg, zc = scene.material.damping_global, scene.material.damping_collision
     for v in range(len(pos)):
         if batch.flags[v] & S.FLAG_FIXED:
             lin[v], ang[v] = 0.0, 0.0
             continue
+        E, m = mats[0][v], mats[1][v] * L**3
+        inertia = m * L**2 / 6
         vel = lin[v] / m
-        f = force[v] + batch.ext_force[v] - fp[S.F_CGLIN] * vel - [0, 0, m * g]
-        mom = moment[v] - fp[S.F_CGANG] * ang[v] / inertia
+        f = force[v] + batch.ext_force[v] - 2 * zg * np.sqrt(m * E * L) * vel - [0, 0, m * g]
+        mom = moment[v] - 2 * zg * np.sqrt(inertia * E * L**3) * ang[v] / inertia
         R = rot(quat[v]).as_matrix()
         if env == 1:  # water drag on exposed faces moving outward
             for a in range(3):
@@ -98,8 +123,8 @@ def step(batch, state, size, static, small, prev, prev_valid, fp, env):
             pen = 0.5 * size[v] - pos[v, 2]
             if pen >= 0:
                 contact = True
-                normal = fp[S.F_KFLOOR] * pen
-                f[2] += normal - fp[S.F_CCOLL] * vel[2]
+                normal = 2 * E * L * pen
+                f[2] += normal - 2 * zc * np.sqrt(m * E * L) * vel[2]
                 if static[v] and f[0] ** 2 + f[1] ** 2 > (fp[S.F_MUS] * normal) ** 2:
                     static[v] = False
                 elif not static[v]:

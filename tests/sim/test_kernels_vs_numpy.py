@@ -13,15 +13,22 @@ from tests.sim import numpy_reference as ref
 ENVS = {"land": 0, "water": 1, "void": 2}
 
 
-def _robot(env: str, seed: int, shape=(3, 2, 2), **extra):
+def _robot(env: str, seed: int, shape=(3, 2, 2), mixed: bool = False, **extra):
+    """A random robot; ``mixed``: random per-voxel Young's modulus (1e4..1e6 Pa) and density
+    (600..2400 kg/m^3) fields. Returns the batch, its state, the rng, the materials of its
+    voxels (E, rho) and the parsed scene."""
     rng = np.random.default_rng(seed)
     body = rng.choice([1, 2], size=shape)
     scene = {"body": body.tolist(), "phase": rng.uniform(0, 6.28, shape).tolist(),
              "environment": {"kind": env}, "material": {"youngs_modulus": 1e5},
              "self_collisions": False, "duration": {"seconds": 0.01}, **extra}
-    robot = system.build_robot(sim.parse_scene(scene))
+    if mixed:
+        scene["youngs_modulus_field"] = (10 ** rng.uniform(4, 6, shape)).tolist()
+        scene["density_field"] = rng.uniform(600, 2400, shape).tolist()
+    parsed = sim.parse_scene(scene)
+    robot = system.build_robot(parsed)
     batch, state = system.pack([robot])
-    return batch, state, rng
+    return batch, state, rng, ref.voxel_materials(parsed, batch), parsed
 
 
 def _perturb(state, rng, angle: float, shift: float, speed: float):
@@ -44,8 +51,9 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
     The sums are also checked against a NumPy scatter of the per-link forces."""
     m, n = len(batch.link_neg), len(pos)
     link_in, link_state, link_out = work[-3:]
-    bad = kernels.link_kernel(p, batch.link_neg, batch.link_pos, batch.link_axis, pos, quat,
-                              size, link_in, link_state, link_out)
+    bad = kernels.link_kernel(p, batch.link_neg, batch.link_pos, batch.link_axis,
+                              batch.link_stiff, batch.link_damp, pos, quat, size, link_in,
+                              link_state, link_out)
     kernels.link_sums(batch.vlink, link_out, force, moment)
     out = link_out.reshape(9, m)
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
@@ -65,10 +73,12 @@ def _link_state(work, m):
     return state[9] >= 0, state[:9], state[9] != 0
 
 
+@pytest.mark.parametrize("mixed", [False, True], ids=["one_material", "mixed_field"])
 @pytest.mark.parametrize("angle,shift", [(0.01, 0.01), (0.4, 0.3), (1.2, 0.5)])
-def test_link_forces_match_numpy(angle, shift):
-    """Small-angle and large-angle link frames, with bond damping from a previous state."""
-    batch, state, rng = _robot("void", seed=3)
+def test_link_forces_match_numpy(angle, shift, mixed):
+    """Small-angle and large-angle link frames, with bond damping from a previous state;
+    one material and a random per-voxel material field."""
+    batch, state, rng, mats, scene = _robot("void", seed=3, mixed=mixed)
     _perturb(state, rng, angle, shift, 0.0)
     n = len(state.pos)
     work = _work(batch, n)
@@ -82,7 +92,7 @@ def test_link_forces_match_numpy(angle, shift):
         bad = _link_forces(batch, p, state.pos, state.quat, size, work, force, moment)
         assert bad == 0
         f_ref, m_ref = ref.link_forces(batch, state.pos, state.quat, size, small_ref, prev_ref,
-                                       valid_ref, fp)
+                                       valid_ref, fp, mats, scene)
         scale = np.abs(f_ref).max()
         small = _link_state(work, m)[0]
         np.testing.assert_array_equal(small, small_ref)
@@ -95,10 +105,13 @@ def test_link_forces_match_numpy(angle, shift):
         assert not small.all(), "large deformations must use the large-angle frame"
 
 
+@pytest.mark.parametrize("mixed", [False, True], ids=["one_material", "mixed_field"])
 @pytest.mark.parametrize("env", ["land", "water", "void"])
-def test_trajectory_matches_numpy(env):
-    """Whole steps: links, gravity, floor, friction, drag, integration, actuation off."""
-    batch, state, rng = _robot(env, seed=7, initial_velocity=[0.05, -0.02, 0.0])
+def test_trajectory_matches_numpy(env, mixed):
+    """Whole steps: links, gravity, floor, friction, drag, integration, actuation off; one
+    material and a random per-voxel material field."""
+    batch, state, rng, mats, scene = _robot(env, seed=7, mixed=mixed,
+                                            initial_velocity=[0.05, -0.02, 0.0])
     _perturb(state, rng, 0.05, 0.02, 2e-4)
     if env == "land":
         state.pos[:, 2] -= 0.002  # press into the floor so contact and friction act
@@ -116,7 +129,8 @@ def test_trajectory_matches_numpy(env):
         kernels.world_forces(p, voxels, mine, work)
         kernels.floor_contact(p, voxels, mine, work)
         kernels.integrate(p, voxels, mine, work)
-        ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env])
+        ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env],
+                 mats, scene)
     np.testing.assert_array_equal(static, static_ref)
     np.testing.assert_allclose(mine.pos, theirs[0], atol=1e-10)
     np.testing.assert_allclose(mine.quat, theirs[1], atol=1e-8)
@@ -125,15 +139,17 @@ def test_trajectory_matches_numpy(env):
 
 @pytest.mark.parametrize("wave", ["sine", "square", "impulse"])
 def test_actuation_matches_numpy(wave):
-    batch, _state, rng = _robot("void", seed=1, actuation={"waveform": wave, "amplitude": 0.3})
+    batch, _state, rng, _mats, _scene = _robot("void", seed=1,
+                                               actuation={"waveform": wave, "amplitude": 0.3})
     n = len(batch.flags)
     size = np.zeros(n)
     fp = batch.fparams[0]
     p = kernels.params(fp, batch.iparams[0])
     assert p.wave == system.WAVE_CODES[wave]
+    assert p.freq_field == 0
     for t in rng.uniform(0, 2, 5):
         kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
-                               batch.phase, size)
+                               batch.phase, batch.vconst, size)
         angle = fp[system.F_OMEGA] * t + batch.phase
         if wave == "sine":
             w = np.sin(angle)
@@ -146,7 +162,7 @@ def test_actuation_matches_numpy(wave):
         expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
         np.testing.assert_allclose(size, expected, rtol=1e-12)
     kernels.actuate_kernel(-0.1, p, batch.flags, batch.cos_phase, batch.sin_phase,
-                           batch.phase, size)
+                           batch.phase, batch.vconst, size)
     assert np.all(size == 0.05), "no actuation while settling"
 
 
@@ -155,7 +171,6 @@ def test_collision_pairs_and_forces_match_brute_force():
     rng = np.random.default_rng(5)
     body = np.ones((4, 4, 4), int)
     body[1:3, 1:3, 1:] = 0  # a cup: inner walls can touch
-    batch, state, _ = _robot("void", seed=2, shape=(4, 4, 4))
     robot = system.build_robot(sim.parse_scene({"body": body.tolist()}))
     batch, state = system.pack([robot])
     state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
@@ -174,8 +189,7 @@ def test_collision_pairs_and_forces_match_brute_force():
                 want.add(tuple(sorted((i, j))))
     assert got == want and len(want) > 0
     force[:] = 0.0
-    kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size,
-                             kernels.params(batch.fparams[0], batch.iparams[0]), force)
+    kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12)
     touching = [(i, j) for i, j in want
                 if np.linalg.norm(state.pos[i] - state.pos[j]) < 0.05]
@@ -198,3 +212,55 @@ def test_rotation_vector_matches_scipy():
         if angle > np.pi - 1e-6:  # a half turn: +/- the same axis
             want = want if got @ want > 0 else -want
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("wave", ["sine", "square", "impulse"])
+def test_actuation_with_frequency_field_matches_numpy(wave):
+    """Per-voxel frequencies: every active voxel follows w(2 pi f_i t + phase_i)."""
+    shape = (3, 2, 2)
+    rng = np.random.default_rng(4)
+    freq = rng.uniform(0.5, 8.0, shape)
+    _batch, _state, _rng, _mats, scene = _robot(
+        "void", seed=1, actuation={"waveform": wave, "amplitude": 0.3},
+        frequency_field=freq.tolist())
+    batch = _batch
+    n = len(batch.flags)
+    size = np.zeros(n)
+    p = kernels.params(batch.fparams[0], batch.iparams[0])
+    assert p.freq_field == 1
+    f_v = freq[tuple(np.argwhere(scene.body > 0).T)]
+    for t in rng.uniform(0, 2, 5):
+        kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                               batch.phase, batch.vconst, size)
+        angle = 2 * np.pi * f_v * t + batch.phase
+        if wave == "sine":
+            w = np.sin(angle)
+        elif wave == "square":
+            w = np.tanh(8 * np.sin(angle)) / np.tanh(8)
+        else:
+            u = np.mod(angle / (2 * np.pi), 1.0)
+            w = np.where(u < 0.2, np.cos(np.pi * u / 0.2), -np.cos(np.pi * (u - 0.2) / 0.8))
+        active = (batch.flags & system.FLAG_ACTIVE) > 0
+        expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
+        np.testing.assert_allclose(size, expected, rtol=1e-12)
+
+
+def test_mixed_collision_forces_are_equal_and_opposite():
+    """Self-contact between voxels of different materials still conserves momentum."""
+    rng = np.random.default_rng(6)
+    body = np.ones((4, 4, 4), int)
+    body[1:3, 1:3, 1:] = 0
+    scene = sim.parse_scene({"body": body.tolist(),
+                             "youngs_modulus_field": (10 ** rng.uniform(4, 6, (4, 4, 4))).tolist(),
+                             "density_field": rng.uniform(600, 2400, (4, 4, 4)).tolist()})
+    batch, state = system.pack([system.build_robot(scene)])
+    state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
+    state.lin_mom[:] = rng.normal(0, 1e-3, state.lin_mom.shape)
+    n = len(state.pos)
+    size, force, _m, _s, pairs = _work(batch, n)[:5]
+    size[:] = 0.05
+    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, 0.06, pairs)
+    force[:] = 0.0
+    kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
+    assert np.abs(force).max() > 0
+    np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12 * np.abs(force).max())

@@ -58,6 +58,9 @@ def _treatments(body: ExperimentIn):
             repetitions=t.repetitions,
             seed=t.seed,
             algorithm=t.algorithm,
+            evolve_stiffness=t.evolve_stiffness,
+            frequency_per_voxel=t.frequency_per_voxel,
+            stiffness_range_mpa=tuple(t.stiffness_range_mpa),
         )
         for t in body.treatments
     ]
