@@ -304,30 +304,27 @@ def _offsets(counts) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
 
 
+CONCATENATED = (  # Batch fields that are the robots' arrays one after another
+    "flags", "ext_force", "nbr", "link_neg", "link_pos", "link_axis", "vlink", "surface",
+    "vconst", "link_stiff", "link_damp",
+)
+
+
 def pack(robots: list[Robot]) -> tuple[Batch, State]:
     """Concatenate robots into one Batch and its initial State."""
     voff = _offsets([len(r.pos) for r in robots])
+    phase = np.concatenate([r.phase for r in robots])
     batch = Batch(
         voff=voff,
         loff=_offsets([len(r.link_neg) for r in robots]),
         soff=_offsets([len(r.surface) for r in robots]),
         poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
-        flags=np.concatenate([r.flags for r in robots]),
-        cos_phase=np.concatenate([np.cos(r.phase) for r in robots]),
-        sin_phase=np.concatenate([np.sin(r.phase) for r in robots]),
-        phase=np.concatenate([r.phase for r in robots]),
-        ext_force=np.concatenate([r.ext_force for r in robots]),
-        nbr=np.concatenate([r.nbr for r in robots]),
-        link_neg=np.concatenate([r.link_neg for r in robots]),
-        link_pos=np.concatenate([r.link_pos for r in robots]),
-        link_axis=np.concatenate([r.link_axis for r in robots]),
-        vlink=np.concatenate([r.vlink for r in robots]),
-        surface=np.concatenate([r.surface for r in robots]),
-        vconst=np.concatenate([r.vconst for r in robots]),
-        link_stiff=np.concatenate([r.link_stiff for r in robots]),
-        link_damp=np.concatenate([r.link_damp for r in robots]),
+        cos_phase=np.cos(phase),
+        sin_phase=np.sin(phase),
+        phase=phase,
         fparams=np.stack([r.fparams for r in robots]),
         iparams=np.stack([r.iparams for r in robots]),
+        **{name: np.concatenate([getattr(r, name) for r in robots]) for name in CONCATENATED},
     )
     n = int(voff[-1])
     quat = np.zeros((n, 4))

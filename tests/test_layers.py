@@ -110,3 +110,12 @@ def test_the_check_sees_upward_and_private_imports(tmp_path, monkeypatch):
         "analysis imports service (softevo.service.db)",
         "imports the private softevo.evolution.stats._private",
     ]
+
+
+def test_one_import_name_is_installed():
+    import tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert {package.split(".")[0] for package in config["packages"]} == {"softevo"}
+    assert {name.split(".")[0] for name in config["package-dir"]} == {"softevo"}
+    assert {f"softevo.{package}" for package in ALLOWED} <= set(config["packages"])

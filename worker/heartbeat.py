@@ -16,7 +16,7 @@ marks the worker's executions expired at once and exits. The coordinator's perio
 ``StartedJobRegistry.cleanup()`` then re-queues the job (RQ's ``Retry``). If the whole
 machine goes, the entries expire ``ttl`` seconds after the last beat.
 
-    SOFTEVO_HEARTBEAT_REDIS=redis://... python -m worker.heartbeat QUEUE TTL_SECONDS
+    SOFTEVO_HEARTBEAT_REDIS=redis://... python -m softevo.worker.heartbeat QUEUE TTL_SECONDS
 
 (the URL travels in the environment, not on the command line where ``ps`` shows it).
 """

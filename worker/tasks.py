@@ -188,18 +188,7 @@ class Result:
         return self.stable and self.error is None
 
     def to_json(self) -> dict[str, Any]:
-        return {
-            "id": self.id,
-            "distance": self.distance,
-            "stable": self.stable,
-            "error": self.error,
-            "voxel_count": self.voxel_count,
-            "active_share": self.active_share,
-            "frequency": self.frequency,
-            "descriptors": self.descriptors,
-            "phenotype": self.phenotype,
-            "seconds": self.seconds,
-        }
+        return {key: getattr(self, key) for key in self.__dataclass_fields__}  # in field order
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Result:

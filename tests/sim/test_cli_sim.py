@@ -32,7 +32,7 @@ TINY = {
 def softevo(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     """Run the installed console command, as a user does (slow: a fresh interpreter)."""
     exe = shutil.which("softevo")
-    cmd = [exe] if exe else [sys.executable, "-c", "from service.cli import main; main()"]
+    cmd = [exe] if exe else [sys.executable, "-c", "from softevo.service.cli import main; main()"]
     return subprocess.run([*cmd, *args], capture_output=True, text=True, timeout=300, cwd=cwd)
 
 

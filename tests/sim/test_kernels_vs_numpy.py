@@ -137,6 +137,19 @@ def test_trajectory_matches_numpy(env, mixed):
     np.testing.assert_allclose(mine.lin_mom, theirs[2], atol=1e-9 * np.abs(theirs[2]).max())
 
 
+def expected_sizes(wave: str, angle: np.ndarray, flags: np.ndarray) -> np.ndarray:
+    """Voxel sizes of the actuation test's robot (L 0.05, amplitude 0.3) at phase ``angle``."""
+    if wave == "sine":
+        w = np.sin(angle)
+    elif wave == "square":
+        w = np.tanh(8 * np.sin(angle)) / np.tanh(8)
+    else:
+        u = np.mod(angle / (2 * np.pi), 1.0)
+        w = np.where(u < 0.2, np.cos(np.pi * u / 0.2), -np.cos(np.pi * (u - 0.2) / 0.8))
+    active = (flags & system.FLAG_ACTIVE) > 0
+    return np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
+
+
 @pytest.mark.parametrize("wave", ["sine", "square", "impulse"])
 def test_actuation_matches_numpy(wave):
     batch, _state, rng, _mats, _scene = _robot("void", seed=1,
@@ -151,16 +164,7 @@ def test_actuation_matches_numpy(wave):
         kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
                                batch.phase, batch.vconst, size)
         angle = fp[system.F_OMEGA] * t + batch.phase
-        if wave == "sine":
-            w = np.sin(angle)
-        elif wave == "square":
-            w = np.tanh(8 * np.sin(angle)) / np.tanh(8)
-        else:
-            u = np.mod(angle / (2 * np.pi), 1.0)
-            w = np.where(u < 0.2, np.cos(np.pi * u / 0.2), -np.cos(np.pi * (u - 0.2) / 0.8))
-        active = (batch.flags & system.FLAG_ACTIVE) > 0
-        expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
-        np.testing.assert_allclose(size, expected, rtol=1e-12)
+        np.testing.assert_allclose(size, expected_sizes(wave, angle, batch.flags), rtol=1e-12)
     kernels.actuate_kernel(-0.1, p, batch.flags, batch.cos_phase, batch.sin_phase,
                            batch.phase, batch.vconst, size)
     assert np.all(size == 0.05), "no actuation while settling"
@@ -233,16 +237,7 @@ def test_actuation_with_frequency_field_matches_numpy(wave):
         kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
                                batch.phase, batch.vconst, size)
         angle = 2 * np.pi * f_v * t + batch.phase
-        if wave == "sine":
-            w = np.sin(angle)
-        elif wave == "square":
-            w = np.tanh(8 * np.sin(angle)) / np.tanh(8)
-        else:
-            u = np.mod(angle / (2 * np.pi), 1.0)
-            w = np.where(u < 0.2, np.cos(np.pi * u / 0.2), -np.cos(np.pi * (u - 0.2) / 0.8))
-        active = (batch.flags & system.FLAG_ACTIVE) > 0
-        expected = np.where(active, 0.05 * (1 + 0.3 * w), 0.05)
-        np.testing.assert_allclose(size, expected, rtol=1e-12)
+        np.testing.assert_allclose(size, expected_sizes(wave, angle, batch.flags), rtol=1e-12)
 
 
 def test_mixed_collision_forces_are_equal_and_opposite():
