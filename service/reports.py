@@ -15,10 +15,9 @@ from sqlalchemy import Connection, Engine
 from softevo.analysis import motion, robots
 from softevo.analysis import report as analysis_report
 from softevo.analysis.report import Report, Robots
-from softevo.errors import UserError
 from softevo.service.db import open_database
 from softevo.service.db.experiments import load_experiment, resolve_experiment
-from softevo.service.db.individuals import individual_record
+from softevo.service.db.individuals import individual_record, stored_genomes
 
 
 def engine_of(source: str | Engine | Connection | Any | None) -> Engine:
@@ -41,15 +40,9 @@ def stored_robots(engine: Engine) -> Robots:
     ``analysis.robots`` / ``analysis.motion``."""
 
     def phenotypes(individual_ids):
-        found = {}
-        for individual_id in sorted({int(i) for i in individual_ids}):
-            try:
-                record = individual_record(engine, individual_id)
-            except UserError:  # unknown ids are left out
-                continue
-            genome, treatment, seed = record["genome"], record["treatment"], record["seed"]
-            found[individual_id] = robots.develop_genome(genome, treatment, seed)
-        return found
+        with engine.connect() as conn:
+            stored = stored_genomes(conn, individual_ids)
+        return {i: robots.develop_genome(*stored[i]) for i in stored}
 
     def scene(individual_id: int, environment: str | None = None, **extra: Any):
         return robots.record_scene(individual_record(engine, individual_id), environment, **extra)

@@ -127,6 +127,25 @@ def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
     }
 
 
+def stored_genomes(conn: Connection, individual_ids: Iterable[int]) -> dict[int, tuple[dict, Settings, int]]:
+    """(genome, treatment, seed) of many stored individuals in one query; unknown ids are
+    left out."""
+    ids = sorted({int(i) for i in individual_ids})
+    if not ids:
+        return {}
+    individuals, runs, treatments = Individual.__table__, Run.__table__, Treatment.__table__
+    query = (
+        select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
+        .join(runs, individuals.c.run_id == runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(individuals.c.id.in_(ids))
+    )
+    return {
+        int(i): (genome, Settings.from_settings(settings), int(seed))
+        for i, genome, settings, seed in conn.execute(query)
+    }
+
+
 def evaluation_frame(conn: Connection, individual_id: int) -> pd.DataFrame:
     """An individual's evaluations as a DataFrame, oldest first."""
     table = Evaluation.__table__

@@ -81,3 +81,13 @@ def line(n: int, axis: int = 0) -> list:
     shape = [1, 1, 1]
     shape[axis] = n
     return np.ones(shape, dtype=int).tolist()
+
+
+def period_of(t: np.ndarray, signal: np.ndarray, crossings: int) -> float:
+    """Mean period from the upward crossings of ``signal``'s mid-range (linear
+    interpolation); asserts at least ``crossings`` of them."""
+    s = signal - 0.5 * (signal.max() + signal.min())
+    up = np.nonzero((s[:-1] < 0) & (s[1:] >= 0))[0]
+    times = t[up] - s[up] * (t[up + 1] - t[up]) / (s[up + 1] - s[up])
+    assert len(times) >= crossings
+    return float(np.diff(times).mean())

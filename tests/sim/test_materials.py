@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from softevo import sim
-from tests.sim._support import com_trajectory, frames, line, report, simulate, voxel_index
+from tests.sim._support import com_trajectory, frames, line, period_of, report, simulate, voxel_index
 
 L_BAR, RHO_BAR, N_BAR = 0.01, 1000.0, 10
 E_STIFF, E_SOFT = 1e7, 2.5e6
@@ -123,15 +123,6 @@ def test_cantilever_of_two_materials_matches_euler_bernoulli_with_per_link_ei():
     np.testing.assert_allclose(got, expected, rtol=0, atol=0.015 * expected[-1])
 
 
-def _period(t: np.ndarray, signal: np.ndarray) -> float:
-    """Mean period from upward zero crossings of signal - mid-range (linear interpolation)."""
-    s = signal - 0.5 * (signal.max() + signal.min())
-    up = np.nonzero((s[:-1] < 0) & (s[1:] >= 0))[0]
-    crossings = t[up] - s[up] * (t[up + 1] - t[up]) / (s[up + 1] - s[up])
-    assert len(crossings) >= 5
-    return float(np.diff(crossings).mean())
-
-
 def test_two_mass_oscillator_with_combined_link():
     """Two free voxels of different moduli and densities, force F on the second, no damping.
 
@@ -167,7 +158,7 @@ def test_two_mass_oscillator_with_combined_link():
     index = voxel_index(result)
     a, b = pos[:, index[(0, 0, 0)]], pos[:, index[(1, 0, 0)]]
     stretch = (b[:, 0] - a[:, 0]) - L
-    got_period = _period(t, stretch)
+    got_period = period_of(t, stretch, crossings=5)
     u_star = force * m_a / (k * (m_a + m_b))
     amp = np.ptp(stretch)
     report("materials.two_mass_oscillator", period_expected_s=period, period_got_s=got_period,
@@ -210,7 +201,7 @@ def test_each_active_voxel_follows_its_own_frequency():
     figures = {"seconds_expected": expected_seconds, "seconds_got": result.simulated_seconds}
     for gap, f, name in zip(gaps, (f1, f2), ("f1", "f2"), strict=True):
         late = t > 0.25  # skip the start-up transient
-        got = _period(t[late], gap[late])
+        got = period_of(t[late], gap[late], crossings=5)
         figures[f"{name}_period_expected_s"] = 1 / f
         figures[f"{name}_period_got_s"] = got
         figures[f"{name}_ptp_ratio"] = np.ptp(gap[late]) / (amp * L)

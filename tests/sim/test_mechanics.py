@@ -17,6 +17,7 @@ from tests.sim._support import (
     com_trajectory,
     frames,
     line,
+    period_of,
     report,
     simulate,
     voxel_index,
@@ -240,15 +241,6 @@ def _oscillator(fixed: bool, seconds: float):
     return t, a, b, stretch, force, E * L, rho * L**3, result
 
 
-def _period(t: np.ndarray, signal: np.ndarray) -> float:
-    """Mean period from upward zero crossings of signal - mean (linear interpolation)."""
-    s = signal - 0.5 * (signal.max() + signal.min())
-    up = np.nonzero((s[:-1] < 0) & (s[1:] >= 0))[0]
-    crossings = t[up] - s[up] * (t[up + 1] - t[up]) / (s[up + 1] - s[up])
-    assert len(crossings) >= 10
-    return float(np.diff(crossings).mean())
-
-
 def _check_undamped(t, stretch, static, period_expected, name):
     """Period, amplitude and its constancy (energy conservation) of u = static (1 - cos wt).
 
@@ -257,7 +249,7 @@ def _check_undamped(t, stretch, static, period_expected, name):
     amplitude. With damping off the amplitude must not decay: first and last five periods
     agree within 0.5% (any physical damping of even zeta = 0.001 loses ~15% over 50 periods).
     """
-    period = _period(t, stretch)
+    period = period_of(t, stretch, crossings=10)
     first = t < t[0] + 5 * period_expected
     last = t > t[-1] - 5 * period_expected
     amp_first = np.ptp(stretch[first])
