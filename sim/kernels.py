@@ -347,7 +347,9 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
     I6, I7, I8, I9, I10, I11 = U(6 * m), U(7 * m), U(8 * m), U(9 * m), U(10 * m), U(11 * m)
     S0, S1, S2, S3, S4 = I0, I1, I2, I3, I4  # the same row offsets, other buffers
     S5, S6, S7, S8, S9 = I5, I6, I7, I8, I9
-    O0, O1, O2, O3, O4, O5, O6, O7, O8 = I0, I1, I2, I3, I4, I5, I6, I7, I8
+    M = U(m + 1)  # link_out's rows end in a zero (read by link_sums for a missing link)
+    O0, O1, O2, O3, O4 = I0, M, U(2) * M, U(3) * M, U(4) * M
+    O5, O6, O7, O8 = U(5) * M, U(6) * M, U(7) * M, U(8) * M
     for j in range(m):  # gather: the one loop with indirect access
         J = U(j)
         i = link_neg[j]
@@ -460,30 +462,24 @@ def link_sums(vlink, link_out, force, moment):
     """Force and moment on every voxel from its links (overwrites ``force``/``moment``).
 
     ``vlink[v, 2a + 1]`` is the link on v's +a face (v its negative end), ``vlink[v, 2a]`` the
-    one on its -a face (v its positive end); -1 where there is none.
+    one on its -a face (v its positive end); a face without a link holds m, the index of the
+    zero that ends every row of ``link_out`` (rows of m + 1), so every voxel sums six entries
+    per row without a branch.
     """
-    m = len(link_out) // LINK_OUT_ROWS
+    U = np.uint64
+    ms = U(len(link_out) // LINK_OUT_ROWS)
+    R1, R2, R3, R4 = ms, U(2) * ms, U(3) * ms, U(4) * ms
+    R5, R6, R7, R8 = U(5) * ms, U(6) * ms, U(7) * ms, U(8) * ms
+    o = link_out
     for v in range(len(vlink)):
-        fx = fy = fz = mx = my = mz = 0.0
-        for a in range(3):
-            p = vlink[v, 2 * a + 1]
-            n = vlink[v, 2 * a]
-            if p >= 0:
-                fx += link_out[p]
-                fy += link_out[p + m]
-                fz += link_out[p + 2 * m]
-                mx += link_out[p + 3 * m]
-                my += link_out[p + 4 * m]
-                mz += link_out[p + 5 * m]
-            if n >= 0:
-                fx -= link_out[n]
-                fy -= link_out[n + m]
-                fz -= link_out[n + 2 * m]
-                mx += link_out[n + 6 * m]
-                my += link_out[n + 7 * m]
-                mz += link_out[n + 8 * m]
-        force[v, 0], force[v, 1], force[v, 2] = fx, fy, fz
-        moment[v, 0], moment[v, 1], moment[v, 2] = mx, my, mz
+        p0, p1, p2 = U(vlink[v, 1]), U(vlink[v, 3]), U(vlink[v, 5])
+        n0, n1, n2 = U(vlink[v, 0]), U(vlink[v, 2]), U(vlink[v, 4])
+        force[v, 0] = (o[p0] + o[p1] + o[p2]) - (o[n0] + o[n1] + o[n2])
+        force[v, 1] = (o[R1 + p0] + o[R1 + p1] + o[R1 + p2]) - (o[R1 + n0] + o[R1 + n1] + o[R1 + n2])
+        force[v, 2] = (o[R2 + p0] + o[R2 + p1] + o[R2 + p2]) - (o[R2 + n0] + o[R2 + n1] + o[R2 + n2])
+        moment[v, 0] = (o[R3 + p0] + o[R3 + p1] + o[R3 + p2]) + (o[R6 + n0] + o[R6 + n1] + o[R6 + n2])
+        moment[v, 1] = (o[R4 + p0] + o[R4 + p1] + o[R4 + p2]) + (o[R7 + n0] + o[R7 + n1] + o[R7 + n2])
+        moment[v, 2] = (o[R5 + p0] + o[R5 + p1] + o[R5 + p2]) + (o[R8 + n0] + o[R8 + n1] + o[R8 + n2])
 
 
 # ---------------------------------------------------------------- self-collisions
@@ -702,7 +698,7 @@ class Links(NamedTuple):
     neg: np.ndarray  # (m,) voxel on the negative side
     pos: np.ndarray  # (m,) voxel on the positive side
     axis: np.ndarray  # (m,) 0 x, 1 y, 2 z
-    vlink: np.ndarray  # (n, 6) link on each face, ordered as nbr (-1: none)
+    vlink: np.ndarray  # (n, 6) link on each face, ordered as nbr (m: none)
     stiff: np.ndarray  # (m,) E_link / E_ref: the scale of the beam constants
     damp: np.ndarray  # (m,) bond damping gamma_link / (2 dt)
 
@@ -718,7 +714,7 @@ class Work(NamedTuple):
     contact: np.ndarray  # (n,) bool: touching the floor this step
     link_in: np.ndarray  # LINK_IN_ROWS * m
     link_state: np.ndarray  # LINK_STATE_ROWS * m
-    link_out: np.ndarray  # LINK_OUT_ROWS * m
+    link_out: np.ndarray  # LINK_OUT_ROWS * (m + 1): each row's last entry stays 0
 
 
 class Contacts(NamedTuple):
@@ -857,7 +853,7 @@ def robot_work(n_voxels, n_links, n_pairs):
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.bool_), np.zeros(LINK_IN_ROWS * n_links),
-                np.zeros(LINK_STATE_ROWS * n_links), np.zeros(LINK_OUT_ROWS * n_links))
+                np.zeros(LINK_STATE_ROWS * n_links), np.zeros(LINK_OUT_ROWS * (n_links + 1)))
 
 
 @njit(**JIT)

@@ -106,7 +106,7 @@ class Robot(NamedTuple):
     link_neg: np.ndarray  # (m,) int64
     link_pos: np.ndarray  # (m,) int64
     link_axis: np.ndarray  # (m,) int64
-    vlink: np.ndarray  # (n, 6) int64 link on each face, ordered as nbr (-1: none)
+    vlink: np.ndarray  # (n, 6) int64 link on each face, ordered as nbr (m, the link count: none)
     surface: np.ndarray  # (s,) int64 voxels with at least one exposed face
     vconst: np.ndarray  # (n, N_VCONST) per-voxel constants
     link_stiff: np.ndarray  # (m,) E_link / E_ref
@@ -134,7 +134,7 @@ class Batch(NamedTuple):
     link_neg: np.ndarray  # voxel indices within the robot
     link_pos: np.ndarray
     link_axis: np.ndarray
-    vlink: np.ndarray  # link indices within the robot (-1: no link on that face)
+    vlink: np.ndarray  # link indices within the robot (its link count m: no link on that face)
     surface: np.ndarray  # voxel indices within the robot
     vconst: np.ndarray  # (N, N_VCONST)
     link_stiff: np.ndarray  # (M,)
@@ -171,7 +171,7 @@ def _lattice(body: np.ndarray):
     link_neg = np.concatenate([n for n, _, _ in links]).astype(np.int64)
     link_pos = np.concatenate([p for _, p, _ in links]).astype(np.int64)
     link_axis = np.concatenate([np.full(len(n), a) for n, _, a in links]).astype(np.int64)
-    vlink = -np.ones((len(idx), 6), dtype=np.int64)
+    vlink = np.full((len(idx), 6), len(link_neg), dtype=np.int64)  # m: no link on that face
     vlink[link_neg, 2 * link_axis + 1] = np.arange(len(link_neg))
     vlink[link_pos, 2 * link_axis] = np.arange(len(link_neg))
     return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink

@@ -55,7 +55,9 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
                               batch.link_stiff, batch.link_damp, pos, quat, size, link_in,
                               link_state, link_out)
     kernels.link_sums(batch.vlink, link_out, force, moment)
-    out = link_out.reshape(9, m)
+    out = link_out.reshape(9, m + 1)
+    assert not out[:, m].any()  # the zero that link_sums reads for a face without a link
+    out = out[:, :m]
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
     np.add.at(f, batch.link_neg, out[0:3].T)
     np.add.at(f, batch.link_pos, -out[0:3].T)
