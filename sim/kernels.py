@@ -350,17 +350,20 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
     M = U(m + 1)  # link_out's rows end in a zero (read by link_sums for a missing link)
     O0, O1, O2, O3, O4 = I0, M, U(2) * M, U(3) * M, U(4) * M
     O5, O6, O7, O8 = U(5) * M, U(6) * M, U(7) * M, U(8) * M
-    for j in range(m):  # gather: the one loop with indirect access
+    # gather: the one loop with indirect access, on flat views with unsigned offsets (no
+    # negative-index wrap-around to test per load)
+    Q, P = quat.reshape(-1), pos.reshape(-1)
+    for j in range(m):
         J = U(j)
-        i = link_neg[j]
-        k = link_pos[j]
-        link_in[I0 + J], link_in[I1 + J] = quat[i, 0], quat[i, 1]
-        link_in[I2 + J], link_in[I3 + J] = quat[i, 2], quat[i, 3]
-        link_in[I4 + J], link_in[I5 + J] = quat[k, 0], quat[k, 1]
-        link_in[I6 + J], link_in[I7 + J] = quat[k, 2], quat[k, 3]
-        link_in[I8 + J] = pos[k, 0] - pos[i, 0]
-        link_in[I9 + J] = pos[k, 1] - pos[i, 1]
-        link_in[I10 + J] = pos[k, 2] - pos[i, 2]
+        i, k = U(link_neg[j]), U(link_pos[j])
+        qi, qk, pi, pk = U(4) * i, U(4) * k, U(3) * i, U(3) * k
+        link_in[I0 + J], link_in[I1 + J] = Q[qi], Q[qi + U(1)]
+        link_in[I2 + J], link_in[I3 + J] = Q[qi + U(2)], Q[qi + U(3)]
+        link_in[I4 + J], link_in[I5 + J] = Q[qk], Q[qk + U(1)]
+        link_in[I6 + J], link_in[I7 + J] = Q[qk + U(2)], Q[qk + U(3)]
+        link_in[I8 + J] = P[pk] - P[pi]
+        link_in[I9 + J] = P[pk + U(1)] - P[pi + U(1)]
+        link_in[I10 + J] = P[pk + U(2)] - P[pi + U(2)]
         link_in[I11 + J] = 0.5 * (size[i] + size[k])
     bad = 0
     for j in range(m):
@@ -642,38 +645,43 @@ def integrate_kernel(p, flags, vconst, pos, quat, lin_mom, ang_mom, force, momen
     dt = p.dt
     ok = True
     speed2 = 0.0
+    # flat views with unsigned offsets (no negative-index wrap-around to test per access);
+    # each voxel's state is read once into locals and written once
+    U, nc = np.uint64, np.uint64(vconst.shape[1])
+    P, Q, LM, AM = pos.reshape(-1), quat.reshape(-1), lin_mom.reshape(-1), ang_mom.reshape(-1)
+    F, M, VC = force.reshape(-1), moment.reshape(-1), vconst.reshape(-1)
+    X, Y, Z, W = U(0), U(1), U(2), U(3)
     for v in range(len(flags)):
+        a, q, c = U(3) * U(v), U(4) * U(v), nc * U(v)
         if flags[v] & FLAG_FIXED:
-            lin_mom[v, 0] = lin_mom[v, 1] = lin_mom[v, 2] = 0.0
-            ang_mom[v, 0] = ang_mom[v, 1] = ang_mom[v, 2] = 0.0
+            LM[a + X] = LM[a + Y] = LM[a + Z] = 0.0
+            AM[a + X] = AM[a + Y] = AM[a + Z] = 0.0
             continue
-        inv_m, inv_i = vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
-        fx, fy, fz = force[v, 0], force[v, 1], force[v, 2]
-        lin_mom[v, 2] += fz * dt
-        px, py = lin_mom[v, 0] + fx * dt, lin_mom[v, 1] + fy * dt
+        inv_m, inv_i = VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)]
+        fx, fy, fz = F[a + X], F[a + Y], F[a + Z]
+        px, py, pz = LM[a + X] + fx * dt, LM[a + Y] + fy * dt, LM[a + Z] + fz * dt
         if contact[v]:
             work_ = (fx * px + fy * py) * inv_m * dt
             if 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
                 static[v] = True
             if static[v]:
                 px, py = 0.0, 0.0
-        lin_mom[v, 0], lin_mom[v, 1] = px, py
-        pos[v, 0] += lin_mom[v, 0] * inv_m * dt
-        pos[v, 1] += lin_mom[v, 1] * inv_m * dt
-        pos[v, 2] += lin_mom[v, 2] * inv_m * dt
-        speed2 = max(speed2, (lin_mom[v, 0] * lin_mom[v, 0] + lin_mom[v, 1] * lin_mom[v, 1]
-                              + lin_mom[v, 2] * lin_mom[v, 2]) * (inv_m * inv_m))
+        LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
+        x = P[a + X] + px * inv_m * dt
+        y = P[a + Y] + py * inv_m * dt
+        z = P[a + Z] + pz * inv_m * dt
+        P[a + X], P[a + Y], P[a + Z] = x, y, z
+        speed2 = max(speed2, (px * px + py * py + pz * pz) * (inv_m * inv_m))
 
-        ang_mom[v, 0] += moment[v, 0] * dt
-        ang_mom[v, 1] += moment[v, 1] * dt
-        ang_mom[v, 2] += moment[v, 2] * dt
-        dw, dx, dy, dz = quat_from_rotvec(ang_mom[v, 0] * inv_i * dt, ang_mom[v, 1] * inv_i * dt,
-                                          ang_mom[v, 2] * inv_i * dt)
-        qw, qx, qy, qz = qmul(dw, dx, dy, dz, quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
+        lx, ly, lz = AM[a + X] + M[a + X] * dt, AM[a + Y] + M[a + Y] * dt, AM[a + Z] + M[a + Z] * dt
+        AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
+        dw, dx, dy, dz = quat_from_rotvec(lx * inv_i * dt, ly * inv_i * dt, lz * inv_i * dt)
+        qw, qx, qy, qz = qmul(dw, dx, dy, dz, Q[q + X], Q[q + Y], Q[q + Z], Q[q + W])
         norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3] = qw * norm, qx * norm, qy * norm, qz * norm
-        if not (abs(pos[v, 0]) < POSITION_BOUND and abs(pos[v, 1]) < POSITION_BOUND
-                and abs(pos[v, 2]) < POSITION_BOUND and abs(qw) <= 1.0 + 1e-9):
+        qw = qw * norm
+        Q[q + X], Q[q + Y], Q[q + Z], Q[q + W] = qw, qx * norm, qy * norm, qz * norm
+        if not (abs(x) < POSITION_BOUND and abs(y) < POSITION_BOUND and abs(z) < POSITION_BOUND
+                and abs(qw) <= 1.0 + 1e-9):
             ok = False
     return speed2 if ok else -1.0
 

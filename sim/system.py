@@ -329,10 +329,10 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
     n = int(voff[-1])
     quat = np.zeros((n, 4))
     quat[:, 0] = 1.0
-    state = State(
-        pos=np.concatenate([r.pos for r in robots]),
+    state = State(  # C order, as the kernels' flat views need
+        pos=np.ascontiguousarray(np.concatenate([r.pos for r in robots])),
         quat=quat,
-        lin_mom=np.concatenate([r.lin_mom for r in robots]),
-        ang_mom=np.concatenate([r.ang_mom for r in robots]),
+        lin_mom=np.ascontiguousarray(np.concatenate([r.lin_mom for r in robots])),
+        ang_mom=np.ascontiguousarray(np.concatenate([r.ang_mom for r in robots])),
     )
     return batch, state
