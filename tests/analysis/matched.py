@@ -35,9 +35,9 @@ def value(treatment: str, repetition: int, generation: int) -> float:
     return 100.0 + repetition
 
 
-def _record(run_id: int, treatment: Treatment, repetition: int, generation: int) -> GenerationRecord:
+def _record(run_id: int, treatment: Treatment, repetition: int, generation: int, values) -> GenerationRecord:
     local_ids = [2 * generation, 2 * generation + 1]
-    distance = value(treatment.name, repetition, generation)
+    distance = values(treatment.name, repetition, generation)
     environment = treatment.environment_at(generation)
     evaluations = [
         {
@@ -86,17 +86,20 @@ def _record(run_id: int, treatment: Treatment, repetition: int, generation: int)
     )
 
 
-def build(engine: Engine) -> int:
-    """Create and fill the experiment; return its id."""
+def build(
+    engine: Engine, treatments=TREATMENTS, repetitions: int = REPETITIONS, values=value, name="matched"
+) -> int:
+    """Create and fill the experiment (by default the one above; ``values(treatment name,
+    repetition, generation)`` gives each generation's distance); return its id."""
     new = [
-        NewTreatment(t.name, t.to_settings(), [NewRun(r, r, t.generations) for r in range(REPETITIONS)])
-        for t in TREATMENTS
+        NewTreatment(t.name, t.to_settings(), [NewRun(r, r, t.generations) for r in range(repetitions)])
+        for t in treatments
     ]
     with engine.begin() as conn:
-        experiment_id, run_ids = create_experiment(conn, "matched", new)
-    runs = [(t, r) for t in TREATMENTS for r in range(REPETITIONS)]
+        experiment_id, run_ids = create_experiment(conn, name, new)
+    runs = [(t, r) for t in treatments for r in range(repetitions)]
     for run_id, (treatment, repetition) in zip(run_ids, runs, strict=True):
         for generation in range(treatment.generations):
             with engine.begin() as conn:
-                record_generation(conn, _record(run_id, treatment, repetition, generation))
+                record_generation(conn, _record(run_id, treatment, repetition, generation, values))
     return experiment_id
