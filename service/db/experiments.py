@@ -185,9 +185,7 @@ def experiment_updated_at(conn: Connection, experiment_id: int):
 # -- the analyses' input ----------------------------------------------------------------------
 
 
-def load_experiment(
-    engine: Engine, experiment_id: int, generations: Iterable[int] = ()
-) -> ExperimentData:
+def load_experiment(engine: Engine, experiment_id: int, generations: Iterable[int] = ()) -> ExperimentData:
     """Read experiment ``experiment_id`` (UserError if it does not exist or has no runs); see
     ``analysis.data`` for the frames. The populations are read at generation 0, at each
     run's last stored generation, at every generation the analyses compare or show
