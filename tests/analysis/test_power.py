@@ -17,12 +17,14 @@ from tests.analysis.cli import softevo
 LAND = (
     Treatment("land", 1.0, name="land S4", population=2, generations=4),
     Treatment("land", 0.001, name="land S1", population=2, generations=4),
+    Treatment("land", 10.0, name="land S5", population=2, generations=4),
 )
 
 
 def separated(treatment: str, repetition: int, generation: int) -> float:
-    """land S4 at 100..103, land S1 at 1..4, at every generation."""
-    return (100.0 if treatment == "land S4" else 1.0) + repetition
+    """land S4 at 100..103, land S5 at 50..53, land S1 at 1..4, at every generation
+    (distance, voxel count and frequency alike)."""
+    return {"land S4": 100.0, "land S5": 50.0}.get(treatment, 1.0) + repetition
 
 
 def alike(treatment: str, repetition: int, generation: int) -> float:
@@ -55,17 +57,32 @@ def test_power_on_the_tiny_experiment(capsys, tiny):
     assert softevo(capsys, *args, "--json")[1] == first  # seeded: the same estimate again
 
 
-def test_a_clear_difference_needs_four_runs(capsys, tmp_path):
+def test_a_clear_difference_needs_the_hand_computed_runs(capsys, tmp_path):
     # fully separated pilots: the exact two-sided Mann-Whitney p of a complete separation is
-    # 2 / C(2n, n): 0.1 for n = 3, 0.029 for n = 4, so at alpha 0.05 (one pair) n = 4
+    # 2 / C(2n, n): 0.1 for n = 3, 0.029 for n = 4, 0.0079 for n = 5
     url, experiment_id = _pilot(tmp_path)
     code, out, err = softevo(capsys, "power", f"e{experiment_id}", "--db", url, "--json", "-q")
     assert code == 0, err
-    estimate = next(e for e in json.loads(out)["comparisons"] if e["comparison"] == "land fitness, S4 vs S1")
-    assert estimate["repetitions"] == 4 and estimate["power"] == 1.0
-    assert estimate["alpha_bonferroni"] == pytest.approx(0.05) and estimate["pilot_a12"] == 1.0
-    assert estimate["generations"] == 2  # separated from generation 1 on (checked from 1)
-    assert estimate["generation"] == 3 and estimate["pilot_generations"] == 4
+    payload = json.loads(out)
+    fitness, frequency = payload["comparisons"]
+    assert (fitness["comparison"], fitness["a"], fitness["b"]) == (
+        "land fitness, S4 vs S1",
+        "land S4",
+        "land S1",
+    )
+    assert (frequency["comparison"], frequency["metric"]) == (
+        "frequency vs stiffness on land, S1 vs S5",
+        "frequency",
+    )
+    assert "water fitness, S1 vs S5" in payload["not_in_experiment"]
+    for estimate in (fitness, frequency):
+        # three pairs among S1, S4, S5: alpha 0.05 / 3 = 0.0167 -> n = 5
+        assert estimate["family_size"] == 3 and estimate["alpha_bonferroni"] == pytest.approx(0.05 / 3)
+        assert estimate["repetitions"] == 5 and estimate["power"] == 1.0
+        assert estimate["generations"] == 2  # separated from generation 1 on (checked from 1)
+        assert estimate["generation"] == 3 and estimate["pilot_generations"] == 4
+    assert fitness["pilot_a12"] == 1.0 and frequency["pilot_a12"] == 0.0
+    # one comparison per family: alpha 0.05 -> n = 4
     # ten comparisons per family: alpha 0.005 needs 2 / C(2n, n) < 0.005: 2/252 = 0.0079 at
     # n = 5, 2/924 = 0.0022 at n = 6
     code, out, err = softevo(
