@@ -255,11 +255,14 @@ def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path)
         ax.set_title(TRAIT_LABELS[metric] + " (per run)", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
         chosen = tests[(tests["metric"] == metric) & (tests["comparison"] == "between treatments")]
-        matched = [
-            shown[a] == g == shown[b]
-            for a, b, g in zip(chosen["a"], chosen["b"], chosen["generation"], strict=True)
-        ]
-        _brackets(ax, chosen[matched], position)
+        matched = np.array(
+            [
+                shown[a] == g == shown[b]
+                for a, b, g in zip(chosen["a"], chosen["b"], chosen["generation"], strict=True)
+            ],
+            dtype=bool,
+        )
+        _brackets(ax, chosen.loc[matched], position)
     fig.suptitle(
         f"Run values across treatments at {_generations_text(data)} "
         "(Mann-Whitney U over runs, Bonferroni; * p<0.05, ** p<0.01, *** p<0.001)"
