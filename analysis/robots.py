@@ -80,3 +80,4 @@ def record_scene(
             raise
         raise UserError(f"individual {record['id']} has an empty body: nothing to simulate") from exc
     return scene, {**record, "phenotype_object": phenotype, "environment": task.environment, "task": task}
+

@@ -48,6 +48,5 @@ def __getattr__(name: str):
         return describe
     raise AttributeError(f"module 'evolution' has no attribute {name!r}")
 
-
 if __name__ != "softevo.evolution":  # installed as softevo.evolution (pyproject.toml): one name, one module
     raise ImportError(f"import softevo.evolution, not {__name__}")

@@ -225,7 +225,9 @@ def minimal_cppn(output_names: tuple[str, ...], weights: np.ndarray) -> CPPN:
     """Every input linked to every output; ``weights`` shape (n_inputs, n_outputs)."""
     inputs = tuple(Node(i, "input", "identity", name) for i, name in enumerate(INPUT_NAMES))
     first = len(INPUT_NAMES)
-    outputs = tuple(Node(first + o, "output", OUTPUT_ACTIVATION, name) for o, name in enumerate(output_names))
+    outputs = tuple(
+        Node(first + o, "output", OUTPUT_ACTIVATION, name) for o, name in enumerate(output_names)
+    )
     links = tuple(
         Link(i, first + o, float(weights[i, o]))
         for o in range(len(output_names))

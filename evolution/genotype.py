@@ -234,7 +234,9 @@ def develop(genotype: Genotype, config: EncodingConfig = EncodingConfig()) -> Ph
     )
 
 
-def random_cppn(rng: np.random.Generator, output_names: tuple[str, ...], config: EncodingConfig) -> CPPN:
+def random_cppn(
+    rng: np.random.Generator, output_names: tuple[str, ...], config: EncodingConfig
+) -> CPPN:
     """A newcomer: inputs fully linked to outputs (weights U(-1, 1)), then a few structural
     mutations (``initial_hidden_nodes`` node additions, ``initial_links`` link additions)."""
     from softevo.evolution.mutation import add_link, add_node
@@ -247,7 +249,9 @@ def random_cppn(rng: np.random.Generator, output_names: tuple[str, ...], config:
     return cppn
 
 
-def random_genotype(rng: np.random.Generator, config: EncodingConfig = EncodingConfig()) -> Genotype:
+def random_genotype(
+    rng: np.random.Generator, config: EncodingConfig = EncodingConfig()
+) -> Genotype:
     """A random genotype (not checked for a non-empty body: see ``random_viable_genotype``)."""
     return Genotype(
         random_cppn(rng, config.body_outputs, config),

@@ -48,7 +48,9 @@ def candidate_links(cppn: CPPN) -> list[tuple[int, int]]:
     pairs = []
     for target in targets:
         downstream = cppn.reachable_from(target)  # a link s->t closes a cycle iff t reaches s
-        pairs += [(s, target) for s in sources if s not in downstream and (s, target) not in existing]
+        pairs += [
+            (s, target) for s in sources if s not in downstream and (s, target) not in existing
+        ]
     return pairs
 
 

@@ -36,7 +36,9 @@ PAPER_OBJECTIVES: tuple[Objective, ...] = (
 AGE_OBJECTIVE = Objective("age", "min")
 
 
-def objective_matrix(rows: Sequence[Mapping[str, float]], objectives: Sequence[Objective]) -> np.ndarray:
+def objective_matrix(
+    rows: Sequence[Mapping[str, float]], objectives: Sequence[Objective]
+) -> np.ndarray:
     """F, shape (len(rows), len(objectives)), in minimisation form."""
     signs = np.array([o.sign() for o in objectives])
     values = np.array([[float(r[o.name]) for o in objectives] for r in rows], dtype=float)

@@ -60,6 +60,5 @@ def main(argv: list[str] | None = None) -> None:
             sys.exit(2)
         raise
 
-
 if __name__ == "__main__":
     main()

@@ -97,11 +97,8 @@ def run(
     env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
     stiffness: Annotated[
         float | None,
-        typer.Option(
-            "--stiffness",
-            help="Young's modulus, MPa (0.001-10); with --evolve-stiffness "
-            "optional (default 0.1, unused by the physics)",
-        ),
+        typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10); with --evolve-stiffness "
+                     "optional (default 0.1, unused by the physics)"),
     ] = None,
     population: Annotated[int, typer.Option("--population")] = Treatment.population,
     generations: Annotated[int, typer.Option("--generations")] = Treatment.generations,

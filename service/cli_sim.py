@@ -37,7 +37,9 @@ def _read_scene(path: Path) -> dict[str, Any]:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise UserError(f"{path}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+        raise UserError(
+            f"{path}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}"
+        ) from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: scene: must be a JSON object (got {type(data).__name__})")
     return data
@@ -66,14 +68,17 @@ def _summary(result: Any, wall_seconds: float, environment: str) -> str:
     lines = [
         f"stable     {'yes' if result.stable else 'NO: ' + str(result.reason)}",
         f"distance   {result.distance:.4g} voxel lengths ({axes}, {environment})",
-        f"simulated  {result.simulated_seconds:.4g} s in {result.steps:,} steps (dt {result.dt:.3g} s)",
+        f"simulated  {result.simulated_seconds:.4g} s in {result.steps:,} steps "
+        f"(dt {result.dt:.3g} s)",
         f"wall time  {wall_seconds:.2f} s",
     ]
     return "\n".join(lines)
 
 
 def simulate(
-    scene_path: Annotated[Path, typer.Argument(metavar="SCENE.json", help="Scene file (SPEC.md section 1).")],
+    scene_path: Annotated[
+        Path, typer.Argument(metavar="SCENE.json", help="Scene file (SPEC.md section 1).")
+    ],
     as_json: Annotated[
         bool, typer.Option("--json", help="Print Result.to_dict() as one JSON object.")
     ] = False,

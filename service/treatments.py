@@ -84,14 +84,10 @@ class Treatment:
             if not isinstance(getattr(self, flag), bool):
                 raise UserError(f"{flag} must be true or false (got {getattr(self, flag)!r})")
         bounds = self.stiffness_range_mpa
-        if (
-            len(bounds) != 2
-            or not all(isinstance(b, int | float) and math.isfinite(b) for b in bounds)
-            or not low <= bounds[0] < bounds[1] <= high
-        ):
-            raise UserError(
-                f"stiffness range must be two numbers lo < hi within {low}..{high} MPa (got {bounds!r})"
-            )
+        if (len(bounds) != 2 or not all(isinstance(b, int | float) and math.isfinite(b) for b in bounds)
+                or not low <= bounds[0] < bounds[1] <= high):
+            raise UserError(f"stiffness range must be two numbers lo < hi within {low}..{high} MPa "
+                            f"(got {bounds!r})")
         self._validate_switch()
 
     def _validate_switch(self) -> None:

@@ -109,14 +109,8 @@ def test_no_dashboard_file_names_an_outside_url(path):
 
 def test_dashboard_command_refuses_a_missing_database(tmp_path):
     done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "softevo.service.cli",
-            "dashboard",
-            "--db",
-            f"sqlite:///{tmp_path / 'none.db'}",
-        ],  # fmt: skip
+        [sys.executable, "-m", "softevo.service.cli", "dashboard",
+         "--db", f"sqlite:///{tmp_path / 'none.db'}"],  # fmt: skip
         capture_output=True,
         text=True,
         timeout=120,

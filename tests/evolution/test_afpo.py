@@ -22,7 +22,9 @@ def fake_evaluate(scenes):
 
 
 def config(**changes):
-    return EvolutionConfig(**{"population_size": 6, "encoding": SMALL, "descriptors": False, **changes})
+    return EvolutionConfig(
+        **{"population_size": 6, "encoding": SMALL, "descriptors": False, **changes}
+    )
 
 
 def summary(algo):
@@ -121,7 +123,9 @@ def test_resume_with_pending_offspring():
 def test_tell_by_id_in_any_order_and_partial():
     algo = Evolution(config())
     asked = algo.ask()
-    results = dict(zip([i.id for i in asked], fake_evaluate([algo.scene(i) for i in asked]), strict=True))
+    results = dict(
+        zip([i.id for i in asked], fake_evaluate([algo.scene(i) for i in asked]), strict=True)
+    )
     ids = list(results)[::-1]
     algo.tell({k: results[k] for k in ids[:2]})
     assert not algo.generation_complete

@@ -18,7 +18,9 @@ CONTROL_FREQUENCY, CONTROL_PHASE = 5, 6
 
 
 def genotype(body_links, control_links, body_outputs=("present", "active")):
-    return Genotype(hand_cppn(body_outputs, body_links), hand_cppn(("frequency", "phase"), control_links))
+    return Genotype(
+        hand_cppn(body_outputs, body_links), hand_cppn(("frequency", "phase"), control_links)
+    )
 
 
 def test_expression_pattern():
@@ -99,7 +101,6 @@ def test_to_scene_follows_the_schema():
 
     json.dumps(land)  # plain JSON types only
     from softevo import sim
-
     scene = sim.parse_scene(land)
     assert np.array_equal(scene.body, p.body)
 

@@ -154,27 +154,14 @@ def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
     run_id = tinyrun.new_run(engine)
     with engine.begin() as conn:
         set_run_status(conn, run_id, RunStatus.CANCELLED)
-        record_generation(
-            conn,
-            GenerationRecord(
-                run_id=run_id,
-                generation=1,
-                individuals=[],
-                evaluations=[],
-                members=[],
-                summary={
-                    "environment": "land",
-                    "evaluations": 0,
-                    "best_distance": 0.0,
-                    "mean_distance": 0.0,
-                    "front_size": 0,
-                },
-                state={"generation": 1},
-                finished=False,
-            ),
-        )
+        record_generation(conn, GenerationRecord(
+            run_id=run_id, generation=1, individuals=[], evaluations=[], members=[],
+            summary={"environment": "land", "evaluations": 0, "best_distance": 0.0,
+                     "mean_distance": 0.0, "front_size": 0}, state={"generation": 1},
+            finished=False))
     with engine.connect() as conn:
-        row = conn.execute(text("SELECT status, generation FROM runs WHERE id = :id"), {"id": run_id}).one()
+        row = conn.execute(text("SELECT status, generation FROM runs WHERE id = :id"),
+                           {"id": run_id}).one()
     assert row.status == RunStatus.CANCELLED.value
     assert row.generation == 1
     engine.dispose()

@@ -127,6 +127,7 @@ def test_migrations_are_packaged_for_an_installed_coordinator():
     import tomllib
     from pathlib import Path
 
+
     root = Path(__file__).resolve().parents[2]
     config = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
     packages = config["packages"]

@@ -16,23 +16,23 @@ from softevo.worker.tasks import Task, encoding_of, scene_of
 from tests.service.test_cli_runs import TINY, softevo
 
 
-@pytest.mark.parametrize(
-    ("flags", "fields"),
-    [
-        (["--evolve-stiffness"], {"youngs_modulus_field"}),
-        (["--frequency-per-voxel"], {"frequency_field"}),
-        (["--evolve-stiffness", "--frequency-per-voxel"], {"youngs_modulus_field", "frequency_field"}),
-    ],
-)
+@pytest.mark.parametrize(("flags", "fields"), [
+    (["--evolve-stiffness"], {"youngs_modulus_field"}),
+    (["--frequency-per-voxel"], {"frequency_field"}),
+    (["--evolve-stiffness", "--frequency-per-voxel"], {"youngs_modulus_field", "frequency_field"}),
+])
 def test_run_with_fields_stores_reproducible_individuals(capsys, tmp_path, flags, fields):
     db = f"sqlite:///{tmp_path / 'fields.db'}"
-    code, out, err = softevo(capsys, "run", "--env", "water", "--stiffness", "0.1", *flags, *TINY, "--db", db)
+    code, out, err = softevo(capsys, "run", "--env", "water", "--stiffness", "0.1", *flags,
+                             *TINY, "--db", db)
     assert code == 0, err
     engine = open_database(db)
-    ind, ev, runs, tr = (Individual.__table__, Evaluation.__table__, Run.__table__, TreatmentRow.__table__)
+    ind, ev, runs, tr = (Individual.__table__, Evaluation.__table__, Run.__table__,
+                         TreatmentRow.__table__)
     with engine.connect() as conn:
         rows = conn.execute(
-            select(ind.c.id, ind.c.genome, tr.c.settings, ev.c.environment, ev.c.distance, ev.c.stable)
+            select(ind.c.id, ind.c.genome, tr.c.settings, ev.c.environment, ev.c.distance,
+                   ev.c.stable)
             .join(ev, ev.c.individual_id == ind.c.id)
             .join(runs, ind.c.run_id == runs.c.id)
             .join(tr, runs.c.treatment_id == tr.c.id)
@@ -44,13 +44,8 @@ def test_run_with_fields_stores_reproducible_individuals(capsys, tmp_path, flags
     assert settings["frequency_per_voxel"] == ("--frequency-per-voxel" in flags)
     scenes, stored = [], []
     for row in rows[:6]:
-        task = Task.from_stored(
-            row.id,
-            row.genome,
-            row.settings,
-            row.environment,
-            Treatment.from_settings(row.settings).stiffness_pa,
-        )
+        task = Task.from_stored(row.id, row.genome, row.settings, row.environment,
+                                Treatment.from_settings(row.settings).stiffness_pa)
         _, scene = scene_of(task)
         assert fields <= set(scene)
         assert not ({"youngs_modulus_field", "frequency_field"} - fields) & set(scene)
@@ -82,9 +77,8 @@ def test_bad_options_are_one_line(capsys, tmp_path):
     db = f"sqlite:///{tmp_path / 'x.db'}"
     code, _, err = softevo(capsys, "run", "--env", "land", "--db", db)
     assert code == 2 and "--stiffness" in err
-    code, _, err = softevo(
-        capsys, "run", "--env", "land", "--evolve-stiffness", "--stiffness-range", "5,1", "--db", db
-    )
+    code, _, err = softevo(capsys, "run", "--env", "land", "--evolve-stiffness",
+                           "--stiffness-range", "5,1", "--db", db)
     assert code == 2 and "stiffness range" in err
 
 
@@ -92,21 +86,10 @@ def test_rest_treatment_takes_the_options():
     from softevo.service.api.routes.experiments import _treatments
     from softevo.service.api.schemas import ExperimentIn
 
-    body = ExperimentIn.model_validate(
-        {
-            "name": "m",
-            "treatments": [
-                {
-                    "environment": "land",
-                    "stiffness_mpa": 0.1,
-                    "evolve_stiffness": True,
-                    "frequency_per_voxel": True,
-                    "stiffness_range_mpa": [0.01, 1.0],
-                },
-                {"environment": "water", "stiffness_mpa": 0.1},
-            ],
-        }
-    )
+    body = ExperimentIn.model_validate({"name": "m", "treatments": [
+        {"environment": "land", "stiffness_mpa": 0.1, "evolve_stiffness": True,
+         "frequency_per_voxel": True, "stiffness_range_mpa": [0.01, 1.0]},
+        {"environment": "water", "stiffness_mpa": 0.1}]})
     evolved, plain = _treatments(body)
     assert evolved.evolve_stiffness and evolved.frequency_per_voxel
     assert evolved.stiffness_range_mpa == (0.01, 1.0)

@@ -22,7 +22,8 @@ AGREEMENT_PATH = Path(os.environ.get("SOFTEVO_AGREEMENT_JSON", "/tmp/softevo_sim
 
 def report(name: str, **figures: Any) -> None:
     """Record measured agreement figures for ``name`` (printed and saved as JSON)."""
-    clean = {k: (float(v) if isinstance(v, (np.floating, np.integer)) else v) for k, v in figures.items()}
+    clean = {k: (float(v) if isinstance(v, (np.floating, np.integer)) else v)
+             for k, v in figures.items()}
     AGREEMENT[name] = clean
     print(f"[agreement] {name}: " + ", ".join(f"{k}={_fmt(v)}" for k, v in clean.items()))
     try:

@@ -19,11 +19,8 @@ from softevo.sim import system as S
 
 # proper rotations taking the link's world axis onto +x (x: identity, y: -90 deg about z,
 # z: +90 deg about y)
-AXIS_TO_X = [
-    np.eye(3),
-    np.array([[0, 1, 0], [-1, 0, 0], [0, 0, 1]]),
-    np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]),
-]
+AXIS_TO_X = [np.eye(3), np.array([[0, 1, 0], [-1, 0, 0], [0, 0, 1]]),
+             np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]])]
 
 
 def rot(q_wxyz: np.ndarray) -> Rotation:
@@ -83,23 +80,12 @@ def link_forces(batch, pos, quat, size, small, prev, prev_valid, fp, mats, scene
         e = now + (damp * (now - prev[:, l]) if prev_valid[l] else 0.0)
         prev[:, l], prev_valid[l] = now, True
         ed, e1, e2 = e[:3], e[3:6], e[6:]
-        fa = np.array(
-            [a1 * ed[0] * rest / L, b1 * ed[1] - b2 * (e1[2] + e2[2]), b1 * ed[2] + b2 * (e1[1] + e2[1])]
-        )
-        ma = np.array(
-            [
-                a2 * (e2[0] - e1[0]),
-                -b2 * ed[2] - b3 * (2 * e1[1] + e2[1]),
-                b2 * ed[1] - b3 * (2 * e1[2] + e2[2]),
-            ]
-        )
-        mb = np.array(
-            [
-                -a2 * (e2[0] - e1[0]),
-                -b2 * ed[2] - b3 * (e1[1] + 2 * e2[1]),
-                b2 * ed[1] - b3 * (e1[2] + 2 * e2[2]),
-            ]
-        )
+        fa = np.array([a1 * ed[0] * rest / L, b1 * ed[1] - b2 * (e1[2] + e2[2]),
+                       b1 * ed[2] + b2 * (e1[1] + e2[1])])
+        ma = np.array([a2 * (e2[0] - e1[0]), -b2 * ed[2] - b3 * (2 * e1[1] + e2[1]),
+                       b2 * ed[1] - b3 * (2 * e1[2] + e2[2])])
+        mb = np.array([-a2 * (e2[0] - e1[0]), -b2 * ed[2] - b3 * (e1[1] + 2 * e2[1]),
+                       b2 * ed[1] - b3 * (e1[2] + 2 * e2[2])])
         back = Ri @ P.T @ align.inv().as_matrix()
         force[i] += back @ fa
         force[j] -= back @ fa

@@ -132,7 +132,8 @@ def test_bad_scene_from_the_shell(tmp_path):
 
 
 def test_missing_file_is_one_line_exit_2(tmp_path):
-    assert_user_error(softevo("simulate", str(tmp_path / "nope.json")), "nope.json", "no such file")
+    assert_user_error(softevo("simulate", str(tmp_path / "nope.json")), "nope.json",
+                      "no such file")
 
 
 def test_directory_is_one_line_exit_2(tmp_path, capsys):
@@ -140,13 +141,8 @@ def test_directory_is_one_line_exit_2(tmp_path, capsys):
 
 
 def test_unwritable_record_is_one_line_exit_2(tmp_path, capsys):
-    proc = softevo_here(
-        capsys,
-        "simulate",
-        str(write(tmp_path, TINY)),
-        "--record",
-        str(tmp_path / "no" / "such" / "dir" / "out.npz"),
-    )
+    proc = softevo_here(capsys, "simulate", str(write(tmp_path, TINY)), "--record",
+                   str(tmp_path / "no" / "such" / "dir" / "out.npz"))
     assert_user_error(proc, "--record")
 
 
@@ -155,9 +151,9 @@ def test_usage_error_is_one_line_exit_2():
     assert_user_error(softevo("simulate"))
 
 
-@pytest.mark.parametrize(
-    ("name", "at_least"), [("walker_land.json", 2.0), ("flapper_water.json", 1.0), ("cantilever.json", 0.0)]
-)
+@pytest.mark.parametrize(("name", "at_least"), [("walker_land.json", 2.0),
+                                                ("flapper_water.json", 1.0),
+                                                ("cantilever.json", 0.0)])
 def test_examples_run(capsys, name, at_least):
     """The newcomer's examples run, stay stable, and the robots really move."""
     proc = softevo_here(capsys, "simulate", str(EXAMPLES / name), "--json")

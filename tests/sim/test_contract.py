@@ -15,29 +15,14 @@ import pytest
 from softevo import sim
 from tests.sim._support import frames, report, simulate, voxel_index
 
-SPEC_FIELDS = {
-    "stable",
-    "reason",
-    "dt",
-    "steps",
-    "simulated_seconds",
-    "voxels",
-    "final_positions",
-    "com_start",
-    "com_end",
-    "displacement",
-    "distance",
-    "com_trajectory",
-}
+SPEC_FIELDS = {"stable", "reason", "dt", "steps", "simulated_seconds", "voxels",
+               "final_positions", "com_start", "com_end", "displacement", "distance",
+               "com_trajectory"}
 
 
 def _block(kind="void", seconds=0.1, **extra) -> dict:
-    return {
-        "voxel_size": 0.05,
-        "environment": {"kind": kind},
-        "body": np.ones((2, 2, 2), int).tolist(),
-        "duration": {"seconds": seconds},
-    } | extra
+    return {"voxel_size": 0.05, "environment": {"kind": kind},
+            "body": np.ones((2, 2, 2), int).tolist(), "duration": {"seconds": seconds}} | extra
 
 
 def test_public_api():
@@ -54,7 +39,8 @@ def test_result_fields_and_strict_json():
     text = json.dumps(d, allow_nan=False)
     assert json.loads(text) == d  # plain JSON types only
     assert "frames" not in simulate(_block()).to_dict()  # frames only when record is set
-    np.testing.assert_allclose(d["displacement"], np.subtract(d["com_end"], d["com_start"]), atol=1e-15)
+    np.testing.assert_allclose(d["displacement"],
+                               np.subtract(d["com_end"], d["com_start"]), atol=1e-15)
     assert d["simulated_seconds"] == pytest.approx(d["steps"] * d["dt"])
     assert d["simulated_seconds"] >= 0.1 - d["dt"]
 
@@ -66,16 +52,9 @@ def test_initial_placement_and_dt():
     body[:, 0, 0] = 1
     body[0, 1, 0] = 2
     body[0, 0, 1] = 1
-    result = simulate(
-        {
-            "voxel_size": 0.04,
-            "environment": {"kind": "void"},
-            "body": body.tolist(),
-            "actuation": {"amplitude": 0.0},
-            "duration": {"seconds": 0.01},
-            "record": {"every": 1000},
-        }
-    )
+    result = simulate({"voxel_size": 0.04, "environment": {"kind": "void"},
+                       "body": body.tolist(), "actuation": {"amplitude": 0.0},
+                       "duration": {"seconds": 0.01}, "record": {"every": 1000}})
     t, pos = frames(result)
     expected = (np.asarray(result.voxels) + 0.5) * 0.04
     np.testing.assert_allclose(pos[0], expected, atol=1e-15)
@@ -95,9 +74,8 @@ def test_distance_is_horizontal_on_land():
 def test_settle_seconds_moves_com_start():
     """com_start is taken after settling: a block coasting in void at v covers v * duration."""
     v = 0.2
-    result = simulate(
-        _block("void", 0.5, settle_seconds=0.5, initial_velocity=[v, 0, 0], material={"damping_global": 0.0})
-    )
+    result = simulate(_block("void", 0.5, settle_seconds=0.5, initial_velocity=[v, 0, 0],
+                             material={"damping_global": 0.0}))
     assert result.com_start[0] == pytest.approx(0.05 + v * 0.5, rel=1e-3)
     assert result.distance == pytest.approx(v * 0.5 / 0.05, rel=1e-3)
 
@@ -106,7 +84,8 @@ def test_only_the_largest_component_is_simulated():
     body = np.zeros((5, 1, 1), int)
     body[0:3] = 1
     body[4] = 2
-    result = simulate({"environment": {"kind": "void"}, "body": body.tolist(), "duration": {"seconds": 0.01}})
+    result = simulate({"environment": {"kind": "void"}, "body": body.tolist(),
+                       "duration": {"seconds": 0.01}})
     assert sorted(tuple(v) for v in result.voxels) == [(0, 0, 0), (1, 0, 0), (2, 0, 0)]
 
 
@@ -126,15 +105,9 @@ def test_unstable_robot_is_flagged_with_strict_json():
     """Far past the stable step the robot blows up: stable false, a reason, distance 0, and
     its to_dict still valid JSON (no NaN: the CLI prints it and the database stores it)."""
     # passive voxels: the actuation-period cap on the step does not apply
-    result = sim.simulate(
-        _block(
-            "land",
-            0.5,
-            dt_fraction=8.0,
-            body=np.full((3, 3, 3), 1).tolist(),
-            initial_velocity=[0.0, 0.0, -0.5],
-        )
-    )
+    result = sim.simulate(_block("land", 0.5, dt_fraction=8.0,
+                                 body=np.full((3, 3, 3), 1).tolist(),
+                                 initial_velocity=[0.0, 0.0, -0.5]))
     assert not result.stable
     assert result.reason
     assert result.distance == 0.0
@@ -148,15 +121,11 @@ def test_simulate_many_matches_simulate_exactly():
     for k in range(6):
         body = (rng.random((3, 3, 2)) < 0.8).astype(int) * 2
         body[1, 1, 0] = 2
-        scenes.append(
-            {
-                "environment": {"kind": ("land", "water", "void")[k % 3]},
-                "body": body.tolist(),
-                "phase": rng.uniform(-3, 3, body.shape).tolist(),
-                "material": {"youngs_modulus": float(10 ** rng.uniform(4, 6))},
-                "duration": {"cycles": 1},
-            }
-        )
+        scenes.append({"environment": {"kind": ("land", "water", "void")[k % 3]},
+                       "body": body.tolist(),
+                       "phase": rng.uniform(-3, 3, body.shape).tolist(),
+                       "material": {"youngs_modulus": float(10 ** rng.uniform(4, 6))},
+                       "duration": {"cycles": 1}})
     many = sim.simulate_many(scenes, threads=2)
     for scene, res in zip(scenes, many, strict=True):
         alone = sim.simulate(scene)
@@ -171,17 +140,11 @@ def test_waveforms_drive_the_rest_length(waveform):
     Extremes within 2% of the amplitude; the impulse contracts in ~20% of the cycle and
     releases over ~80%; the square wave sits on its two plateaus most of the time."""
     L, amp = 0.05, 0.3
-    result = simulate(
-        {
-            "voxel_size": L,
-            "environment": {"kind": "void"},
-            "body": np.full((2, 1, 1), 2).tolist(),
-            "actuation": {"frequency": 1.0, "amplitude": amp, "waveform": waveform},
-            "duration": {"cycles": 2},
-            "self_collisions": False,
-            "record": {"every": 10},
-        }
-    )
+    result = simulate({
+        "voxel_size": L, "environment": {"kind": "void"}, "body": np.full((2, 1, 1), 2).tolist(),
+        "actuation": {"frequency": 1.0, "amplitude": amp, "waveform": waveform},
+        "duration": {"cycles": 2}, "self_collisions": False, "record": {"every": 10},
+    })
     t, pos = frames(result)
     idx = voxel_index(result)
     strain = (pos[:, idx[(1, 0, 0)], 0] - pos[:, idx[(0, 0, 0)], 0]) / L - 1.0

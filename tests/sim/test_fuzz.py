@@ -32,18 +32,14 @@ def random_scene(rng: np.random.Generator, index: int) -> dict:
     body[(body > 0) & active] = 2
     scene = {
         "voxel_size": float(rng.choice([0.01, 0.05])),
-        "material": {
-            "youngs_modulus": float(10 ** rng.uniform(3, 7)),
-            "density": float(rng.uniform(500, 2000)),
-        },
+        "material": {"youngs_modulus": float(10 ** rng.uniform(3, 7)),
+                     "density": float(rng.uniform(500, 2000))},
         "environment": {"kind": WORLDS[index % 3]},
         "body": body.tolist(),
         "phase": rng.uniform(-math.pi, math.pi, shape).tolist(),
-        "actuation": {
-            "frequency": float(rng.uniform(2.0, 8.0)),
-            "amplitude": float(rng.uniform(0.0, 0.9)),
-            "waveform": WAVEFORMS[int(rng.integers(0, 3))],
-        },
+        "actuation": {"frequency": float(rng.uniform(2.0, 8.0)),
+                      "amplitude": float(rng.uniform(0.0, 0.9)),
+                      "waveform": WAVEFORMS[int(rng.integers(0, 3))]},
         "duration": {"cycles": 2},
         "self_collisions": bool(rng.random() < 0.7),
     }
@@ -66,12 +62,8 @@ def check_results(scenes: list[dict], results: list) -> tuple[int, int]:
     for k, (scene, res) in enumerate(zip(scenes, results, strict=True)):
         body = np.asarray(scene["body"])
         m = scene["material"]
-        dt = (
-            scene.get("dt_fraction", sim.Scene.dt_fraction)
-            * scene["voxel_size"]
-            * math.sqrt(m["density"] / m["youngs_modulus"])
-            / (2 * math.pi)
-        )
+        dt = scene.get("dt_fraction", sim.Scene.dt_fraction) * scene["voxel_size"] * math.sqrt(
+            m["density"] / m["youngs_modulus"]) / (2 * math.pi)
         frequency = scene.get("actuation", {}).get("frequency", 3.0)
         if frequency > 0 and (largest_component(body) == 2).any():
             dt = min(dt, 1.0 / (frequency * STEPS_PER_CYCLE))  # actuation-period cap

@@ -19,15 +19,9 @@ def _robot(env: str, seed: int, shape=(3, 2, 2), mixed: bool = False, **extra):
     voxels (E, rho) and the parsed scene."""
     rng = np.random.default_rng(seed)
     body = rng.choice([1, 2], size=shape)
-    scene = {
-        "body": body.tolist(),
-        "phase": rng.uniform(0, 6.28, shape).tolist(),
-        "environment": {"kind": env},
-        "material": {"youngs_modulus": 1e5},
-        "self_collisions": False,
-        "duration": {"seconds": 0.01},
-        **extra,
-    }
+    scene = {"body": body.tolist(), "phase": rng.uniform(0, 6.28, shape).tolist(),
+             "environment": {"kind": env}, "material": {"youngs_modulus": 1e5},
+             "self_collisions": False, "duration": {"seconds": 0.01}, **extra}
     if mixed:
         scene["youngs_modulus_field"] = (10 ** rng.uniform(4, 6, shape)).tolist()
         scene["density_field"] = rng.uniform(600, 2400, shape).tolist()
@@ -57,20 +51,9 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
     The sums are also checked against a NumPy scatter of the per-link forces."""
     m, n = len(batch.link_neg), len(pos)
     link_in, link_state, link_out = work[-3:]
-    bad = kernels.link_kernel(
-        p,
-        batch.link_neg,
-        batch.link_pos,
-        batch.link_axis,
-        batch.link_stiff,
-        batch.link_damp,
-        pos,
-        quat,
-        size,
-        link_in,
-        link_state,
-        link_out,
-    )
+    bad = kernels.link_kernel(p, batch.link_neg, batch.link_pos, batch.link_axis,
+                              batch.link_stiff, batch.link_damp, pos, quat, size, link_in,
+                              link_state, link_out)
     kernels.link_sums(batch.vlink, link_out, force, moment)
     out = link_out.reshape(9, m)
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
@@ -108,9 +91,8 @@ def test_link_forces_match_numpy(angle, shift, mixed):
     for _ in range(2):  # the second call exercises the damping term
         bad = _link_forces(batch, p, state.pos, state.quat, size, work, force, moment)
         assert bad == 0
-        f_ref, m_ref = ref.link_forces(
-            batch, state.pos, state.quat, size, small_ref, prev_ref, valid_ref, fp, mats, scene
-        )
+        f_ref, m_ref = ref.link_forces(batch, state.pos, state.quat, size, small_ref, prev_ref,
+                                       valid_ref, fp, mats, scene)
         scale = np.abs(f_ref).max()
         small = _link_state(work, m)[0]
         np.testing.assert_array_equal(small, small_ref)
@@ -128,7 +110,8 @@ def test_link_forces_match_numpy(angle, shift, mixed):
 def test_trajectory_matches_numpy(env, mixed):
     """Whole steps: links, gravity, floor, friction, drag, integration, actuation off; one
     material and a random per-voxel material field."""
-    batch, state, rng, mats, scene = _robot(env, seed=7, mixed=mixed, initial_velocity=[0.05, -0.02, 0.0])
+    batch, state, rng, mats, scene = _robot(env, seed=7, mixed=mixed,
+                                            initial_velocity=[0.05, -0.02, 0.0])
     _perturb(state, rng, 0.05, 0.02, 2e-4)
     if env == "land":
         state.pos[:, 2] -= 0.002  # press into the floor so contact and friction act
@@ -146,7 +129,8 @@ def test_trajectory_matches_numpy(env, mixed):
         kernels.world_forces(p, voxels, mine, work)
         kernels.floor_contact(p, voxels, mine, work)
         kernels.integrate(p, voxels, mine, work)
-        ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env], mats, scene)
+        ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env],
+                 mats, scene)
     np.testing.assert_array_equal(static, static_ref)
     np.testing.assert_allclose(mine.pos, theirs[0], atol=1e-10)
     np.testing.assert_allclose(mine.quat, theirs[1], atol=1e-8)
@@ -168,7 +152,8 @@ def expected_sizes(wave: str, angle: np.ndarray, flags: np.ndarray) -> np.ndarra
 
 @pytest.mark.parametrize("wave", ["sine", "square", "impulse"])
 def test_actuation_matches_numpy(wave):
-    batch, _state, rng, _mats, _scene = _robot("void", seed=1, actuation={"waveform": wave, "amplitude": 0.3})
+    batch, _state, rng, _mats, _scene = _robot("void", seed=1,
+                                               actuation={"waveform": wave, "amplitude": 0.3})
     n = len(batch.flags)
     size = np.zeros(n)
     fp = batch.fparams[0]
@@ -176,14 +161,12 @@ def test_actuation_matches_numpy(wave):
     assert p.wave == system.WAVE_CODES[wave]
     assert p.freq_field == 0
     for t in rng.uniform(0, 2, 5):
-        kernels.actuate_kernel(
-            t, p, batch.flags, batch.cos_phase, batch.sin_phase, batch.phase, batch.vconst, size
-        )
+        kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                               batch.phase, batch.vconst, size)
         angle = fp[system.F_OMEGA] * t + batch.phase
         np.testing.assert_allclose(size, expected_sizes(wave, angle, batch.flags), rtol=1e-12)
-    kernels.actuate_kernel(
-        -0.1, p, batch.flags, batch.cos_phase, batch.sin_phase, batch.phase, batch.vconst, size
-    )
+    kernels.actuate_kernel(-0.1, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                           batch.phase, batch.vconst, size)
     assert np.all(size == 0.05), "no actuation while settling"
 
 
@@ -212,7 +195,8 @@ def test_collision_pairs_and_forces_match_brute_force():
     force[:] = 0.0
     kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12)
-    touching = [(i, j) for i, j in want if np.linalg.norm(state.pos[i] - state.pos[j]) < 0.05]
+    touching = [(i, j) for i, j in want
+                if np.linalg.norm(state.pos[i] - state.pos[j]) < 0.05]
     assert touching, "the perturbed cup must have overlapping voxels"
     i, j = touching[0]
     assert (force[j] - force[i]) @ (state.pos[j] - state.pos[i]) > 0, "contacts push apart"
@@ -221,9 +205,8 @@ def test_collision_pairs_and_forces_match_brute_force():
 def test_rotation_vector_matches_scipy():
     """kernels.rotvec over the whole range of angles, either sign of the quaternion."""
     rng = np.random.default_rng(11)
-    angles = np.concatenate(
-        [[0.0, 1e-9, 1e-4, 0.48, 0.4925, 0.4935, 0.5, 2.0, 3.1, np.pi], rng.uniform(0, np.pi, 200)]
-    )
+    angles = np.concatenate([[0.0, 1e-9, 1e-4, 0.48, 0.4925, 0.4935, 0.5, 2.0, 3.1, np.pi],
+                             rng.uniform(0, np.pi, 200)])
     for angle in angles:
         axis = rng.normal(size=3)
         r = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis))
@@ -242,8 +225,8 @@ def test_actuation_with_frequency_field_matches_numpy(wave):
     rng = np.random.default_rng(4)
     freq = rng.uniform(0.5, 8.0, shape)
     _batch, _state, _rng, _mats, scene = _robot(
-        "void", seed=1, actuation={"waveform": wave, "amplitude": 0.3}, frequency_field=freq.tolist()
-    )
+        "void", seed=1, actuation={"waveform": wave, "amplitude": 0.3},
+        frequency_field=freq.tolist())
     batch = _batch
     n = len(batch.flags)
     size = np.zeros(n)
@@ -251,9 +234,8 @@ def test_actuation_with_frequency_field_matches_numpy(wave):
     assert p.freq_field == 1
     f_v = freq[tuple(np.argwhere(scene.body > 0).T)]
     for t in rng.uniform(0, 2, 5):
-        kernels.actuate_kernel(
-            t, p, batch.flags, batch.cos_phase, batch.sin_phase, batch.phase, batch.vconst, size
-        )
+        kernels.actuate_kernel(t, p, batch.flags, batch.cos_phase, batch.sin_phase,
+                               batch.phase, batch.vconst, size)
         angle = 2 * np.pi * f_v * t + batch.phase
         np.testing.assert_allclose(size, expected_sizes(wave, angle, batch.flags), rtol=1e-12)
 
@@ -263,13 +245,9 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     rng = np.random.default_rng(6)
     body = np.ones((4, 4, 4), int)
     body[1:3, 1:3, 1:] = 0
-    scene = sim.parse_scene(
-        {
-            "body": body.tolist(),
-            "youngs_modulus_field": (10 ** rng.uniform(4, 6, (4, 4, 4))).tolist(),
-            "density_field": rng.uniform(600, 2400, (4, 4, 4)).tolist(),
-        }
-    )
+    scene = sim.parse_scene({"body": body.tolist(),
+                             "youngs_modulus_field": (10 ** rng.uniform(4, 6, (4, 4, 4))).tolist(),
+                             "density_field": rng.uniform(600, 2400, (4, 4, 4)).tolist()})
     batch, state = system.pack([system.build_robot(scene)])
     state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
     state.lin_mom[:] = rng.normal(0, 1e-3, state.lin_mom.shape)

@@ -74,16 +74,13 @@ def test_axial_stretch_of_two_material_bar_is_sum_of_series_links():
     field = _mixed_bar_field()
     e_link = _link_moduli(field)
     force = E_SOFT * L_BAR**2 * 1e-3
-    result = simulate(_bar_scene([{"voxel": [N_BAR - 1, 0, 0], "force": [force, 0, 0]}], 0.4, field))
+    result = simulate(_bar_scene([{"voxel": [N_BAR - 1, 0, 0], "force": [force, 0, 0]}], 0.4,
+                                 field))
     got = _settled(result, 0.25)[_bar_order(result), 0]
     expected = np.concatenate([[0.0], np.cumsum(force / (e_link * L_BAR))])
     assert e_link[N_BAR // 2 - 1] == pytest.approx(4e6)  # the joint: 2 E1 E2 / (E1 + E2)
-    report(
-        "materials.axial_two_materials",
-        tip_expected_m=expected[-1],
-        tip_got_m=got[-1],
-        ratio=got[-1] / expected[-1],
-    )
+    report("materials.axial_two_materials", tip_expected_m=expected[-1], tip_got_m=got[-1],
+           ratio=got[-1] / expected[-1])
     np.testing.assert_allclose(got, expected, rtol=0, atol=0.01 * expected[-1])
 
 
@@ -113,19 +110,16 @@ def test_cantilever_of_two_materials_matches_euler_bernoulli_with_per_link_ei():
     field = _mixed_bar_field()
     e_link = _link_moduli(field)
     load = 0.01
-    result = simulate(_bar_scene([{"voxel": [N_BAR - 1, 0, 0], "force": [0, 0, load]}], 0.8, field))
+    result = simulate(_bar_scene([{"voxel": [N_BAR - 1, 0, 0], "force": [0, 0, load]}], 0.8,
+                                 field))
     got = _settled(result, 0.5)[_bar_order(result), 2]
     x = np.arange(N_BAR) * L_BAR
     expected = _eb_deflection(x, load, e_link * L_BAR**4 / 12)
     uniform_soft = load * x[-1] ** 3 / (3 * E_SOFT * L_BAR**4 / 12)
     uniform_stiff = load * x[-1] ** 3 / (3 * E_STIFF * L_BAR**4 / 12)
     assert uniform_stiff < expected[-1] < uniform_soft
-    report(
-        "materials.cantilever_two_materials",
-        tip_expected_m=expected[-1],
-        tip_got_m=got[-1],
-        ratio=got[-1] / expected[-1],
-    )
+    report("materials.cantilever_two_materials", tip_expected_m=expected[-1],
+           tip_got_m=got[-1], ratio=got[-1] / expected[-1])
     np.testing.assert_allclose(got, expected, rtol=0, atol=0.015 * expected[-1])
 
 
@@ -167,15 +161,9 @@ def test_two_mass_oscillator_with_combined_link():
     got_period = period_of(t, stretch, crossings=5)
     u_star = force * m_a / (k * (m_a + m_b))
     amp = np.ptp(stretch)
-    report(
-        "materials.two_mass_oscillator",
-        period_expected_s=period,
-        period_got_s=got_period,
-        period_ratio=got_period / period,
-        amplitude_expected_m=2 * u_star,
-        amplitude_got_m=amp,
-        amplitude_ratio=amp / (2 * u_star),
-    )
+    report("materials.two_mass_oscillator", period_expected_s=period, period_got_s=got_period,
+           period_ratio=got_period / period, amplitude_expected_m=2 * u_star,
+           amplitude_got_m=amp, amplitude_ratio=amp / (2 * u_star))
     assert got_period == pytest.approx(period, rel=0.005)
     assert amp == pytest.approx(2 * u_star, rel=0.01)
     tc, com = com_trajectory(result)
@@ -193,19 +181,17 @@ def test_each_active_voxel_follows_its_own_frequency():
     quasi-static response lags and shrinks by ~(f / f_link)^2 ~ 0.1%, bond damping more)."""
     L, amp, f1, f2, cycles = 0.05, 0.2, 2.0, 3.0, 10
     freq = [[[f1]], [[1.0]], [[f2]]]  # the passive voxel's value is unused
-    result = simulate(
-        {
-            "voxel_size": L,
-            "material": {"youngs_modulus": 1e6, "density": 1200.0},
-            "environment": {"kind": "void"},
-            "body": [[[2]], [[1]], [[2]]],
-            "actuation": {"frequency": 7.0, "amplitude": amp},  # overridden by the field
-            "frequency_field": freq,
-            "duration": {"cycles": cycles},
-            "self_collisions": False,
-            "record": {"every": 5},
-        }
-    )
+    result = simulate({
+        "voxel_size": L,
+        "material": {"youngs_modulus": 1e6, "density": 1200.0},
+        "environment": {"kind": "void"},
+        "body": [[[2]], [[1]], [[2]]],
+        "actuation": {"frequency": 7.0, "amplitude": amp},  # overridden by the field
+        "frequency_field": freq,
+        "duration": {"cycles": cycles},
+        "self_collisions": False,
+        "record": {"every": 5},
+    })
     expected_seconds = cycles / ((f1 + f2) / 2)
     assert abs(result.simulated_seconds - expected_seconds) <= result.dt
     t, pos = frames(result)
@@ -226,14 +212,12 @@ def test_each_active_voxel_follows_its_own_frequency():
 
 def test_actuation_step_cap_uses_the_highest_frequency():
     """A soft robot (stable step ~4 ms) actuated at up to 8 Hz: dt = 1 / (2000 x 8 Hz)."""
-    result = sim.simulate(
-        {
-            "material": {"youngs_modulus": 1e3},
-            "body": [[[2]], [[2]], [[1]]],
-            "frequency_field": [[[1.0]], [[8.0]], [[50.0]]],  # 50 Hz on a passive voxel: unused
-            "duration": {"seconds": 0.01},
-        }
-    )
+    result = sim.simulate({
+        "material": {"youngs_modulus": 1e3},
+        "body": [[[2]], [[2]], [[1]]],
+        "frequency_field": [[[1.0]], [[8.0]], [[50.0]]],  # 50 Hz on a passive voxel: unused
+        "duration": {"seconds": 0.01},
+    })
     assert result.dt == 1.0 / (8.0 * 2000)
 
 
@@ -273,14 +257,11 @@ def test_uniform_fields_are_bit_identical_to_scalars(env):
     included (self-collisions on, actuated); the fields override the scalars."""
     plain = _random_scene(env, 3)
     shape = np.asarray(plain["body"]).shape
-    fielded = dict(
-        plain,
-        material={"youngs_modulus": 3e6, "density": 50.0},
-        actuation={"frequency": 1.0, "amplitude": 0.5},
-        youngs_modulus_field=np.full(shape, 1e5).tolist(),
-        density_field=np.full(shape, 900.0).tolist(),
-        frequency_field=np.full(shape, 4.0).tolist(),
-    )
+    fielded = dict(plain, material={"youngs_modulus": 3e6, "density": 50.0},
+                   actuation={"frequency": 1.0, "amplitude": 0.5},
+                   youngs_modulus_field=np.full(shape, 1e5).tolist(),
+                   density_field=np.full(shape, 900.0).tolist(),
+                   frequency_field=np.full(shape, 4.0).tolist())
     a, b = sim.simulate_many([plain, fielded])
     assert a.stable and a.frames is not None
     _assert_identical(a, b)
@@ -308,15 +289,12 @@ def test_mixed_materials_keep_the_mass_weighted_centre_of_mass_in_void():
     assert drift < 1e-9
 
 
-@pytest.mark.parametrize(
-    ("field", "value", "message"),
-    [
-        ("youngs_modulus_field", -3.0, "youngs_modulus_field: must be > 0 at [1, 0, 0] (got -3.0)"),
-        ("density_field", 0.0, "density_field: must be > 0 at [1, 0, 0] (got 0.0)"),
-        ("frequency_field", float("inf"), "frequency_field: must be finite at [1, 0, 0] (got inf)"),
-        ("density_field", float("nan"), "density_field: must be finite at [1, 0, 0] (got nan)"),
-    ],
-)
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("youngs_modulus_field", -3.0, "youngs_modulus_field: must be > 0 at [1, 0, 0] (got -3.0)"),
+    ("density_field", 0.0, "density_field: must be > 0 at [1, 0, 0] (got 0.0)"),
+    ("frequency_field", float("inf"), "frequency_field: must be finite at [1, 0, 0] (got inf)"),
+    ("density_field", float("nan"), "density_field: must be finite at [1, 0, 0] (got nan)"),
+])
 def test_field_values_are_checked_at_present_voxels(field, value, message):
     body = [[[1, 0]], [[2, 0]]]
     values = [[[1.0, -5.0]], [[value, -5.0]]]  # the -5 sit at empty voxels: ignored
@@ -325,14 +303,11 @@ def test_field_values_are_checked_at_present_voxels(field, value, message):
     assert str(err.value) == message
 
 
-@pytest.mark.parametrize(
-    ("values", "start"),
-    [
-        ([[[1.0]]], "youngs_modulus_field: shape [1, 1, 1] differs from body [2, 1, 2]"),
-        ([[[1.0, "a"]], [[1.0, 1.0]]], "youngs_modulus_field: must be a nested list"),
-        ([1.0, 2.0], "youngs_modulus_field: must be 3-D"),
-    ],
-)
+@pytest.mark.parametrize(("values", "start"), [
+    ([[[1.0]]], "youngs_modulus_field: shape [1, 1, 1] differs from body [2, 1, 2]"),
+    ([[[1.0, "a"]], [[1.0, 1.0]]], "youngs_modulus_field: must be a nested list"),
+    ([1.0, 2.0], "youngs_modulus_field: must be 3-D"),
+])
 def test_field_shape_and_type_errors(values, start):
     with pytest.raises(sim.SceneError) as err:
         sim.parse_scene({"body": [[[1, 0]], [[2, 0]]], "youngs_modulus_field": values})
@@ -341,13 +316,8 @@ def test_field_shape_and_type_errors(values, start):
 
 def test_values_at_empty_voxels_are_ignored():
     body = [[[1, 0]], [[2, 0]]]
-    scene = sim.parse_scene(
-        {
-            "body": body,
-            "youngs_modulus_field": [[[2e5, -1]], [[3e5, 0]]],
-            "frequency_field": [[[9.0, -1]], [[4.0, 0]]],
-            "duration": {"cycles": 8},
-        }
-    )
+    scene = sim.parse_scene({"body": body, "youngs_modulus_field": [[[2e5, -1]], [[3e5, 0]]],
+                             "frequency_field": [[[9.0, -1]], [[4.0, 0]]],
+                             "duration": {"cycles": 8}})
     assert scene.youngs_modulus_field.tolist() == [[[2e5, 0]], [[3e5, 0]]]
     assert scene.duration_seconds == 2.0  # 8 cycles at the active voxel's 4 Hz

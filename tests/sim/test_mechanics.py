@@ -85,12 +85,8 @@ def test_cantilever_under_gravity_matches_lumped_euler_bernoulli(axis):
     got = -disp[order, 2]
     expected = sum(_eb_cantilever(x, a, m * G, ei) for a in x[1:])
     tip_ratio = got[-1] / expected[-1]
-    report(
-        f"analytic.cantilever_gravity.{AXES[axis]}",
-        tip_expected_m=expected[-1],
-        tip_got_m=got[-1],
-        ratio=tip_ratio,
-    )
+    report(f"analytic.cantilever_gravity.{AXES[axis]}", tip_expected_m=expected[-1],
+           tip_got_m=got[-1], ratio=tip_ratio)
     np.testing.assert_allclose(got, expected, rtol=0, atol=0.015 * expected[-1])
 
 
@@ -114,12 +110,8 @@ def test_cantilever_tip_load_is_PL3_over_3EI(axis, load_axis):
     got = disp[order, load_axis]
     expected = _eb_cantilever(x, span, load, ei)
     assert expected[-1] == pytest.approx(load * span**3 / (3 * ei))
-    report(
-        f"analytic.cantilever_tip.{AXES[axis]}{AXES[load_axis]}",
-        tip_expected_m=expected[-1],
-        tip_got_m=got[-1],
-        ratio=got[-1] / expected[-1],
-    )
+    report(f"analytic.cantilever_tip.{AXES[axis]}{AXES[load_axis]}",
+           tip_expected_m=expected[-1], tip_got_m=got[-1], ratio=got[-1] / expected[-1])
     np.testing.assert_allclose(got, expected, rtol=0, atol=0.015 * expected[-1])
     other = [d for d in range(3) if d not in (axis, load_axis)][0]
     assert np.abs(disp[:, other]).max() < 1e-3 * expected[-1]  # no out-of-plane motion
@@ -143,12 +135,8 @@ def test_axial_stretch_is_F_L_over_EA(axis):
     order = [index[tuple(i if d == axis else 0 for d in range(3))] for i in range(n)]
     got = disp[order, axis]
     expected = force_n * x / (E * L**2)
-    report(
-        f"analytic.axial.{AXES[axis]}",
-        tip_expected_m=expected[-1],
-        tip_got_m=got[-1],
-        ratio=got[-1] / expected[-1],
-    )
+    report(f"analytic.axial.{AXES[axis]}", tip_expected_m=expected[-1], tip_got_m=got[-1],
+           ratio=got[-1] / expected[-1])
     np.testing.assert_allclose(got, expected, rtol=0, atol=0.01 * expected[-1])
 
 
@@ -172,13 +160,8 @@ def test_free_fall_is_g_t2_over_2():
     dt = result.dt
     expected = L - 0.5 * G * t**2  # the 2x2x2 block's centre starts at z = L
     err = np.abs(com[:, 2] - expected)
-    report(
-        "analytic.free_fall",
-        drop_expected_m=0.5 * G * t[-1] ** 2,
-        drop_got_m=com[0, 2] - com[-1, 2],
-        max_abs_err_m=err.max(),
-        allowed_m=G * t[-1] * dt,
-    )
+    report("analytic.free_fall", drop_expected_m=0.5 * G * t[-1] ** 2,
+           drop_got_m=com[0, 2] - com[-1, 2], max_abs_err_m=err.max(), allowed_m=G * t[-1] * dt)
     assert np.all(err <= G * t * dt + 1e-9)
     assert np.abs(com[:, :2] - com[0, :2]).max() < 1e-9
     _, pos = frames(result)
@@ -203,7 +186,8 @@ def test_drag_decay_of_a_coasting_voxel(direction):
     v_init = v0 * d
     scene = {
         "voxel_size": L,
-        "material": {"youngs_modulus": E, "density": rho, "damping_global": 0.0, "damping_bond": 0.0},
+        "material": {"youngs_modulus": E, "density": rho, "damping_global": 0.0,
+                     "damping_bond": 0.0},
         "environment": {"kind": "water", "fluid_density": rho_f, "drag_coefficient": cd},
         "body": [[[1]]],
         "initial_velocity": v_init.tolist(),
@@ -225,14 +209,9 @@ def test_drag_decay_of_a_coasting_voxel(direction):
         mid = 0.5 * (t[1:] + t[:-1])
         got_v = np.diff(got_x) / np.diff(t)
         expected_v = u0 / (1 + k * abs(u0) * mid / m)
-        report(
-            f"analytic.drag.{AXES[axis]}_{'_'.join(f'{c:g}' for c in direction)}",
-            x_expected_m=expected_x[-1],
-            x_got_m=got_x[-1],
-            ratio=got_x[-1] / expected_x[-1],
-            v_end_expected=expected_v[-1],
-            v_end_got=got_v[-1],
-        )
+        report(f"analytic.drag.{AXES[axis]}_{'_'.join(f'{c:g}' for c in direction)}",
+               x_expected_m=expected_x[-1], x_got_m=got_x[-1], ratio=got_x[-1] / expected_x[-1],
+               v_end_expected=expected_v[-1], v_end_got=got_v[-1])
         np.testing.assert_allclose(got_x, expected_x, rtol=0, atol=0.005 * abs(expected_x[-1]))
         np.testing.assert_allclose(got_v, expected_v, rtol=0.01, atol=1e-6)
     disp = np.asarray(result.displacement)
@@ -244,13 +223,8 @@ def _oscillator(fixed: bool, seconds: float):
     force = 5.0
     scene = {
         "voxel_size": L,
-        "material": {
-            "youngs_modulus": E,
-            "density": rho,
-            "damping_bond": 0.0,
-            "damping_global": 0.0,
-            "damping_collision": 0.0,
-        },
+        "material": {"youngs_modulus": E, "density": rho, "damping_bond": 0.0,
+                     "damping_global": 0.0, "damping_collision": 0.0},
         "environment": {"kind": "void"},
         "body": line(2),
         "fixed": [[0, 0, 0]] if fixed else [],
@@ -280,16 +254,10 @@ def _check_undamped(t, stretch, static, period_expected, name):
     last = t > t[-1] - 5 * period_expected
     amp_first = np.ptp(stretch[first])
     amp_last = np.ptp(stretch[last])
-    report(
-        name,
-        period_expected_s=period_expected,
-        period_got_s=period,
-        period_ratio=period / period_expected,
-        amplitude_expected_m=2 * static,
-        amplitude_first_m=amp_first,
-        amplitude_last_m=amp_last,
-        amplitude_kept=amp_last / amp_first,
-    )
+    report(name, period_expected_s=period_expected, period_got_s=period,
+           period_ratio=period / period_expected, amplitude_expected_m=2 * static,
+           amplitude_first_m=amp_first, amplitude_last_m=amp_last,
+           amplitude_kept=amp_last / amp_first)
     assert period == pytest.approx(period_expected, rel=0.005)
     assert amp_first == pytest.approx(2 * static, rel=0.01)
     assert amp_last == pytest.approx(amp_first, rel=0.005)
@@ -355,12 +323,8 @@ def test_centre_of_mass_fixed_in_void_under_actuation(seed):
     _, pos = frames(result)
     moved = np.abs(pos[-1] - pos[0]).max() / L
     drift = np.abs(com - com[0]).max() / L
-    report(
-        f"conservation.com_void.seed{seed}",
-        voxels=len(result.voxels),
-        max_voxel_motion_L=moved,
-        com_drift_L=drift,
-    )
+    report(f"conservation.com_void.seed{seed}", voxels=len(result.voxels),
+           max_voxel_motion_L=moved, com_drift_L=drift)
     assert moved > 0.05  # the actuation really moved the body
     assert drift < 1e-9
     assert np.linalg.norm(result.displacement) / L < 1e-9
@@ -401,15 +365,11 @@ def test_resting_column_sag_matches_springs_in_series():
     linear springs; 2% covers the residual of the damped bounce after 1 s."""
     L, rho, E = 0.05, 1200.0, 1e5
     m = rho * L**3
-    result = simulate(
-        {
-            "voxel_size": L,
-            "material": {"youngs_modulus": E, "density": rho},
-            "environment": {"kind": "land"},
-            "body": line(3, axis=2),
-            "duration": {"seconds": 1.0},
-        }
-    )
+    result = simulate({
+        "voxel_size": L, "material": {"youngs_modulus": E, "density": rho},
+        "environment": {"kind": "land"}, "body": line(3, axis=2),
+        "duration": {"seconds": 1.0},
+    })
     index = voxel_index(result)
     z = np.asarray(result.final_positions)[[index[(0, 0, k)] for k in range(3)], 2]
     rest = (np.arange(3) + 0.5) * L
@@ -417,13 +377,13 @@ def test_resting_column_sag_matches_springs_in_series():
     sag0 = 3 * m * G / k_floor
     expected = np.array([sag0, sag0 + 2 * m * G / k_link, sag0 + 3 * m * G / k_link])
     got = rest - z
-    report(
-        "land.column_sag", expected_m=expected.tolist(), got_m=got.tolist(), ratio_top=got[2] / expected[2]
-    )
+    report("land.column_sag", expected_m=expected.tolist(), got_m=got.tolist(),
+           ratio_top=got[2] / expected[2])
     np.testing.assert_allclose(got, expected, rtol=0.02)
 
 
-def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_global=0.0, preloaded=False):
+def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_global=0.0,
+                    preloaded=False):
     """Horizontal force ``force_total`` (N, along +x) split evenly over the body's voxels.
 
     ``preloaded``: start each (single-layer) voxel sunk into the floor by its equilibrium
@@ -436,13 +396,8 @@ def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_
     per = force_total / len(full)
     return {
         "voxel_size": 0.05,
-        "material": {
-            "youngs_modulus": 1e6,
-            "density": 1200.0,
-            "friction_static": mu_s,
-            "friction_kinetic": mu_k,
-            "damping_global": damping_global,
-        },
+        "material": {"youngs_modulus": 1e6, "density": 1200.0, "friction_static": mu_s,
+                     "friction_kinetic": mu_k, "damping_global": damping_global},
         "environment": {"kind": "land", "gravity": G},
         "body": body.tolist(),
         "forces": [{"voxel": v, "force": [per, 0.0, 0.0]} for v in full],
@@ -477,12 +432,8 @@ def test_friction_threshold_from_equilibrium(body, factor):
     late = t >= 0.1
     accel = 2 * np.polyfit(t[late], com[late, 0], 2)[0]
     expected = (force - mu_k * m * G) / m
-    report(
-        f"land.friction_threshold.n{n}.above",
-        accel_expected=expected,
-        accel_got=accel,
-        ratio=accel / expected,
-    )
+    report(f"land.friction_threshold.n{n}.above", accel_expected=expected, accel_got=accel,
+           ratio=accel / expected)
     assert accel == pytest.approx(expected, rel=0.02)
 
 
@@ -497,9 +448,8 @@ def test_friction_holds_after_touchdown(body):
     """
     n = int(np.sum(body))
     m = 1200.0 * 0.05**3 * n
-    result = simulate(
-        _friction_scene(body, 0.95 * 1.0 * m * G, 1.0, 1.0, 1.0, settle=0.5, damping_global=0.01)
-    )
+    result = simulate(_friction_scene(body, 0.95 * 1.0 * m * G, 1.0, 1.0, 1.0, settle=0.5,
+                                      damping_global=0.01))
     report(f"land.friction_hold.n{n}", drift_L=result.distance)
     assert result.distance < 1e-6
 
@@ -521,11 +471,7 @@ def test_friction_slides_above_static_threshold(body, mu_k):
     late = t >= 0.1
     accel = 2 * np.polyfit(t[late], com[late, 0], 2)[0]
     expected = (force - mu_k * m * G) / m
-    report(
-        f"land.friction_slide.n{n}.mu_k{mu_k}",
-        accel_expected=expected,
-        accel_got=accel,
-        ratio=accel / expected,
-    )
+    report(f"land.friction_slide.n{n}.mu_k{mu_k}", accel_expected=expected, accel_got=accel,
+           ratio=accel / expected)
     assert accel == pytest.approx(expected, rel=0.02)
     assert np.abs(com[:, 1] - com[0, 1]).max() < 1e-9  # no sideways motion

@@ -49,7 +49,9 @@ def test_good_scene_parses_with_defaults():
     np.testing.assert_array_equal(scene.fixed, [[0, 0, 0]])
 
 
-@pytest.mark.parametrize(("kind", "gravity"), [("land", 9.81), ("water", 0.0), ("void", 0.0)])
+@pytest.mark.parametrize(
+    ("kind", "gravity"), [("land", 9.81), ("water", 0.0), ("void", 0.0)]
+)
 def test_gravity_defaults_per_world(kind, gravity):
     assert parse_scene(_with("environment.kind", kind)).environment.gravity == gravity
 
@@ -109,7 +111,8 @@ def test_malformed_scene_names_the_field(path, value, field):
 
 def test_empty_body_is_an_error():
     with pytest.raises(SceneError, match=r"^body: "):
-        parse_scene(_with("body", [[[0, 0]], [[0, 0]]]) | {"phase": None, "fixed": [], "forces": []})
+        parse_scene(_with("body", [[[0, 0]], [[0, 0]]]) | {"phase": None, "fixed": [],
+                                                             "forces": []})
 
 
 def test_fixed_voxel_must_be_full():

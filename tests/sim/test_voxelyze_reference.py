@@ -52,7 +52,8 @@ def _run(name: str, **overrides):
     Returns (t, positions reordered to the reference's voxel order, the Result)."""
     ref = _reference(name)
     scene = copy.deepcopy(ref["scene"])
-    scene.update(dt_fraction=1.0, self_collisions=False, record={"every": ref["voxelyze"]["record_every"]})
+    scene.update(dt_fraction=1.0, self_collisions=False,
+                 record={"every": ref["voxelyze"]["record_every"]})
     scene.update(overrides)
     result = simulate(scene)
     assert result.dt == pytest.approx(ref["voxelyze"]["dt"], rel=1e-6)
@@ -85,16 +86,9 @@ def test_cantilever_tip_matches_voxelyze(name):
     period = _period(t[early], z[early])
     n = min(len(z), len(z_ref))
     rms = float(np.sqrt(np.mean((z[:n] - z_ref[:n]) ** 2)) / abs(mean_ref))
-    report(
-        f"voxelyze.{name}",
-        tip_mean_voxelyze_m=mean_ref,
-        tip_mean_softevo_m=mean,
-        ratio=mean / mean_ref,
-        period_voxelyze_s=period_ref,
-        period_softevo_s=period,
-        period_ratio=period / period_ref,
-        rms_traj_diff_rel=rms,
-    )
+    report(f"voxelyze.{name}", tip_mean_voxelyze_m=mean_ref, tip_mean_softevo_m=mean,
+           ratio=mean / mean_ref, period_voxelyze_s=period_ref, period_softevo_s=period,
+           period_ratio=period / period_ref, rms_traj_diff_rel=rms)
     assert mean == pytest.approx(mean_ref, rel=0.03)
     assert period == pytest.approx(period_ref, rel=0.05)
 
@@ -122,20 +116,11 @@ def test_cube_drop_matches_voxelyze():
     c, pen, sag, drift, z = figures(t, pos)
     n = min(len(z), len(z_ref))
     traj = float(np.abs(z[:n] - z_ref[:n]).max() / offset[2])
-    report(
-        "voxelyze.cube_drop",
-        contact_voxelyze_s=c_ref,
-        contact_softevo_s=c,
-        penetration_voxelyze_m=pen_ref,
-        penetration_softevo_m=pen,
-        penetration_ratio=pen / pen_ref,
-        rest_sag_voxelyze_m=sag_ref,
-        rest_sag_softevo_m=sag,
-        sag_ratio=sag / sag_ref,
-        drift_softevo_L=drift,
-        drift_voxelyze_L=drift_ref,
-        max_com_z_diff_over_drop=traj,
-    )
+    report("voxelyze.cube_drop", contact_voxelyze_s=c_ref, contact_softevo_s=c,
+           penetration_voxelyze_m=pen_ref, penetration_softevo_m=pen,
+           penetration_ratio=pen / pen_ref, rest_sag_voxelyze_m=sag_ref, rest_sag_softevo_m=sag,
+           sag_ratio=sag / sag_ref, drift_softevo_L=drift, drift_voxelyze_L=drift_ref,
+           max_com_z_diff_over_drop=traj)
     frame = t[1] - t[0]
     assert abs(c - c_ref) <= frame * 1.01
     assert pen == pytest.approx(pen_ref, rel=0.10)
@@ -166,16 +151,9 @@ def test_actuated_beam_crawls_like_voxelyze():
     half = np.argmin(np.abs(t - 1.0)), np.argmin(np.abs(t_ref - 1.0))
     dx_half = pos[half[0]].mean(axis=0)[0] - pos[0].mean(axis=0)[0]
     dx_half_ref = pos_ref[half[1]].mean(axis=0)[0] - pos_ref[0].mean(axis=0)[0]
-    report(
-        "voxelyze.actuated_beam_floor",
-        dx_voxelyze_m=d_ref[0],
-        dx_softevo_m=d[0],
-        ratio=d[0] / d_ref[0],
-        dx_at_1s_voxelyze_m=dx_half_ref,
-        dx_at_1s_softevo_m=dx_half,
-        dy_voxelyze_m=d_ref[1],
-        dy_softevo_m=d[1],
-    )
+    report("voxelyze.actuated_beam_floor", dx_voxelyze_m=d_ref[0], dx_softevo_m=d[0],
+           ratio=d[0] / d_ref[0], dx_at_1s_voxelyze_m=dx_half_ref, dx_at_1s_softevo_m=dx_half,
+           dy_voxelyze_m=d_ref[1], dy_softevo_m=d[1])
     assert np.sign(d[0]) == np.sign(d_ref[0])
     assert 1 / 3 <= d[0] / d_ref[0] <= 3
     assert abs(d[1]) < abs(d[0])
@@ -198,22 +176,16 @@ def test_tumbling_plate_spins_rigidly_like_voxelyze():
     t_ref, pos_ref, voxels, s = _voxelyze("tumble_void")
     free = t_ref >= 0.1
     omega_ref = np.polyfit(t_ref[free], _angle(pos_ref)[free], 1)[0]
-    t, pos, result = _run(
-        "tumble_void", initial_angular_velocity=[0.0, 0.0, float(omega_ref)], duration={"seconds": 0.95}
-    )
+    t, pos, result = _run("tumble_void", initial_angular_velocity=[0.0, 0.0, float(omega_ref)],
+                          duration={"seconds": 0.95})
     angle = _angle(pos)
     omega = np.polyfit(t, angle, 1)[0]
     com = pos.mean(axis=1)
     c, sn = np.cos(angle), np.sin(angle)
     r0 = pos[0] - com[0]
-    rigid = np.stack(
-        [
-            c[:, None] * r0[None, :, 0] - sn[:, None] * r0[None, :, 1],
-            sn[:, None] * r0[None, :, 0] + c[:, None] * r0[None, :, 1],
-            np.broadcast_to(r0[None, :, 2], (len(t), len(r0))),
-        ],
-        axis=-1,
-    )
+    rigid = np.stack([c[:, None] * r0[None, :, 0] - sn[:, None] * r0[None, :, 1],
+                      sn[:, None] * r0[None, :, 0] + c[:, None] * r0[None, :, 1],
+                      np.broadcast_to(r0[None, :, 2], (len(t), len(r0)))], axis=-1)
     shape_err = np.abs(pos - com[:, None, :] - rigid).max() / s
     angle_err = np.abs(angle - omega_ref * t).max()
     spin = _reference("tumble_void")["voxelyze"]["settings"]["initial_spin"]
@@ -221,19 +193,11 @@ def test_tumbling_plate_spins_rigidly_like_voxelyze():
     angle_ref = _angle(pos_ref)
     turned_ref = np.interp(t_free + t, t_ref, angle_ref) - np.interp(t_free, t_ref, angle_ref)
     vs_voxelyze = np.abs(angle - turned_ref).max()
-    report(
-        "voxelyze.tumble_void",
-        omega_voxelyze=omega_ref,
-        omega_softevo=omega,
-        omega_ratio=omega / omega_ref,
-        turned_voxelyze=turned_ref[-1],
-        turned_softevo=angle[-1],
-        over_s=t[-1],
-        max_angle_diff_vs_voxelyze_rad=vs_voxelyze,
-        max_angle_err_vs_rigid_rad=angle_err,
-        shape_err_L=shape_err,
-        com_drift_L=np.abs(com - com[0]).max() / s,
-    )
+    report("voxelyze.tumble_void", omega_voxelyze=omega_ref, omega_softevo=omega,
+           omega_ratio=omega / omega_ref, turned_voxelyze=turned_ref[-1],
+           turned_softevo=angle[-1], over_s=t[-1], max_angle_diff_vs_voxelyze_rad=vs_voxelyze,
+           max_angle_err_vs_rigid_rad=angle_err, shape_err_L=shape_err,
+           com_drift_L=np.abs(com - com[0]).max() / s)
     assert omega == pytest.approx(omega_ref, rel=1e-3)
     assert angle_err < 1e-3
     assert vs_voxelyze < 1e-3
