@@ -10,16 +10,22 @@ from the frames read):
 - ``runs``: the export's runs table plus ``generation`` (the last one stored);
 - ``generations``: per run and generation, the stored summary (environment, best_distance,
   mean_distance, front_size, evaluations, evaluation_seconds, created_at);
-- ``populations``: the populations kept at generation 0 and at each run's last stored
-  generation (run_id, generation, individual_id, front_rank), each member with the traits
-  of its latest evaluation at or before that generation (after an environment switch: the
-  one in the new environment);
+- ``populations``: the populations kept at generation 0, at each run's last stored
+  generation and at every generation an analysis compares or shows
+  (``analysis.matching.analysis_generations``; the loader reads any others asked for)
+  (run_id, generation, individual_id, front_rank), each member with the traits of its
+  latest evaluation at or before that generation (after an environment switch: the one in
+  the new environment);
 - ``evaluations``: every evaluation of those members (``INDIVIDUAL_COLUMNS``) with
   ``treatment`` and ``repetition``.
 
-Only the two ends of each run are read: a paper-scale experiment stores tens of millions of
-evaluations, and the analyses need the per-generation summaries and the populations at the
-start and the end.
+Only those generations' populations are read: a paper-scale experiment stores tens of
+millions of evaluations, and the analyses need the per-generation summaries and the
+populations at a few generations.
+
+Comparisons are made at matched generations (``analysis.matching``): ``run_values(g)`` gives
+one value per run at generation ``g`` (the unit of every statistic), ``display_populations``
+the members each treatment is shown with.
 
 Trait columns are ``TRAITS``: distance (voxel lengths), active_share, voxel_count,
 frequency (Hz), branching, shape_entropy (bits), symmetry.
@@ -32,6 +38,7 @@ from typing import Any
 
 import pandas as pd
 
+from softevo.analysis import matching
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS, TRAITS
 
 __all__ = [
@@ -78,7 +85,59 @@ class ExperimentData:
 
     def initial_populations(self) -> pd.DataFrame:
         """Members of each run's population at generation 0."""
-        return self.populations[self.populations["generation"] == 0].reset_index(drop=True)
+        return self.populations_at(0)
+
+    def populations_at(self, generation: int) -> pd.DataFrame:
+        """Members of the populations kept at ``generation`` (runs that stored it)."""
+        return self.populations[self.populations["generation"] == generation].reset_index(drop=True)
+
+    def run_values(self, generation: int) -> pd.DataFrame:
+        """One row per run that stored ``generation``: run_id, treatment, repetition,
+        generation, ``best_distance`` (its population's best, from the generation summary)
+        and each trait's mean over its population then (``TRAITS``)."""
+        summary = self.generations[self.generations["generation"] == generation]
+        rows = summary[["run_id", "treatment", "repetition", "generation", "best_distance"]]
+        members = self.populations_at(generation)
+        means = members.groupby("run_id")[list(TRAITS)].mean().reset_index()
+        merged = rows.merge(means, on="run_id", how="left")
+        return merged.sort_values("run_id", kind="stable").reset_index(drop=True)
+
+    # ---- matched generations (analysis.matching) --------------------------------------------
+    @property
+    def static_generation(self) -> int | None:
+        """The generation the static treatments are compared at."""
+        return matching.static_generation(self.treatments, self.runs)
+
+    def pair_generation(self, a: str, b: str) -> int | None:
+        """The generation treatments ``a`` and ``b`` are compared at."""
+        return matching.pair_generation(self.treatments, self.runs, a, b)
+
+    def end_generation(self, name: str) -> int | None:
+        """The last generation every started run of treatment ``name`` has stored."""
+        return matching.end_generation(self.runs, name)
+
+    def display_generation(self, name: str) -> int | None:
+        """The generation treatment ``name`` is shown at."""
+        return matching.display_generation(self.treatments, self.runs, name)
+
+    def _per_treatment(self, frame_at) -> pd.DataFrame:
+        parts = []
+        for name in self.treatment_names:
+            generation = self.display_generation(name)
+            if generation is not None:
+                frame = frame_at(generation)
+                parts.append(frame[frame["treatment"] == name])
+        if not parts:
+            return frame_at(-1)
+        return pd.concat(parts, ignore_index=True)
+
+    def display_populations(self) -> pd.DataFrame:
+        """Each treatment's members at its display generation."""
+        return self._per_treatment(self.populations_at)
+
+    def display_run_values(self) -> pd.DataFrame:
+        """Each treatment's ``run_values`` at its display generation."""
+        return self._per_treatment(self.run_values)
 
 
 def experiment_data(

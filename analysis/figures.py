@@ -30,7 +30,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
-from softevo.analysis.stats_tables import ALPHA, best_distance_per_run, ci_table  # noqa: E402
+from softevo.analysis.stats_tables import ALPHA, ci_table  # noqa: E402
 from softevo.evolution.selection import non_dominated_sort  # noqa: E402
 
 DPI = 100
@@ -47,7 +47,7 @@ SAMPLES_PER_FRONT = 3
 MOVED_SHARE = 0.02
 TITLES = {
     "fitness": "Fitness over generations",
-    "descriptors": "Descriptors of the final populations",
+    "descriptors": "Descriptors per run at matched generations",
     "pareto": "Aggregated Pareto fronts",
     "transitions": "Transitions against static controls",
     "robots": "Robots sampled from the fronts",
@@ -238,35 +238,55 @@ def _brackets(ax: Axes, tests: pd.DataFrame, position: dict[str, int]) -> None:
 
 
 def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -> FigureFile:
-    """Box plots of each trait over the final populations, per treatment, with brackets over
-    significantly different pairs; the last panel is the best distance of each run."""
+    """Box plots of each trait's run values (population means, one per run) per treatment at
+    its display generation, with brackets over significantly different pairs compared at
+    that generation; the last panel is the best distance of each run."""
     fig = _new_figure("descriptors", data)
     axes = _grid(fig, len(TRAITS) + 1, 4)
     names = data.treatment_names
     colors = treatment_colors(data.treatments)
     position = {name: k for k, name in enumerate(names)}
-    final = data.final_populations()
-    best = best_distance_per_run(data)
-    panels = [(trait, final, trait) for trait in TRAITS] + [("best_distance", best, "best_distance")]
-    for ax, (metric, frame, column) in zip(axes, panels, strict=True):
-        samples = [frame.loc[frame["treatment"] == n, column].dropna().to_numpy(float) for n in names]
+    shown = {name: data.display_generation(name) for name in names}
+    values = data.display_run_values()
+    for ax, metric in zip(axes, [*TRAITS, "best_distance"], strict=True):
+        samples = [values.loc[values["treatment"] == n, metric].dropna().to_numpy(float) for n in names]
         _boxes(ax, samples, [colors[n] for n in names])
         ax.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
-        ax.set_title(TRAIT_LABELS[metric] + (" (per run)" if metric == "best_distance" else ""), fontsize=10)
+        ax.set_title(TRAIT_LABELS[metric] + " (per run)", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
         chosen = tests[(tests["metric"] == metric) & (tests["comparison"] == "between treatments")]
-        _brackets(ax, chosen, position)
+        matched = np.array(
+            [
+                shown[a] == g == shown[b]
+                for a, b, g in zip(chosen["a"], chosen["b"], chosen["generation"], strict=True)
+            ],
+            dtype=bool,
+        )
+        _brackets(ax, chosen.loc[matched], position)
     fig.suptitle(
-        "Final populations across treatments (Mann-Whitney U, Bonferroni; * p<0.05, ** p<0.01, *** p<0.001)"
+        f"Run values across treatments at {_generations_text(data)} "
+        "(Mann-Whitney U over runs, Bonferroni; * p<0.05, ** p<0.01, *** p<0.001)"
     )
     return save(
         fig,
         out_dir,
         "descriptors",
-        "Descriptors of the final populations (all repetitions pooled) per treatment; "
-        "the last panel is each run's final best distance. Brackets mark pairs whose "
+        "One value per run (its population's mean of the descriptor; the last panel: its "
+        "best distance), per treatment, static treatments at their common last generation and "
+        "transitions at their last. Brackets mark pairs compared at that generation whose "
         "Bonferroni-adjusted Mann-Whitney p is below 0.05.",
     )
+
+
+def _generations_text(data: ExperimentData) -> str:
+    """ "generation G" (or "generations G1 (static), G2 (name), ...") of the display."""
+    shown = {name: data.display_generation(name) for name in data.treatment_names}
+    distinct = sorted({g for g in shown.values() if g is not None})
+    if len(distinct) <= 1:
+        return f"generation {distinct[0] if distinct else '-'}"
+    static = data.static_generation
+    others = [f"{g} ({n})" for n, g in shown.items() if g != static and g is not None]
+    return "generations " + ", ".join([f"{static} (static)", *others])
 
 
 # ---- Pareto fronts -----------------------------------------------------------------------------
@@ -282,13 +302,14 @@ def pareto_front(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def pareto_figure(data: ExperimentData, out_dir: Path) -> FigureFile:
-    """Final populations (all repetitions pooled) in the distance / active-share plane, one
-    panel per treatment, with the aggregated non-dominated front drawn as a staircase."""
+    """Populations at each treatment's display generation (all repetitions pooled) in the
+    distance / active-share plane, one panel per treatment, with the aggregated
+    non-dominated front drawn as a staircase."""
     fig = _new_figure("pareto", data)
     names = data.treatment_names
     axes = _grid(fig, len(names), min(4, len(names)), sharex=True)
     colors = treatment_colors(data.treatments)
-    final = data.final_populations()
+    final = data.display_populations()
     for ax, name in zip(axes, names, strict=True):
         frame = final[final["treatment"] == name]
         ax.scatter(
@@ -319,7 +340,7 @@ def pareto_figure(data: ExperimentData, out_dir: Path) -> FigureFile:
                 edgecolor="black",
                 linewidth=0.9,
             )
-        ax.set_title(name, fontsize=10)
+        ax.set_title(f"{name} (generation {data.display_generation(name)})", fontsize=10)
         ax.set_xlim(-0.05, 1.05)
         ax.set_xlabel("active share (energy)")
         ax.set_ylabel("distance (voxel lengths)")
@@ -352,15 +373,15 @@ def transition_controls(treatments: pd.DataFrame) -> dict[str, list[str]]:
 def transitions_figure(
     data: ExperimentData, curves: pd.DataFrame, tests: pd.DataFrame, out_dir: Path
 ) -> FigureFile | None:
-    """Per transition treatment: its fitness curve against its static controls, and its final
-    distance and active share against theirs. None without a transition treatment."""
+    """Per transition treatment: its fitness curve against its static controls, and its
+    runs' distance and active share (population means) against theirs at the generation
+    they are compared at. None without a transition treatment."""
     controls = transition_controls(data.treatments)
     if not controls:
         return None
     fig = _new_figure("transitions", data)
     axes = fig.subplots(len(controls), 3, squeeze=False, width_ratios=[2, 1, 1])
     colors = treatment_colors(data.treatments)
-    final = data.final_populations()
     switch = dict(zip(data.treatments["name"], data.treatments["switch_at"], strict=True))
     for row, (name, static) in zip(axes, controls.items(), strict=True):
         group = [name, *static]
@@ -373,15 +394,20 @@ def transitions_figure(
         )
         row[0].legend(fontsize=8, loc="upper left")
         row[0].grid(alpha=0.3)
+        at = {m: data.end_generation(name) if m == name else data.pair_generation(name, m) for m in group}
         for ax, metric in zip(row[1:], ("distance", "active_share"), strict=True):
-            samples = [final.loc[final["treatment"] == m, metric].dropna().to_numpy(float) for m in group]
+            samples = []
+            for m in group:
+                values = data.run_values(at[m]) if at[m] is not None else data.run_values(-1)
+                samples.append(values.loc[values["treatment"] == m, metric].dropna().to_numpy(float))
             _boxes(ax, samples, [colors[m] for m in group])
             ax.set_xticks(range(len(group)), group, rotation=20, ha="right", fontsize=8)
-            ax.set_title(f"final {TRAIT_LABELS[metric]}", fontsize=10)
+            ax.set_title(f"{TRAIT_LABELS[metric]} per run, generation {at[name]}", fontsize=10)
             ax.grid(axis="y", alpha=0.3)
             chosen = tests[
                 (tests["metric"] == metric)
                 & (tests["comparison"] == "between treatments")
+                & ((tests["a"] == name) | (tests["b"] == name))
                 & tests["a"].isin(group)
                 & tests["b"].isin(group)
             ]
@@ -393,8 +419,8 @@ def transitions_figure(
         "transitions",
         "Each transition treatment against the static treatments of the same stiffness "
         "in its first and second environment: best distance over generations (mean, "
-        "95% CI; dashed line: the switch) and the final populations' distance and "
-        "active share.",
+        "95% CI; dashed line: the switch) and each run's population mean of distance and "
+        "active share at the generation the pair is compared at (the last both stored).",
     )
 
 
@@ -420,7 +446,7 @@ def robots_figure(
     red, passive cyan), with their distance and active share. ``phenotypes(ids)`` gives the
     stored individuals' phenotypes (``Robots.phenotypes``, which ``service.reports`` binds to
     a database)."""
-    final = data.final_populations()
+    final = data.display_populations()
     names = data.treatment_names
     samples = {n: front_samples(pareto_front(final[final["treatment"] == n])) for n in names}
     ids = [int(i) for s in samples.values() for i in s["individual_id"]]
@@ -475,20 +501,27 @@ def _material_legend(fig: Figure) -> None:
 
 
 # ---- start vs end of evolution -----------------------------------------------------------------
-def _per_run_means(frame: pd.DataFrame) -> pd.DataFrame:
-    return frame.groupby(["treatment", "run_id"], sort=False)[list(TRAITS)].mean().reset_index()
+def _end_values(data: ExperimentData) -> pd.DataFrame:
+    """Each treatment's run values at its end generation."""
+    parts = [data.run_values(-1)]
+    for name in data.treatment_names:
+        end = data.end_generation(name)
+        if end is not None:
+            values = data.run_values(end)
+            parts.append(values[values["treatment"] == name])
+    return pd.concat(parts, ignore_index=True)
 
 
 def start_end_figure(
     data: ExperimentData, tests: pd.DataFrame, rng: np.random.Generator, out_dir: Path
 ) -> FigureFile:
-    """Each trait at generation 0 and at the last generation per treatment: mean of the
-    per-run population means with 95% bootstrap CIs, stars where start and end differ."""
+    """Each trait at generation 0 and at the treatment's end generation: mean of the per-run
+    population means with 95% bootstrap CIs, stars where start and end differ."""
     fig = _new_figure("start_end", data)
     axes = _grid(fig, len(TRAITS), 4)
     names = data.treatment_names
     colors = treatment_colors(data.treatments)
-    start, end = _per_run_means(data.initial_populations()), _per_run_means(data.final_populations())
+    start, end = data.run_values(0), _end_values(data)
     x = np.arange(len(names))
     for ax, trait in zip(axes, TRAITS, strict=True):
         for frame, offset, label, filled in ((start, -0.15, "start", False), (end, 0.15, "end", True)):
@@ -523,8 +556,8 @@ def start_end_figure(
         "start_end",
         "Each descriptor at the start (open markers, generation 0) and at the end "
         "(filled, last generation) of evolution: mean of the per-run population means "
-        "with 95% bootstrap CIs. Stars: Bonferroni-adjusted Mann-Whitney p (pooled "
-        "individuals) between start and end below 0.05.",
+        "with 95% bootstrap CIs. Stars: Bonferroni-adjusted Mann-Whitney p (over runs) "
+        "between start and end below 0.05.",
     )
 
 

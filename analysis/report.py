@@ -49,13 +49,18 @@ from softevo.errors import UserError
 METHODS = (
     "Confidence intervals: percentile bootstrap of the mean over repetitions "
     f"({N_RESAMPLES:,} resamples; {CURVE_RESAMPLES:,} for the per-generation curves), 95%. "
-    "Tests: two-sided Mann-Whitney U. Treatments are compared when they differ in exactly one "
-    "factor (environment schedule or stiffness); descriptors over the pooled individuals of "
-    "the final populations, the best distance over runs. Bonferroni: p-values are multiplied "
-    "by the number of comparisons of the same kind and metric and capped at 1; * p<0.05, "
-    "** p<0.01, *** p<0.001 after correction. Distances are in voxel lengths (horizontal on "
-    "land, 3-D in water); a transition run's values after the switch are measured in its "
-    "second environment."
+    "The unit is the run: every test compares one value per run (its population's best "
+    "distance, or its population's mean of a descriptor), n = repetitions. Every comparison "
+    "names its generation: static treatments are compared at their common last generation, "
+    "a transition against a static treatment at the last generation both stored, start vs "
+    "end at generation 0 against the treatment's last. Tests: two-sided Mann-Whitney U, "
+    "between treatments that differ in exactly one factor (environment schedule or "
+    "stiffness). Effect sizes: Vargha-Delaney A12 = P(a > b) + P(a = b)/2 (0.5: none; "
+    "0.71 or 0.29 and beyond: large) and the difference of means a - b with its 95% "
+    "bootstrap interval. Bonferroni: p-values are multiplied by the number of comparisons of "
+    "the same kind and metric and capped at 1; * p<0.05, ** p<0.01, *** p<0.001 after "
+    "correction. Distances are in voxel lengths (horizontal on land, 3-D in water); a "
+    "transition run's values after the switch are measured in its second environment."
 )
 
 
@@ -242,16 +247,24 @@ def summary_pivot(summary: pd.DataFrame, names: list[str]) -> pd.DataFrame:
             for m, lo, hi in zip(summary["mean"], summary["low"], summary["high"], strict=True)
         ]
     )
-    table = cells.pivot(index="treatment", columns="metric", values="cell")
+    table = cells.pivot(index=["treatment", "generation"], columns="metric", values="cell")
     metrics = [m for m in ["best_distance", *TRAIT_LABELS] if m in table.columns]
-    table = table.reindex(index=names, columns=list(dict.fromkeys(metrics)))
+    order = {name: k for k, name in enumerate(names)}
+    table = table.reindex(columns=list(dict.fromkeys(metrics)))
+    table = table.sort_index(key=lambda col: col.map(order) if col.name == "treatment" else col)
     table.columns = [TRAIT_LABELS[m] for m in table.columns]
     return table.reset_index()
 
 
 def _statistics_display(stats: pd.DataFrame) -> pd.DataFrame:
-    shown = stats.drop(columns=["median_a", "median_b"]).copy()
+    shown = stats.drop(columns=["median_a", "median_b", "difference", "difference_low", "difference_high"])
     shown["metric"] = [TRAIT_LABELS.get(m, m) for m in shown["metric"]]
+    shown["a - b [95% CI]"] = [
+        f"{d:.3g} [{lo:.3g}, {hi:.3g}]" if np.isfinite(d) else ""
+        for d, lo, hi in zip(
+            stats["difference"], stats["difference_low"], stats["difference_high"], strict=True
+        )
+    ]
     return shown
 
 
@@ -315,7 +328,7 @@ def write_report(
     animation = animation and robots is not None
     with _steps(9 if animation else 8, progress) as step:
         step("statistics")
-        stats, summary = statistics_table(data), summary_table(data, rng)
+        stats, summary = statistics_table(data, seed), summary_table(data, rng)
         curves = fitness_curves(data, rng)
         figures = []
         for name, make in _figure_makers(data, robots, stats, curves, rng, figures_dir):
@@ -431,9 +444,9 @@ def build_document(
         doc.paragraph(evaluation)
     doc.heading("Summary")
     doc.paragraph(
-        "Mean over repetitions with its 95% bootstrap confidence interval. Best "
-        "distance: each run's best at its last generation; other columns: each run's "
-        "final-population mean."
+        "Mean over repetitions with its 95% bootstrap confidence interval, at each "
+        "generation the treatment is shown or compared at. Best distance: each run's best "
+        "at that generation; other columns: each run's population mean then."
     )
     doc.table(summary_pivot(summary, data.treatment_names))
     doc.heading("Figures")

@@ -1,34 +1,44 @@
 """Statistics over DataFrames (paper section 2.5), built on ``evolution.stats``.
 
-- Confidence intervals: percentile bootstrap 95% intervals of the mean over repetitions
-  (one value per run: its best distance, or its final population's mean of a trait).
-- Mann-Whitney U (two-sided) between treatments, and between the start (generation 0) and
-  the end (last generation) of a treatment.
+- The unit is the run: every test compares one value per run (its population's best
+  distance at the generation, or its population's mean of a trait then), n = repetitions.
+  Pooling the individuals of several runs would treat correlated samples as independent.
+- Matched generations (``analysis.matching``): each comparison names its generation, the
+  ``generation`` column. Static treatments are compared at the static treatments' common
+  last generation, a transition against a static treatment at the last generation both
+  have stored; start vs end is generation 0 against the treatment's end generation.
+- Confidence intervals: percentile bootstrap 95% intervals of the mean over repetitions.
+- Mann-Whitney U (two-sided) between treatments, and between the start and the end of a
+  treatment (a = start, b = end).
+- Effect sizes: Vargha-Delaney ``A12`` = P(a > b) + P(a = b) / 2 over runs, and
+  ``difference`` = mean_a - mean_b with its 95% percentile bootstrap interval
+  (``difference_low``, ``difference_high``; each sample resampled on its own, seeded per row
+  from the table's seed, so the same data and seed give the same table).
 - Bonferroni: p-values are multiplied by the number of comparisons in their family and
   capped at 1. A family is one metric of one kind of comparison: e.g. the "symmetry"
   comparisons between treatments form one family, the start-vs-end comparisons of
   "symmetry" another.
 
 Which treatments are compared: those that differ in exactly one factor, environment
-schedule or stiffness (``comparison_pairs``). On the paper's grid that is every stiffness
-pair within an environment, land against water at each stiffness, and every pair among the
-four S3 treatments (each transition against its static controls).
-
-Samples: between treatments and start vs end, a descriptor is compared over the pooled
-individuals of the final (or initial) populations of all repetitions (unit "individual");
-the best distance is compared over runs (unit "run").
+schedule or stiffness (``comparison_pairs``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from itertools import combinations
 
 import numpy as np
 import pandas as pd
 
 from softevo.analysis.data import TRAITS, ExperimentData
-from softevo.evolution.stats import bonferroni, bootstrap_ci, mann_whitney
+from softevo.analysis.matching import comparison_pairs
+from softevo.evolution.stats import (
+    bonferroni,
+    bootstrap_ci,
+    bootstrap_difference,
+    mann_whitney,
+    vargha_delaney,
+)
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 10_000
@@ -41,6 +51,7 @@ STAT_COLUMNS = [
     "unit",
     "a",
     "b",
+    "generation",
     "n_a",
     "n_b",
     "mean_a",
@@ -51,7 +62,12 @@ STAT_COLUMNS = [
     "p",
     "p_bonferroni",
     "significance",
+    "A12",
+    "difference",
+    "difference_low",
+    "difference_high",
 ]
+METRICS = ("best_distance", *TRAITS)
 
 
 def significance_mark(p: float, alpha: float = ALPHA) -> str:
@@ -118,26 +134,22 @@ def adjust_families(table: pd.DataFrame, family: Sequence[str] = ("comparison", 
     table["significance"] = [significance_mark(p) for p in table["p_bonferroni"]]
 
 
-def comparison_pairs(treatments: pd.DataFrame) -> list[tuple[str, str]]:
-    """Pairs of treatment names that differ in exactly one of environment and stiffness."""
-    rows = list(treatments[["name", "environment", "stiffness_mpa"]].itertuples(index=False))
-    return [
-        (a.name, b.name)
-        for a, b in combinations(rows, 2)
-        if (a.environment == b.environment) != bool(np.isclose(a.stiffness_mpa, b.stiffness_mpa))
-    ]
-
-
-def _comparison_row(kind: str, metric: str, unit: str, names, a, b) -> dict:
+def _comparison_row(kind: str, metric: str, generation, names, a, b, rng: np.random.Generator) -> dict:
     a = pd.Series(a, dtype=float).dropna()
     b = pd.Series(b, dtype=float).dropna()
     u, p = compare(a, b)
+    if len(a) and len(b):
+        a12 = vargha_delaney(a, b)
+        difference, low, high = bootstrap_difference(a, b, rng, CONFIDENCE, N_RESAMPLES)
+    else:
+        a12 = difference = low = high = float("nan")
     return {
         "comparison": kind,
         "metric": metric,
-        "unit": unit,
+        "unit": "run",
         "a": names[0],
         "b": names[1],
+        "generation": generation,
         "n_a": len(a),
         "n_b": len(b),
         "mean_a": a.mean(),
@@ -146,100 +158,148 @@ def _comparison_row(kind: str, metric: str, unit: str, names, a, b) -> dict:
         "median_b": b.median(),
         "U": u,
         "p": p,
+        "A12": a12,
+        "difference": difference,
+        "difference_low": low,
+        "difference_high": high,
     }
 
 
+class _Values:
+    """``ExperimentData.run_values`` per generation, each computed once."""
+
+    def __init__(self, data: ExperimentData):
+        self.data, self.cache = data, {}
+
+    def __call__(self, generation: int | None, treatment: str, metric: str) -> pd.Series:
+        if generation is None:
+            return pd.Series(dtype=float)
+        if generation not in self.cache:
+            self.cache[generation] = self.data.run_values(generation)
+        values = self.cache[generation]
+        return values.loc[values["treatment"] == treatment, metric]
+
+
+def _row_rng(seed: int, k: int) -> np.random.Generator:
+    return np.random.default_rng([seed, k])
+
+
 def best_distance_per_run(data: ExperimentData) -> pd.DataFrame:
-    """Per run: treatment, repetition and best_distance of its last stored generation."""
-    generations = data.generations
-    last = generations.groupby("run_id")["generation"].transform("max")
-    final = generations[generations["generation"] == last]
-    return final[["run_id", "treatment", "repetition", "best_distance"]].reset_index(drop=True)
+    """Per run: treatment, repetition, generation and best_distance at its treatment's
+    display generation (``analysis.matching``)."""
+    values = data.display_run_values()
+    return values[["run_id", "treatment", "repetition", "generation", "best_distance"]]
 
 
-def treatment_comparisons(data: ExperimentData, metrics: Sequence[str] = TRAITS) -> pd.DataFrame:
-    """Mann-Whitney U between treatment pairs (``comparison_pairs``): best distance over runs,
-    each trait over the final populations' individuals; Bonferroni per metric."""
-    pairs = comparison_pairs(data.treatments)
-    best = best_distance_per_run(data)
-    final = data.final_populations()
+def treatment_comparisons(
+    data: ExperimentData, metrics: Sequence[str] = METRICS, seed: int = 0
+) -> pd.DataFrame:
+    """Mann-Whitney U, A12 and the bootstrap difference between treatment pairs
+    (``comparison_pairs``) over runs, each pair at its generation; Bonferroni per metric."""
+    values = _Values(data)
     rows = []
-    for a, b in pairs:
-        rows.append(
-            _comparison_row(
-                "between treatments",
-                "best_distance",
-                "run",
-                (a, b),
-                best.loc[best["treatment"] == a, "best_distance"],
-                best.loc[best["treatment"] == b, "best_distance"],
-            )
-        )
     for metric in metrics:
-        for a, b in pairs:
+        for a, b in comparison_pairs(data.treatments):
+            generation = data.pair_generation(a, b)
             rows.append(
                 _comparison_row(
                     "between treatments",
                     metric,
-                    "individual",
+                    generation,
                     (a, b),
-                    final.loc[final["treatment"] == a, metric],
-                    final.loc[final["treatment"] == b, metric],
+                    values(generation, a, metric),
+                    values(generation, b, metric),
+                    _row_rng(seed, len(rows)),
                 )
             )
     return _finish(rows)
 
 
-def start_end_comparisons(data: ExperimentData, metrics: Sequence[str] = TRAITS) -> pd.DataFrame:
-    """Mann-Whitney U of each trait between the initial and the final populations of each
-    treatment (a = start, b = end); Bonferroni per metric across treatments."""
-    start, end = data.initial_populations(), data.final_populations()
-    rows = [
-        _comparison_row(
-            "start vs end",
-            metric,
-            "individual",
-            (f"{name} start", f"{name} end"),
-            start.loc[start["treatment"] == name, metric],
-            end.loc[end["treatment"] == name, metric],
-        )
-        for metric in metrics
-        for name in data.treatment_names
-    ]
+def start_end_comparisons(
+    data: ExperimentData, metrics: Sequence[str] = TRAITS, seed: int = 1
+) -> pd.DataFrame:
+    """The same tests of each trait between generation 0 (a = start) and the treatment's end
+    generation (b = end, named in ``generation``) over its runs; Bonferroni per metric across
+    treatments."""
+    values = _Values(data)
+    rows = []
+    for metric in metrics:
+        for name in data.treatment_names:
+            end = data.end_generation(name)
+            rows.append(
+                _comparison_row(
+                    "start vs end",
+                    metric,
+                    end,
+                    (f"{name} start", f"{name} end"),
+                    values(0, name, metric),
+                    values(end, name, metric),
+                    _row_rng(seed, len(rows)),
+                )
+            )
     return _finish(rows)
 
 
 def _finish(rows: list[dict]) -> pd.DataFrame:
-    table = pd.DataFrame(rows, columns=STAT_COLUMNS[:-2])
+    table = pd.DataFrame(rows, columns=[c for c in STAT_COLUMNS if c not in ("p_bonferroni", "significance")])
+    table["generation"] = table["generation"].astype("Int64")
     adjust_families(table)
     return table[STAT_COLUMNS]
 
 
-def statistics_table(data: ExperimentData) -> pd.DataFrame:
-    """All tests of the report: between treatments, then start vs end."""
-    return pd.concat([treatment_comparisons(data), start_end_comparisons(data)], ignore_index=True)
+def statistics_table(data: ExperimentData, seed: int = 0) -> pd.DataFrame:
+    """All tests of the report: between treatments, then start vs end (``seed`` seeds the
+    bootstrap intervals of the differences)."""
+    return pd.concat(
+        [treatment_comparisons(data, seed=seed), start_end_comparisons(data, seed=seed + 1)],
+        ignore_index=True,
+    )
+
+
+def shown_generations(data: ExperimentData) -> list[tuple[str, int]]:
+    """(treatment, generation) for each treatment at its display generation and at every
+    generation it is compared at with another treatment, in treatment order."""
+    found: dict[str, set[int]] = {name: set() for name in data.treatment_names}
+    for name in data.treatment_names:
+        found[name].add(data.display_generation(name))
+    for a, b in comparison_pairs(data.treatments):
+        generation = data.pair_generation(a, b)
+        found[a].add(generation)
+        found[b].add(generation)
+    return [
+        (name, g) for name in data.treatment_names for g in sorted(x for x in found[name] if x is not None)
+    ]
 
 
 def summary_table(data: ExperimentData, rng: np.random.Generator) -> pd.DataFrame:
-    """Per treatment and metric: repetitions, mean and bootstrap CI over runs.
-
-    The value of a run is its final best distance (``best_distance``) or its final
-    population's mean of a trait.
-    """
-    best = best_distance_per_run(data).rename(columns={"best_distance": "value"})
-    best["metric"] = "best_distance"
-    final = data.final_populations()
-    per_run = final.groupby(["treatment", "run_id"], sort=False)[list(TRAITS)].mean()
-    per_run = per_run.reset_index().melt(
-        id_vars=["treatment", "run_id"], var_name="metric", value_name="value"
-    )
-    values = pd.concat([best[["treatment", "run_id", "metric", "value"]], per_run])
-    table = ci_table(values, "value", ["metric", "treatment"], rng)
+    """Per metric, treatment and generation (``shown_generations``): repetitions, mean and
+    bootstrap CI over runs of the run values (best distance, or population mean of a
+    trait)."""
+    values = _Values(data)
+    parts = []
+    for name, generation in shown_generations(data):
+        for metric in METRICS:
+            series = values(generation, name, metric)
+            parts.append(
+                pd.DataFrame({"metric": metric, "treatment": name, "generation": generation, "value": series})
+            )
+            if series.empty:  # keep the row: a group with no value gets NaN
+                parts[-1] = pd.DataFrame(
+                    {"metric": [metric], "treatment": [name], "generation": [generation], "value": [np.nan]}
+                )
+    frame = pd.concat(parts, ignore_index=True)
+    table = ci_table(frame, "value", ["metric", "treatment", "generation"], rng)
     order = {name: k for k, name in enumerate(data.treatment_names)}
-    metric_order = {m: k for k, m in enumerate(["best_distance", *TRAITS])}
+    metric_order = {m: k for k, m in enumerate(METRICS)}
+    table["generation"] = table["generation"].astype("Int64")
     table = table.sort_values(
-        ["metric", "treatment"],
-        key=lambda col: col.map(metric_order if col.name == "metric" else order),
+        ["metric", "treatment", "generation"],
+        key=lambda col: (
+            col.map(metric_order)
+            if col.name == "metric"
+            else (col.map(order) if col.name == "treatment" else col)
+        ),
+        kind="stable",
     )
     return table.reset_index(drop=True)
 

@@ -14,7 +14,11 @@ A generation, in ``mode="afpo"``:
 Failed evaluations (a crash, an unstable simulation, an empty body) get distance 0 and rank
 behind every successful individual. Offspring whose phenotype hash equals a living
 individual's evaluated in the same environment inherit that evaluation instead of being
-simulated again.
+simulated again. Survivors are never simulated again in the world they were evaluated in:
+``ask`` hands out only this generation's new individuals (all of them, survivors included,
+after ``reevaluate_all`` moved the population to a new world) and refuses to hand out a
+survivor (RuntimeError). ``not_simulated`` counts this generation's individuals evaluated
+without a simulation (``reused`` from a living twin, ``empty`` bodies).
 
 The whole state (including the random generator) is JSON: ``state_to_json`` /
 ``from_state_json``; a resumed run continues exactly as the uninterrupted one.
@@ -110,6 +114,7 @@ class Evolution:
         self.population: list[Individual] = []  # evaluated survivors
         self.pending: list[Individual] = []  # this generation's individuals awaiting results
         self.started = False
+        self.not_simulated = {"reused": 0, "empty": 0}  # of this generation (not in the state)
 
     # ---- ask / tell ------------------------------------------------------------------------
     def ask(self) -> list[Individual]:
@@ -121,7 +126,11 @@ class Evolution:
                 self.pending = [self._newcomer() for _ in range(self.config.population_size)]
                 self.started = True
             self._fill_known()
-        return [ind for ind in self.pending if not ind.evaluated]
+        asked = [ind for ind in self.pending if not ind.evaluated]
+        living = {ind.id for ind in self.population}
+        if any(ind.id in living for ind in asked):
+            raise RuntimeError(f"a survivor would be simulated again in {self.environment}")
+        return asked
 
     def tell(self, evaluations: Sequence[Any] | Mapping[int, Any]) -> None:
         """Record results: a mapping {individual id: result} or a sequence in ``ask`` order.
@@ -151,14 +160,13 @@ class Evolution:
             ind.clear_evaluation()
         self.population, self.pending = [], everyone
         self.started = True
+        self.not_simulated = {"reused": 0, "empty": 0}
         self._fill_known()
 
     def scene(self, ind: Individual, **extra: Any) -> dict[str, Any]:
         """The simulator scene that evaluates ``ind`` in the current environment."""
         phenotype = ind.phenotype(self.config.encoding)
-        return phenotype.to_scene(
-            self.environment, self.config.youngs_modulus, self.config.cycles, **extra
-        )
+        return phenotype.to_scene(self.environment, self.config.youngs_modulus, self.config.cycles, **extra)
 
     @property
     def generation_complete(self) -> bool:
@@ -181,27 +189,31 @@ class Evolution:
         for parent in self.population:
             genome, ops, _ = mutate_genotype(parent.genome, self.rng, self.config.encoding)
             offspring.append(
-                Individual(
-                    self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops
-                )
+                Individual(self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops)
             )
         if self.config.mode == "afpo" or not self.population:
             offspring.append(self._newcomer())
         self.pending = offspring
+        self.not_simulated = {"reused": 0, "empty": 0}
 
     def _fill_known(self) -> None:
-        """Evaluate without simulation: empty bodies fail, known phenotypes reuse results."""
+        """Evaluate without simulation: empty bodies fail, known phenotypes reuse results
+        (counted in ``not_simulated``)."""
         known = {
             ind.phenotype(self.config.encoding).phenotype_hash(): ind
             for ind in self.population
             if ind.evaluated and ind.environment == self.environment
         }
         for ind in self.pending:
+            if ind.evaluated:
+                continue
             phenotype = ind.phenotype(self.config.encoding)
             twin = known.get(phenotype.phenotype_hash())
             if phenotype.voxel_count == 0:
                 self._record(ind, Evaluation(FAILED_DISTANCE, False, "empty body"))
+                self.not_simulated["empty"] += 1
             elif twin is not None:
+                self.not_simulated["reused"] += 1
                 ind.objectives = dict(twin.objectives)
                 ind.descriptors = None if twin.descriptors is None else dict(twin.descriptors)
                 ind.environment, ind.stable, ind.error = self.environment, twin.stable, twin.error

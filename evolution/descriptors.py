@@ -16,12 +16,16 @@ All take ``body``: (nx, ny, nz) int array, 0 empty, >0 full (1 passive, 2 active
 - ``branching_index``: 1 - V / V_hull, V the volume of the voxel surface mesh and V_hull the
   volume of its convex hull (trimesh). A full box gives 0.
 - ``shape_entropy``: Shannon entropy (bits) of the discrete Gaussian curvature of the
-  undeformed surface mesh, sampled at its corners. On a voxel surface all curvature sits on
-  vertices where at least three face orientations meet (corners); flat and straight-edge
-  vertices carry none and are left out, so a box has 8 equal corners and entropy 0. The
-  measure at each corner is trimesh's ``discrete_gaussian_curvature_measure`` over a ball of
-  ``radius`` (default 0: the corner's angle defect). Values on a voxel mesh are multiples of
-  pi/2, so the bins are those multiples (bin width pi/2, centred on k pi/2).
+  undeformed surface mesh, taken at every vertex of the mesh, flat ones included (SPEC.md
+  section 4: the curvature of the whole surface is the random variable, so the share of the
+  surface that is angular counts). The measure at each vertex is trimesh's
+  ``discrete_gaussian_curvature_measure`` over a ball of ``radius`` (default 0: the vertex's
+  angle defect, 2 pi minus the angles of its faces). On a voxel mesh every defect is a
+  multiple of pi/2: 0 on a flat face or a straight edge, pi/2 at a convex corner, -pi/2 at a
+  reflex corner, -pi at a saddle, and so on. Bins: width pi/2, centred on k pi/2, one per
+  multiple that occurs (empty bins add nothing to an entropy, so the bin count is the number
+  of distinct multiples, at most (max - min) / (pi/2) + 1). A single voxel (8 corners) gives
+  0 bits; a 2x1x1 bar (8 corners, 4 straight-edge vertices) gives H(8/12, 4/12) = 0.918 bits.
 """
 
 from __future__ import annotations
@@ -126,21 +130,18 @@ def branching_index(body: np.ndarray) -> float:
     return float(max(0.0, 1.0 - mesh.volume / mesh.convex_hull.volume))
 
 
-def corner_curvature(body: np.ndarray, radius: float = 0.0) -> np.ndarray:
-    """Discrete Gaussian curvature measure (radians) at each corner of the surface mesh,
-    shape (n_corners,); radius in voxel lengths."""
+def surface_curvature(body: np.ndarray, radius: float = 0.0) -> np.ndarray:
+    """Discrete Gaussian curvature measure (radians) at every vertex of the surface mesh,
+    flat and straight-edge vertices included, shape (n_vertices,); radius in voxel lengths."""
     import trimesh
 
-    mesh, codes = surface_mesh(body)
-    has_normal = np.zeros((len(mesh.vertices), 6), dtype=bool)
-    has_normal[mesh.faces.ravel(), np.repeat(codes, 3)] = True
-    corners = mesh.vertices[has_normal.sum(axis=1) >= 3]
-    return trimesh.curvature.discrete_gaussian_curvature_measure(mesh, corners, radius)
+    mesh, _ = surface_mesh(body)
+    return trimesh.curvature.discrete_gaussian_curvature_measure(mesh, mesh.vertices, radius)
 
 
 def shape_entropy(body: np.ndarray, radius: float = 0.0) -> float:
-    """Shannon entropy (bits) of the corner curvature binned by multiples of pi/2."""
-    curvature = corner_curvature(body, radius)
+    """Shannon entropy (bits) of the surface curvature binned by multiples of pi/2."""
+    curvature = surface_curvature(body, radius)
     if curvature.size == 0:
         return 0.0
     _, counts = np.unique(np.round(curvature / (np.pi / 2)).astype(int), return_counts=True)

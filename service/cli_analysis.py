@@ -1,10 +1,13 @@
-"""``softevo report | show | export-vxa`` (SPEC.md section 7).
+"""``softevo report | show | export-vxa | power`` (SPEC.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
   statistics and the run settings (``service.reports.write_report``).
 - ``softevo show INDIVIDUAL --out FILE.gif|FILE.mp4``: re-simulate a stored individual and
   animate its motion (MP4 needs ffmpeg).
 - ``softevo export-vxa INDIVIDUAL --out FILE.vxa``: the individual as a VoxCAD file.
+- ``softevo power EXPERIMENT``: from a pilot experiment's runs, the repetitions and
+  generations the paper's comparisons need for the target power after Bonferroni
+  (``analysis.power``).
 
 EXPERIMENT is an id (``3``, ``e3``, ``exp-3``), ``latest`` or a name (the newest of that
 name); INDIVIDUAL is an individual's database id (as ``softevo lineage`` and the exports
@@ -90,6 +93,95 @@ def export_vxa(
     typer.echo(str(out))
 
 
+def power(
+    experiment: Annotated[
+        str, typer.Argument(metavar="EXPERIMENT", help="the pilot: id, e3, latest or name")
+    ],
+    alpha: Annotated[float, typer.Option("--alpha", help="significance level before Bonferroni")] = 0.05,
+    target: Annotated[float, typer.Option("--power", help="target power")] = 0.8,
+    max_n: Annotated[int, typer.Option("--max-n", help="most repetitions per treatment tried")] = 50,
+    family: Annotated[
+        int | None,
+        typer.Option("--family", help="comparisons per Bonferroni family (default: the pilot's pairs)"),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="seed of the resampling")] = 0,
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    db: DbOption = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Repetitions (and generations) the paper's comparisons need, from a pilot's runs."""
+    import json
+
+    from softevo.analysis.power import (
+        PowerSettings,
+        estimate_power,
+        estimate_steps,
+        missing,
+        power_generations,
+    )
+    from softevo.service.db.experiments import load_experiment, resolve_experiment
+    from softevo.service.reports import engine_of
+
+    settings = PowerSettings(alpha=alpha, power=target, max_n=max_n, family_size=family, seed=seed)
+    settings.validate()
+    engine = engine_of(db)
+    with engine.connect() as conn:
+        experiment_id = resolve_experiment(conn, experiment)
+    data = load_experiment(engine, experiment_id)
+    if not data.generations.empty:
+        data = load_experiment(engine, experiment_id, generations=power_generations(data))
+    with _steps_progress(not quiet, estimate_steps(data, settings)) as on_step:
+        estimates = estimate_power(data, settings, on_step)
+    if as_json:
+        payload = {
+            "experiment": experiment_id,
+            "settings": {"alpha": alpha, "power": target, "max_n": max_n, "seed": seed},
+            "comparisons": [e.to_dict() for e in estimates],
+            "not_in_experiment": missing(data),
+        }
+        typer.echo(json.dumps(payload, indent=2))
+        return
+    first = estimates[0]
+    typer.echo(
+        f"pilot e{experiment_id} \u201c{data.experiment['name']}\u201d: alpha {alpha:g} / "
+        f"{first.family_size} comparisons per metric = {first.alpha_bonferroni:.3g}, target power "
+        f"{target:g}, resampled studies of its runs (smoothed bootstrap)"
+    )
+    for e in estimates:
+        reps = f"{e.repetitions} repetitions" if e.repetitions else f"more than {e.max_n} repetitions"
+        gens = (
+            f"{e.generations} of {e.pilot_generations} generations"
+            if e.generations
+            else (f"more than the pilot's {e.pilot_generations} generations")
+        )
+        typer.echo(
+            f"{e.comparison}: {reps} per treatment (power {e.power:.2f}), {gens}; pilot {e.a} vs "
+            f"{e.b} at generation {e.generation}: {e.pilot_runs_a}+{e.pilot_runs_b} runs, means "
+            f"{e.pilot_mean_a:.3g} vs {e.pilot_mean_b:.3g}, A12 {e.pilot_a12:.2f}, p {e.pilot_p:.3g}"
+        )
+    for name in missing(data):
+        typer.echo(f"{name}: not in this experiment")
+
+
+def _steps_progress(enabled: bool, total: int):
+    """A context giving ``on_step(description)`` that advances a rich bar (or does nothing)."""
+    from contextlib import contextmanager
+
+    @contextmanager
+    def bar():
+        if not enabled:
+            yield None
+            return
+        from rich.console import Console
+        from rich.progress import Progress
+
+        with Progress(console=Console(stderr=True), transient=True) as progress:
+            task = progress.add_task("power", total=total)
+            yield lambda description: progress.update(task, advance=1, description=description)
+
+    return bar()
+
+
 def _frame_progress(enabled: bool):
     """A context giving ``on_frame(i, n)`` that drives a rich bar (or does nothing)."""
     from contextlib import contextmanager
@@ -110,7 +202,8 @@ def _frame_progress(enabled: bool):
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``report``, ``show`` and ``export-vxa`` to ``app``."""
+    """Add ``report``, ``show``, ``export-vxa`` and ``power`` to ``app``."""
     app.command("report")(report)
+    app.command("power")(power)
     app.command("show")(show)
     app.command("export-vxa")(export_vxa)

@@ -8,6 +8,10 @@ anything. A coordinator killed at any point resumes from the last committed gene
 reaches exactly the results of an uninterrupted run: the state it restarts from is the
 state the uninterrupted run had, and evaluations are deterministic.
 
+Each generation's stats count the simulations (``evaluations``) and the evaluations that
+needed none (``reused``: a living twin's in the same world; ``empty_bodies``); survivors are
+never simulated again in the world they were evaluated in (``Evolution.ask`` refuses).
+
 Environment switch: at the first generation of a new environment in the treatment's
 ``Schedule`` the algorithm first breeds as usual, then ``Schedule.switch`` moves survivors
 and offspring into the new environment (``reevaluate_all``), and they are all evaluated
@@ -201,6 +205,10 @@ def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
         "mean_distance": float(np.mean(distances)),
         "front_size": ranks.count(0),
         "failed": sum(1 for ind in run.pending if ind.failed),
+        # evaluated without a simulation: a living twin's evaluation in the same world, or an
+        # empty body (survivors are never simulated again in their world: Evolution.ask)
+        "reused": run.algorithm.not_simulated["reused"],
+        "empty_bodies": run.algorithm.not_simulated["empty"],
         "mean_voxel_count": float(np.mean([i.objectives["voxel_count"] for i in population])),
         "mean_active_share": float(np.mean([i.objectives["active_share"] for i in population])),
         "best_local_id": population[int(np.argmax(distances))].id,

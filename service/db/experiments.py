@@ -15,6 +15,7 @@ from sqlalchemy import Connection, Engine, and_, func, or_, select
 
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.analysis.data import ExperimentData, experiment_data
+from softevo.analysis.matching import analysis_generations
 from softevo.errors import UserError
 from softevo.service.db.export import evaluation_rows, runs_frame
 from softevo.service.db.models import (
@@ -184,9 +185,11 @@ def experiment_updated_at(conn: Connection, experiment_id: int):
 # -- the analyses' input ----------------------------------------------------------------------
 
 
-def load_experiment(engine: Engine, experiment_id: int) -> ExperimentData:
+def load_experiment(engine: Engine, experiment_id: int, generations: Iterable[int] = ()) -> ExperimentData:
     """Read experiment ``experiment_id`` (UserError if it does not exist or has no runs); see
-    ``analysis.data`` for the frames."""
+    ``analysis.data`` for the frames. The populations are read at generation 0, at each
+    run's last stored generation, at every generation the analyses compare or show
+    (``analysis.matching.analysis_generations``) and at ``generations``."""
     with engine.connect() as conn:
         experiment = _experiment_row(conn, experiment_id)
         treatments = _treatments_frame(conn, experiment_id)
@@ -194,10 +197,11 @@ def load_experiment(engine: Engine, experiment_id: int) -> ExperimentData:
         if not run_ids:
             raise UserError(f"experiment e{experiment_id} has no runs")
         runs = _with_last_generation(conn, runs_frame(conn, run_ids))
-        generations = _generations_frame(conn, run_ids)
-        members = _end_members(conn, run_ids)
-        evaluations = _member_evaluations(conn, run_ids)
-    return experiment_data(experiment, treatments, runs, generations, members, evaluations)
+        wanted = sorted({*analysis_generations(treatments, runs), *(int(g) for g in generations)})
+        summaries = _generations_frame(conn, run_ids)
+        members = _end_members(conn, run_ids, wanted)
+        evaluations = _member_evaluations(conn, run_ids, wanted)
+    return experiment_data(experiment, treatments, runs, summaries, members, evaluations)
 
 
 def _experiment_row(conn: Connection, experiment_id: int) -> dict[str, Any]:
@@ -252,30 +256,31 @@ def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
     return runs.merge(last, on="run_id", how="left")
 
 
-def _end_member_filter(run_ids: list[int]):
-    """WHERE clause: population rows of ``run_ids`` at generation 0 or the run's last one."""
+def _end_member_filter(run_ids: list[int], wanted: list[int]):
+    """WHERE clause: population rows of ``run_ids`` at a ``wanted`` generation or the run's
+    last one."""
     members, runs = PopulationMember.__table__, Run.__table__
     return and_(
         members.c.run_id.in_(run_ids),
-        or_(members.c.generation == 0, members.c.generation == runs.c.generation),
+        or_(members.c.generation.in_(wanted), members.c.generation == runs.c.generation),
     )
 
 
-def _end_members(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
-    """Population rows (run_id, generation, individual_id, front_rank) of the initial and the
-    last stored generation of each run."""
+def _end_members(conn: Connection, run_ids: list[int], wanted: list[int]) -> pd.DataFrame:
+    """Population rows (run_id, generation, individual_id, front_rank) at the ``wanted``
+    generations and the last stored generation of each run."""
     members, runs = PopulationMember.__table__, Run.__table__
     columns = ["run_id", "generation", "individual_id", "front_rank"]
     result = conn.execute(
         select(*[members.c[name] for name in columns])
         .join(runs, members.c.run_id == runs.c.id)
-        .where(_end_member_filter(run_ids))
+        .where(_end_member_filter(run_ids, wanted))
         .order_by(members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id)
     )
     return pd.DataFrame(result.fetchall(), columns=columns)
 
 
-def _member_evaluations(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
+def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int]) -> pd.DataFrame:
     """Every evaluation of the individuals in ``_end_members``, with the export's
     individuals columns (``INDIVIDUAL_COLUMNS``)."""
     evaluations = Evaluation.__table__
@@ -283,7 +288,7 @@ def _member_evaluations(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
     wanted = (
         select(members.c.individual_id)
         .join(runs, members.c.run_id == runs.c.id)
-        .where(_end_member_filter(run_ids))
+        .where(_end_member_filter(run_ids, wanted))
     )
     result = conn.execute(evaluation_rows(evaluations.c.individual_id.in_(wanted)))
     frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))

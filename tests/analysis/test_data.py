@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import stats as scipy_stats
 
@@ -72,14 +73,19 @@ def test_statistics_table_on_the_real_experiment(tiny_data):
     assert len(start_end) == 2 * len(TRAITS)
     # one family of two comparisons per metric: adjusted = min(1, 2 p)
     assert start_end["p_bonferroni"].to_numpy() == pytest.approx(np.minimum(1, 2 * start_end["p"]))
+    assert (table["unit"] == "run").all() and (table["generation"] == 2).all()
     final = tiny_data.final_populations()
+    per_run = final.groupby(["treatment", "run_id"])["voxel_count"].mean()  # one value per run
     row = between[between["metric"] == "voxel_count"].iloc[0]
-    reference = scipy_stats.mannwhitneyu(
-        final.loc[final["treatment"] == "land S3", "voxel_count"],
-        final.loc[final["treatment"] == "water-land S3", "voxel_count"],
-    )
+    reference = scipy_stats.mannwhitneyu(per_run["land S3"], per_run["water-land S3"])
     assert (row["U"], row["p"]) == pytest.approx((reference.statistic, reference.pvalue))
+    assert (row["n_a"], row["n_b"]) == (2, 2)
+    assert row["A12"] == pytest.approx(reference.statistic / 4)
+    assert row["difference"] == pytest.approx(per_run["land S3"].mean() - per_run["water-land S3"].mean())
+    assert row["difference_low"] <= row["difference"] <= row["difference_high"]
     assert row["p_bonferroni"] == pytest.approx(row["p"])  # a family of one comparison
+    again = statistics_table(tiny_data)  # seeded: the same table again
+    pd.testing.assert_frame_equal(table, again)
 
 
 def test_summary_and_fitness_curves_are_over_repetitions(tiny_data):

@@ -40,7 +40,8 @@ def test_full_cube():
     cube = np.ones((3, 3, 3), dtype=np.int8)
     assert symmetry_index(cube) == 1.0
     assert branching_index(cube) == pytest.approx(0.0, abs=1e-12)
-    assert shape_entropy(cube) == 0.0  # 8 corners, all of curvature pi/2
+    # 56 surface vertices: 8 corners (pi/2); 24 on edges and 24 on faces, all flat (0)
+    assert shape_entropy(cube) == pytest.approx(entropy_bits(8, 48))
     mesh, _ = surface_mesh(cube)
     assert mesh.is_watertight and mesh.volume == pytest.approx(27.0)
 
@@ -55,20 +56,30 @@ def test_branching_by_hand():
 
 
 def test_shape_entropy_by_hand():
-    # Corners of an extruded outline: each 2-D corner gives a top and a bottom corner.
-    # L: 5 convex 2-D corners (defect pi/2) and 1 reflex (3 pi/2 on the top face + 2 walls of
-    # pi/2 -> defect -pi/2): 10 at pi/2, 2 at -pi/2.
-    assert shape_entropy(L_SHAPE) == pytest.approx(entropy_bits(10, 2))
-    # cross: 8 convex, 4 reflex 2-D corners -> 16 vs 8
+    # Every vertex of the surface counts, flat ones included. A flat shape one voxel thick
+    # has a vertex above and below each 2-D grid point of its outline: a convex 2-D corner
+    # gives defect pi/2 (top pi/2 + two wall quads), a reflex one -pi/2 (top 3 pi/2 + two
+    # walls), a point on a straight side or inside the shape 0.
+    # L: 8 grid points = 5 convex, 1 reflex, 2 on straight sides -> 10, 2, 4
+    assert shape_entropy(L_SHAPE) == pytest.approx(entropy_bits(10, 2, 4))
+    # cross: 12 grid points = 8 convex, 4 reflex, none flat -> 16, 8
     assert shape_entropy(CROSS) == pytest.approx(entropy_bits(16, 8))
-    # frame: 4 convex outer corners, 4 reflex hole corners -> 8 vs 8 -> 1 bit
-    assert shape_entropy(FRAME) == pytest.approx(1.0)
+    # frame: 16 grid points = 4 convex outer corners, 4 reflex hole corners, 8 on the sides
+    # -> 8, 8, 16 -> 1.5 bits
+    assert shape_entropy(FRAME) == pytest.approx(1.5)
+    # one voxel: 8 corners -> 0; a 2x1x1 bar: 8 corners and 4 straight-edge vertices
+    assert shape_entropy(np.ones((1, 1, 1))) == 0.0
+    assert shape_entropy(np.ones((2, 1, 1))) == pytest.approx(entropy_bits(8, 4))
+    assert entropy_bits(8, 4) == pytest.approx(0.9183, abs=1e-4)
 
 
-def test_shape_entropy_grows_for_ragged_shapes():
+def test_shape_entropy_counts_the_flat_share_of_the_surface():
+    # a 4x2x3 box: 5*3*4 - 3*1*2 = 54 surface vertices, 8 corners, 46 flat
+    assert shape_entropy(np.ones((4, 2, 3))) == pytest.approx(entropy_bits(8, 46))
+    # more flat surface around the same 8 corners: less entropy
+    assert shape_entropy(np.ones((6, 6, 6))) < shape_entropy(np.ones((2, 2, 2)))
     rng = np.random.default_rng(0)
     ragged = (rng.random((6, 6, 6)) < 0.55).astype(np.int8)
-    assert shape_entropy(np.ones((4, 2, 3))) == 0.0
     assert shape_entropy(ragged) > 1.5 > shape_entropy(CROSS)
 
 

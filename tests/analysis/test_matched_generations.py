@@ -1,0 +1,83 @@
+"""Comparisons at matched generations, on a hand-built database where the static S3 runs
+outlive the others (tests/analysis/matched.py): stiffness comparisons at the static
+treatments' common last generation, transitions against static S3 at their own."""
+
+from __future__ import annotations
+
+import pytest
+
+from softevo.analysis.stats_tables import statistics_table, summary_table
+from softevo.service.db import open_database
+from softevo.service.db.experiments import load_experiment
+from tests.analysis import matched
+
+
+@pytest.fixture(scope="module")
+def hand(tmp_path_factory):
+    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('matched') / 'matched.db'}")
+    experiment_id = matched.build(engine)
+    yield engine, experiment_id
+    engine.dispose()
+
+
+@pytest.fixture(scope="module")
+def data(hand):
+    return load_experiment(*hand)
+
+
+def _row(table, metric, a, b):
+    rows = table[(table["comparison"] == "between treatments") & (table["metric"] == metric)]
+    rows = rows[(rows["a"] == a) & (rows["b"] == b)]
+    assert len(rows) == 1
+    return rows.iloc[0]
+
+
+def test_stiffness_comparisons_are_at_the_static_common_generation(data):
+    table = statistics_table(data)
+    for metric in ("best_distance", "distance", "voxel_count", "frequency"):
+        row = _row(table, metric, "land S1", "land S3")
+        # S3 at generation 2 (20, 21), not at its last, 4 (40, 41); one value per run
+        assert row["mean_b"] == pytest.approx(20.5), metric
+        assert row["mean_a"] == pytest.approx(1.5), metric
+        assert (row["n_a"], row["n_b"]) == (2, 2), metric
+        assert row["generation"] == 2 and row["unit"] == "run"
+        assert row["A12"] == 0.0  # every S1 run below every S3 run
+        assert row["difference"] == pytest.approx(1.5 - 20.5)
+
+
+def test_transitions_are_compared_with_static_s3_at_their_own_generation(data):
+    table = statistics_table(data)
+    row = _row(table, "best_distance", "land S3", "land-water S3")
+    assert row["generation"] == 4
+    assert row["mean_a"] == pytest.approx(40.5) and row["mean_b"] == pytest.approx(100.5)
+    assert row["A12"] == 0.0
+    # S1 and the transition differ in two factors: not compared
+    pairs = set(zip(table["a"], table["b"], strict=True))
+    assert ("land S1", "land-water S3") not in pairs
+    ends = table[(table["comparison"] == "start vs end") & (table["metric"] == "distance")]
+    ends = ends.set_index("a")["generation"]
+    assert ends["land S1 start"] == 2 and ends["land S3 start"] == 4
+
+
+def test_the_loader_reads_the_compared_generations_and_any_other(hand, data):
+    static_s3 = data.populations[data.populations["treatment"] == "land S3"]
+    assert sorted(static_s3["generation"].unique()) == [0, 2, 4]
+    assert data.static_generation == 2 and data.pair_generation("land S3", "land-water S3") == 4
+    values = data.run_values(2)
+    s3 = values[values["treatment"] == "land S3"]
+    assert sorted(s3["distance"]) == [20.0, 21.0] and sorted(s3["best_distance"]) == [20.0, 21.0]
+    more = load_experiment(*hand, generations=[1, 3])
+    assert sorted(more.populations["generation"].unique()) == [0, 1, 2, 3, 4]
+    at_3 = more.run_values(3)
+    assert sorted(at_3.loc[at_3["treatment"] == "land S3", "voxel_count"]) == [30.0, 31.0]
+
+
+def test_summary_names_each_treatments_generations(data):
+    import numpy as np
+
+    summary = summary_table(data, np.random.default_rng(0))
+    best = summary[summary["metric"] == "best_distance"]
+    shown = {(r.treatment, r.generation): r.mean for r in best.itertuples()}
+    assert shown == pytest.approx(
+        {("land S1", 2): 1.5, ("land S3", 2): 20.5, ("land S3", 4): 40.5, ("land-water S3", 4): 100.5}
+    )
