@@ -2,7 +2,9 @@
 
 Usage: python bench/sim_throughput.py [--seconds 0.5] [--repeats 3] [--fields none|uniform|mixed]
 Prints compile time apart, then voxel-steps/s for actuated solid cubes of 4^3, 7^3, 10^3 on
-land and for random 7^3 robots, with the ratio to Voxelyze (2.8 M voxel-steps/s on one core).
+land and for random 7^3 robots, with the ratio to a fixed Voxelyze figure (2.8 M voxel-steps/s
+on one core, once measured idle; ``bench/voxelyze_paired.py`` measures the ratio properly,
+both engines in turn on the same host).
 ``--fields uniform`` gives every scene Young's modulus, density and frequency fields holding the
 scalars (the same run, through the per-voxel path); ``mixed`` random ones (Young's modulus
 0.1..1 MPa, density 600..1800 kg/m^3, frequency 2..4 Hz).
