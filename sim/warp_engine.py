@@ -5,9 +5,9 @@ Scenes go through the one scene -> arrays path (``parse_scene``, ``build_robot``
 the packed batch is copied to the device once, with voxel and link indices made global, and
 ``sim.warp_kernels`` steps every robot of it at once: per step one launch over all links,
 two over all voxels and one over all robots. A robot that has run its steps or diverged is
-masked, not re-packed. On a CUDA device the launches of ``chunk`` steps are captured once as
-a CUDA graph (``wp.ScopedCapture``) and replayed; on the CPU device they are recorded
-launches replayed in a loop. Between chunks the host only asks whether any robot still runs.
+masked, not re-packed. The launches of ``chunk`` steps are captured once (``wp.ScopedCapture``:
+a CUDA graph on a GPU, Warp's recorded launch stream replayed in C++ on the CPU device) and
+replayed until every robot is done; between chunks the host only asks whether any still runs.
 
 Precision: float64 (default) agrees with the numba engine to rounding; float32 halves the
 memory traffic (docs/gpu.md says when it may be used). Warp is imported on first use only;
@@ -28,7 +28,9 @@ from .scene import Scene, parse_scene
 from .system import COM_SAMPLES, F_L, I_N_FRAMES, I_STEPS, build_robot, pack
 
 DEFAULT_DEVICE = "cuda:0"
-CHUNK_STEPS = 500  # steps per captured graph (CUDA) or between checks (CPU)
+# Steps per captured chunk: on a GPU long graphs amortise the launch of each; on the CPU
+# device replay costs little per launch but recording one costs ~0.5 ms, so short ones.
+CHUNK_STEPS = {"cuda": 500, "cpu": 25}
 
 
 def warp_module():
@@ -60,9 +62,10 @@ def device_of(name: str | None):
 
 
 def simulate_many(scenes: list[dict | Scene], device: str | None = None,
-                  precision: str = "float64", chunk: int = CHUNK_STEPS) -> list[Result]:
+                  precision: str = "float64", chunk: int | None = None) -> list[Result]:
     """Simulate many robots in one batch on a Warp device; results in the order of
-    ``scenes``. ``precision``: "float64" or "float32"."""
+    ``scenes``. ``precision``: "float64" or "float32"; ``chunk``: steps per captured graph
+    (default ``CHUNK_STEPS`` for the kind of device)."""
     if precision not in PRECISIONS:
         raise EngineUnavailable(f"precision: must be one of {', '.join(PRECISIONS)} (got {precision!r})")
     dev = device_of(device)
@@ -107,7 +110,7 @@ def _offsets(counts) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
 
 
-def run_batch(robots: list, dev, precision: str = "float64", chunk: int = CHUNK_STEPS) -> BatchOutput:
+def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None = None) -> BatchOutput:
     """Run the built robots (``sim.system.Robot``) to the end on Warp device ``dev``."""
     wp = warp_module()
     from .warp_kernels import MAX_CANDIDATES, build
@@ -190,27 +193,14 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int = CHUNK_
     wp.launch(kern.actuate, dim=n_vox, inputs=voxel_args + [a.size], device=dev)
     wp.launch(kern.robots, dim=n_robots, inputs=[0] + robot_args[1:], device=dev)
     total = int(batch.iparams[:, I_STEPS].max())
-    chunk = max(1, min(chunk, total))
-    if dev.is_cuda:
-        with wp.ScopedCapture(device=dev) as capture:
-            for _ in range(chunk):
-                for kernel, dim, inputs in step_launches:
-                    wp.launch(kernel, dim=dim, inputs=inputs, device=dev)
-
-        def run_chunk() -> None:
-            wp.capture_launch(capture.graph)
-    else:
-        commands = [wp.launch(kernel, dim=dim, inputs=inputs, device=dev, record_cmd=True)
-                    for kernel, dim, inputs in step_launches]
-
-        def run_chunk() -> None:
-            for _ in range(chunk):
-                for command in commands:
-                    command.launch()
-
+    chunk = max(1, min(chunk or CHUNK_STEPS["cuda" if dev.is_cuda else "cpu"], total))
+    with wp.ScopedCapture(device=dev) as capture:  # a CUDA graph, or Warp's CPU replay
+        for _ in range(chunk):
+            for kernel, dim, inputs in step_launches:
+                wp.launch(kernel, dim=dim, inputs=inputs, device=dev)
     done_steps = 0
     while done_steps < total and a.running.numpy().any():
-        run_chunk()
+        wp.capture_launch(capture.graph)
         done_steps += chunk
     wp.synchronize_device(dev)
     return BatchOutput(voff, foff, n_frames, a.pos.numpy().astype(np.float64),
