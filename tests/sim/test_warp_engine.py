@@ -12,7 +12,7 @@
   kind, distances within 1% (median relative difference).
 
 ``SOFTEVO_WARP_TEST_DEVICE`` picks the device (default ``cpu``; ``bench/gpu_device_check.sh``
-sets ``cuda:0``), ``SOFTEVO_WARP_RANDOM_ROBOTS`` the number of random robots (default 20).
+sets ``cuda:0``), ``SOFTEVO_WARP_RANDOM_ROBOTS`` the number of random robots (default 100).
 Every test shares one compiled Warp module (``warp_device``: compiled once per session, then
 loaded from Warp's kernel cache).
 """
@@ -33,7 +33,7 @@ from tests.sim._support import report
 from tests.sim.test_fuzz import check_results, random_scene
 
 DEVICE = os.environ.get("SOFTEVO_WARP_TEST_DEVICE", "cpu")
-RANDOM_ROBOTS = int(os.environ.get("SOFTEVO_WARP_RANDOM_ROBOTS", "20"))
+RANDOM_ROBOTS = int(os.environ.get("SOFTEVO_WARP_RANDOM_ROBOTS", "100"))
 
 
 @pytest.fixture(scope="session")
