@@ -16,6 +16,9 @@ without it, or without the device asked for, ``EngineUnavailable`` says so in on
 
 from __future__ import annotations
 
+import os
+import sys
+from contextlib import contextmanager
 from types import SimpleNamespace
 from typing import Any
 
@@ -40,9 +43,25 @@ def warp_module():
     except ImportError:
         raise EngineUnavailable(
             "the warp engine needs the warp-lang package: pip install 'softevo[gpu]'") from None
-    wp.config.quiet = True
-    wp.init()
+    wp.config.log_level = wp.LOG_WARNING  # no banner, no line per module load
+    with _native_stderr_silenced():  # the CUDA driver's absence is ours to report
+        wp.init()  # once per process (later calls return at once)
     return wp
+
+
+@contextmanager
+def _native_stderr_silenced():
+    """File descriptor 2 points at /dev/null inside (Warp's native code prints the missing
+    CUDA driver there on every machine without a GPU; ``device_of`` says it in one line)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def device_of(name: str | None):

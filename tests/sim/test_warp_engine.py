@@ -19,6 +19,7 @@ loaded from Warp's kernel cache).
 
 from __future__ import annotations
 
+import json
 import math
 import os
 
@@ -203,6 +204,15 @@ def test_simulate_many_selects_the_engine(warp_device):
         sim.simulate_many([scene], engine="cuda")
 
 
+def test_the_numba_engine_never_imports_warp():
+    import subprocess
+    import sys
+
+    code = ("import sys; from softevo import sim; sim.simulate({'body': [[[1]]], "
+            "'duration': {'seconds': 0.001}}); assert 'warp' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
 def test_missing_device_and_missing_warp_are_one_line_errors(monkeypatch):
     import sys
 
@@ -211,3 +221,36 @@ def test_missing_device_and_missing_warp_are_one_line_errors(monkeypatch):
     monkeypatch.setitem(sys.modules, "warp", None)  # as if warp-lang were not installed
     with pytest.raises(EngineUnavailable, match=r"pip install 'softevo\[gpu\]'"):
         warp_engine.simulate_many([{"body": [[[1]]]}], device="cpu")
+
+
+def test_cli_simulates_on_warp_and_refuses_a_missing_device(warp_device, tmp_path, capsys):
+    from tests.sim.test_cli_sim import TINY, assert_user_error, softevo_here, write
+
+    path = write(tmp_path, TINY)
+    proc = softevo_here(capsys, "simulate", str(path), "--json", "--engine", "warp", "--device",
+                        warp_device)
+    assert proc.returncode == 0, proc.stderr
+    ours = json.loads(proc.stdout)
+    theirs = sim.simulate(TINY).to_dict()
+    assert ours["steps"] == theirs["steps"] and ours["stable"]
+    assert ours["distance"] == pytest.approx(theirs["distance"], rel=1e-9)
+    assert_user_error(softevo_here(capsys, "simulate", str(path), "--engine", "warp", "--device",
+                                   "cuda:7"), "no Warp device 'cuda:7'")
+    assert_user_error(softevo_here(capsys, "simulate", str(path), "--engine", "gpu"),
+                      "engine: must be one of numba, warp")
+    assert_user_error(softevo_here(capsys, "simulate", str(path), "--device", "cpu"),
+                      "--device: only the warp engine")
+
+
+def test_workers_evaluate_on_the_engine_of_their_environment(warp_device, monkeypatch):
+    from softevo.worker.evaluate import DEVICE_ENV, ENGINE_ENV, engine_options
+
+    assert engine_options() == {"engine": "numba"} or ENGINE_ENV in os.environ
+    monkeypatch.setenv(ENGINE_ENV, "warp")
+    monkeypatch.setenv(DEVICE_ENV, warp_device)
+    assert engine_options() == {"engine": "warp", "device": warp_device}
+    monkeypatch.setenv(DEVICE_ENV, "cuda:7")
+    from softevo.worker.evaluate import warm_up
+
+    with pytest.raises(EngineUnavailable, match="cuda:7"):  # a GPU worker without its GPU
+        warm_up()
