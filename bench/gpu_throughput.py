@@ -9,7 +9,10 @@ Each case runs ``--steps`` steps of a batch of 1, 10, 100, 1,000, 10,000 robots 
 ``--max-batch``) and prints voxel-steps/s, the evaluations/s that means (an evaluation is the
 whole run ``evolution`` asks for: ``DEFAULT_CYCLES`` cycles plus settling on land) and the
 ratio to the numba engine on all cores (``simulate_many``, timed up to ``--numba-max-batch``
-robots; its throughput no longer grows once every core has a robot). Compilation is timed
+robots; its throughput no longer grows once every core has a robot). The Warp engine's rate
+is its step loop's (``run_batch``: the captured graphs replayed, device synchronised);
+"end-to-end" adds building the robots, packing, copying and the results (numba's rate is
+end-to-end: its building is a small part of its time). Compilation is timed
 apart (one warm-up call per precision). ``--accuracy N`` also runs N whole evaluations per
 stiffness and world in float64 and float32 and prints how far float32's distances are from
 float64's (the float32 policy of docs/gpu.md). On the CPU device keep --max-batch and --steps
@@ -96,7 +99,7 @@ def main() -> None:
     sim.simulate_many(warm)
 
     header = (f"{'world':6} {'E MPa':>5} {'batch':>6} {'engine':>13} {'voxel-steps/s':>14} "
-              f"{'eval/s':>9} {'x numba':>8}")
+              f"{'end-to-end':>14} {'eval/s':>9} {'x numba':>8}")
     print(header)
     print("-" * len(header))
     for world in args.worlds.split(","):
@@ -105,6 +108,8 @@ def main() -> None:
             pool = [paper_robot(rng, world, modulus) for _ in range(min(args.max_batch, 100))]
             voxels, eval_steps = evaluation_cost(pool[0])
             eval_cost = voxels * eval_steps  # voxel-steps of one whole evaluation
+            print(f"# {world}, {modulus / 1e6:g} MPa: an evaluation is {eval_steps:,.0f} steps of "
+                  f"{voxels} voxels ({eval_cost:.3g} voxel-steps)")
             numba_rate = None
             for batch in (b for b in BATCHES if b <= args.max_batch):
                 scenes = [shortened(pool[k % len(pool)], args.steps) for k in range(batch)]
@@ -112,15 +117,21 @@ def main() -> None:
                 if batch <= args.numba_max_batch:
                     seconds, results = timed(sim.simulate_many, scenes)
                     numba_rate = voxel_steps(results) / seconds
-                    rows.append(("numba", numba_rate))
+                    rows.append(("numba", numba_rate, None))
+                start = time.perf_counter()
+                robots = [build_robot(parse_scene(s)) for s in scenes]
+                build = time.perf_counter() - start
                 for precision in precisions:
-                    seconds, results = timed(
-                        lambda s, p=precision: warp_engine.simulate_many(s, device, p), scenes)
-                    rows.append((f"warp {precision}", voxel_steps(results) / seconds))
-                for engine, rate in rows:
+                    start = time.perf_counter()
+                    out = warp_engine.run_batch(robots, dev, precision)
+                    total = build + time.perf_counter() - start
+                    rows.append((f"warp {precision}", out.voxel_steps / out.seconds,
+                                 out.voxel_steps / total))
+                for engine, rate, overall in rows:
                     ratio = f"{rate / numba_rate:8.2f}" if numba_rate else f"{'':8}"
+                    end = f"{overall:14.4g}" if overall else f"{'':14}"
                     print(f"{world:6} {modulus / 1e6:5.0f} {batch:6d} {engine:>13} {rate:14.4g} "
-                          f"{rate / eval_cost:9.3g} {ratio}", flush=True)
+                          f"{end} {rate / eval_cost:9.3g} {ratio}", flush=True)
             if args.accuracy:
                 scenes = [paper_robot(rng, world, modulus) for _ in range(args.accuracy)]
                 f64 = warp_engine.simulate_many(scenes, device, "float64")

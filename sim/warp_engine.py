@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from contextlib import contextmanager
 from types import SimpleNamespace
 from typing import Any
@@ -108,12 +109,19 @@ def simulate_many(scenes: list[dict | Scene], device: str | None = None,
 
 class BatchOutput:
     """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.engine._result``
-    takes it (a one-robot batch)."""
+    takes it (a one-robot batch), and the seconds its step loop took."""
 
-    def __init__(self, voff, foff, n_frames, pos, frames, com_traj, com_count, status, done):
+    def __init__(self, seconds, voff, foff, n_frames, pos, frames, com_traj, com_count, status,
+                 done):
+        self.seconds = seconds  # wall time of the step loop alone (after capture)
         self.voff, self.foff, self.n_frames = voff, foff, n_frames
         self.pos, self.frames, self.com_traj = pos, frames, com_traj
         self.com_count, self.status, self.done = com_count, status, done
+
+    @property
+    def voxel_steps(self) -> float:
+        """Voxel-steps the run stepped: each robot's steps times its voxels."""
+        return float(np.sum(self.done * np.diff(self.voff)))
 
     def robot(self, r: int) -> tuple[Any, ...]:
         v0, v1 = self.voff[r], self.voff[r + 1]
@@ -217,12 +225,15 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
         for _ in range(chunk):
             for kernel, dim, inputs in step_launches:
                 wp.launch(kernel, dim=dim, inputs=inputs, device=dev)
+    wp.synchronize_device(dev)
+    started = time.perf_counter()
     done_steps = 0
     while done_steps < total and a.running.numpy().any():
         wp.capture_launch(capture.graph)
         done_steps += chunk
     wp.synchronize_device(dev)
-    return BatchOutput(voff, foff, n_frames, a.pos.numpy().astype(np.float64),
+    seconds = time.perf_counter() - started
+    return BatchOutput(seconds, voff, foff, n_frames, a.pos.numpy().astype(np.float64),
                        a.frames.numpy().astype(np.float64),
                        a.com_traj.numpy().astype(np.float64),
                        a.n_com.numpy().astype(np.int64), a.status.numpy().astype(np.int64),
