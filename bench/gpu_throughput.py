@@ -75,31 +75,41 @@ def timed(run, scenes) -> tuple[float, list]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--device", default=None, help="Warp device (default cuda:0 if there is one, else cpu)")
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--device", default=None, help="Warp device (default cuda:0 if there is one, else cpu)"
+    )
     parser.add_argument("--max-batch", type=int, default=10000)
     parser.add_argument("--numba-max-batch", type=int, default=100)
     parser.add_argument("--steps", type=int, default=2000, help="steps per robot per case")
     parser.add_argument("--precisions", default="float64,float32")
     parser.add_argument("--worlds", default="land,water")
     parser.add_argument("--moduli", default="1e6,1e7", help="Young's moduli, Pa")
-    parser.add_argument("--accuracy", type=int, default=0, help="whole evaluations per case for float32 vs float64")
+    parser.add_argument(
+        "--accuracy", type=int, default=0, help="whole evaluations per case for float32 vs float64"
+    )
     args = parser.parse_args()
 
     wp = warp_engine.warp_module()
     device = args.device or ("cuda:0" if wp.is_cuda_available() else "cpu")
     dev = warp_engine.device_of(device)
     precisions = args.precisions.split(",")
-    print(f"device: {device} ({dev.name}); numba on {numba.get_num_threads()} threads of "
-          f"{os.cpu_count()} cores; {args.steps} steps per robot")
+    print(
+        f"device: {device} ({dev.name}); numba on {numba.get_num_threads()} threads of "
+        f"{os.cpu_count()} cores; {args.steps} steps per robot"
+    )
     warm = [{"body": [[[2]], [[1]]], "duration": {"seconds": 0.001}}]
     for precision in precisions:
         seconds, _ = timed(lambda s, p=precision: warp_engine.simulate_many(s, device, p), warm)
         print(f"warm-up (compile or load from Warp's cache) {precision}: {seconds:.1f} s")
     sim.simulate_many(warm)
 
-    header = (f"{'world':6} {'E MPa':>5} {'batch':>6} {'engine':>13} {'voxel-steps/s':>14} "
-              f"{'end-to-end':>14} {'eval/s':>9} {'x numba':>8}")
+    header = (
+        f"{'world':6} {'E MPa':>5} {'batch':>6} {'engine':>13} {'voxel-steps/s':>14} "
+        f"{'end-to-end':>14} {'eval/s':>9} {'x numba':>8}"
+    )
     print(header)
     print("-" * len(header))
     for world in args.worlds.split(","):
@@ -108,8 +118,10 @@ def main() -> None:
             pool = [paper_robot(rng, world, modulus) for _ in range(min(args.max_batch, 100))]
             voxels, eval_steps = evaluation_cost(pool[0])
             eval_cost = voxels * eval_steps  # voxel-steps of one whole evaluation
-            print(f"# {world}, {modulus / 1e6:g} MPa: an evaluation is {eval_steps:,.0f} steps of "
-                  f"{voxels} voxels ({eval_cost:.3g} voxel-steps)")
+            print(
+                f"# {world}, {modulus / 1e6:g} MPa: an evaluation is {eval_steps:,.0f} steps of "
+                f"{voxels} voxels ({eval_cost:.3g} voxel-steps)"
+            )
             numba_rate = None
             for batch in (b for b in BATCHES if b <= args.max_batch):
                 scenes = [shortened(pool[k % len(pool)], args.steps) for k in range(batch)]
@@ -125,23 +137,30 @@ def main() -> None:
                     start = time.perf_counter()
                     out = warp_engine.run_batch(robots, dev, precision)
                     total = build + time.perf_counter() - start
-                    rows.append((f"warp {precision}", out.voxel_steps / out.seconds,
-                                 out.voxel_steps / total))
+                    rows.append((f"warp {precision}", out.voxel_steps / out.seconds, out.voxel_steps / total))
                 for engine, rate, overall in rows:
                     ratio = f"{rate / numba_rate:8.2f}" if numba_rate else f"{'':8}"
                     end = f"{overall:14.4g}" if overall else f"{'':14}"
-                    print(f"{world:6} {modulus / 1e6:5.0f} {batch:6d} {engine:>13} {rate:14.4g} "
-                          f"{end} {rate / eval_cost:9.3g} {ratio}", flush=True)
+                    print(
+                        f"{world:6} {modulus / 1e6:5.0f} {batch:6d} {engine:>13} {rate:14.4g} "
+                        f"{end} {rate / eval_cost:9.3g} {ratio}",
+                        flush=True,
+                    )
             if args.accuracy:
                 scenes = [paper_robot(rng, world, modulus) for _ in range(args.accuracy)]
                 f64 = warp_engine.simulate_many(scenes, device, "float64")
                 f32 = warp_engine.simulate_many(scenes, device, "float32")
-                rel = [abs(a.distance - b.distance) / max(a.distance, 1e-3)
-                       for a, b in zip(f64, f32, strict=True) if a.stable and b.stable]
+                rel = [
+                    abs(a.distance - b.distance) / max(a.distance, 1e-3)
+                    for a, b in zip(f64, f32, strict=True)
+                    if a.stable and b.stable
+                ]
                 flags = sum(a.stable != b.stable for a, b in zip(f64, f32, strict=True))
-                print(f"accuracy {world} {modulus / 1e6:g} MPa: float32 vs float64 distance over "
-                      f"{len(rel)} robots: median {np.median(rel):.3g}, max {np.max(rel):.3g}; "
-                      f"stability mismatches {flags}")
+                print(
+                    f"accuracy {world} {modulus / 1e6:g} MPa: float32 vs float64 distance over "
+                    f"{len(rel)} robots: median {np.median(rel):.3g}, max {np.max(rel):.3g}; "
+                    f"stability mismatches {flags}"
+                )
 
 
 if __name__ == "__main__":

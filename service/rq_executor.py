@@ -96,8 +96,9 @@ def job_id_of(tasks: list[Task], index: int) -> str:
     return f"{prefix}batch{index}-{batch_digest(tasks)}"
 
 
-def plan_batches(tasks: list[Task], workers: int, genomes_per_job: int,
-                 across_runs: bool = False) -> list[Batch]:
+def plan_batches(
+    tasks: list[Task], workers: int, genomes_per_job: int, across_runs: bool = False
+) -> list[Batch]:
     """Split ``tasks`` into jobs: per (run, generation), at most ``genomes_per_job`` each and at
     least one per worker (as the local executor does). ``across_runs``: one group for all the
     runs' tasks of the round, so a job can be one large batch (GPU workers, docs/cluster.md)."""
@@ -165,8 +166,9 @@ class RQExecutor:
         if not tasks:
             return []
         results: list[Task | None] = [None] * len(tasks)
-        waiting = {b.job_id: b for b in plan_batches(tasks, self.workers, self.genomes_per_job,
-                                                           self.across_runs)}
+        waiting = {
+            b.job_id: b for b in plan_batches(tasks, self.workers, self.genomes_per_job, self.across_runs)
+        }
         self._retrying(lambda: self._submit(waiting.values(), replace_failed=True))
         cursors: dict[str, str] = {}
         while waiting:

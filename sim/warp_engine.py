@@ -43,7 +43,8 @@ def warp_module():
         import warp as wp
     except ImportError:
         raise EngineUnavailable(
-            "the warp engine needs the warp-lang package: pip install 'softevo[gpu]'") from None
+            "the warp engine needs the warp-lang package: pip install 'softevo[gpu]'"
+        ) from None
     wp.config.log_level = wp.LOG_WARNING  # no banner, no line per module load
     with _native_stderr_silenced():  # the CUDA driver's absence is ours to report
         wp.init()  # once per process (later calls return at once)
@@ -81,8 +82,12 @@ def device_of(name: str | None):
     return device
 
 
-def simulate_many(scenes: list[dict | Scene], device: str | None = None,
-                  precision: str = "float64", chunk: int | None = None) -> list[Result]:
+def simulate_many(
+    scenes: list[dict | Scene],
+    device: str | None = None,
+    precision: str = "float64",
+    chunk: int | None = None,
+) -> list[Result]:
     """Simulate many robots in one batch on a Warp device; results in the order of
     ``scenes``. ``precision``: "float64" or "float32"; ``chunk``: steps per captured graph
     (default ``CHUNK_STEPS`` for the kind of device)."""
@@ -111,8 +116,7 @@ class BatchOutput:
     """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.engine._result``
     takes it (a one-robot batch), and the seconds its step loop took."""
 
-    def __init__(self, seconds, voff, foff, n_frames, pos, frames, com_traj, com_count, status,
-                 done):
+    def __init__(self, seconds, voff, foff, n_frames, pos, frames, com_traj, com_count, status, done):
         self.seconds = seconds  # wall time of the step loop alone (after capture)
         self.voff, self.foff, self.n_frames = voff, foff, n_frames
         self.pos, self.frames, self.com_traj = pos, frames, com_traj
@@ -128,9 +132,15 @@ class BatchOutput:
         n = v1 - v0
         f0, nf = self.foff[r], self.n_frames[r]
         frames = self.frames[f0 : f0 + nf * n].reshape(nf, n, 3)
-        return (SimpleNamespace(voff=np.array([0, n])), SimpleNamespace(pos=self.pos[v0:v1]),
-                frames, self.com_traj[r : r + 1], self.com_count[r : r + 1],
-                self.status[r : r + 1], self.done[r : r + 1])
+        return (
+            SimpleNamespace(voff=np.array([0, n])),
+            SimpleNamespace(pos=self.pos[v0:v1]),
+            frames,
+            self.com_traj[r : r + 1],
+            self.com_count[r : r + 1],
+            self.status[r : r + 1],
+            self.done[r : r + 1],
+        )
 
 
 def _offsets(counts) -> np.ndarray:
@@ -173,48 +183,148 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
         return dev_array(a, real)
 
     a = SimpleNamespace(
-        running=i32(np.ones(n_robots)), step=i32(np.zeros(n_robots)),
-        robot=i32(robot_of_voxel), link_robot=i32(robot_of_link),
-        fp=fl(batch.fparams), ip=i32(batch.iparams), voff=i32(voff), foff=i32(foff),
-        soff=i32(soff), flags=i32(batch.flags), cos_phase=fl(batch.cos_phase),
-        sin_phase=fl(batch.sin_phase), phase=fl(batch.phase), vc=fl(batch.vconst),
-        ext_force=fl(batch.ext_force), nbr=i32(globalise(batch.nbr, voff, robot_of_voxel)),
-        vlink=i32(globalise(batch.vlink, loff, robot_of_voxel)), surface=i32(surface),
+        running=i32(np.ones(n_robots)),
+        step=i32(np.zeros(n_robots)),
+        robot=i32(robot_of_voxel),
+        link_robot=i32(robot_of_link),
+        fp=fl(batch.fparams),
+        ip=i32(batch.iparams),
+        voff=i32(voff),
+        foff=i32(foff),
+        soff=i32(soff),
+        flags=i32(batch.flags),
+        cos_phase=fl(batch.cos_phase),
+        sin_phase=fl(batch.sin_phase),
+        phase=fl(batch.phase),
+        vc=fl(batch.vconst),
+        ext_force=fl(batch.ext_force),
+        nbr=i32(globalise(batch.nbr, voff, robot_of_voxel)),
+        vlink=i32(globalise(batch.vlink, loff, robot_of_voxel)),
+        surface=i32(surface),
         is_surface=i32(is_surface),
         link_neg=i32(globalise(batch.link_neg, voff, robot_of_link)),
         link_pos=i32(globalise(batch.link_pos, voff, robot_of_link)),
-        link_axis=i32(batch.link_axis), link_stiff=fl(batch.link_stiff),
+        link_axis=i32(batch.link_axis),
+        link_stiff=fl(batch.link_stiff),
         link_damp=fl(batch.link_damp),
-        pos=fl(state.pos), quat=fl(state.quat), lin_mom=fl(state.lin_mom),
-        ang_mom=fl(state.ang_mom), size=fl(np.zeros(n_vox)), force=fl(np.zeros((n_vox, 3))),
-        moment=fl(np.zeros((n_vox, 3))), static=i32(np.ones(n_vox)),
-        contact=i32(np.zeros(n_vox)), cand=i32(np.zeros((n_vox, MAX_CANDIDATES))),
+        pos=fl(state.pos),
+        quat=fl(state.quat),
+        lin_mom=fl(state.lin_mom),
+        ang_mom=fl(state.ang_mom),
+        size=fl(np.zeros(n_vox)),
+        force=fl(np.zeros((n_vox, 3))),
+        moment=fl(np.zeros((n_vox, 3))),
+        static=i32(np.ones(n_vox)),
+        contact=i32(np.zeros(n_vox)),
+        cand=i32(np.zeros((n_vox, MAX_CANDIDATES))),
         ncand=i32(np.zeros(n_vox)),
         link_state=fl(np.zeros((max(n_links, 1), LINK_STATE_ROWS))),
         link_out=fl(np.zeros((max(n_links, 1), LINK_OUT_ROWS))),
-        bad=i32(np.zeros(n_robots)), nonfinite=i32(np.zeros(n_robots)),
-        speed2=fl(np.zeros(n_robots)), travel=fl(COLLIDE_MARGIN * batch.fparams[:, F_L]),
-        status=i32(np.zeros(n_robots)), done=i32(np.zeros(n_robots)),
-        n_com=i32(np.zeros(n_robots)), com_traj=fl(np.zeros((n_robots, COM_SAMPLES + 3, 4))),
+        bad=i32(np.zeros(n_robots)),
+        nonfinite=i32(np.zeros(n_robots)),
+        speed2=fl(np.zeros(n_robots)),
+        travel=fl(COLLIDE_MARGIN * batch.fparams[:, F_L]),
+        status=i32(np.zeros(n_robots)),
+        done=i32(np.zeros(n_robots)),
+        n_com=i32(np.zeros(n_robots)),
+        com_traj=fl(np.zeros((n_robots, COM_SAMPLES + 3, 4))),
         frames=fl(np.zeros((max(int(foff[-1]), 1), 3))),
     )
-    voxel_args = [a.running, a.robot, a.step, a.fp, a.ip, a.flags, a.cos_phase, a.sin_phase,
-                  a.phase, a.vc]
+    voxel_args = [a.running, a.robot, a.step, a.fp, a.ip, a.flags, a.cos_phase, a.sin_phase, a.phase, a.vc]
     step_launches = [
-        (kern.links, n_links, [a.running, a.link_robot, a.fp, a.link_neg, a.link_pos,
-                               a.link_axis, a.link_stiff, a.link_damp, a.pos, a.quat, a.size,
-                               a.link_state, a.link_out, a.bad]),
-        (kern.forces, n_vox, [a.running, a.robot, a.fp, a.ip, a.flags, a.vc, a.ext_force, a.nbr,
-                              a.vlink, a.surface, a.soff, a.is_surface, a.travel, a.cand,
-                              a.ncand, a.link_out, a.pos, a.quat, a.lin_mom, a.ang_mom, a.size,
-                              a.force, a.moment, a.static, a.contact]),
-        (kern.integrate, n_vox, voxel_args + [a.force, a.moment, a.static, a.contact, a.pos,
-                                              a.quat, a.lin_mom, a.ang_mom, a.size, a.speed2,
-                                              a.nonfinite]),
-        (kern.robots, n_robots, robot_args := [1, a.running, a.step, a.fp, a.ip, a.voff, a.foff,
-                                               a.vc, a.pos, a.bad, a.nonfinite, a.speed2,
-                                               a.travel, a.status, a.done, a.n_com,
-                                               a.com_traj, a.frames]),
+        (
+            kern.links,
+            n_links,
+            [
+                a.running,
+                a.link_robot,
+                a.fp,
+                a.link_neg,
+                a.link_pos,
+                a.link_axis,
+                a.link_stiff,
+                a.link_damp,
+                a.pos,
+                a.quat,
+                a.size,
+                a.link_state,
+                a.link_out,
+                a.bad,
+            ],
+        ),
+        (
+            kern.forces,
+            n_vox,
+            [
+                a.running,
+                a.robot,
+                a.fp,
+                a.ip,
+                a.flags,
+                a.vc,
+                a.ext_force,
+                a.nbr,
+                a.vlink,
+                a.surface,
+                a.soff,
+                a.is_surface,
+                a.travel,
+                a.cand,
+                a.ncand,
+                a.link_out,
+                a.pos,
+                a.quat,
+                a.lin_mom,
+                a.ang_mom,
+                a.size,
+                a.force,
+                a.moment,
+                a.static,
+                a.contact,
+            ],
+        ),
+        (
+            kern.integrate,
+            n_vox,
+            voxel_args
+            + [
+                a.force,
+                a.moment,
+                a.static,
+                a.contact,
+                a.pos,
+                a.quat,
+                a.lin_mom,
+                a.ang_mom,
+                a.size,
+                a.speed2,
+                a.nonfinite,
+            ],
+        ),
+        (
+            kern.robots,
+            n_robots,
+            robot_args := [
+                1,
+                a.running,
+                a.step,
+                a.fp,
+                a.ip,
+                a.voff,
+                a.foff,
+                a.vc,
+                a.pos,
+                a.bad,
+                a.nonfinite,
+                a.speed2,
+                a.travel,
+                a.status,
+                a.done,
+                a.n_com,
+                a.com_traj,
+                a.frames,
+            ],
+        ),
     ]
     step_launches = [s for s in step_launches if s[1] > 0]
     wp.launch(kern.actuate, dim=n_vox, inputs=voxel_args + [a.size], device=dev)
@@ -233,8 +343,15 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
         done_steps += chunk
     wp.synchronize_device(dev)
     seconds = time.perf_counter() - started
-    return BatchOutput(seconds, voff, foff, n_frames, a.pos.numpy().astype(np.float64),
-                       a.frames.numpy().astype(np.float64),
-                       a.com_traj.numpy().astype(np.float64),
-                       a.n_com.numpy().astype(np.int64), a.status.numpy().astype(np.int64),
-                       a.done.numpy().astype(np.int64))
+    return BatchOutput(
+        seconds,
+        voff,
+        foff,
+        n_frames,
+        a.pos.numpy().astype(np.float64),
+        a.frames.numpy().astype(np.float64),
+        a.com_traj.numpy().astype(np.float64),
+        a.n_com.numpy().astype(np.int64),
+        a.status.numpy().astype(np.int64),
+        a.done.numpy().astype(np.int64),
+    )

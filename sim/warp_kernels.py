@@ -122,29 +122,39 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
     # ------------------------------------------------------------ quaternion helpers
     @wp.func
     def qmul(aw: S, ax: S, ay: S, az: S, bw: S, bx: S, by: S, bz: S):
-        return (aw * bw - ax * bx - ay * by - az * bz,
-                aw * bx + ax * bw + ay * bz - az * by,
-                aw * by - ax * bz + ay * bw + az * bx,
-                aw * bz + ax * by - ay * bx + az * bw)
+        return (
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        )
 
     @wp.func
     def qrot(w: S, x: S, y: S, z: S, vx: S, vy: S, vz: S):
         tx = S(2.0) * (y * vz - z * vy)
         ty = S(2.0) * (z * vx - x * vz)
         tz = S(2.0) * (x * vy - y * vx)
-        return (vx + w * tx + (y * tz - z * ty),
-                vy + w * ty + (z * tx - x * tz),
-                vz + w * tz + (x * ty - y * tx))
+        return (
+            vx + w * tx + (y * tz - z * ty),
+            vy + w * ty + (z * tx - x * tz),
+            vz + w * tz + (x * ty - y * tx),
+        )
 
     @wp.func
     def angle_over_sin(u: S):
         u2 = u * u
         u4 = u2 * u2
         u8 = u4 * u4
-        lo = ((S(C0) + S(C1) * u) + u2 * (S(C2) + S(C3) * u)
-              + u4 * ((S(C4) + S(C5) * u) + u2 * (S(C6) + S(C7) * u)))
-        hi = ((S(C8) + S(C9) * u) + u2 * (S(C10) + S(C11) * u)
-              + u4 * ((S(C12) + S(C13) * u) + u2 * (S(C14) + S(C15) * u)))
+        lo = (
+            (S(C0) + S(C1) * u)
+            + u2 * (S(C2) + S(C3) * u)
+            + u4 * ((S(C4) + S(C5) * u) + u2 * (S(C6) + S(C7) * u))
+        )
+        hi = (
+            (S(C8) + S(C9) * u)
+            + u2 * (S(C10) + S(C11) * u)
+            + u4 * ((S(C12) + S(C13) * u) + u2 * (S(C14) + S(C15) * u))
+        )
         return lo + u8 * (hi + u8 * S(C16))
 
     @wp.func
@@ -170,11 +180,17 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
 
     @wp.func
     def rotation_matrix(w: S, x: S, y: S, z: S):
-        return (S(1.0) - S(2.0) * (y * y + z * z), S(2.0) * (x * y - w * z),
-                S(2.0) * (x * z + w * y), S(2.0) * (x * y + w * z),
-                S(1.0) - S(2.0) * (x * x + z * z), S(2.0) * (y * z - w * x),
-                S(2.0) * (x * z - w * y), S(2.0) * (y * z + w * x),
-                S(1.0) - S(2.0) * (x * x + y * y))
+        return (
+            S(1.0) - S(2.0) * (y * y + z * z),
+            S(2.0) * (x * y - w * z),
+            S(2.0) * (x * z + w * y),
+            S(2.0) * (x * y + w * z),
+            S(1.0) - S(2.0) * (x * x + z * z),
+            S(2.0) * (y * z - w * x),
+            S(2.0) * (x * z - w * y),
+            S(2.0) * (y * z + w * x),
+            S(1.0) - S(2.0) * (x * x + y * y),
+        )
 
     @wp.func
     def to_link(axis: int, x: S, y: S, z: S):
@@ -207,8 +223,9 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
         return out
 
     @wp.func
-    def voxel_size(v: int, r: int, k: int, fp: F2, ip: I2, flags: I, cos_phase: F,
-                   sin_phase: F, phase: F, vc: F2):
+    def voxel_size(
+        v: int, r: int, k: int, fp: F2, ip: I2, flags: I, cos_phase: F, sin_phase: F, phase: F, vc: F2
+    ):
         """Size of voxel v (robot r) at step k (``kernels.actuate_kernel``)."""
         L = fp[r, F_L]
         t = S(k - ip[r, I_SETTLE_STEPS]) * fp[r, F_DT]
@@ -229,8 +246,19 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
         return size
 
     @wp.kernel(module=module, enable_backward=False)
-    def actuate(running: I, robot: I, step: I, fp: F2, ip: I2, flags: I, cos_phase: F,
-                sin_phase: F, phase: F, vc: F2, size: F):
+    def actuate(
+        running: I,
+        robot: I,
+        step: I,
+        fp: F2,
+        ip: I2,
+        flags: I,
+        cos_phase: F,
+        sin_phase: F,
+        phase: F,
+        vc: F2,
+        size: F,
+    ):
         v = wp.tid()
         r = robot[v]
         if running[r] == 0:
@@ -239,9 +267,22 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
 
     # ------------------------------------------------------------ links
     @wp.kernel(module=module, enable_backward=False)
-    def links(running: I, link_robot: I, fp: F2, link_neg: I, link_pos: I, link_axis: I,
-              link_stiff: F, link_damp: F, pos: F2, quat: F2, size: F, link_state: F2,
-              link_out: F2, bad: I):
+    def links(
+        running: I,
+        link_robot: I,
+        fp: F2,
+        link_neg: I,
+        link_pos: I,
+        link_axis: I,
+        link_stiff: F,
+        link_damp: F,
+        pos: F2,
+        quat: F2,
+        size: F,
+        link_state: F2,
+        link_out: F2,
+        bad: I,
+    ):
         j = wp.tid()
         r = link_robot[j]
         if running[r] == 0:
@@ -257,18 +298,17 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
         wx = pos[k, 0] - pos[i, 0]
         wy = pos[k, 1] - pos[i, 1]
         wz = pos[k, 2] - pos[i, 2]
-        rx, ry, rz = to_link(ax, r00 * wx + r10 * wy + r20 * wz,
-                             r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
-        ow, ox0, oy0, oz0 = qmul(qw, -qx, -qy, -qz, quat[k, 0], quat[k, 1], quat[k, 2],
-                                 quat[k, 3])
+        rx, ry, rz = to_link(
+            ax, r00 * wx + r10 * wy + r20 * wz, r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz
+        )
+        ow, ox0, oy0, oz0 = qmul(qw, -qx, -qy, -qz, quat[k, 0], quat[k, 1], quat[k, 2], quat[k, 3])
         ox, oy, oz = to_link(ax, ox0, oy0, oz0)
         rest = S(0.5) * (size[i] + size[k])
 
         turn = wp.abs(ry) + wp.abs(rz)
         extend = wp.abs(rx - rest)
         leave = turn > S(SMALL_TURN) * rx or extend > S(SMALL_EXTEND) * rest
-        enter = (turn < S(SMALL_TURN_IN) * rx
-                 and extend < S(SMALL_EXTEND_IN) * rest)
+        enter = turn < S(SMALL_TURN_IN) * rx and extend < S(SMALL_EXTEND_IN) * rest
         mode = link_state[j, 9]
         was_small = mode >= S(0.0)
         now_small = enter
@@ -406,10 +446,33 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
 
     # ------------------------------------------------------------ voxels
     @wp.kernel(module=module, enable_backward=False)
-    def forces(running: I, robot: I, fp: F2, ip: I2, flags: I, vc: F2, ext_force: F2, nbr: I2,
-               vlink: I2, surface: I, soff: I, is_surface: I, travel: F, cand: I2, ncand: I,
-               link_out: F2, pos: F2, quat: F2, lin_mom: F2, ang_mom: F2, size: F, force: F2,
-               moment: F2, stuck: I, contact: I):
+    def forces(
+        running: I,
+        robot: I,
+        fp: F2,
+        ip: I2,
+        flags: I,
+        vc: F2,
+        ext_force: F2,
+        nbr: I2,
+        vlink: I2,
+        surface: I,
+        soff: I,
+        is_surface: I,
+        travel: F,
+        cand: I2,
+        ncand: I,
+        link_out: F2,
+        pos: F2,
+        quat: F2,
+        lin_mom: F2,
+        ang_mom: F2,
+        size: F,
+        force: F2,
+        moment: F2,
+        stuck: I,
+        contact: I,
+    ):
         v = wp.tid()
         r = robot[v]
         if running[r] == 0:
@@ -444,14 +507,21 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
             if S(2.0) * travel[r] >= margin:
                 reach = L * (S(1.0) + fp[r, F_AMP]) + margin
                 reach2 = reach * reach
-                count = int(0)
+                count = wp.int32(0)  # a dynamic variable (mutated in the loop)
                 for q in range(soff[r], soff[r + 1]):
                     u = surface[q]
                     ddx = pos[u, 0] - pos[v, 0]
                     ddy = pos[u, 1] - pos[v, 1]
                     ddz = pos[u, 2] - pos[v, 2]
-                    bonded = (u == v or nbr[v, 0] == u or nbr[v, 1] == u or nbr[v, 2] == u
-                              or nbr[v, 3] == u or nbr[v, 4] == u or nbr[v, 5] == u)
+                    bonded = (
+                        u == v
+                        or nbr[v, 0] == u
+                        or nbr[v, 1] == u
+                        or nbr[v, 2] == u
+                        or nbr[v, 3] == u
+                        or nbr[v, 4] == u
+                        or nbr[v, 5] == u
+                    )
                     if ddx * ddx + ddy * ddy + ddz * ddz < reach2 and not bonded:
                         if count < MAX_CANDIDATES:
                             cand[v, count] = u
@@ -477,9 +547,11 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
                     nx = ddx / dist
                     ny = ddy / dist
                     nz = ddz / dist
-                    vn = ((lin_mom[u, 0] * inv_mu - lin_mom[v, 0] * inv_mv) * nx
-                          + (lin_mom[u, 1] * inv_mu - lin_mom[v, 1] * inv_mv) * ny
-                          + (lin_mom[u, 2] * inv_mu - lin_mom[v, 2] * inv_mv) * nz)
+                    vn = (
+                        (lin_mom[u, 0] * inv_mu - lin_mom[v, 0] * inv_mv) * nx
+                        + (lin_mom[u, 1] * inv_mu - lin_mom[v, 1] * inv_mv) * ny
+                        + (lin_mom[u, 2] * inv_mu - lin_mom[v, 2] * inv_mv) * nz
+                    )
                     fc = wp.max(kc * overlap - cc * vn, S(0.0))
                     fx = fx - fc * nx
                     fy = fy - fc * ny
@@ -555,10 +627,29 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
         moment[v, 2] = mz
 
     @wp.kernel(module=module, enable_backward=False)
-    def integrate(running: I, robot: I, step: I, fp: F2, ip: I2, flags: I, cos_phase: F,
-                  sin_phase: F, phase: F, vc: F2, force: F2, moment: F2, stuck: I,
-                  contact: I, pos: F2, quat: F2, lin_mom: F2, ang_mom: F2, size: F,
-                  speed2: F, nonfinite: I):
+    def integrate(
+        running: I,
+        robot: I,
+        step: I,
+        fp: F2,
+        ip: I2,
+        flags: I,
+        cos_phase: F,
+        sin_phase: F,
+        phase: F,
+        vc: F2,
+        force: F2,
+        moment: F2,
+        stuck: I,
+        contact: I,
+        pos: F2,
+        quat: F2,
+        lin_mom: F2,
+        ang_mom: F2,
+        size: F,
+        speed2: F,
+        nonfinite: I,
+    ):
         v = wp.tid()
         r = robot[v]
         if running[r] == 0:
@@ -599,10 +690,8 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
             ang_mom[v, 0] = lx
             ang_mom[v, 1] = ly
             ang_mom[v, 2] = lz
-            dw, ddx, ddy, ddz = quat_from_rotvec(lx * inv_i * dt, ly * inv_i * dt,
-                                                 lz * inv_i * dt)
-            qw, qx, qy, qz = qmul(dw, ddx, ddy, ddz, quat[v, 0], quat[v, 1], quat[v, 2],
-                                  quat[v, 3])
+            dw, ddx, ddy, ddz = quat_from_rotvec(lx * inv_i * dt, ly * inv_i * dt, lz * inv_i * dt)
+            qw, qx, qy, qz = qmul(dw, ddx, ddy, ddz, quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
             norm = S(1.0) / wp.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
             qw = qw * norm
             quat[v, 0] = qw
@@ -610,8 +699,9 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
             quat[v, 2] = qy * norm
             quat[v, 3] = qz * norm
             bound = S(POSITION_BOUND)
-            if not (wp.abs(x) < bound and wp.abs(y) < bound and wp.abs(z) < bound
-                    and wp.abs(qw) <= S(QUAT_BOUND)):
+            if not (
+                wp.abs(x) < bound and wp.abs(y) < bound and wp.abs(z) < bound and wp.abs(qw) <= S(QUAT_BOUND)
+            ):
                 nonfinite[r] = 1
         size[v] = voxel_size(v, r, step[r] + 1, fp, ip, flags, cos_phase, sin_phase, phase, vc)
 
@@ -630,9 +720,26 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
             com_traj[r, row, 1 + c] = acc / total
 
     @wp.kernel(module=module, enable_backward=False)
-    def robots(after_step: int, running: I, step: I, fp: F2, ip: I2, voff: I, foff: I, vc: F2,
-               pos: F2, bad: I, nonfinite: I, speed2: F, travel: F, status: I, done: I,
-               n_com: I, com_traj: F3, frames: F2):
+    def robots(
+        after_step: int,
+        running: I,
+        step: I,
+        fp: F2,
+        ip: I2,
+        voff: I,
+        foff: I,
+        vc: F2,
+        pos: F2,
+        bad: I,
+        nonfinite: I,
+        speed2: F,
+        travel: F,
+        status: I,
+        done: I,
+        n_com: I,
+        com_traj: F3,
+        frames: F2,
+    ):
         """After a step (``after_step`` 1): the robot's status and collision travel, then the
         top of its next step as ``kernels.run_robot``; ``after_step`` 0: the top of step 0."""
         r = wp.tid()

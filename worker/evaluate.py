@@ -19,7 +19,6 @@ from typing import Any
 
 from softevo.worker.tasks import Result, Task, failed, scene_of
 
-
 ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 
 
@@ -88,8 +87,7 @@ def warm_up(threads: int | None = 1) -> None:
     from softevo import sim
 
     body = [[[2]], [[1]]]
-    sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads,
-                      **engine_options())
+    sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads, **engine_options())
 
 
 _CACHE_READY = False

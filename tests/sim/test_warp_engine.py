@@ -40,8 +40,7 @@ RANDOM_ROBOTS = int(os.environ.get("SOFTEVO_WARP_RANDOM_ROBOTS", "100"))
 @pytest.fixture(scope="session")
 def warp_device():
     """The device under test, with the float64 kernels compiled (or loaded) once."""
-    warp_engine.simulate_many([{"body": [[[2]], [[1]]], "duration": {"seconds": 0.001}}],
-                              device=DEVICE)
+    warp_engine.simulate_many([{"body": [[[2]], [[1]]], "duration": {"seconds": 0.001}}], device=DEVICE)
     return DEVICE
 
 
@@ -53,32 +52,39 @@ def on_warp(warp_device, monkeypatch):
 
 # ---------------------------------------------------------------- the analytic tests, on Warp
 test_cantilever_under_gravity_matches_lumped_euler_bernoulli = (
-    test_mechanics.test_cantilever_under_gravity_matches_lumped_euler_bernoulli)
+    test_mechanics.test_cantilever_under_gravity_matches_lumped_euler_bernoulli
+)
 test_cantilever_tip_load_is_PL3_over_3EI = test_mechanics.test_cantilever_tip_load_is_PL3_over_3EI
 test_axial_stretch_is_F_L_over_EA = test_mechanics.test_axial_stretch_is_F_L_over_EA
 test_free_fall_is_g_t2_over_2 = test_mechanics.test_free_fall_is_g_t2_over_2
 test_drag_decay_of_a_coasting_voxel = test_mechanics.test_drag_decay_of_a_coasting_voxel
 test_energy_conserved_fixed_oscillator = test_mechanics.test_energy_conserved_fixed_oscillator
 test_energy_conserved_free_pair_and_newton_second_law = (
-    test_mechanics.test_energy_conserved_free_pair_and_newton_second_law)
+    test_mechanics.test_energy_conserved_free_pair_and_newton_second_law
+)
 test_centre_of_mass_fixed_in_void_under_actuation = (
-    test_mechanics.test_centre_of_mass_fixed_in_void_under_actuation)
+    test_mechanics.test_centre_of_mass_fixed_in_void_under_actuation
+)
 test_resting_block_does_not_creep = test_mechanics.test_resting_block_does_not_creep
 test_resting_column_sag_matches_springs_in_series = (
-    test_mechanics.test_resting_column_sag_matches_springs_in_series)
+    test_mechanics.test_resting_column_sag_matches_springs_in_series
+)
 test_friction_threshold_from_equilibrium = test_mechanics.test_friction_threshold_from_equilibrium
 test_friction_holds_after_touchdown = test_mechanics.test_friction_holds_after_touchdown
-test_friction_slides_above_static_threshold = (
-    test_mechanics.test_friction_slides_above_static_threshold)
+test_friction_slides_above_static_threshold = test_mechanics.test_friction_slides_above_static_threshold
 test_axial_stretch_of_two_material_bar_is_sum_of_series_links = (
-    test_materials.test_axial_stretch_of_two_material_bar_is_sum_of_series_links)
+    test_materials.test_axial_stretch_of_two_material_bar_is_sum_of_series_links
+)
 test_cantilever_of_two_materials_matches_euler_bernoulli_with_per_link_ei = (
-    test_materials.test_cantilever_of_two_materials_matches_euler_bernoulli_with_per_link_ei)
+    test_materials.test_cantilever_of_two_materials_matches_euler_bernoulli_with_per_link_ei
+)
 test_two_mass_oscillator_with_combined_link = test_materials.test_two_mass_oscillator_with_combined_link
 test_each_active_voxel_follows_its_own_frequency = (
-    test_materials.test_each_active_voxel_follows_its_own_frequency)
+    test_materials.test_each_active_voxel_follows_its_own_frequency
+)
 test_mixed_materials_keep_the_mass_weighted_centre_of_mass_in_void = (
-    test_materials.test_mixed_materials_keep_the_mass_weighted_centre_of_mass_in_void)
+    test_materials.test_mixed_materials_keep_the_mass_weighted_centre_of_mass_in_void
+)
 
 
 # ---------------------------------------------------------------- short trajectories vs numba
@@ -121,10 +127,15 @@ def test_short_trajectories_agree_with_numba_to_round_off(warp_device):
     # a stiff cantilever pushed far past the small-angle frame's 0.05 rad bend, and a tip
     # force: fixed voxels and external forces
     bar = {
-        "voxel_size": 0.01, "material": {"youngs_modulus": 2e4}, "environment": {"kind": "void"},
-        "body": _support.line(6), "fixed": [[0, 0, 0]],
+        "voxel_size": 0.01,
+        "material": {"youngs_modulus": 2e4},
+        "environment": {"kind": "void"},
+        "body": _support.line(6),
+        "fixed": [[0, 0, 0]],
         "forces": [{"voxel": [5, 0, 0], "force": [0.0, 0.02, 0.03]}],
-        "duration": {"seconds": 0.06}, "record": {"every": 25}, "self_collisions": True,
+        "duration": {"seconds": 0.06},
+        "record": {"every": 25},
+        "self_collisions": True,
     }
     scenes.append(bar)
     names = [*TRAJECTORIES, "void_cantilever_large_bend"]
@@ -140,12 +151,12 @@ def test_short_trajectories_agree_with_numba_to_round_off(warp_device):
         rel = np.abs(pa - pb).max() / scale
         moved = np.abs(pb[-1] - pb[0]).max() / 0.01
         worst = max(worst, rel)
-        report(f"warp.trajectory.{name}", steps=a.steps, max_rel_position_diff=rel,
-               motion_L=moved)
+        report(f"warp.trajectory.{name}", steps=a.steps, max_rel_position_diff=rel, motion_L=moved)
         assert rel < 1e-9, name
         assert moved > 0.02, name  # something happened
-        np.testing.assert_allclose(a.com_trajectory["com"], b.com_trajectory["com"], rtol=0,
-                                   atol=1e-9 * scale)
+        np.testing.assert_allclose(
+            a.com_trajectory["com"], b.com_trajectory["com"], rtol=0, atol=1e-9 * scale
+        )
         assert a.distance == pytest.approx(b.distance, rel=1e-6, abs=1e-9)
     # the bar bent far beyond the small-angle frame (so the large-angle one and its
     # hysteresis ran): its tip segment turned by more than 0.3 rad
@@ -160,12 +171,16 @@ def test_robots_finishing_at_different_steps_share_a_batch(warp_device):
     done, and each result equals the one it gets alone."""
     fast = _robot(7, "land", 0.2, "sine", False)
     slow = {**fast, "duration": {"seconds": 0.08}}
-    broken = {**fast, "dt_fraction": 6.0, "duration": {"seconds": 0.2},  # 6x the stable step
-              "actuation": {**fast["actuation"], "frequency": 0.5}}
+    broken = {
+        **fast,
+        "dt_fraction": 6.0,
+        "duration": {"seconds": 0.2},  # 6x the stable step
+        "actuation": {**fast["actuation"], "frequency": 0.5},
+    }
     together = warp_engine.simulate_many([fast, slow, broken], device=warp_device)
     alone = [warp_engine.simulate_many([s], device=warp_device)[0] for s in (fast, slow)]
     assert together[1].steps > together[0].steps
-    for a, b in zip(together, alone):
+    for a, b in zip(together[:2], alone, strict=True):
         np.testing.assert_array_equal(a.final_positions, b.final_positions)
     assert not together[2].stable and together[2].reason.startswith("diverged")
     assert together[2].distance == 0.0
@@ -180,15 +195,21 @@ def test_random_robots_over_whole_evaluations_agree_with_numba(warp_device):
     check_results(scenes, ours)
     flags = [(a.stable, b.stable) for a, b in zip(ours, theirs, strict=True)]
     mismatched = sum(x != y for x, y in flags)
-    both = [(a.distance, b.distance) for a, b in zip(ours, theirs) if a.stable and b.stable]
+    both = [(a.distance, b.distance) for a, b in zip(ours, theirs, strict=True) if a.stable and b.stable]
     rel = np.array([abs(x - y) / max(abs(y), 1e-3) for x, y in both])
-    report("warp.random_robots", robots=len(scenes), stable_both=len(both),
-           flagged=sum(not b for _, b in flags), stability_mismatches=mismatched,
-           median_rel_distance_diff=float(np.median(rel)), max_rel_distance_diff=float(rel.max()))
+    report(
+        "warp.random_robots",
+        robots=len(scenes),
+        stable_both=len(both),
+        flagged=sum(not b for _, b in flags),
+        stability_mismatches=mismatched,
+        median_rel_distance_diff=float(np.median(rel)),
+        max_rel_distance_diff=float(rel.max()),
+    )
     assert mismatched == 0
     assert len(both) >= RANDOM_ROBOTS // 2
     assert np.median(rel) < 0.01
-    for a, b in zip(ours, theirs):
+    for a, b in zip(ours, theirs, strict=True):
         if not b.stable:
             assert a.reason.split(":")[0] == b.reason.split(":")[0]
 
@@ -208,8 +229,10 @@ def test_the_numba_engine_never_imports_warp():
     import subprocess
     import sys
 
-    code = ("import sys; from softevo import sim; sim.simulate({'body': [[[1]]], "
-            "'duration': {'seconds': 0.001}}); assert 'warp' not in sys.modules")
+    code = (
+        "import sys; from softevo import sim; sim.simulate({'body': [[[1]]], "
+        "'duration': {'seconds': 0.001}}); assert 'warp' not in sys.modules"
+    )
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
@@ -227,19 +250,22 @@ def test_cli_simulates_on_warp_and_refuses_a_missing_device(warp_device, tmp_pat
     from tests.sim.test_cli_sim import TINY, assert_user_error, softevo_here, write
 
     path = write(tmp_path, TINY)
-    proc = softevo_here(capsys, "simulate", str(path), "--json", "--engine", "warp", "--device",
-                        warp_device)
+    proc = softevo_here(capsys, "simulate", str(path), "--json", "--engine", "warp", "--device", warp_device)
     assert proc.returncode == 0, proc.stderr
     ours = json.loads(proc.stdout)
     theirs = sim.simulate(TINY).to_dict()
     assert ours["steps"] == theirs["steps"] and ours["stable"]
     assert ours["distance"] == pytest.approx(theirs["distance"], rel=1e-9)
-    assert_user_error(softevo_here(capsys, "simulate", str(path), "--engine", "warp", "--device",
-                                   "cuda:7"), "no Warp device 'cuda:7'")
-    assert_user_error(softevo_here(capsys, "simulate", str(path), "--engine", "gpu"),
-                      "engine: must be one of numba, warp")
-    assert_user_error(softevo_here(capsys, "simulate", str(path), "--device", "cpu"),
-                      "--device: only the warp engine")
+    assert_user_error(
+        softevo_here(capsys, "simulate", str(path), "--engine", "warp", "--device", "cuda:7"),
+        "no Warp device 'cuda:7'",
+    )
+    assert_user_error(
+        softevo_here(capsys, "simulate", str(path), "--engine", "gpu"), "engine: must be one of numba, warp"
+    )
+    assert_user_error(
+        softevo_here(capsys, "simulate", str(path), "--device", "cpu"), "--device: only the warp engine"
+    )
 
 
 def test_workers_evaluate_on_the_engine_of_their_environment(warp_device, monkeypatch):
