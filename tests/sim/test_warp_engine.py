@@ -1,8 +1,9 @@
 """The Warp engine (``sim.warp_engine``) on Warp's CPU device, against physics and numba.
 
-- The analytic and conservation tests of ``test_mechanics`` and ``test_materials`` run again
-  here, unchanged, with ``_support.ENGINE`` switched to the Warp engine (the numba engine's
-  own run of them is in their modules).
+- The analytic and conservation tests of ``test_mechanics`` and ``test_materials`` and the
+  Voxelyze reference tests of ``test_voxelyze_reference`` run again here, unchanged, with
+  ``_support.ENGINE`` switched to the Warp engine (the numba engine's own run of them is in
+  their modules).
 - Short trajectories (a few hundred steps) in every world, through both link frames, with
   self-collisions on: every voxel's position agrees with the numba engine to 1e-9 of the
   body's size (both engines do the same arithmetic; only the order of a few sums and libm
@@ -29,7 +30,7 @@ import pytest
 from softevo import sim
 from softevo.sim import warp_engine
 from softevo.sim.engines import EngineUnavailable
-from tests.sim import _support, test_materials, test_mechanics
+from tests.sim import _support, test_materials, test_mechanics, test_voxelyze_reference
 from tests.sim._support import report
 from tests.sim.test_fuzz import check_results, random_scene
 
@@ -84,6 +85,13 @@ test_each_active_voxel_follows_its_own_frequency = (
 )
 test_mixed_materials_keep_the_mass_weighted_centre_of_mass_in_void = (
     test_materials.test_mixed_materials_keep_the_mass_weighted_centre_of_mass_in_void
+)
+
+test_cantilever_tip_matches_voxelyze = test_voxelyze_reference.test_cantilever_tip_matches_voxelyze
+test_cube_drop_matches_voxelyze = test_voxelyze_reference.test_cube_drop_matches_voxelyze
+test_actuated_beam_crawls_like_voxelyze = test_voxelyze_reference.test_actuated_beam_crawls_like_voxelyze
+test_tumbling_plate_spins_rigidly_like_voxelyze = (
+    test_voxelyze_reference.test_tumbling_plate_spins_rigidly_like_voxelyze
 )
 
 
