@@ -169,6 +169,11 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
 
     n_frames = batch.iparams[:, I_N_FRAMES].astype(np.int64)
     foff = _offsets(n_frames * np.diff(voff))
+    if foff[-1] >= 2**31 or n_vox * MAX_CANDIDATES >= 2**31:  # Warp indexes with int32
+        raise EngineUnavailable(
+            f"batch too large for one Warp launch ({n_vox} voxels, {int(foff[-1])} frame rows): "
+            "split it or record fewer frames"
+        )
     surface = globalise(batch.surface, voff, robot_of_surface)
     is_surface = np.zeros(n_vox, dtype=np.int32)
     is_surface[surface] = 1
