@@ -23,10 +23,14 @@ ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 
 
 def engine_options() -> dict[str, Any]:
-    """The engine this process evaluates on: ``$SOFTEVO_ENGINE`` (``numba``, the default, or
-    ``warp``) and ``$SOFTEVO_DEVICE`` (the Warp device, e.g. ``cuda:0`` or ``cpu``), as
-    keyword arguments of ``sim.simulate_many``."""
-    options: dict[str, Any] = {"engine": os.environ.get(ENGINE_ENV) or "numba"}
+    """The engine this process evaluates on, as keyword arguments of ``sim.simulate_many``:
+    ``$SOFTEVO_ENGINE`` (``numba``, the default, or ``warp``) and ``$SOFTEVO_DEVICE`` (the
+    Warp device, e.g. ``cuda:0`` or ``cpu``). Empty for the default engine, so its calls are
+    exactly as they were."""
+    engine = os.environ.get(ENGINE_ENV) or "numba"
+    if engine == "numba":
+        return {}
+    options: dict[str, Any] = {"engine": engine}
     if os.environ.get(DEVICE_ENV):
         options["device"] = os.environ[DEVICE_ENV]
     return options

@@ -279,7 +279,9 @@ def test_cli_simulates_on_warp_and_refuses_a_missing_device(warp_device, tmp_pat
 def test_workers_evaluate_on_the_engine_of_their_environment(warp_device, monkeypatch):
     from softevo.worker.evaluate import DEVICE_ENV, ENGINE_ENV, engine_options
 
-    assert engine_options() == {"engine": "numba"} or ENGINE_ENV in os.environ
+    monkeypatch.delenv(ENGINE_ENV, raising=False)
+    monkeypatch.setenv(DEVICE_ENV, "cpu")
+    assert engine_options() == {}  # the numba engine: calls exactly as without the variables
     monkeypatch.setenv(ENGINE_ENV, "warp")
     monkeypatch.setenv(DEVICE_ENV, warp_device)
     assert engine_options() == {"engine": "warp", "device": warp_device}
