@@ -24,9 +24,10 @@ app = typer.Typer(
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
     from softevo.errors import UserError
+    from softevo.sim.engines import EngineUnavailable
     from softevo.sim.scene import SceneError
 
-    return (UserError, SceneError)
+    return (UserError, SceneError, EngineUnavailable)
 
 
 @app.callback()

@@ -69,12 +69,27 @@ def worker(
         typer.Option("--heartbeat-ttl", help="seconds; default $SOFTEVO_HEARTBEAT_TTL or 30"),
     ] = None,
     burst: Annotated[bool, typer.Option("--burst", help="quit when the queue is empty")] = False,
+    engine: Annotated[
+        str | None, typer.Option("--engine", help="numba or warp; default $SOFTEVO_ENGINE or numba")
+    ] = None,
+    device: Annotated[
+        str | None, typer.Option("--device", help="Warp device (cuda:0, cpu); default $SOFTEVO_DEVICE")
+    ] = None,
 ) -> None:
     """Evaluate genomes for a coordinator: an RQ worker on the Redis of $SOFTEVO_REDIS_URL.
 
-    Needs only the Redis URL (no database). Run one per core.
+    Needs only the Redis URL (no database). Run one per core; with ``--engine warp --device
+    cuda:0``, one per GPU, fed large jobs (docs/cluster.md, "GPU workers").
     """
+    import os
+
+    from softevo.worker.evaluate import DEVICE_ENV, ENGINE_ENV
     from softevo.worker.rq_worker import run_worker
+
+    if engine is not None:  # the evaluations of this process read them (evaluate.engine_options)
+        os.environ[ENGINE_ENV] = engine
+    if device is not None:
+        os.environ[DEVICE_ENV] = device
 
     settings = _settings(redis_url=redis_url, queue=queue, heartbeat_ttl=heartbeat_ttl)
     if not settings.redis_url:

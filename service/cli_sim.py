@@ -86,6 +86,13 @@ def simulate(
         Path | None,
         typer.Option("--record", metavar="OUT.npz", help="Write frames (t, positions, voxels)."),
     ] = None,
+    engine: Annotated[
+        str, typer.Option("--engine", help="numba (CPU, default) or warp (docs/gpu.md).")
+    ] = "numba",
+    device: Annotated[
+        str | None,
+        typer.Option("--device", help="Warp device: cuda:0 (default), cpu, ... (--engine warp)."),
+    ] = None,
 ) -> None:
     """Simulate one scene and print its result."""
     from softevo import sim
@@ -95,7 +102,9 @@ def simulate(
     if record is not None and "record" not in scene_dict:
         scene_dict = {**scene_dict, "record": {"every": default_record_every(scene_dict)}}
     started = time.perf_counter()
-    result = sim.simulate(scene_dict)
+    if device is not None and engine != "warp":
+        raise UserError("--device: only the warp engine takes a device (add --engine warp)")
+    result = sim.simulate(scene_dict, engine=engine, device=device)
     wall = time.perf_counter() - started
     n_frames = _write_record(record, result) if record is not None else 0
     if as_json:

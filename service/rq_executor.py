@@ -96,12 +96,16 @@ def job_id_of(tasks: list[Task], index: int) -> str:
     return f"{prefix}batch{index}-{batch_digest(tasks)}"
 
 
-def plan_batches(tasks: list[Task], workers: int, genomes_per_job: int) -> list[Batch]:
+def plan_batches(
+    tasks: list[Task], workers: int, genomes_per_job: int, across_runs: bool = False
+) -> list[Batch]:
     """Split ``tasks`` into jobs: per (run, generation), at most ``genomes_per_job`` each and at
-    least one per worker (as the local executor does)."""
+    least one per worker (as the local executor does). ``across_runs``: one group for all the
+    runs' tasks of the round, so a job can be one large batch (GPU workers, docs/cluster.md)."""
     groups: dict[tuple[Any, Any], list[int]] = {}
     for position, task in enumerate(tasks):
-        groups.setdefault((task.get("run_id"), task.get("generation")), []).append(position)
+        key = (None, None) if across_runs else (task.get("run_id"), task.get("generation"))
+        groups.setdefault(key, []).append(position)
     batches = []
     for positions in groups.values():
         for index, part in enumerate(chunks(positions, max(1, workers), genomes_per_job)):
@@ -134,10 +138,12 @@ class RQExecutor:
         result_ttl: int = 600,
         maintenance_seconds: float = 2.0,
         stop: threading.Event | None = None,
+        across_runs: bool = False,
     ) -> None:
         self.connection = connect(redis_url)
         self.queue = Queue(queue, connection=self.connection, serializer=JSONSerializer)
         self.genomes_per_job = genomes_per_job
+        self.across_runs = across_runs
         self.job_timeout = job_timeout
         self.retries = retries
         self.result_ttl = result_ttl
@@ -160,7 +166,9 @@ class RQExecutor:
         if not tasks:
             return []
         results: list[Task | None] = [None] * len(tasks)
-        waiting = {b.job_id: b for b in plan_batches(tasks, self.workers, self.genomes_per_job)}
+        waiting = {
+            b.job_id: b for b in plan_batches(tasks, self.workers, self.genomes_per_job, self.across_runs)
+        }
         self._retrying(lambda: self._submit(waiting.values(), replace_failed=True))
         cursors: dict[str, str] = {}
         while waiting:

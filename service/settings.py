@@ -15,6 +15,7 @@ SOFTEVO_PORT              port ``softevo serve`` listens on                     
 SOFTEVO_QUEUE             RQ queue name shared by coordinator and workers          softevo
 SOFTEVO_WORKERS           local evaluation processes when Redis is unset           all cores
 SOFTEVO_GENOMES_PER_JOB   genomes per RQ job (queue overhead vs balance)           4
+SOFTEVO_JOBS_ACROSS_RUNS  true: one job may hold many runs' genomes (GPU workers)    false
 SOFTEVO_JOB_TIMEOUT       seconds an RQ job may run before it fails                3600
 SOFTEVO_JOB_RETRIES       re-dispatches of a failed or abandoned RQ job            3
 SOFTEVO_RESULT_TTL        seconds Redis keeps a job's result                       600
@@ -53,6 +54,7 @@ class Settings(BaseSettings):
     queue: str = Field("softevo", pattern=r"^[A-Za-z0-9_.-]+$")
     workers: int | None = Field(None, ge=0)
     genomes_per_job: int = Field(4, ge=1)
+    jobs_across_runs: bool = False  # GPU workers: one job holds all runs' genomes of a round
     job_timeout: int = Field(3600, ge=1)
     job_retries: int = Field(3, ge=1)
     result_ttl: int = Field(600, ge=10)

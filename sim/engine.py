@@ -16,6 +16,7 @@ import numpy as np
 
 from . import kernels
 from .cache import drop_foreign_entries
+from .engines import check_engine
 from .scene import Scene, parse_scene
 from .system import (
     COM_SAMPLES,
@@ -129,12 +130,18 @@ def _unrun(robot: Robot, reason: str) -> Result:
                   {"t": np.zeros(1), "com": com0[None]}, None, robot.removed)
 
 
-def simulate_many(scenes: list[dict | Scene], threads: int | None = None) -> list[Result]:
+def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine: str = "numba",
+                  device: str | None = None) -> list[Result]:
     """Simulate many robots in one compiled call, one robot per parallel task.
 
     ``threads`` caps numba's threads for this call (default: all cores numba was given).
-    Results come back in the order of ``scenes``.
+    Results come back in the order of ``scenes``. ``engine="warp"`` runs the batch on the
+    Warp engine instead (``sim.warp_engine``; ``device`` e.g. "cuda:0" or "cpu").
     """
+    if check_engine(engine) == "warp":
+        from . import warp_engine
+
+        return warp_engine.simulate_many(scenes, device=device)
     parsed = [parse_scene(s) for s in scenes]
     robots = [build_robot(s) for s in parsed]
     results: list[Result | None] = [None] * len(parsed)
@@ -171,7 +178,8 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None) -> lis
     return results  # type: ignore[return-value]
 
 
-def simulate(scene: dict | Scene, threads: int | None = 1) -> Result:
-    """Simulate one robot (SPEC.md section 1)."""
-    return simulate_many([scene], threads=threads)[0]
+def simulate(scene: dict | Scene, threads: int | None = 1, engine: str = "numba",
+             device: str | None = None) -> Result:
+    """Simulate one robot (SPEC.md section 1); ``engine``/``device`` as ``simulate_many``."""
+    return simulate_many([scene], threads=threads, engine=engine, device=device)[0]
 

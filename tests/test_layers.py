@@ -119,3 +119,12 @@ def test_one_import_name_is_installed():
     assert {package.split(".")[0] for package in config["packages"]} == {"softevo"}
     assert {name.split(".")[0] for name in config["package-dir"]} == {"softevo"}
     assert {f"softevo.{package}" for package in ALLOWED} <= set(config["packages"])
+
+
+GPU_ONLY = {"warp"}  # third-party packages that only softevo.sim may import (the Warp engine)
+
+
+@pytest.mark.parametrize(("package", "path"), MODULES, ids=[str(p.relative_to(ROOT)) for _, p in MODULES])
+def test_only_sim_imports_warp(package, path):
+    reached = {module.split(".")[0] for module, _ in imports(path, package)} & GPU_ONLY
+    assert package == "sim" or not reached, f"{package} imports {sorted(reached)}: only sim may"

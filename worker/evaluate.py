@@ -10,6 +10,7 @@ the simulator) becomes that result's ``error`` with the worst fitness
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -18,18 +19,38 @@ from typing import Any
 
 from softevo.worker.tasks import Result, Task, failed, scene_of
 
+ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
+
+
+def engine_options() -> dict[str, Any]:
+    """The engine this process evaluates on, as keyword arguments of ``sim.simulate_many``:
+    ``$SOFTEVO_ENGINE`` (``numba``, the default, or ``warp``) and ``$SOFTEVO_DEVICE`` (the
+    Warp device, e.g. ``cuda:0`` or ``cpu``). Empty for the default engine, so its calls are
+    exactly as they were."""
+    engine = os.environ.get(ENGINE_ENV) or "numba"
+    if engine == "numba":
+        return {}
+    options: dict[str, Any] = {"engine": engine}
+    if os.environ.get(DEVICE_ENV):
+        options["device"] = os.environ[DEVICE_ENV]
+    return options
+
 
 def _simulate(scenes: list[dict], threads: int | None) -> list[Any]:
     """Results of all scenes in one call; one by one (errors isolated) if the batch fails."""
     from softevo import sim
+    from softevo.sim.engines import EngineUnavailable
 
+    options = engine_options()
     try:
-        return sim.simulate_many(scenes, threads=threads)
+        return sim.simulate_many(scenes, threads=threads, **options)
+    except EngineUnavailable:
+        raise  # this process cannot evaluate at all: no per-genome retry
     except Exception:
         results = []
         for scene in scenes:
             try:
-                results.append(sim.simulate_many([scene], threads=threads)[0])
+                results.append(sim.simulate_many([scene], threads=threads, **options)[0])
             except Exception as exc:
                 results.append(exc)
         return results
@@ -70,7 +91,7 @@ def warm_up(threads: int | None = 1) -> None:
     from softevo import sim
 
     body = [[[2]], [[1]]]
-    sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads)
+    sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads, **engine_options())
 
 
 _CACHE_READY = False

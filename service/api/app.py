@@ -96,6 +96,7 @@ class Services:
                 retries=settings.job_retries,
                 result_ttl=settings.result_ttl,
                 stop=self.stop,
+                across_runs=settings.jobs_across_runs,
             )
         self.executor_kind = "local"
         return make_executor(settings.workers, settings.genomes_per_job)

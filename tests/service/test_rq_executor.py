@@ -84,6 +84,17 @@ def test_job_ids_name_run_generation_and_batch():
     assert not {b.job_id for b in other} & set(ids)  # other genomes, other jobs
 
 
+def test_jobs_across_runs_make_one_large_batch_per_round():
+    """GPU workers (SOFTEVO_JOBS_ACROSS_RUNS): all runs' genomes of a round in one job, up to
+    ``genomes_per_job``; every task once, in its place."""
+    work = tasks(3, run_id=4, generation=7) + tasks(2, run_id=5) + tasks(4, run_id=6)
+    (batch,) = plan_batches(work, 1, 1000, across_runs=True)
+    assert batch.positions == list(range(9)) and batch.tasks == work
+    parts = plan_batches(work, 1, 4, across_runs=True)
+    assert [b.positions for b in parts] == [[0, 1, 2, 3], [4, 5, 6, 7], [8]]
+    assert len({b.job_id for b in parts}) == 3
+
+
 def test_results_equal_in_process_evaluation(redis_url, queue):
     work = tasks(5)
     executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2)

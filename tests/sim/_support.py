@@ -41,11 +41,17 @@ def _fmt(v: Any) -> str:
     return f"{v:.5g}" if isinstance(v, float) else str(v)
 
 
+# Keyword arguments of ``sim.simulate`` for the engine under test: empty is the default
+# (numba) engine; ``test_warp_engine`` runs the analytic tests again with the Warp engine.
+ENGINE: dict[str, Any] = {}
+
+
 def simulate(scene: dict) -> Any:
-    """Run ``scene`` and insist it stayed stable (a physics test never expects a blow-up)."""
+    """Run ``scene`` on the engine under test (``ENGINE``) and insist it stayed stable (a
+    physics test never expects a blow-up)."""
     from softevo import sim
 
-    result = sim.simulate(scene)
+    result = sim.simulate(scene, **ENGINE)
     assert result.stable, f"unstable: {result.reason}"
     return result
 

@@ -1,0 +1,167 @@
+"""Warp engine throughput against batch size, side by side with the numba engine.
+
+Usage: python bench/gpu_throughput.py [--device cuda:0|cpu] [--max-batch 10000] [--steps 2000]
+           [--numba-max-batch 100] [--precisions float64,float32] [--accuracy 0]
+
+Paper-like robots: random 7^3 bodies (about 2/3 full, half the voxels active), the scene
+defaults of ``sim.scene`` (voxel size, density, actuation), 1 and 10 MPa, land and water.
+Each case runs ``--steps`` steps of a batch of 1, 10, 100, 1,000, 10,000 robots (up to
+``--max-batch``) and prints voxel-steps/s, the evaluations/s that means (an evaluation is the
+whole run ``evolution`` asks for: ``DEFAULT_CYCLES`` cycles plus settling on land) and the
+ratio to the numba engine on all cores (``simulate_many``, timed up to ``--numba-max-batch``
+robots; its throughput no longer grows once every core has a robot). The Warp engine's rate
+is its step loop's (``run_batch``: the captured graphs replayed, device synchronised);
+"end-to-end" adds building the robots, packing, copying and the results (numba's rate is
+end-to-end: its building is a small part of its time). Compilation is timed
+apart (one warm-up call per precision). ``--accuracy N`` also runs N whole evaluations per
+stiffness and world in float64 and float32 and prints how far float32's distances are from
+float64's (the float32 policy of docs/gpu.md). On the CPU device keep --max-batch and --steps
+small (e.g. --max-batch 10 --steps 300: well under a minute).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+
+import numba
+import numpy as np
+
+from softevo import sim
+from softevo.sim import warp_engine
+from softevo.sim.scene import DEFAULT_CYCLES, parse_scene
+from softevo.sim.system import F_DT, I_STEPS, build_robot
+
+BATCHES = (1, 10, 100, 1000, 10000)
+
+
+def paper_robot(rng: np.random.Generator, world: str, modulus: float) -> dict:
+    """A random 7^3 robot in the evolution's evaluation scene (``DEFAULT_CYCLES`` cycles,
+    0.5 s settling on land)."""
+    body = rng.choice([0, 1, 2], size=(7, 7, 7), p=[0.3, 0.35, 0.35])
+    body[3, 3, 3] = 2
+    return {
+        "body": body.tolist(),
+        "phase": rng.uniform(-math.pi, math.pi, (7, 7, 7)).tolist(),
+        "material": {"youngs_modulus": modulus},
+        "environment": {"kind": world},
+        "duration": {"cycles": DEFAULT_CYCLES},
+        "settle_seconds": 0.5 if world == "land" else 0.0,
+    }
+
+
+def evaluation_cost(scene: dict) -> tuple[int, float]:
+    """(voxels, steps) of the whole evaluation of ``scene``."""
+    robot = build_robot(parse_scene(scene))
+    return len(robot.pos), float(robot.iparams[I_STEPS])
+
+
+def shortened(scene: dict, steps: int) -> dict:
+    """``scene`` cut to ``steps`` steps of actuation (no settling)."""
+    dt = float(build_robot(parse_scene(scene)).fparams[F_DT])
+    return {**scene, "settle_seconds": 0.0, "duration": {"seconds": steps * dt}}
+
+
+def voxel_steps(results) -> float:
+    return float(sum(r.steps * len(r.voxels) for r in results))
+
+
+def timed(run, scenes) -> tuple[float, list]:
+    start = time.perf_counter()
+    results = run(scenes)
+    return time.perf_counter() - start, results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--device", default=None, help="Warp device (default cuda:0 if there is one, else cpu)"
+    )
+    parser.add_argument("--max-batch", type=int, default=10000)
+    parser.add_argument("--numba-max-batch", type=int, default=100)
+    parser.add_argument("--steps", type=int, default=2000, help="steps per robot per case")
+    parser.add_argument("--precisions", default="float64,float32")
+    parser.add_argument("--worlds", default="land,water")
+    parser.add_argument("--moduli", default="1e6,1e7", help="Young's moduli, Pa")
+    parser.add_argument(
+        "--accuracy", type=int, default=0, help="whole evaluations per case for float32 vs float64"
+    )
+    args = parser.parse_args()
+
+    wp = warp_engine.warp_module()
+    device = args.device or ("cuda:0" if wp.is_cuda_available() else "cpu")
+    dev = warp_engine.device_of(device)
+    precisions = args.precisions.split(",")
+    print(
+        f"device: {device} ({dev.name}); numba on {numba.get_num_threads()} threads of "
+        f"{os.cpu_count()} cores; {args.steps} steps per robot"
+    )
+    warm = [{"body": [[[2]], [[1]]], "duration": {"seconds": 0.001}}]
+    for precision in precisions:
+        seconds, _ = timed(lambda s, p=precision: warp_engine.simulate_many(s, device, p), warm)
+        print(f"warm-up (compile or load from Warp's cache) {precision}: {seconds:.1f} s")
+    sim.simulate_many(warm)
+
+    header = (
+        f"{'world':6} {'E MPa':>5} {'batch':>6} {'engine':>13} {'voxel-steps/s':>14} "
+        f"{'end-to-end':>14} {'eval/s':>9} {'x numba':>8}"
+    )
+    print(header)
+    print("-" * len(header))
+    for world in args.worlds.split(","):
+        for modulus in (float(m) for m in args.moduli.split(",")):
+            rng = np.random.default_rng(0)
+            pool = [paper_robot(rng, world, modulus) for _ in range(min(args.max_batch, 100))]
+            voxels, eval_steps = evaluation_cost(pool[0])
+            eval_cost = voxels * eval_steps  # voxel-steps of one whole evaluation
+            print(
+                f"# {world}, {modulus / 1e6:g} MPa: an evaluation is {eval_steps:,.0f} steps of "
+                f"{voxels} voxels ({eval_cost:.3g} voxel-steps)"
+            )
+            numba_rate = None
+            for batch in (b for b in BATCHES if b <= args.max_batch):
+                scenes = [shortened(pool[k % len(pool)], args.steps) for k in range(batch)]
+                rows = []
+                if batch <= args.numba_max_batch:
+                    seconds, results = timed(sim.simulate_many, scenes)
+                    numba_rate = voxel_steps(results) / seconds
+                    rows.append(("numba", numba_rate, None))
+                start = time.perf_counter()
+                robots = [build_robot(parse_scene(s)) for s in scenes]
+                build = time.perf_counter() - start
+                for precision in precisions:
+                    start = time.perf_counter()
+                    out = warp_engine.run_batch(robots, dev, precision)
+                    total = build + time.perf_counter() - start
+                    rows.append((f"warp {precision}", out.voxel_steps / out.seconds, out.voxel_steps / total))
+                for engine, rate, overall in rows:
+                    ratio = f"{rate / numba_rate:8.2f}" if numba_rate else f"{'':8}"
+                    end = f"{overall:14.4g}" if overall else f"{'':14}"
+                    print(
+                        f"{world:6} {modulus / 1e6:5.0f} {batch:6d} {engine:>13} {rate:14.4g} "
+                        f"{end} {rate / eval_cost:9.3g} {ratio}",
+                        flush=True,
+                    )
+            if args.accuracy:
+                scenes = [paper_robot(rng, world, modulus) for _ in range(args.accuracy)]
+                f64 = warp_engine.simulate_many(scenes, device, "float64")
+                f32 = warp_engine.simulate_many(scenes, device, "float32")
+                rel = [
+                    abs(a.distance - b.distance) / max(a.distance, 1e-3)
+                    for a, b in zip(f64, f32, strict=True)
+                    if a.stable and b.stable
+                ]
+                flags = sum(a.stable != b.stable for a, b in zip(f64, f32, strict=True))
+                print(
+                    f"accuracy {world} {modulus / 1e6:g} MPa: float32 vs float64 distance over "
+                    f"{len(rel)} robots: median {np.median(rel):.3g}, max {np.max(rel):.3g}; "
+                    f"stability mismatches {flags}"
+                )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,23 @@
+"""Which engine runs a batch: the numba one (default, CPU) or the Warp one (GPU, or Warp's CPU
+device), and the one error an unusable engine raises.
+
+Both engines take the same scenes and return the same ``Result`` (``sim.engine``); the Warp
+engine lives in ``sim.warp_engine`` and imports Warp only when it is asked for.
+"""
+
+from __future__ import annotations
+
+ENGINES = ("numba", "warp")
+PRECISIONS = ("float64", "float32")
+
+
+class EngineUnavailable(RuntimeError):
+    """The engine asked for cannot run here: an unknown engine name, Warp not installed, or
+    no such device. The message is one line meant for a person (the CLI prints it, exit 2)."""
+
+
+def check_engine(engine: str) -> str:
+    """``engine`` if it is one of ``ENGINES``; else ``EngineUnavailable``."""
+    if engine not in ENGINES:
+        raise EngineUnavailable(f"engine: must be one of {', '.join(ENGINES)} (got {engine!r})")
+    return engine
