@@ -387,7 +387,8 @@ def replay(
 
 def _joined_frames(results: list[Any], n_voxels: int) -> tuple[np.ndarray, np.ndarray]:
     """(t, positions) of the parts' frames one after the other: each later part starts at
-    the time the previous one ended, moved horizontally to where its body's centre was."""
+    the time the previous one ended (its first frame dropped), moved horizontally to where
+    the body's centre was."""
     times, moves = [], []
     offset_t, offset_xy = 0.0, np.zeros(2)
     for result in results:
@@ -397,9 +398,10 @@ def _joined_frames(results: list[Any], n_voxels: int) -> tuple[np.ndarray, np.nd
             if result.frames
             else np.zeros((0, n_voxels, 3))
         )
-        if times and len(t):
-            positions = positions.copy()
-            positions[:, :, :2] += offset_xy - positions[0, :, :2].mean(axis=0)
+        if times and len(t):  # its first frame is the previous part's last moment: dropped
+            start_xy = positions[0, :, :2].mean(axis=0)
+            t, positions = t[1:], positions[1:].copy()
+            positions[:, :, :2] += offset_xy - start_xy
         if len(t):
             offset_xy = positions[-1, :, :2].mean(axis=0)
         times.append(t + offset_t)
