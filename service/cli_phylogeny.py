@@ -153,8 +153,8 @@ def _exaptation_tables(s: dict) -> None:
     for f in s["founder_lines"]:
         founders.add_row(str(f["founder_id"]), str(f["lines"]), str(f["front_lines"]))
     console.print(founders)
-    lines = Table("founder", "final", "root", *TRAIT_HEADERS.values(),
-                  title="surviving lines: founder -> switch -> end (first changed at generation)")  # fmt: skip
+    title = "surviving lines: founder -> switch -> end (first changed at generation)"
+    lines = Table("founder", "final", "root", *TRAIT_HEADERS.values(), title=title)
     for line in s["lines"]:
         cells = []
         for trait in TRAIT_HEADERS:

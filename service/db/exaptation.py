@@ -50,7 +50,11 @@ def final_ancestry(conn: Connection, run_id: int, generation: int) -> pd.DataFra
     ind, pm = Individual.__table__, PopulationMember.__table__
     anchor = (
         select(
-            ind.c.id.label("final_id"), ind.c.id, ind.c.parent_id, ind.c.generation_born, literal(0).label("depth")
+            ind.c.id.label("final_id"),
+            ind.c.id,
+            ind.c.parent_id,
+            ind.c.generation_born,
+            literal(0).label("depth"),
         )
         .join(pm, pm.c.individual_id == ind.c.id)
         .where(pm.c.run_id == run_id, pm.c.generation == generation)
@@ -86,7 +90,9 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
     founders = _members(conn, run_id, switch_at - 1)
     final = _members(conn, run_id, last)
     ancestry = final_ancestry(conn, run_id, last)
-    arrival_ids = set(_members(conn, run_id, facts["arrival"])["individual_id"]) if last >= facts["arrival"] else set()
+    arrival_ids = (
+        set(_members(conn, run_id, facts["arrival"])["individual_id"]) if last >= facts["arrival"] else set()
+    )
     founder_ids = set(founders["individual_id"])
     front = set(final.loc[final["front_rank"] == 0, "individual_id"])
     traits = _traits(conn, run_id)
@@ -100,7 +106,18 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
         born = [int(g) for g in path["generation_born"]]
         for position, ancestor in enumerate(ids):
             if ancestor in founder_ids:
-                lines.append(_line(ancestor, int(final_id), roots[int(final_id)], ids, born, position, arrival_ids, traits))
+                lines.append(
+                    _line(
+                        ancestor,
+                        int(final_id),
+                        roots[int(final_id)],
+                        ids,
+                        born,
+                        position,
+                        arrival_ids,
+                        traits,
+                    )
+                )
     lines.sort(key=lambda line: (line["founder_id"], line["individual_id"]))
     per_founder = {int(f): [0, 0] for f in founders["individual_id"]}
     for line in lines:
@@ -110,7 +127,10 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
     end = None if limit is None else offset + limit
     return finite(
         {
-            **{key: facts[key] for key in ("run_id", "switch_at", "switch_over", "arrival", "generation", "environments")},
+            **{
+                key: facts[key]
+                for key in ("run_id", "switch_at", "switch_over", "arrival", "generation", "environments")
+            },
             "founders": len(founder_ids),
             "founders_surviving": sum(1 for count, _ in per_founder.values() if count),
             "final_population": len(final),
@@ -144,4 +164,10 @@ def _line(founder, final_id, root_id, ids, born, position, arrival_ids, traits) 
             "end": traits.get(final_id, {}).get(trait),
             "first_changed": changed,
         }
-    return {"founder_id": founder, "individual_id": final_id, "root_id": root_id, "switch_id": at_switch, "traits": values}
+    return {
+        "founder_id": founder,
+        "individual_id": final_id,
+        "root_id": root_id,
+        "switch_id": at_switch,
+        "traits": values,
+    }

@@ -139,14 +139,19 @@ def surviving_ancestry(run_id: int, generation: int):
     return cte.union(step)
 
 
-def tree_sample(conn: Connection, run_id: int, max_survivors: int = 4000, extinct: int = 400) -> dict[str, Any]:
+def tree_sample(
+    conn: Connection, run_id: int, max_survivors: int = 4000, extinct: int = 400
+) -> dict[str, Any]:
     """What the dashboard's tree draws (module doc): {run_id, generation (the last stored),
     switch_at, arrival, environments, survivors_total, extinct_total, nodes}; each node has
     the keys of ``run_phylogeny`` plus parent_generation (the parent's birth) and surviving
     (an ancestor of, or in, the final population)."""
     facts = run_facts(conn, run_id)
     last = facts["generation"]
-    out = {key: facts[key] for key in ("run_id", "generation", "switch_at", "switch_over", "arrival", "environments")}
+    out = {
+        key: facts[key]
+        for key in ("run_id", "generation", "switch_at", "switch_over", "arrival", "environments")
+    }
     if last < 0:
         return {**out, "survivors_total": 0, "extinct_total": 0, "nodes": []}
     surviving = surviving_ancestry(run_id, last)

@@ -53,9 +53,19 @@ def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
     summary = json.loads(cli(capsys, "exaptation", f"r{run_id}", "--json", "--db", url))
     ind, pm = Individual.__table__, PopulationMember.__table__
     with engine.connect() as conn:
-        final = set(conn.execute(select(pm.c.individual_id).where(pm.c.run_id == run_id, pm.c.generation == 4)).scalars())
-        founders = set(conn.execute(select(pm.c.individual_id).where(pm.c.run_id == run_id, pm.c.generation == 1)).scalars())
-        newcomers = set(conn.execute(select(ind.c.id).where(ind.c.run_id == run_id, ind.c.parent_id.is_(None))).scalars())
+        final = set(
+            conn.execute(
+                select(pm.c.individual_id).where(pm.c.run_id == run_id, pm.c.generation == 4)
+            ).scalars()
+        )
+        founders = set(
+            conn.execute(
+                select(pm.c.individual_id).where(pm.c.run_id == run_id, pm.c.generation == 1)
+            ).scalars()
+        )
+        newcomers = set(
+            conn.execute(select(ind.c.id).where(ind.c.run_id == run_id, ind.c.parent_id.is_(None))).scalars()
+        )
         sql = cookbook()
 
         def query(name, **params):
@@ -77,7 +87,9 @@ def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
     assert {line["root_id"] for line in summary["lines"]} <= set(summary["roots"])
 
     # the cookbook SQL gives the same founders and line counts
-    by_founder = {f["founder_id"]: (f["lines"], f["front_lines"]) for f in summary["founder_lines"] if f["lines"]}
+    by_founder = {
+        f["founder_id"]: (f["lines"], f["front_lines"]) for f in summary["founder_lines"] if f["lines"]
+    }
     assert {f: (n, front) for f, n, front in dominant} == by_founder
     assert summary["founders_surviving"] == len(dominant)
     assert summary["lines_total"] == sum(n for _, n, _ in dominant)
@@ -109,7 +121,9 @@ def test_phylogeny_cli_and_rest_list_the_same_tree(served, capsys):
     engine, url, run_id, base = served
     rows = list(csv.DictReader(io.StringIO(cli(capsys, "phylogeny", f"r{run_id}", "--csv", "--db", url))))
     with engine.connect() as conn:
-        count = conn.execute(select(Individual.__table__.c.id).where(Individual.__table__.c.run_id == run_id)).all()
+        count = conn.execute(
+            select(Individual.__table__.c.id).where(Individual.__table__.c.run_id == run_id)
+        ).all()
     assert len(rows) == len(count)
     first = httpx.get(f"{base}/runs/{run_id}/phylogeny", params={"limit": 5}).json()
     second = httpx.get(f"{base}/runs/{run_id}/phylogeny", params={"limit": 5, "offset": 5}).json()
@@ -130,6 +144,8 @@ def test_user_mistakes_are_one_line(served, capsys):
     assert exit_info.value.code == 2
     assert "not one run" in capsys.readouterr().err
     assert httpx.get(f"{base}/runs/999/exaptation").status_code == 404
-    static = tinyrun.new_run(engine, Treatment("land", 1.0, population=2, generations=1, workspace=(3, 3, 3), cycles=1))
+    static = tinyrun.new_run(
+        engine, Treatment("land", 1.0, population=2, generations=1, workspace=(3, 3, 3), cycles=1)
+    )
     response = httpx.get(f"{base}/runs/{static}/exaptation")
     assert response.status_code == 404 and "no environment transition" in response.json()["detail"]

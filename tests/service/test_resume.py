@@ -34,7 +34,15 @@ def reference(tmp_path_factory):
 
 # generations 0-1 on land, 2-3 in land>water@0.333 / @0.667, 4 in water
 GRADUAL = Treatment(
-    "land-water", 0.1, population=4, generations=5, workspace=(4, 4, 4), cycles=2, switch_at=2, switch_over=2, seed=11
+    "land-water",
+    0.1,
+    population=4,
+    generations=5,
+    workspace=(4, 4, 4),
+    cycles=2,
+    switch_at=2,
+    switch_over=2,
+    seed=11,
 )
 
 
@@ -61,7 +69,9 @@ def _generation(engine) -> int:
 def _environments(engine) -> list[str]:
     table = Evaluation.__table__
     with engine.connect() as conn:
-        rows = conn.execute(select(table.c.generation, table.c.environment).distinct().order_by(table.c.generation))
+        rows = conn.execute(
+            select(table.c.generation, table.c.environment).distinct().order_by(table.c.generation)
+        )
         return [environment for _, environment in rows]
 
 

@@ -49,7 +49,14 @@ def built(engine):
 
 
 def test_the_cookbook_has_every_example():
-    assert set(cookbook()) == {"switch", "ancestors", "descendants", "surviving", "first_change", "dominant_founders"}
+    assert set(cookbook()) == {
+        "switch",
+        "ancestors",
+        "descendants",
+        "surviving",
+        "first_change",
+        "dominant_founders",
+    }
 
 
 def test_switch(built):
