@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from sqlalchemy import Connection, func, literal, select
+from sqlalchemy import Connection, and_, func, select
 
 from softevo.errors import UserError
 from softevo.service.db.models import Evaluation, Individual, PopulationMember, Run, Treatment
@@ -25,6 +25,7 @@ from softevo.service.treatments import Treatment as TreatmentSettings
 NODE_OBJECTIVES = ("distance", "active_share", "voxel_count")
 SAMPLE_PRIME = 10_007  # the extinct sample orders ids by (id * SAMPLE_STEP) mod this prime
 SAMPLE_STEP = 7_919
+ID_CHUNK = 500  # ids bound per IN (...) when reading the chosen nodes
 
 
 def birth_evaluations(run_id: int, columns: tuple[str, ...] = NODE_OBJECTIVES):
@@ -84,22 +85,37 @@ def run_facts(conn: Connection, run_id: int) -> dict[str, Any]:
     }
 
 
-def _node_query(run_id: int, generation: int | None = None):
-    ind = Individual.__table__
-    birth, kept = birth_evaluations(run_id), last_kept(run_id, generation)
-    query = (
-        select(
-            ind.c.id,
-            ind.c.parent_id,
-            ind.c.generation_born,
-            kept.c.last_generation,
-            birth.c.environment,
-            *[birth.c[name] for name in NODE_OBJECTIVES],
-        )
-        .outerjoin(kept, kept.c.individual_id == ind.c.id)
-        .outerjoin(birth, birth.c.individual_id == ind.c.id)
-        .where(ind.c.run_id == run_id)
-    )
+def _node_query(
+    run_id: int, generation: int | None = None, parent_generation: bool = False, ids: list[int] | None = None
+):
+    """SELECT of the nodes of run ``run_id`` (born at or before ``generation`` if given).
+
+    Birth evaluation and last generation kept are looked up per individual (correlated,
+    through the indexes on ``evaluations (individual_id, ...)`` and
+    ``population_members.individual_id``), so a page or a sample of a large run costs only
+    its own rows. ``ids``: only those individuals (of this run)."""
+    ind, ev, pm = Individual.__table__, Evaluation.__table__, PopulationMember.__table__
+    earlier = ev.alias("earlier")
+    first = select(func.min(earlier.c.generation)).where(earlier.c.individual_id == ind.c.id).scalar_subquery()
+    kept = select(func.max(pm.c.generation)).where(pm.c.individual_id == ind.c.id)  # one run's anyway
+    if generation is not None:
+        kept = kept.where(pm.c.generation <= generation)
+    joined = ind.outerjoin(ev, and_(ev.c.individual_id == ind.c.id, ev.c.generation == first))
+    columns = [
+        ind.c.id,
+        ind.c.parent_id,
+        ind.c.generation_born,
+        kept.scalar_subquery().label("last_generation"),
+        ev.c.environment,
+        *[ev.c[name] for name in NODE_OBJECTIVES],
+    ]
+    if parent_generation:
+        parent = ind.alias("parent")
+        joined = joined.outerjoin(parent, parent.c.id == ind.c.parent_id)
+        columns.append(parent.c.generation_born.label("parent_generation"))
+    query = select(*columns).select_from(joined)
+    # chosen ids: looked up by primary key (they are of this run), else the run's index
+    query = query.where(ind.c.id.in_(ids)) if ids is not None else query.where(ind.c.run_id == run_id)
     if generation is not None:
         query = query.where(ind.c.generation_born <= generation)
     return query
@@ -117,12 +133,20 @@ def run_phylogeny(
     Row keys: id, parent_id, generation_born, last_generation, environment, distance,
     active_share, voxel_count. UserError for an unknown run."""
     run_facts(conn, run_id)
-    query = _node_query(run_id, generation)
-    total = conn.execute(select(func.count()).select_from(query.subquery())).scalar_one()
-    query = query.order_by(Individual.__table__.c.id).offset(offset)
+    ind = Individual.__table__
+    chosen = select(ind.c.id).where(ind.c.run_id == run_id)
+    if generation is not None:
+        chosen = chosen.where(ind.c.generation_born <= generation)
+    total = conn.execute(select(func.count()).select_from(chosen.subquery())).scalar_one()
+    page = chosen.order_by(ind.c.id).offset(offset)
     if limit is not None:
-        query = query.limit(limit)
-    return int(total), dict_rows(conn, query)
+        page = page.limit(limit)
+    ids = list(conn.execute(page).scalars())
+    rows = []
+    for start in range(0, len(ids), ID_CHUNK):
+        query = _node_query(run_id, generation, ids=ids[start : start + ID_CHUNK]).order_by(ind.c.id)
+        rows += dict_rows(conn, query)
+    return int(total), rows
 
 
 def surviving_ancestry(run_id: int, generation: int):
@@ -139,48 +163,48 @@ def surviving_ancestry(run_id: int, generation: int):
     return cte.union(step)
 
 
-def tree_sample(
-    conn: Connection, run_id: int, max_survivors: int = 4000, extinct: int = 400
-) -> dict[str, Any]:
+def tree_sample(conn: Connection, run_id: int, max_survivors: int = 4000, extinct: int = 400) -> dict[str, Any]:
     """What the dashboard's tree draws (module doc): {run_id, generation (the last stored),
-    switch_at, arrival, environments, survivors_total, extinct_total, nodes}; each node has
-    the keys of ``run_phylogeny`` plus parent_generation (the parent's birth) and surviving
-    (an ancestor of, or in, the final population)."""
+    switch_at, switch_over, arrival, environments, survivors_total, extinct_total, nodes};
+    each node has the keys of ``run_phylogeny`` plus parent_generation (the parent's birth)
+    and surviving (in, or an ancestor of, the final population)."""
     facts = run_facts(conn, run_id)
     last = facts["generation"]
-    out = {
-        key: facts[key]
-        for key in ("run_id", "generation", "switch_at", "switch_over", "arrival", "environments")
-    }
+    keys = ("run_id", "generation", "switch_at", "switch_over", "arrival", "environments")
+    out = {key: facts[key] for key in keys}
     if last < 0:
         return {**out, "survivors_total": 0, "extinct_total": 0, "nodes": []}
+    ind, pm = Individual.__table__, PopulationMember.__table__
     surviving = surviving_ancestry(run_id, last)
-    ind = Individual.__table__
-    parent = ind.alias("parent")
-    nodes = _node_query(run_id).add_columns(parent.c.generation_born.label("parent_generation"))
-    nodes = nodes.outerjoin(parent, parent.c.id == ind.c.parent_id).subquery("nodes")
-    alive = select(surviving.c.id)
-    survivors = (
-        select(nodes, literal(True).label("surviving"))
-        .where(nodes.c.id.in_(alive))
-        .order_by(nodes.c.generation_born.desc(), nodes.c.id)
+    survivor_ids = (
+        select(surviving.c.id, ind.c.generation_born)
+        .join(ind, ind.c.id == surviving.c.id)
+        .order_by(ind.c.generation_born.desc(), ind.c.id)
         .limit(max_survivors)
     )
-    extinct_rows = (
-        select(nodes, literal(False).label("surviving"))
-        .where(nodes.c.last_generation.is_not(None), nodes.c.id.not_in(alive))
-        .order_by((nodes.c.id * SAMPLE_STEP) % SAMPLE_PRIME, nodes.c.id)
+    shown_survivors = [row.id for row in conn.execute(survivor_ids)]
+    alive = select(surviving.c.id)
+    kept = select(pm.c.individual_id.label("id")).where(pm.c.run_id == run_id).distinct().subquery("kept")
+    extinct_ids = (
+        select(kept.c.id)
+        .where(kept.c.id.not_in(alive))
+        .order_by((kept.c.id * SAMPLE_STEP) % SAMPLE_PRIME, kept.c.id)
         .limit(extinct)
     )
-    count_alive = select(func.count()).select_from(surviving)
-    count_extinct = select(func.count()).where(nodes.c.last_generation.is_not(None), nodes.c.id.not_in(alive))
-    rows = dict_rows(conn, survivors) + dict_rows(conn, extinct_rows)
-    for row in rows:
-        row["surviving"] = bool(row["surviving"])
+    shown_extinct = [row.id for row in conn.execute(extinct_ids)]
+    rows = []
+    for ids, flag in ((shown_survivors, True), (shown_extinct, False)):
+        for chunk in range(0, len(ids), ID_CHUNK):
+            part = ids[chunk : chunk + ID_CHUNK]
+            nodes = _node_query(run_id, parent_generation=True, ids=part)
+            rows += [{**row, "surviving": flag} for row in dict_rows(conn, nodes)]
     rows.sort(key=lambda row: row["id"])
+    survivors_total = conn.execute(select(func.count()).select_from(surviving)).scalar_one()
+    kept_total = conn.execute(select(func.count()).select_from(kept)).scalar_one()
+    kept_survivors = conn.execute(select(func.count()).where(kept.c.id.in_(alive))).scalar_one()
     return {
         **out,
-        "survivors_total": int(conn.execute(count_alive).scalar_one()),
-        "extinct_total": int(conn.execute(count_extinct).scalar_one()),
+        "survivors_total": int(survivors_total),
+        "extinct_total": int(kept_total - kept_survivors),
         "nodes": rows,
     }
