@@ -54,6 +54,7 @@ class FounderLines(BaseModel):
     founder_id: int
     lines: int = Field(description="final members descending from it")
     front_lines: int = Field(description="of those, on the final Pareto front")
+    traits: dict[str, float | None] = Field(description="the founder's traits at its birth")
 
 
 class ExaptationOut(BaseModel):

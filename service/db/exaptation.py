@@ -79,7 +79,8 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
     switch_over, arrival, generation (the last stored), environments, founders (count),
     founders_surviving, final_population, from_founders, roots (distinct root newcomers of
     the final population), every_line_rooted (each final member's ancestry ends at a
-    newcomer), founder_lines ([{founder_id, lines, front_lines}] for every founder),
+    newcomer), founder_lines ([{founder_id, lines, front_lines, traits (at its birth)}] for
+    every founder),
     lines_total, lines (``limit`` of them from ``offset``, ordered by founder then final
     member: {founder_id, individual_id, root_id, traits: {trait: {founder, switch, end,
     first_changed}}})}. UserError for an unknown run or one without a transition."""
@@ -138,7 +139,7 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
             "roots": sorted(set(roots.values())),
             "every_line_rooted": bool(rooted),
             "founder_lines": [
-                {"founder_id": f, "lines": count, "front_lines": on_front}
+                {"founder_id": f, "lines": count, "front_lines": on_front, "traits": traits.get(f, {})}
                 for f, (count, on_front) in sorted(per_founder.items())
             ],
             "lines_total": len(lines),

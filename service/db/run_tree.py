@@ -96,7 +96,9 @@ def _node_query(
     its own rows. ``ids``: only those individuals (of this run)."""
     ind, ev, pm = Individual.__table__, Evaluation.__table__, PopulationMember.__table__
     earlier = ev.alias("earlier")
-    first = select(func.min(earlier.c.generation)).where(earlier.c.individual_id == ind.c.id).scalar_subquery()
+    first = (
+        select(func.min(earlier.c.generation)).where(earlier.c.individual_id == ind.c.id).scalar_subquery()
+    )
     kept = select(func.max(pm.c.generation)).where(pm.c.individual_id == ind.c.id)  # one run's anyway
     if generation is not None:
         kept = kept.where(pm.c.generation <= generation)
@@ -163,7 +165,9 @@ def surviving_ancestry(run_id: int, generation: int):
     return cte.union(step)
 
 
-def tree_sample(conn: Connection, run_id: int, max_survivors: int = 4000, extinct: int = 400) -> dict[str, Any]:
+def tree_sample(
+    conn: Connection, run_id: int, max_survivors: int = 4000, extinct: int = 400
+) -> dict[str, Any]:
     """What the dashboard's tree draws (module doc): {run_id, generation (the last stored),
     switch_at, switch_over, arrival, environments, survivors_total, extinct_total, nodes};
     each node has the keys of ``run_phylogeny`` plus parent_generation (the parent's birth)

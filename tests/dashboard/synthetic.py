@@ -26,7 +26,12 @@ class Synthetic:
 
 def build(engine: Engine, path: str, seed: int = 1) -> Synthetic:
     treatment = Treatment(
-        "land-water", 0.1, population=POPULATION, generations=GENERATIONS, switch_at=SWITCH, workspace=(3, 3, 3)
+        "land-water",
+        0.1,
+        population=POPULATION,
+        generations=GENERATIONS,
+        switch_at=SWITCH,
+        workspace=(3, 3, 3),
     )
     _, (run_id,) = create(engine, "synthetic", [treatment])
     rng = np.random.default_rng(seed)
@@ -43,7 +48,11 @@ def build(engine: Engine, path: str, seed: int = 1) -> Synthetic:
             evaluations.append((next_id, run_id, generation, environment, float(rng.random()), generation))
             next_id += 1
         pool = alive + born
-        alive = sorted(rng.choice(pool, size=POPULATION, replace=False).tolist()) if len(pool) > POPULATION else pool
+        alive = (
+            sorted(rng.choice(pool, size=POPULATION, replace=False).tolist())
+            if len(pool) > POPULATION
+            else pool
+        )
         members.extend((run_id, generation, i, 0 if k < 5 else 1) for k, i in enumerate(alive))
     with sqlite3.connect(path) as conn:
         conn.executemany(

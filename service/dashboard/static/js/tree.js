@@ -36,9 +36,11 @@ function layout(nodes) {
       roots.push(node);
     }
   }
-  // surviving trees first, then by birth: the highlighted lines stay together
-  const order = (a, b) => (b.surviving - a.surviving) || (a.generation_born - b.generation_born) || (a.id - b.id);
-  roots.sort(order);
+  // by birth within a tree; extinct roots scattered (by a hash of the id) so a sample spread
+  // over thousands of generations does not stack into one diagonal
+  const order = (a, b) => (a.generation_born - b.generation_born) || (a.id - b.id);
+  const scatter = (node) => (node.id * 7919) % 10007;
+  roots.sort((a, b) => (a.surviving ? order(a, b) : scatter(a) - scatter(b) || a.id - b.id));
   for (const list of children.values()) list.sort(order);
   let leaves = 0;
   const y = new Map();
@@ -71,10 +73,22 @@ function draw(canvas, tree) {
   ctx.scale(dpr, dpr);
   ctx.fillStyle = "#ffffff";
   ctx.fillRect(0, 0, width, HEIGHT);
-  const { y, leaves, byId } = layout(tree.nodes);
+  // surviving lineages in the upper band, the extinct sample below (each laid out on its own)
+  const alive = layout(tree.nodes.filter((n) => n.surviving));
+  const dead = layout(tree.nodes.filter((n) => !n.surviving));
+  const byId = new Map([...alive.byId, ...dead.byId]);
+  const span = HEIGHT - MARGIN.top - MARGIN.bottom;
+  const split = dead.leaves ? (alive.leaves ? 0.6 : 0) : 1;
+  const band = (part, top, size) => (row) => top + (part.leaves > 1 ? row / (part.leaves - 1) : 0.5) * size;
+  const rowOf = {
+    true: band(alive, MARGIN.top, span * split - (split < 1 ? 12 : 0)),
+    false: band(dead, MARGIN.top + span * split + (split > 0 ? 12 : 0), span * (1 - split) - (split > 0 ? 12 : 0)),
+  };
+  const y = new Map([...alive.y].map(([id, row]) => [id, rowOf.true(row)]).concat(
+    [...dead.y].map(([id, row]) => [id, rowOf.false(row)])));
+  const py = (value) => value;
   const lastGeneration = Math.max(1, tree.generation);
   const px = (g) => MARGIN.left + (g / lastGeneration) * (width - MARGIN.left - MARGIN.right);
-  const py = (row) => MARGIN.top + (leaves > 1 ? row / (leaves - 1) : 0.5) * (HEIGHT - MARGIN.top - MARGIN.bottom);
   // axis and the switch
   ctx.strokeStyle = "#dde2ea";
   ctx.fillStyle = "#667085";
