@@ -56,12 +56,13 @@ def build(engine: Engine, path: str, seed: int = 1) -> Synthetic:
         members.extend((run_id, generation, i, 0 if k < 5 else 1) for k, i in enumerate(alive))
     with sqlite3.connect(path) as conn:
         conn.executemany(
-            "INSERT INTO individuals (id, run_id, local_id, parent_id, generation_born, genome) VALUES (?, ?, ?, ?, ?, ?)",
+            "INSERT INTO individuals (id, run_id, local_id, parent_id, generation_born, genome)"
+            " VALUES (?, ?, ?, ?, ?, ?)",
             individuals,
         )
         conn.executemany(
-            "INSERT INTO evaluations (individual_id, run_id, generation, age, environment, stiffness, distance,"
-            " active_share, voxel_count, stable) VALUES (?, ?, ?, 0, ?, 1e5, ?, 0.5, 10 + ? % 7, 1)",
+            "INSERT INTO evaluations (individual_id, run_id, generation, age, environment, stiffness,"
+            " distance, active_share, voxel_count, stable) VALUES (?, ?, ?, 0, ?, 1e5, ?, 0.5, 10 + ? % 7, 1)",
             evaluations,
         )
         conn.executemany(
