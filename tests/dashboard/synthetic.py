@@ -62,7 +62,8 @@ def build(engine: Engine, path: str, seed: int = 1) -> Synthetic:
         )
         conn.executemany(
             "INSERT INTO evaluations (individual_id, run_id, generation, age, environment, stiffness,"
-            " distance, active_share, voxel_count, stable) VALUES (?, ?, ?, 0, ?, 1e5, ?, 0.5, 10 + ? % 7, 1)",
+            " distance, active_share, voxel_count, stable)"
+            " VALUES (?, ?, ?, 0, ?, 1e5, ?, 0.5, 10 + ? % 7, 1)",
             evaluations,
         )
         conn.executemany(
