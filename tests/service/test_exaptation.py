@@ -149,3 +149,33 @@ def test_user_mistakes_are_one_line(served, capsys):
     )
     response = httpx.get(f"{base}/runs/{static}/exaptation")
     assert response.status_code == 404 and "no environment transition" in response.json()["detail"]
+
+
+def test_the_report_has_an_exaptation_section(served, tmp_path):
+    from softevo.analysis.exaptation import exaptation_figure, run_statistics
+    from softevo.analysis.report import Document, to_markdown
+    from softevo.analysis.report import exaptation_block as block
+    from softevo.service.db.exaptation import exaptation
+    from softevo.service.db.experiments import load_experiment
+    from softevo.service.reports import exaptation_data
+
+    engine, url, run_id, _ = served
+    data = load_experiment(engine, 1)
+    stats = run_statistics(data, exaptation_data(engine, data))
+    with engine.connect() as conn:
+        summary = exaptation(conn, run_id)
+    (row,) = stats.to_dict(orient="records")
+    assert (row["run_id"], row["founders"], row["founders_surviving"]) == (
+        run_id, summary["founders"], summary["founders_surviving"],
+    )  # fmt: skip
+    survivors = [f["traits"]["voxel_count"] for f in summary["founder_lines"] if f["lines"]]
+    everyone = [f["traits"]["voxel_count"] for f in summary["founder_lines"]]
+    assert row["voxel_count_shift"] == pytest.approx(
+        sum(survivors) / len(survivors) - sum(everyone) / len(everyone)
+    )
+    figure = exaptation_figure(data, exaptation_data(engine, data), stats, tmp_path)
+    assert figure.png.is_file() and figure.size_px[0] > 1000
+    doc = Document("report")
+    block(doc, stats)
+    markdown = to_markdown(doc, tmp_path)
+    assert "## Exaptation across the switch" in markdown and str(summary["founders_surviving"]) in markdown
