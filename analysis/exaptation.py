@@ -100,11 +100,15 @@ def exaptation_figure(
     x = np.arange(len(stats))
     counts.bar(x - 0.2, stats["founders"], 0.4, color="#cfd6e0", label="founders (kept at the switch)")
     counts.bar(
-        x + 0.2, stats["founders_surviving"], 0.4, color=[colors[t] for t in stats["treatment"]],
+        x + 0.2,
+        stats["founders_surviving"],
+        0.4,
+        color=[colors[t] for t in stats["treatment"]],
         label="founders with a line to the end",
-    )  # fmt: skip
-    counts.set_xticks(x, [f"{t}\nrep {r}" for t, r in zip(stats["treatment"], stats["repetition"], strict=True)],
-                      fontsize=8)  # fmt: skip
+    )
+    counts.set_xticks(
+        x, [f"{t}\nrep {r}" for t, r in zip(stats["treatment"], stats["repetition"], strict=True)], fontsize=8
+    )
     counts.set(ylabel="founders", title="founders surviving the switch, per run")
     counts.legend(fontsize=8)
     counts.grid(axis="y", alpha=0.3)

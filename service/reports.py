@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-
 from sqlalchemy import Connection, Engine
 
 from softevo.analysis import motion, robots
@@ -67,18 +66,48 @@ def exaptation_data(engine: Engine, data) -> ExaptationData:
             summary = exaptation(conn, int(run_id))
             if summary["generation"] < summary["switch_at"]:
                 continue
-            runs.append({key: summary[key] for key in (
-                "run_id", "switch_at", "switch_over", "arrival", "generation", "founders",
-                "founders_surviving", "final_population", "from_founders")} | {"lines": summary["lines_total"]})  # fmt: skip
+            runs.append(
+                {
+                    key: summary[key]
+                    for key in (
+                        "run_id",
+                        "switch_at",
+                        "switch_over",
+                        "arrival",
+                        "generation",
+                        "founders",
+                        "founders_surviving",
+                        "final_population",
+                        "from_founders",
+                    )
+                }
+                | {"lines": summary["lines_total"]}
+            )
             for f in summary["founder_lines"]:
-                founders.append({"run_id": run_id, "founder_id": f["founder_id"], "lines": f["lines"],
-                                 "front_lines": f["front_lines"], "surviving": f["lines"] > 0, **f["traits"]})  # fmt: skip
+                founders.append(
+                    {
+                        "run_id": run_id,
+                        "founder_id": f["founder_id"],
+                        "lines": f["lines"],
+                        "front_lines": f["front_lines"],
+                        "surviving": f["lines"] > 0,
+                        **f["traits"],
+                    }
+                )
             for line in summary["lines"]:
-                row = {"run_id": run_id, "founder_id": line["founder_id"], "individual_id": line["individual_id"]}
+                row = {
+                    "run_id": run_id,
+                    "founder_id": line["founder_id"],
+                    "individual_id": line["individual_id"],
+                }
                 for trait in LINE_TRAITS:
                     values = line["traits"][trait]
-                    row |= {f"{trait}_founder": values["founder"], f"{trait}_switch": values["switch"],
-                            f"{trait}_end": values["end"], f"{trait}_changed": values["first_changed"]}  # fmt: skip
+                    row |= {
+                        f"{trait}_founder": values["founder"],
+                        f"{trait}_switch": values["switch"],
+                        f"{trait}_end": values["end"],
+                        f"{trait}_changed": values["first_changed"],
+                    }
                 lines.append(row)
     return ExaptationData(pd.DataFrame(runs), pd.DataFrame(founders), pd.DataFrame(lines))
 
