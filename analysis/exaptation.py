@@ -29,7 +29,7 @@ from softevo.analysis import figures as fig
 from softevo.analysis.data import TRAIT_LABELS, ExperimentData
 
 LINE_TRAITS = ("voxel_count", "active_share", "frequency", "symmetry", "branching", "shape_entropy")
-NAME, TITLE = "exaptation", "Founders' lines across the switch"
+NAME = "exaptation"  # its title is figures.TITLES[NAME]
 
 
 @dataclass(frozen=True)
@@ -128,15 +128,4 @@ def exaptation_figure(
         "those whose lines reach the last generation. Right: each surviving line's active share "
         "at its founder, at the first generation wholly in the new world and at the end."
     )
-    return _save(figure, out_dir, caption)
-
-
-def _save(figure, out_dir: Path, caption: str) -> fig.FigureFile:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    png, svg = out_dir / f"{NAME}.png", out_dir / f"{NAME}.svg"
-    figure.savefig(png, dpi=fig.DPI)
-    figure.set_layout_engine("none")
-    figure.savefig(svg)
-    width, height = figure.get_size_inches() * fig.DPI
-    plt.close(figure)
-    return fig.FigureFile(NAME, TITLE, caption, png, svg, (int(round(width)), int(round(height))))
+    return fig.save(figure, out_dir, NAME, caption)

@@ -52,6 +52,7 @@ TITLES = {
     "transitions": "Transitions against static controls",
     "robots": "Robots sampled from the fronts",
     "start_end": "Descriptors at the start vs the end of evolution",
+    "exaptation": "Founders' lines across the switch",  # analysis.exaptation, transition runs only
 }
 FIGURES = tuple(TITLES)
 
