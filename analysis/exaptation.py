@@ -96,7 +96,9 @@ def exaptation_figure(
     if exaptation.empty or stats.empty:
         return None
     colors = fig.treatment_colors(data.treatments)
-    figure, (counts, traits) = plt.subplots(1, 2, figsize=(14.0, 4.8), dpi=fig.DPI, layout="constrained")
+    figure, (counts, traits) = plt.subplots(
+        1, 2, figsize=fig.figure_size(NAME, len(data.treatments)), dpi=fig.DPI, layout="constrained"
+    )
     x = np.arange(len(stats))
     counts.bar(x - 0.2, stats["founders"], 0.4, color="#cfd6e0", label="founders (kept at the switch)")
     counts.bar(
