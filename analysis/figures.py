@@ -52,6 +52,7 @@ TITLES = {
     "transitions": "Transitions against static controls",
     "robots": "Robots sampled from the fronts",
     "start_end": "Descriptors at the start vs the end of evolution",
+    "exaptation": "Founder lines across the switch",  # analysis.exaptation, transition runs only
 }
 FIGURES = tuple(TITLES)
 
@@ -81,6 +82,8 @@ def figure_size(name: str, n_treatments: int, n_transitions: int = 0) -> tuple[f
         return (3.6 * cols, 3.2 * math.ceil(n / cols) + 0.4)
     if name == "transitions":
         return (15.0, 4.0 * max(1, n_transitions) + 0.4)
+    if name == "exaptation":
+        return (14.0, 4.8)
     if name == "robots":
         per_row = min(2, n)
         return (2.4 * SAMPLES_PER_FRONT * per_row, 2.6 * math.ceil(n / per_row) + 0.4)

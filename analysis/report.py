@@ -36,6 +36,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from softevo import sim
 from softevo.analysis import figures as fig
 from softevo.analysis.data import TRAIT_LABELS, ExperimentData
+from softevo.analysis.exaptation import ExaptationData, exaptation_figure, run_statistics, treatment_summary
 from softevo.analysis.motion import animate
 from softevo.analysis.stats_tables import (
     CURVE_RESAMPLES,
@@ -316,10 +317,12 @@ def write_report(
     animation: bool = True,
     progress: bool = False,
     seed: int = 0,
+    exaptation: ExaptationData | None = None,
 ) -> Report:
     """Write the report of ``data`` into ``out_dir`` (see the module doc). Without ``robots``
     the robot renders, the evaluation settings and the animation are left out. ``seed``
-    seeds the bootstrap."""
+    seeds the bootstrap. ``exaptation`` (``analysis.exaptation``; transition runs'
+    founders and surviving lines) adds the exaptation section and ``exaptation.csv``."""
     if data.generations.empty:
         raise UserError(f"experiment e{data.experiment['id']} has no stored generation yet")
     out = _output_dir(out_dir)
@@ -336,6 +339,13 @@ def write_report(
             made = make()
             if made is not None:
                 figures.append(made)
+        exaptation_stats = None
+        if exaptation is not None and not exaptation.empty:
+            exaptation_stats = run_statistics(data, exaptation)
+            made = exaptation_figure(data, exaptation, exaptation_stats, figures_dir)
+            if made is not None:
+                figures.append(made)
+            exaptation_stats.to_csv(out / "exaptation.csv", index=False)
         gif = None
         if animation:
             step("animation of the best robot")
@@ -345,7 +355,7 @@ def write_report(
         stats.to_csv(stats_path, index=False)
         summary.to_csv(summary_path, index=False)
         evaluation = None if robots is None else evaluation_text(robots, data)
-        doc = build_document(data, stats, summary, figures, gif, evaluation)
+        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats)
         markdown, page = out / "report.md", out / "report.html"
         markdown.write_text(to_markdown(doc, out), encoding="utf-8")
         page.write_text(to_html(doc), encoding="utf-8")
@@ -425,8 +435,10 @@ def build_document(
     figures: list[fig.FigureFile],
     gif: Path | None,
     evaluation: str | None = None,
+    exaptation: pd.DataFrame | None = None,
 ) -> Document:
-    """The report's content, in order; ``evaluation`` is ``evaluation_text``."""
+    """The report's content, in order; ``evaluation`` is ``evaluation_text``; ``exaptation``
+    the per-run statistics of ``analysis.exaptation.run_statistics``."""
     experiment = data.experiment
     doc = Document(f"softevo report: experiment e{experiment['id']} \u201c{experiment['name']}\u201d")
     created = _as_utc(experiment.get("created_at"))
@@ -456,6 +468,8 @@ def build_document(
     if not any(f.name == "transitions" for f in figures):
         doc.paragraph("No transition treatment in this experiment: no transition figure.")
     _animation_block(doc, data, gif)
+    if exaptation is not None and not exaptation.empty:
+        exaptation_block(doc, exaptation)
     doc.heading("Statistics")
     doc.paragraph(METHODS)
     doc.table(_statistics_display(stats))
@@ -477,6 +491,21 @@ def _animation_block(doc: Document, data: ExperimentData, gif: Path | None) -> N
             f"`softevo show {int(best['individual_id'])} --out FILE.gif` makes it again.",
         )
     )
+
+
+def exaptation_block(doc: Document, stats: pd.DataFrame) -> None:
+    doc.heading("Exaptation across the switch")
+    doc.paragraph(
+        "Per transition run (each run one observation): the founders (the population kept just "
+        "before the switch), how many have a line reaching the last generation, the share of the "
+        "final population descending from a founder, and for each trait the mean at birth of the "
+        "surviving founders minus that of all founders (a positive shift: the survivors carried "
+        "more of it before the switch). Definitions: docs/sql.md; per line: softevo exaptation RUN."
+    )
+    doc.table(treatment_summary(stats).round(3))
+    shown = ["treatment", "repetition", "founders", "founders_surviving", "final_from_founders",
+             "voxel_count_shift", "active_share_shift", "symmetry_shift"]  # fmt: skip
+    doc.table(stats[shown].round(3))
 
 
 def _version() -> str:

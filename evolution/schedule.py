@@ -6,6 +6,12 @@ water. Its text form is ``land:0,water:50`` (``parse`` / ``format``). ``switch``
 place that decides an environment switch: an algorithm whose environment is not the one of
 the generation about to start is moved there (``Evolution.reevaluate_all``: the whole
 population is evaluated again in the new world).
+
+A world may be entered gradually: ``Schedule([("land", 0), ("water", 50)], spans=[0, 10])``
+(text ``land:0,water:50+10``) spends generations 50..59 in compound worlds
+(``evolution.worlds``: ``land>water@0.091`` .. ``land>water@0.909``, the water share rising
+linearly) and is in pure water from generation 60. Each generation of the span is another
+world, so ``switch`` moves the population (re-evaluates it) at every one of them.
 """
 
 from __future__ import annotations
@@ -13,13 +19,15 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from softevo.evolution import worlds
+
 
 class Schedule:
     """Worlds with the generation each starts; see the module doc."""
 
-    __slots__ = ("entries",)
+    __slots__ = ("entries", "spans")
 
-    def __init__(self, entries: Iterable[tuple[str, int]]) -> None:
+    def __init__(self, entries: Iterable[tuple[str, int]], spans: Iterable[int] | None = None) -> None:
         checked: list[tuple[str, int]] = []
         for entry in entries:
             try:
@@ -41,6 +49,26 @@ class Schedule:
         if not checked:
             raise ValueError("schedule: no environment")
         self.entries: tuple[tuple[str, int], ...] = tuple(checked)
+        self.spans: tuple[int, ...] = self._checked_spans(spans)
+
+    def _checked_spans(self, spans: Iterable[int] | None) -> tuple[int, ...]:
+        """Generations of compound worlds before each world is pure (0: entered at once)."""
+        spans = tuple(spans) if spans is not None else (0,) * len(self.entries)
+        if len(spans) != len(self.entries):
+            raise ValueError(f"schedule: {len(spans)} switch-over spans for {len(self.entries)} worlds")
+        for index, span in enumerate(spans):
+            if isinstance(span, bool) or not isinstance(span, int) or span < 0:
+                raise ValueError(f"schedule: switch-over of {self.entries[index][0]} must be an integer >= 0")
+        if spans[0] != 0:
+            raise ValueError("schedule: the first environment has nothing to switch over from")
+        for (environment, first), span, (_, following) in zip(
+            self.entries, spans, self.entries[1:], strict=False
+        ):
+            if first + span >= following:
+                raise ValueError(
+                    f"schedule: the switch-over to {environment} ({first}+{span}) must end before {following}"
+                )
+        return spans
 
     @classmethod
     def static(cls, environment: str) -> Schedule:
@@ -60,31 +88,43 @@ class Schedule:
         """From the text form ``env:first,env:first,...``; ValueError naming the problem."""
         if not isinstance(text, str) or not text.strip():
             raise ValueError(f"schedule: empty text {text!r}; expected e.g. land:0,water:50")
-        entries = []
+        entries, spans = [], []
         for part in text.split(","):
             environment, colon, first = part.strip().partition(":")
             if not colon or not environment:
                 raise ValueError(f"schedule: {part.strip()!r} is not environment:first_generation")
+            first, plus, span = first.partition("+")
             try:
                 generation = int(first)
+                spans.append(int(span) if plus else 0)
             except ValueError:
                 raise ValueError(
-                    f"schedule: first generation of {environment} is not an integer ({first!r})"
+                    f"schedule: first generation (+ switch-over) of {environment} is not an integer "
+                    f"({part.strip()!r})"
                 ) from None
             entries.append((environment, generation))
-        return cls(entries)
+        return cls(entries, spans)
 
     def format(self) -> str:
-        """The text form, e.g. ``land:0,water:50``."""
-        return ",".join(f"{environment}:{first}" for environment, first in self.entries)
+        """The text form, e.g. ``land:0,water:50`` (``water:50+10`` with a switch-over)."""
+        return ",".join(
+            f"{environment}:{first}" + (f"+{span}" if span else "")
+            for (environment, first), span in zip(self.entries, self.spans, strict=True)
+        )
 
     def environment_at(self, generation: int) -> str:
-        """The world individuals are evaluated in at ``generation``."""
-        current = self.entries[0][0]
-        for environment, first in self.entries:
+        """The world individuals are evaluated in at ``generation`` (a compound world's name
+        within a switch-over, ``evolution.worlds``)."""
+        index = 0
+        for position, (_, first) in enumerate(self.entries):
             if generation >= first:
-                current = environment
-        return current
+                index = position
+        environment, first = self.entries[index]
+        span = self.spans[index]
+        if span and generation < first + span:
+            share = worlds.share_at(generation - first, span)
+            return worlds.compound(self.entries[index - 1][0], environment, share)
+        return environment
 
     def switches_at(self, generation: int) -> bool:
         """True if ``generation`` is evaluated in another world than the one before it."""
@@ -114,15 +154,17 @@ class Schedule:
 
     def __eq__(self, other: object) -> bool:
         if isinstance(other, Schedule):
-            return self.entries == other.entries
+            return self.entries == other.entries and self.spans == other.spans
         if isinstance(other, list | tuple):
-            return list(self.entries) == [tuple(entry) for entry in other]
+            return not any(self.spans) and list(self.entries) == [tuple(entry) for entry in other]
         return NotImplemented
 
     def __hash__(self) -> int:
-        return hash(self.entries)
+        return hash((self.entries, self.spans))
 
     def __repr__(self) -> str:
+        if any(self.spans):
+            return f"Schedule({list(self.entries)!r}, spans={list(self.spans)!r})"
         return f"Schedule({list(self.entries)!r})"
 
     def __str__(self) -> str:

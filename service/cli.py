@@ -36,9 +36,17 @@ def _group() -> None:
 
 
 def _register() -> None:
-    from softevo.service import cli_analysis, cli_dashboard, cli_evolution, cli_runs, cli_service, cli_sim
+    from softevo.service import (
+        cli_analysis,
+        cli_dashboard,
+        cli_evolution,
+        cli_phylogeny,
+        cli_runs,
+        cli_service,
+        cli_sim,
+    )
 
-    for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard):
+    for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard, cli_phylogeny):
         module.register(app)
 
 

@@ -112,6 +112,10 @@ def run(
     switch_at: Annotated[
         int | None, typer.Option("--switch-at", help="first generation in the second environment")
     ] = None,
+    switch_over: Annotated[
+        int,
+        typer.Option("--switch-over", help="generations of a gradual switch (compound worlds; 0: abrupt)"),
+    ] = 0,
     evolve_stiffness: Annotated[
         bool, typer.Option("--evolve-stiffness", help="evolve a Young's modulus per voxel")
     ] = False,
@@ -143,6 +147,7 @@ def run(
         cycles=cycles,
         seed=seed,
         switch_at=switch_at,
+        switch_over=switch_over,
         evolve_stiffness=evolve_stiffness,
         frequency_per_voxel=frequency_per_voxel,
         stiffness_range_mpa=_parse_range(stiffness_range),
@@ -154,7 +159,11 @@ def run(
 
 
 def experiment(
-    preset: Annotated[str, typer.Argument(help="paper: the paper's grid (SPEC.md section 5)")],
+    preset: Annotated[
+        str,
+        typer.Argument(help="paper: the paper's grid (SPEC.md section 5); gradual: its two "
+                       "transitions, abrupt and gradual"),
+    ],
     scale: Annotated[str, typer.Option("--scale", help="tiny | small | paper")] = "tiny",
     repetitions: Annotated[int | None, typer.Option("--repetitions")] = None,
     seed: Annotated[int, typer.Option("--seed")] = 0,
@@ -165,15 +174,13 @@ def experiment(
     """Run a preset experiment: every treatment and repetition."""
     from softevo.service.db import open_database
     from softevo.service.experiments import create_paper
-    from softevo.service.treatments import paper_grid
+    from softevo.service.treatments import preset_grid
 
-    if preset != "paper":
-        raise UserError(f"unknown experiment preset {preset!r}; choose paper")
     if repetitions is not None and repetitions < 1:
         raise UserError(f"--repetitions must be >= 1 (got {repetitions})")
-    paper_grid(scale)  # validates the scale before touching the database
+    preset_grid(preset, scale)  # validates preset and scale before touching the database
     engine = open_database(db)
-    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed)
+    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed, preset=preset)
     typer.echo(f"experiment {experiment_id} (e{experiment_id}): runs {run_ids[0]}..{run_ids[-1]}", err=True)
     _execute(engine, run_ids, workers, quiet)
 

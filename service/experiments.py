@@ -8,7 +8,7 @@ from sqlalchemy import Engine
 
 from softevo.evolution.afpo import EvolutionConfig
 from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
-from softevo.service.treatments import Treatment, paper_grid
+from softevo.service.treatments import Treatment, preset_grid
 from softevo.worker.tasks import encoding_of
 
 
@@ -33,11 +33,12 @@ def create(
 
 
 def create_paper(
-    engine: Engine, scale: str, repetitions: int | None = None, seed: int = 0
+    engine: Engine, scale: str, repetitions: int | None = None, seed: int = 0, preset: str = "paper"
 ) -> tuple[int, list[int]]:
-    """The paper's grid (SPEC.md section 5) at ``scale`` as a new experiment."""
-    treatments = paper_grid(scale, repetitions=repetitions, seed=seed)
-    return create(engine, f"paper-{scale}", treatments, preset="paper", scale=scale)
+    """A preset's treatments (``service.treatments.PRESETS``; default the paper's grid,
+    SPEC.md section 5) at ``scale`` as a new experiment."""
+    treatments = preset_grid(preset, scale, repetitions=repetitions, seed=seed)
+    return create(engine, f"{preset}-{scale}", treatments, preset=preset, scale=scale)
 
 
 def evolution_config(treatment: Treatment, seed: int):

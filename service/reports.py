@@ -10,12 +10,15 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 from sqlalchemy import Connection, Engine
 
 from softevo.analysis import motion, robots
 from softevo.analysis import report as analysis_report
+from softevo.analysis.exaptation import LINE_TRAITS, ExaptationData
 from softevo.analysis.report import Report, Robots
 from softevo.service.db import open_database
+from softevo.service.db.exaptation import exaptation
 from softevo.service.db.experiments import load_experiment, resolve_experiment
 from softevo.service.db.individuals import individual_record, stored_genomes
 
@@ -53,6 +56,62 @@ def stored_robots(engine: Engine) -> Robots:
     return Robots(phenotypes=phenotypes, scene=scene, encoding=robots.encoding_of, motion=stored_motion)
 
 
+def exaptation_data(engine: Engine, data) -> ExaptationData:
+    """``analysis.exaptation.ExaptationData`` of the experiment's transition runs that have
+    passed their switch (``service.db.exaptation.exaptation`` per run)."""
+    transitions = set(data.treatments.loc[data.treatments["environment"].str.contains("-"), "name"])
+    runs, founders, lines = [], [], []
+    with engine.connect() as conn:
+        for run_id in data.runs.loc[data.runs["treatment"].isin(transitions), "run_id"]:
+            summary = exaptation(conn, int(run_id))
+            if summary["generation"] < summary["switch_at"]:
+                continue
+            runs.append(
+                {
+                    key: summary[key]
+                    for key in (
+                        "run_id",
+                        "switch_at",
+                        "switch_over",
+                        "arrival",
+                        "generation",
+                        "founders",
+                        "founders_surviving",
+                        "final_population",
+                        "from_founders",
+                    )
+                }
+                | {"lines": summary["lines_total"]}
+            )
+            for f in summary["founder_lines"]:
+                founders.append(
+                    {
+                        "run_id": run_id,
+                        "founder_id": f["founder_id"],
+                        "lines": f["lines"],
+                        "front_lines": f["front_lines"],
+                        "surviving": f["lines"] > 0,
+                        **f["traits"],
+                    }
+                )
+            for line in summary["lines"]:
+                row = {
+                    "run_id": run_id,
+                    "founder_id": line["founder_id"],
+                    "individual_id": line["individual_id"],
+                }
+                for trait in LINE_TRAITS:
+                    values = line["traits"][trait]
+                    row |= {
+                        f"{trait}_founder": values["founder"],
+                        f"{trait}_switch": values["switch"],
+                        f"{trait}_end": values["end"],
+                        f"{trait}_changed": values["first_changed"],
+                    }
+                lines.append(row)
+    return ExaptationData(pd.DataFrame(runs), pd.DataFrame(founders), pd.DataFrame(lines))
+
+
 def _load(source, experiment: int | str):
     engine = engine_of(source)
     with engine.connect() as conn:
@@ -71,10 +130,11 @@ def write_report(
     Engine, Connection or Session; ``options``: those of ``analysis.report.write_report``
     (animation, progress, seed)."""
     engine, data = _load(source, experiment)
+    options.setdefault("exaptation", exaptation_data(engine, data))
     return analysis_report.write_report(data, out_dir, robots=stored_robots(engine), **options)
 
 
 def report_html(source: str | Engine | Connection | Any | None, experiment: int | str) -> str:
     """The report page of ``experiment`` as a string, built in a temporary directory."""
     engine, data = _load(source, experiment)
-    return analysis_report.report_html(data, stored_robots(engine))
+    return analysis_report.report_html(data, stored_robots(engine), exaptation=exaptation_data(engine, data))

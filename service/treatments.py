@@ -4,6 +4,10 @@ A treatment's environment is ``land``, ``water``, ``land-water`` or ``water-land
 transition switches at ``switch_at`` (default: half the generations): generations
 ``0 .. switch_at - 1`` are evaluated in the first environment, ``switch_at ..`` in the
 second, and at ``switch_at`` the whole surviving population is re-evaluated in the new one.
+With ``switch_over = G > 0`` the move is gradual: generations ``switch_at .. switch_at + G - 1``
+are evaluated in compound worlds (``evolution.worlds``; the new world's share of each
+evaluation's cycles rising linearly, the population re-evaluated at each), pure second world
+from ``switch_at + G``; ``docs/gradual.md`` explains the choice.
 Repetition ``r`` of a treatment runs with seed ``seed + r``.
 
 Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
@@ -40,6 +44,7 @@ class Treatment:
     stiffness_mpa: float
     name: str = ""
     switch_at: int | None = None
+    switch_over: int = 0
     population: int = 30
     generations: int = 100
     workspace: tuple[int, int, int] = EncodingConfig.workspace
@@ -91,6 +96,16 @@ class Treatment:
         self._validate_switch()
 
     def _validate_switch(self) -> None:
+        over = self.switch_over
+        if isinstance(over, bool) or not isinstance(over, int) or over < 0:
+            raise UserError(f"switch_over must be an integer >= 0 (got {over!r})")
+        if over and "-" not in self.environment:
+            raise UserError(f"--switch-over needs a transition environment (got {self.environment})")
+        if over and self.switch_generation() + over >= self.generations:
+            raise UserError(
+                f"the switch-over ends at generation {self.switch_generation() + over}: "
+                f"needs more than that many generations (got {self.generations})"
+            )
         if self.switch_at is None:
             return
         if "-" not in self.environment:
@@ -102,7 +117,8 @@ class Treatment:
         """E.g. ``land-water S=0.1MPa``; ``land E=evolved f=per-voxel`` with both options."""
         stiffness = "E=evolved" if self.evolve_stiffness else f"S={self.stiffness_mpa:g}MPa"
         frequency = " f=per-voxel" if self.frequency_per_voxel else ""
-        return f"{self.environment} {stiffness}{frequency}"
+        gradual = f" over {self.switch_over}" if self.switch_over else ""
+        return f"{self.environment} {stiffness}{frequency}{gradual}"
 
     @property
     def stiffness_pa(self) -> float:
@@ -121,7 +137,13 @@ class Treatment:
         if switch is None:
             return Schedule.static(self.environment)
         first, second = self.environment.split("-")
-        return Schedule([(first, 0), (second, switch)])
+        return Schedule([(first, 0), (second, switch)], spans=[0, self.switch_over])
+
+    def arrival_generation(self) -> int | None:
+        """First generation wholly in the second environment (``switch_generation`` plus the
+        switch-over; None without a transition)."""
+        switch = self.switch_generation()
+        return None if switch is None else switch + self.switch_over
 
     def schedule_text(self) -> str:
         """The schedule as text, e.g. ``land:0,water:50``."""
@@ -172,14 +194,15 @@ class Scale:
     workspace: tuple[int, int, int]
     cycles: int
     repetitions: int
+    switch_over: int = 0  # the gradual preset's span (generations of compound worlds)
 
 
 # tiny: the whole grid in minutes on 2 cores (CI); small: about an hour on 2 cores;
 # paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
 PRESET_SCALES: dict[str, Scale] = {
-    "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1),
-    "small": Scale(8, 20, 20, (6, 6, 6), 8, 2),
-    "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15),
+    "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2),
+    "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
+    "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15, switch_over=1000),
 }
 
 
@@ -225,3 +248,35 @@ def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 
             )
         )
     return treatments
+
+
+def gradual_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 0) -> list[Treatment]:
+    """The paper's two transitions at S3 (land-water, water-land), each abrupt and gradual
+    (``switch_over`` of the scale: tiny 2, small 4, paper 1000 generations), switching at
+    half the generations; same sizes and seeds as ``paper_grid``'s transitions."""
+    if scale not in PRESET_SCALES:
+        raise UserError(f"unknown scale {scale!r}; choose one of {', '.join(SCALES)}")
+    sizes = PRESET_SCALES[scale]
+    common = {
+        "population": sizes.population,
+        "workspace": sizes.workspace,
+        "cycles": sizes.cycles,
+        "repetitions": sizes.repetitions if repetitions is None else repetitions,
+        "seed": seed,
+        "generations": sizes.transition_generations,
+    }
+    return [
+        Treatment(environment, 0.1, name=f"{environment} S3 {kind}", switch_over=over, **common)
+        for environment in ("land-water", "water-land")
+        for kind, over in (("abrupt", 0), ("gradual", sizes.switch_over))
+    ]
+
+
+PRESETS = {"paper": paper_grid, "gradual": gradual_grid}
+
+
+def preset_grid(preset: str, scale: str = "tiny", repetitions: int | None = None, seed: int = 0):
+    """The treatments of preset ``preset`` (``PRESETS``); UserError for an unknown one."""
+    if preset not in PRESETS:
+        raise UserError(f"unknown experiment preset {preset!r}; choose {' or '.join(PRESETS)}")
+    return PRESETS[preset](scale, repetitions=repetitions, seed=seed)

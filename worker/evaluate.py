@@ -17,7 +17,7 @@ import time
 import traceback
 from typing import Any
 
-from softevo.worker.tasks import Result, Task, failed, scene_of
+from softevo.worker.tasks import Result, Task, compound_outcome, failed, scenes_of
 
 ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 
@@ -64,23 +64,25 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
     for it; None keeps the process's setting).
     """
     results: list[Result | None] = [None] * len(tasks)
-    runnable: list[tuple[int, Task, Any, dict]] = []
+    runnable: list[tuple[int, Task, Any, list[dict]]] = []
     for k, data in enumerate(tasks):
         phenotype = None
         try:
             task = Task.from_json(data)
-            phenotype, scene = scene_of(task)
-            runnable.append((k, task, phenotype, scene))
+            phenotype, scenes = scenes_of(task)  # a compound world: one scene per part
+            runnable.append((k, task, phenotype, scenes))
         except Exception as exc:
             message = str(exc) if str(exc) == "empty body" else f"{type(exc).__name__}: {exc}"
             results[k] = failed(data, message, phenotype)
     if runnable:
         start = time.perf_counter()
-        outcomes = _simulate([scene for *_, scene in runnable], threads)
+        outcomes = _simulate([scene for *_, scenes in runnable for scene in scenes], threads)
         seconds = (time.perf_counter() - start) / len(runnable)
-        for (k, task, phenotype, _), outcome in zip(runnable, outcomes, strict=True):
+        offset = 0
+        for k, task, phenotype, scenes in runnable:
+            parts, offset = outcomes[offset : offset + len(scenes)], offset + len(scenes)
             try:
-                results[k] = Result.of(task, phenotype, outcome, seconds)
+                results[k] = Result.of(task, phenotype, compound_outcome(parts), seconds)
             except Exception as exc:
                 results[k] = failed(task, f"{type(exc).__name__}: {exc}")
     return [result.to_json() for result in results]  # type: ignore[union-attr]

@@ -10,7 +10,7 @@
        "run_id": int,                  # optional: job ids and logs only
        "generation": int,              # optional: job ids and logs only
        "genome": {...},                # Genotype.to_dict()
-       "environment": "land" | "water",
+       "environment": "land" | "water" | "land>water@0.250" (a compound world),
        "youngs_modulus": float,        # Pa
        "cycles": int,
        "workspace": [x, y, z],
@@ -21,7 +21,11 @@
   phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
   not finish (worst fitness, the reason kept); the score of a finished one follows
   ``evolution.individual.score``.
-- ``scene_of(task)``: (phenotype, scene) of a task, the scene the evaluation simulates.
+- ``scene_of(task)``: (phenotype, scene) of a task in a pure world, the scene the evaluation
+  simulates; ``scenes_of(task)``: (phenotype, scenes) for any world, one scene per part of a
+  compound world (``evolution.worlds``: a gradual transition's ``land>water@0.250`` runs
+  75% of the cycles on land, then 25% in water) and ``compound_outcome(outcomes)``, the
+  evaluation of those parts: distances added, stable if every part is.
 - ``replay(task, every)``: the evaluation simulated again with frames recorded (the
   simulator is deterministic: the motion is the one that was evaluated).
 - ``encoding_of(settings)``: the encoding a treatment's runs express their genomes with;
@@ -260,14 +264,62 @@ def plain(value: Any) -> Any:
 def scene_of(task: Task, **extra: Any):
     """(phenotype, scene) of ``task``: the genome developed in its encoding and placed in
     its environment; ``extra`` scene fields (e.g. ``record``) are added. ValueError
-    ("empty body") for a genome without voxels."""
+    ("empty body") for a genome without voxels, ValueError for a compound world (its
+    evaluation is several scenes: ``scenes_of``)."""
+    from softevo.evolution import worlds
+
+    if worlds.is_compound(task.environment):
+        raise ValueError(f"{task.environment} is a compound world of several scenes: use scenes_of")
+    phenotype, (scene,) = scenes_of(task, **extra)
+    return phenotype, scene
+
+
+def scenes_of(task: Task, **extra: Any):
+    """(phenotype, [scene, ...]): one scene per part of the task's world
+    (``evolution.worlds.parts``), simulated one after the other, each from rest; a part's
+    scene runs its share of the task's cycles. A pure world gives the one scene of
+    ``scene_of``. ValueError ("empty body") for a genome without voxels."""
+    from softevo.evolution import worlds
     from softevo.evolution.genotype import Genotype, develop
 
     phenotype = develop(Genotype.from_dict(task.genome), task.encoding_config())
     if phenotype.voxel_count == 0:
         raise ValueError("empty body")
-    scene = phenotype.to_scene(task.environment, task.youngs_modulus, task.cycles, **extra)
-    return phenotype, scene
+    parts = worlds.parts(task.environment)
+    scenes = []
+    for world, share in parts:
+        scene = phenotype.to_scene(world, task.youngs_modulus, task.cycles, **extra)
+        if len(parts) > 1:
+            scene["duration"] = {"cycles": float(task.cycles) * share}
+        scenes.append(scene)
+    return phenotype, scenes
+
+
+@dataclass(frozen=True)
+class CompoundOutcome:
+    """The evaluation of a compound world's parts, as ``Result.of`` reads a ``sim.Result``."""
+
+    distance: float
+    stable: bool
+    reason: str | None
+
+
+def compound_outcome(outcomes: list[Any]) -> Any:
+    """One outcome from the parts' outcomes (``sim.Result`` or an exception): the first
+    exception if any part raised; else distance = the sum of the parts' distances (each the
+    distance its part travelled in its own world and share of the time), stable if every
+    part is (else the first unstable part's reason). One part is returned as it is."""
+    if len(outcomes) == 1:
+        return outcomes[0]
+    for outcome in outcomes:
+        if isinstance(outcome, BaseException):
+            return outcome
+    unstable = [outcome for outcome in outcomes if not outcome.stable]
+    return CompoundOutcome(
+        distance=float(sum(float(outcome.distance) for outcome in outcomes)),
+        stable=not unstable,
+        reason=unstable[0].reason if unstable else None,
+    )
 
 
 def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_FPS) -> int:
@@ -308,16 +360,14 @@ def replay(
     from softevo import sim
 
     task = task if isinstance(task, Task) else Task.from_json(task)
-    phenotype, scene = scene_of(task)
-    scene["record"] = {"every": int(every if every is not None else default_record_every(scene))}
-    result = sim.simulate_many([scene], threads=threads)[0]
-    t = np.asarray(result.frames["t"], dtype=float) if result.frames else np.zeros(0)
-    voxels = np.asarray(result.voxels, dtype=np.int64).reshape(-1, 3)
-    positions = (
-        np.asarray(result.frames["positions"], dtype=float).reshape(len(t), len(voxels), 3)
-        if result.frames
-        else np.zeros((0, len(voxels), 3))
-    )
+    phenotype, scenes = scenes_of(task)
+    every = int(every if every is not None else default_record_every(scenes[0]))
+    for scene in scenes:
+        scene["record"] = {"every": every}
+    results = sim.simulate_many(scenes, threads=threads)
+    voxels = np.asarray(results[0].voxels, dtype=np.int64).reshape(-1, 3)
+    t, positions = _joined_frames(results, len(voxels))
+    outcome = compound_outcome(results)
     index = np.arange(len(t))
     if max_frames is not None and len(t):
         keep = min(len(t), max(1, min(int(max_frames), MAX_FRAMES)))
@@ -328,8 +378,33 @@ def replay(
         "voxels": voxels,
         "material": material,
         "positions": positions[index],
-        "dt": np.float64(result.dt),
-        "stable": np.bool_(result.stable),
-        "distance": np.float64(result.distance),
-        "voxel_size": np.float64(scene["voxel_size"]),
+        "dt": np.float64(min(result.dt for result in results)),
+        "stable": np.bool_(outcome.stable),
+        "distance": np.float64(outcome.distance if outcome.stable else 0.0),
+        "voxel_size": np.float64(scenes[0]["voxel_size"]),
     }
+
+
+def _joined_frames(results: list[Any], n_voxels: int) -> tuple[np.ndarray, np.ndarray]:
+    """(t, positions) of the parts' frames one after the other: each later part starts at
+    the time the previous one ended (its first frame dropped), moved horizontally to where
+    the body's centre was."""
+    times, moves = [], []
+    offset_t, offset_xy = 0.0, np.zeros(2)
+    for result in results:
+        t = np.asarray(result.frames["t"], dtype=float) if result.frames else np.zeros(0)
+        positions = (
+            np.asarray(result.frames["positions"], dtype=float).reshape(len(t), n_voxels, 3)
+            if result.frames
+            else np.zeros((0, n_voxels, 3))
+        )
+        if times and len(t):  # its first frame is the previous part's last moment: dropped
+            start_xy = positions[0, :, :2].mean(axis=0)
+            t, positions = t[1:], positions[1:].copy()
+            positions[:, :, :2] += offset_xy - start_xy
+        if len(t):
+            offset_xy = positions[-1, :, :2].mean(axis=0)
+        times.append(t + offset_t)
+        moves.append(positions)
+        offset_t += float(result.simulated_seconds)
+    return np.concatenate(times), np.concatenate(moves)

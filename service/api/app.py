@@ -28,7 +28,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
 from softevo.errors import UserError
-from softevo.service.api.routes import experiments, health, individuals, runs
+from softevo.service.api.routes import experiments, health, individuals, phylogeny, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
 from softevo.service.db import open_database
@@ -271,7 +271,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     install_error_handlers(app)
-    for module in (health, experiments, runs, individuals):
+    for module in (health, experiments, runs, individuals, phylogeny):
         app.include_router(module.router)
     app.include_router(dashboard_router())  # /dashboard pages and assets
     return app

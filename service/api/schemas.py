@@ -48,6 +48,10 @@ class TreatmentIn(Strict):
     switch_at: int | None = Field(
         None, ge=1, le=MAX_INT32, description="first generation in the second environment"
     )
+    switch_over: int = Field(
+        0, ge=0, le=1_000_000,
+        description="generations of a gradual switch: compound worlds whose evaluations spend a "
+        "rising share of their cycles in the second environment (0: abrupt)")
     stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
     population: int = Field(Treatment.population, ge=2, le=10_000)
     generations: int = Field(Treatment.generations, ge=1, le=1_000_000)
@@ -79,7 +83,8 @@ class ExperimentIn(Strict):
 class PresetIn(Strict):
     """A preset experiment: the paper's grid at a scale (SPEC.md section 5)."""
 
-    preset: Literal["paper"]
+    preset: Literal["paper", "gradual"] = Field(
+        description="paper: the paper's grid; gradual: its two transitions, abrupt and gradual")
     scale: Literal["tiny", "small", "paper"] = "tiny"
     repetitions: int | None = Field(None, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)

@@ -7,6 +7,7 @@ coordinator) serve the same pages:
 
     /dashboard/                          experiments and their runs, live status
     /dashboard/runs/{id}                 fitness curves, Pareto front by generation
+    /dashboard/runs/{id}/tree            the phylogeny as a tree over generations (``tree``)
     /dashboard/individuals/{id}          genome, objectives, descriptors, lineage, 3D replay
     /dashboard/static/...                CSS, JS modules, vendored three.js, plotly.js
     /dashboard/api/individuals/{id}/body lattice, materials and actuation phases (JSON)
@@ -21,7 +22,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from softevo.service.dashboard import assets, body, pages
+from softevo.service.dashboard import assets, body, pages, tree
 
 PREFIX = "/dashboard"
 
@@ -30,6 +31,6 @@ def dashboard_router() -> APIRouter:
     """The dashboard's pages, assets and helper endpoint under ``/dashboard``."""
 
     router = APIRouter(prefix=PREFIX, include_in_schema=False)
-    for module in (assets, body, pages):
+    for module in (assets, body, pages, tree):
         router.include_router(module.router)
     return router

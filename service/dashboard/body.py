@@ -17,7 +17,7 @@ from fastapi import APIRouter, HTTPException, Path, Query
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.routes.individuals import stored_task
 from softevo.service.api.schemas import MAX_INT32
-from softevo.worker.tasks import scene_of
+from softevo.worker.tasks import scenes_of
 
 router = APIRouter()
 
@@ -59,7 +59,7 @@ def body(
 
     task = stored_task(services, individual_id, environment)
     try:
-        _, scene = scene_of(task)
+        _, (scene, *_) = scenes_of(task)  # a compound world: its first part's scene
     except ValueError as exc:  # an empty body, as the frames endpoint reports it
         raise HTTPException(404, f"individual {individual_id} has no body: {exc}") from exc
     return scene_body(scene)

@@ -13,6 +13,8 @@ parameters), one module per noun:
 - ``individuals``: one individual and its evaluations, ``individual_record``,
   ``local_to_db_ids``;
 - ``status``: run summaries and lineage records for displays; ``phylogeny``: lineages;
+  ``run_tree``: a run's tree (paged) and the dashboard's bounded sample of it;
+  ``exaptation``: founders' lines across an environment switch (``docs/sql.md``);
   ``export``: CSV/Parquet files; ``rows``: result rows as JSON-ready dicts;
 - ``store``: the write and lookup functions re-exported by their former home.
 """

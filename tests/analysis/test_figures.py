@@ -9,8 +9,9 @@ import pytest
 from PIL import Image
 
 from softevo.analysis import figures
+from softevo.analysis.exaptation import exaptation_figure, run_statistics
 from softevo.analysis.stats_tables import fitness_curves, statistics_table
-from softevo.service.reports import stored_robots
+from softevo.service.reports import exaptation_data, stored_robots
 
 # 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
 EXPECTED_PX = {
@@ -20,6 +21,7 @@ EXPECTED_PX = {
     "transitions": (1500, 440),  # one transition row of 4 in, + 0.4 in
     "robots": (1440, 300),  # 2 treatments x 3 robots of 2.4 in, one row of 2.6 in + 0.4 in
     "start_end": (1600, 900),
+    "exaptation": (1400, 480),
 }
 
 
@@ -38,7 +40,13 @@ def _make(name, data, tests, curves, engine, out):
         "transitions": lambda: figures.transitions_figure(data, curves, tests, out),
         "robots": lambda: figures.robots_figure(data, stored_robots(engine).phenotypes, out),
         "start_end": lambda: figures.start_end_figure(data, tests, rng, out),
+        "exaptation": lambda: _exaptation(data, engine, out),
     }[name]()
+
+
+def _exaptation(data, engine, out):
+    found = exaptation_data(engine, data)
+    return exaptation_figure(data, found, run_statistics(data, found), out)
 
 
 @pytest.mark.parametrize("name", figures.FIGURES)

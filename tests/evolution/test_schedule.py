@@ -101,3 +101,34 @@ def test_bad_entries_are_value_errors():
         Schedule([("", 0)])
     with pytest.raises(ValueError, match="not \\(environment, first generation\\)"):
         Schedule(["land"])
+
+
+def test_a_switch_over_spends_its_span_in_compound_worlds():
+    schedule = Schedule.parse("land:0,water:4+3")
+    assert schedule.spans == (0, 3) and schedule.format() == "land:0,water:4+3"
+    assert [schedule.environment_at(g) for g in range(3, 8)] == [
+        "land", "land>water@0.250", "land>water@0.500", "land>water@0.750", "water",
+    ]  # fmt: skip
+    assert [g for g in range(9) if schedule.switches_at(g)] == [4, 5, 6, 7]
+    assert schedule != Schedule([("land", 0), ("water", 4)])
+    with pytest.raises(ValueError, match="must end before"):
+        Schedule([("land", 0), ("water", 4), ("land", 6)], spans=[0, 2, 0])
+    with pytest.raises(ValueError, match="nothing to switch over from"):
+        Schedule([("land", 0)], spans=[1])
+
+
+def test_a_treatment_validates_its_switch_over():
+    from softevo.errors import UserError
+    from softevo.service.treatments import Treatment, gradual_grid
+
+    treatment = Treatment("water-land", 0.1, generations=10, switch_at=4, switch_over=3)
+    assert treatment.arrival_generation() == 7 and treatment.name.endswith("over 3")
+    assert Treatment.from_settings(treatment.to_settings()) == treatment
+    with pytest.raises(UserError, match="needs a transition"):
+        Treatment("land", 0.1, switch_over=2)
+    with pytest.raises(UserError, match="switch-over ends at generation 10"):
+        Treatment("land-water", 0.1, generations=10, switch_at=5, switch_over=5)
+    grid = gradual_grid("tiny")
+    assert [(t.environment, t.switch_over) for t in grid] == [
+        ("land-water", 0), ("land-water", 2), ("water-land", 0), ("water-land", 2),
+    ]  # fmt: skip

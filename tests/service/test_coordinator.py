@@ -61,7 +61,7 @@ def test_lineage_on_a_real_run(engine):
 def test_a_failing_and_an_unstable_evaluation_are_stored_and_the_run_goes_on(engine, monkeypatch):
     import softevo.worker.evaluate as evaluate
 
-    real_express, real_simulate = evaluate.scene_of, sim.simulate_many
+    real_express, real_simulate = evaluate.scenes_of, sim.simulate_many
 
     def express(task):
         if task.id == 1:
@@ -74,7 +74,7 @@ def test_a_failing_and_an_unstable_evaluation_are_stored_and_the_run_goes_on(eng
             results[0] = types.SimpleNamespace(distance=9.9, stable=False, reason="diverged")
         return results
 
-    monkeypatch.setattr(evaluate, "scene_of", express)
+    monkeypatch.setattr(evaluate, "scenes_of", express)
     monkeypatch.setattr(sim, "simulate_many", simulate_many)
     run_id = tinyrun.new_run(engine)
     tinyrun.run_to_end(engine, run_id)

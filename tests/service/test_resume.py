@@ -1,4 +1,5 @@
-"""Acceptance: SIGKILL mid-run (or mid-write), resume, and get the uninterrupted results."""
+"""Acceptance: SIGKILL mid-run (or mid-write), resume, and get the uninterrupted results;
+the same for a gradual transition killed inside its switch-over (compound worlds)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ import pytest
 from sqlalchemy import select
 
 from softevo.service.db import open_database
-from softevo.service.db.models import Run
+from softevo.service.db.models import Evaluation, Run
+from softevo.service.treatments import Treatment
 from tests.service import tinyrun
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -30,6 +32,31 @@ def reference(tmp_path_factory):
     return snap
 
 
+# generations 0-1 on land, 2-3 in land>water@0.333 / @0.667, 4 in water
+GRADUAL = Treatment(
+    "land-water",
+    0.1,
+    population=4,
+    generations=5,
+    workspace=(4, 4, 4),
+    cycles=2,
+    switch_at=2,
+    switch_over=2,
+    seed=11,
+)
+
+
+@pytest.fixture(scope="module")
+def gradual_reference(tmp_path_factory):
+    """The uninterrupted gradual run (SQLite)."""
+    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('gradual') / 'ref.db'}")
+    run_id = tinyrun.new_run(engine, GRADUAL)
+    tinyrun.run_to_end(engine, run_id)
+    snap = tinyrun.snapshot(engine, run_id)
+    engine.dispose()
+    return snap
+
+
 def _python(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, *args], cwd=ROOT, stderr=subprocess.PIPE)
 
@@ -37,6 +64,15 @@ def _python(*args: str) -> subprocess.Popen:
 def _generation(engine) -> int:
     with engine.connect() as conn:
         return conn.execute(select(Run.__table__.c.generation)).scalar_one()
+
+
+def _environments(engine) -> list[str]:
+    table = Evaluation.__table__
+    with engine.connect() as conn:
+        rows = conn.execute(
+            select(table.c.generation, table.c.environment).distinct().order_by(table.c.generation)
+        )
+        return [environment for _, environment in rows]
 
 
 def _resume_and_compare(engine, reference) -> None:
@@ -53,6 +89,17 @@ def test_sigkill_then_resume_is_identical(engine, db_url, reference, mode, gener
     committed = generation if mode == "after-commit" else generation - 1
     assert _generation(engine) == committed
     _resume_and_compare(engine, reference)
+
+
+def test_gradual_sigkill_inside_the_switch_over_then_resume_is_identical(engine, db_url, gradual_reference):
+    mode, generation = "during-write", 3  # generation 2 (land>water@0.333) committed, 3 half written
+    assert tinyrun.new_run(engine, GRADUAL) == 1
+    process = _python("-m", "tests.service.killed_run", db_url, mode, str(generation))
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == -signal.SIGKILL, stderr.decode()[-2000:]
+    assert _generation(engine) == (generation if mode == "after-commit" else generation - 1)
+    _resume_and_compare(engine, gradual_reference)
+    assert _environments(engine) == ["land", "land", "land>water@0.333", "land>water@0.667", "water"]
 
 
 @pytest.mark.slow

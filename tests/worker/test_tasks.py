@@ -81,15 +81,15 @@ def stored(tmp_path_factory):
     engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('tasks') / 'tasks.db'}")
     _, (run_id,) = create(engine, "tasks", [treatment])
     simulated = {}
-    real = evaluate.scene_of
+    real = evaluate.scenes_of
 
     def recording(task):
-        phenotype, scene = real(task)
-        simulated[(task.id, task.generation)] = plain(scene)
-        return phenotype, scene
+        phenotype, scenes = real(task)
+        (simulated[(task.id, task.generation)],) = plain(scenes)  # pure worlds: one scene
+        return phenotype, scenes
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(evaluate, "scene_of", recording)
+        patch.setattr(evaluate, "scenes_of", recording)
         Coordinator(engine, InlineExecutor()).run([run_id])
     yield engine, run_id, simulated
     engine.dispose()

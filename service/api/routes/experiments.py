@@ -32,7 +32,7 @@ from softevo.service.api.schemas import (
 )
 from softevo.service.db import experiments as db_experiments
 from softevo.service.experiments import create
-from softevo.service.treatments import Treatment, paper_grid
+from softevo.service.treatments import Treatment, preset_grid
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 log = logging.getLogger("softevo.api")
@@ -51,6 +51,7 @@ def _treatments(body: ExperimentIn):
             t.stiffness_mpa,
             name=t.name or "",
             switch_at=t.switch_at,
+            switch_over=t.switch_over,
             population=t.population,
             generations=t.generations,
             workspace=tuple(t.workspace),
@@ -85,7 +86,7 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     picks them up within a second. Body: ``{"name", "treatments": [...]}`` or
     ``{"preset": "paper", "scale"}``."""
     if isinstance(body, PresetIn):
-        treatments = paper_grid(body.scale, repetitions=body.repetitions, seed=body.seed)
+        treatments = preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed)
         name = body.name or f"{body.preset}-{body.scale}"
         experiment_id, run_ids = create(
             services.engine, name, treatments, preset=body.preset, scale=body.scale

@@ -1,0 +1,179 @@
+"""``softevo phylogeny | exaptation``: a run's tree, and what survived its transition.
+
+- ``softevo phylogeny RUN [--generation G] [--json | --csv]``: every individual of the run
+  (as it stood at generation ``G`` if given): id, parent, generation born, last generation
+  kept, environment and objectives at birth (``service.db.run_tree.run_phylogeny``), read
+  page by page.
+- ``softevo exaptation RUN [--json]``: for a transition run, the founders kept at the switch,
+  how many of their lines reach the last generation, the roots of the final population and,
+  per surviving line, the traits of the founder, at the switch and at the end with the
+  generation each first changed (``service.db.exaptation.exaptation``; the JSON is that of
+  ``GET /runs/{id}/exaptation`` without paging).
+
+RUN is a run id (``5``, ``r5``, ``run-5``). ``docs/sql.md`` gives the same as SQL.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from typing import Annotated
+
+import typer
+
+from softevo.errors import UserError
+from softevo.service.cli_runs import DbOption
+
+PAGE = 10_000
+PHYLOGENY_COLUMNS = (
+    "id",
+    "parent_id",
+    "generation_born",
+    "last_generation",
+    "environment",
+    "distance",
+    "active_share",
+    "voxel_count",
+)
+TRAIT_HEADERS = {
+    "voxel_count": "voxels",
+    "active_share": "active",
+    "frequency": "freq",
+    "symmetry": "symm",
+    "branching": "branch",
+    "shape_entropy": "entropy",
+}
+
+
+def one_run(conn, reference: str) -> int:
+    """The run id ``reference`` names; UserError unless it names exactly one run."""
+    from softevo.service.db.runs import parse_reference, resolve_runs
+
+    kind, _ = parse_reference(reference)
+    run_ids = resolve_runs(conn, reference)
+    if kind != "run" or len(run_ids) != 1:
+        raise UserError(f"{reference!r} is not one run; give a run id such as r5")
+    return run_ids[0]
+
+
+def phylogeny(
+    reference: Annotated[str, typer.Argument(metavar="RUN", help="run id: 5, r5")],
+    generation: Annotated[
+        int | None, typer.Option("--generation", help="the tree as it stood at this generation")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    as_csv: Annotated[bool, typer.Option("--csv", help="print CSV")] = False,
+    db: DbOption = None,
+) -> None:
+    """A run's phylogeny: every individual with its parent, birth, last generation kept,
+    environment and objectives at birth."""
+    from softevo.service.db import open_database
+    from softevo.service.db.run_tree import run_phylogeny
+
+    if as_json and as_csv:
+        raise UserError("give --json or --csv, not both")
+    if generation is not None and generation < 0:
+        raise UserError(f"--generation must be >= 0 (got {generation})")
+    engine = open_database(db)
+    rows = []
+    with engine.connect() as conn:
+        run_id = one_run(conn, reference)
+        total, offset = None, 0
+        while total is None or offset < total:
+            total, page = run_phylogeny(conn, run_id, generation, limit=PAGE, offset=offset)
+            rows.extend(page)
+            offset += PAGE
+    if as_json:
+        typer.echo(json.dumps(rows, indent=1))
+    elif as_csv:
+        writer = csv.DictWriter(sys.stdout, fieldnames=PHYLOGENY_COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    else:
+        _phylogeny_table(run_id, rows)
+
+
+def _phylogeny_table(run_id: int, rows: list[dict]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table("id", "parent", "born", "last kept", "environment", "distance", "active", "voxels",
+                  title=f"run {run_id}: {len(rows)} individuals")  # fmt: skip
+    for r in rows:
+        table.add_row(
+            str(r["id"]),
+            _cell(r["parent_id"]),
+            str(r["generation_born"]),
+            _cell(r["last_generation"]),
+            _cell(r["environment"]),
+            _cell(r["distance"]),
+            _cell(r["active_share"]),
+            _cell(r["voxel_count"]),
+        )
+    Console().print(table)
+
+
+def exaptation(
+    reference: Annotated[str, typer.Argument(metavar="RUN", help="run id: 5, r5")],
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    db: DbOption = None,
+) -> None:
+    """For a transition run: the founders kept at the switch, which of their lines survive
+    to the end, and the traits of each surviving line at the founder, the switch and the end."""
+    from softevo.service.db import open_database
+    from softevo.service.db.exaptation import exaptation as summary_of
+
+    engine = open_database(db)
+    with engine.connect() as conn:
+        summary = summary_of(conn, one_run(conn, reference))
+    if as_json:
+        typer.echo(json.dumps(summary, indent=1))
+        return
+    _exaptation_tables(summary)
+
+
+def _exaptation_tables(s: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    old, new = s["environments"]
+    gradual = f", over {s['switch_over']} generations" if s["switch_over"] else ""
+    console.print(
+        f"run {s['run_id']}: {old} -> {new} at generation {s['switch_at']}{gradual}; "
+        f"last generation {s['generation']}\n"
+        f"founders (kept at {s['switch_at'] - 1}): {s['founders']}, with lines to the end: "
+        f"{s['founders_surviving']}\n"
+        f"final population: {s['final_population']}, descending from founders: {s['from_founders']}; "
+        f"root newcomers: {', '.join(map(str, s['roots']))}"
+        f"{'' if s['every_line_rooted'] else ' (some ancestry does not reach a newcomer!)'}"
+    )
+    founders = Table("founder", "lines to the end", "on the final front", title="founders")
+    for f in s["founder_lines"]:
+        founders.add_row(str(f["founder_id"]), str(f["lines"]), str(f["front_lines"]))
+    console.print(founders)
+    title = "surviving lines: founder -> switch -> end (first changed at generation)"
+    lines = Table("founder", "final", "root", *TRAIT_HEADERS.values(), title=title)
+    for line in s["lines"]:
+        cells = []
+        for trait in TRAIT_HEADERS:
+            t = line["traits"][trait]
+            changed = "-" if t["first_changed"] is None else f"g{t['first_changed']}"
+            cells.append(f"{_cell(t['founder'])} > {_cell(t['switch'])} > {_cell(t['end'])} ({changed})")
+        lines.add_row(str(line["founder_id"]), str(line["individual_id"]), str(line["root_id"]), *cells)
+    console.print(lines)
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    return str(value)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``phylogeny`` and ``exaptation`` to ``app``."""
+    app.command("phylogeny")(phylogeny)
+    app.command("exaptation")(exaptation)
