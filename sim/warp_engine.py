@@ -167,6 +167,12 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
         shift = offsets[owner].reshape((-1,) + (1,) * (local.ndim - 1))
         return np.where(local >= 0, local + shift, -1)
 
+    def no_link_as_minus_one(vlink, loff, owner):
+        """``Robot.vlink`` marks a face without a link by the robot's link count (the numba
+        kernels read a zero there); the Warp kernels test for -1."""
+        count = np.diff(loff)[owner][:, None]
+        return np.where(vlink == count, -1, vlink)
+
     n_frames = batch.iparams[:, I_N_FRAMES].astype(np.int64)
     foff = _offsets(n_frames * np.diff(voff))
     if foff[-1] >= 2**31 or n_vox * MAX_CANDIDATES >= 2**31:  # Warp indexes with int32
@@ -204,7 +210,7 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
         vc=fl(batch.vconst),
         ext_force=fl(batch.ext_force),
         nbr=i32(globalise(batch.nbr, voff, robot_of_voxel)),
-        vlink=i32(globalise(batch.vlink, loff, robot_of_voxel)),
+        vlink=i32(globalise(no_link_as_minus_one(batch.vlink, loff, robot_of_voxel), loff, robot_of_voxel)),
         surface=i32(surface),
         is_surface=i32(is_surface),
         link_neg=i32(globalise(batch.link_neg, voff, robot_of_link)),
