@@ -285,6 +285,14 @@ def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_F
     return max(1, int(round(1.0 / (fps * dt))))
 
 
+def _steps(scene: Mapping[str, Any]) -> int:
+    """Steps the simulation of ``scene`` takes (the engine's own count)."""
+    from softevo.sim.scene import parse_scene
+    from softevo.sim.system import I_STEPS, build_robot
+
+    return max(1, int(build_robot(parse_scene(dict(scene))).iparams[I_STEPS]))
+
+
 def replay(
     task: Task | Mapping[str, Any],
     every: int | None = None,
@@ -293,7 +301,8 @@ def replay(
 ) -> dict[str, np.ndarray]:
     """Simulate ``task`` again recording voxel positions every ``every`` steps (default
     ``default_record_every``); with ``max_frames``, keep at most that many frames (and at
-    most ``MAX_FRAMES``) evenly spread, the first and last kept.
+    most ``MAX_FRAMES``) evenly spread, the first and last kept; at most twice as many are
+    recorded (``every`` raised as needed), so memory stays bounded however long the evaluation.
 
     Returns:
         t: (F,) float64 seconds of simulated time.
@@ -309,7 +318,10 @@ def replay(
 
     task = task if isinstance(task, Task) else Task.from_json(task)
     phenotype, scene = scene_of(task)
-    scene["record"] = {"every": int(every if every is not None else default_record_every(scene))}
+    every = int(every if every is not None else default_record_every(scene))
+    if max_frames is not None:  # record at most twice the frames kept: bounded memory
+        every = max(every, math.ceil(_steps(scene) / (2 * min(int(max_frames), MAX_FRAMES))))
+    scene["record"] = {"every": every}
     result = sim.simulate_many([scene], threads=threads)[0]
     t = np.asarray(result.frames["t"], dtype=float) if result.frames else np.zeros(0)
     voxels = np.asarray(result.voxels, dtype=np.int64).reshape(-1, 3)
