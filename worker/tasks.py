@@ -20,7 +20,8 @@
   ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
   phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
   not finish (worst fitness, the reason kept); the score of a finished one follows
-  ``evolution.individual.score``.
+  ``evolution.individual.score``. ``result_problem(data, id)`` says what is wrong with a
+  result received from elsewhere (None: nothing).
 - ``scene_of(task)``: (phenotype, scene) of a task, the scene the evaluation simulates.
 - ``replay(task, every)``: the evaluation simulated again with frames recorded (the
   simulator is deterministic: the motion is the one that was evaluated).
@@ -212,6 +213,24 @@ class Result:
             **_phenotype_fields(phenotype),
             seconds=seconds,
         )
+
+
+def result_problem(data: Any, task_id: Any) -> str | None:
+    """What is wrong with ``data`` as the JSON result of the task ``task_id`` (None: it is
+    one): a dict with that ``id``, a finite number ``distance``, a bool ``stable`` and a
+    string or null ``error``. The receiving side checks every result it did not compute."""
+    if not isinstance(data, dict):
+        return f"a result must be a JSON object, got {type(data).__name__}"
+    if data.get("id") != task_id:
+        return f"result for task {data.get('id')!r} where task {task_id!r} was expected"
+    distance = data.get("distance")
+    if isinstance(distance, bool) or not isinstance(distance, int | float) or not math.isfinite(distance):
+        return f"task {task_id}: distance must be a finite number, got {distance!r:.40}"
+    if not isinstance(data.get("stable"), bool):
+        return f"task {task_id}: stable must be true or false, got {data.get('stable')!r:.40}"
+    if not (data.get("error") is None or isinstance(data.get("error"), str)):
+        return f"task {task_id}: error must be a string or null"
+    return None
 
 
 def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> Result:

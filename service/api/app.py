@@ -33,7 +33,8 @@ from softevo.service.api.routes import experiments, health, individuals, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
 from softevo.service.db import open_database
-from softevo.service.driver import CoordinatorLoop, LocalLocks, RedisLocks
+from softevo.service.db.locks import DatabaseLocks
+from softevo.service.driver import CoordinatorLoop, RedisLocks
 from softevo.service.executors import make_executor
 from softevo.service.reports import write_report
 from softevo.service.settings import Settings
@@ -76,7 +77,7 @@ class Services:
         if settings.redis_url:
             locks = RedisLocks(settings.redis_url, settings.database_namespace())
         else:
-            locks = LocalLocks()
+            locks = DatabaseLocks(self.engine)  # two serve on one database: one drives a run
         self.loop = CoordinatorLoop(self.engine, self.executor, locks, stop=self.stop)
         self.loop.start()
 
@@ -93,6 +94,7 @@ class Services:
                 retries=settings.job_retries,
                 result_ttl=settings.result_ttl,
                 stop=self.stop,
+                max_result_bytes=settings.max_result_bytes,
             )
         self.executor_kind = "local"
         return make_executor(settings.workers, settings.genomes_per_job)
