@@ -30,6 +30,7 @@ SOFTEVO_MAX_JSON_DEPTH    deepest nesting of a JSON body; deeper: 422           
 SOFTEVO_MAX_VOXELS        voxels of a workspace or scene body, at most             8000
 SOFTEVO_MAX_VOXEL_STEPS   voxels x steps of one ``softevo simulate``, at most      2000000000
 SOFTEVO_MAX_RESULT_BYTES  JSON of one RQ job's results; larger: rejected, re-queued 1000000
+SOFTEVO_MAX_CONCURRENT_REQUESTS  requests in the routes at once (others wait)      32
 ========================  ======================================================  ==============
 
 The last group bounds what one request or command may cost (``service.limits``): an
@@ -82,6 +83,7 @@ class Settings(BaseSettings):
     max_voxels: int = Field(8000, ge=1)
     max_voxel_steps: float = Field(2e9, gt=0)
     max_result_bytes: int = Field(1_000_000, ge=1024)
+    max_concurrent_requests: int = Field(32, ge=1, le=40)  # below the 40 threads, 50 connections
 
     @field_validator("redis_url", "token", "read_token", "workers", mode="before")
     @classmethod

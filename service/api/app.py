@@ -22,13 +22,14 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
 from softevo.errors import UserError
 from softevo.service.api.expensive import Busy, ExpensiveReads
 from softevo.service.api.frames import recorded_frames
-from softevo.service.api.guards import BodyLimits
+from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
 from softevo.service.api.routes import experiments, health, individuals, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
@@ -197,6 +198,13 @@ def _allowed_methods(request: Request) -> list[str]:
     return sorted(methods)
 
 
+async def _pool_timeout(request: Request, exc: PoolTimeout) -> JSONResponse:
+    log.warning("no database connection free for %s: %s", request.url.path, exc)
+    return _error(
+        503, "the server is busy: no database connection free; try again shortly", {"Retry-After": "1"}
+    )
+
+
 async def _busy(request: Request, exc: Busy) -> JSONResponse:
     return _error(429, str(exc), {"Retry-After": str(exc.retry_after)})
 
@@ -218,6 +226,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(UserError, _user_error)
     app.add_exception_handler(Busy, _busy)
+    app.add_exception_handler(PoolTimeout, _pool_timeout)
     app.add_exception_handler(DBAPIError, _database_error)
 
 
@@ -254,4 +263,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(module.router)
     app.include_router(dashboard_router())  # /dashboard pages and assets
     app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
+    app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)  # outermost
     return app

@@ -1,4 +1,8 @@
-"""``BodyLimits``: the ASGI middleware that refuses request bodies the API should never parse.
+"""The API's ASGI guards: ``BodyLimits`` refuses request bodies the API should never parse;
+``ConcurrencyLimit`` lets at most ``SOFTEVO_MAX_CONCURRENT_REQUESTS`` requests into the routes
+at once (the others wait their turn in the event loop): below the thread pool's 40 threads
+and the database pool's connections, so that requests holding a connection never wait for a
+thread held by requests waiting for a connection.
 
 - A body over ``max_bytes`` (``SOFTEVO_MAX_BODY_BYTES``, default 1 MB) is refused with 413,
   from its ``Content-Length`` before anything is read, or while it streams in (chunked):
@@ -12,6 +16,7 @@ Errors have the API's shape, ``{"detail": message, "errors": [...]}``.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import math
 from typing import Any
@@ -124,3 +129,21 @@ class BodyLimits:
             if not message.get("more_body", False):
                 break
         return b"".join(parts)
+
+
+class ConcurrencyLimit:
+    """See the module doc."""
+
+    def __init__(self, app: ASGIApp, limit: int) -> None:
+        self.app = app
+        self.limit = limit
+        self._slots: asyncio.Semaphore | None = None  # made in the server's event loop
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        if self._slots is None:
+            self._slots = asyncio.Semaphore(self.limit)
+        async with self._slots:
+            await self.app(scope, receive, send)
