@@ -31,6 +31,7 @@ SOFTEVO_MAX_VOXELS        voxels of a workspace or scene body, at most          
 SOFTEVO_MAX_VOXEL_STEPS   voxels x steps of one ``softevo simulate``, at most      2000000000
 SOFTEVO_MAX_RESULT_BYTES  JSON of one RQ job's results; larger: rejected, re-queued 1000000
 SOFTEVO_MAX_CONCURRENT_REQUESTS  requests in the routes at once (others wait)      32
+SOFTEVO_READ_CACHE_SECONDS  a GET's answer is reused this long (0: off)            1
 ========================  ======================================================  ==============
 
 The last group bounds what one request or command may cost (``service.limits``): an
@@ -84,6 +85,7 @@ class Settings(BaseSettings):
     max_voxel_steps: float = Field(2e9, gt=0)
     max_result_bytes: int = Field(1_000_000, ge=1024)
     max_concurrent_requests: int = Field(32, ge=1, le=40)  # below the 40 threads, 50 connections
+    read_cache_seconds: float = Field(1.0, ge=0, le=60)
 
     @field_validator("redis_url", "token", "read_token", "workers", mode="before")
     @classmethod

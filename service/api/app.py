@@ -30,6 +30,7 @@ from softevo.errors import UserError
 from softevo.service.api.expensive import Busy, ExpensiveReads
 from softevo.service.api.frames import recorded_frames
 from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
+from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import experiments, health, individuals, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
@@ -263,5 +264,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(module.router)
     app.include_router(dashboard_router())  # /dashboard pages and assets
     app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
-    app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)  # outermost
+    app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)
+    app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # outermost: hits wait for nothing
     return app

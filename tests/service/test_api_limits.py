@@ -8,6 +8,7 @@ on a database holding a real tiny run:
   ``Retry-After``; ``SOFTEVO_READ_TOKEN`` guards them;
 - bodies: over ``SOFTEVO_MAX_BODY_BYTES`` 413, nested deeper than ``SOFTEVO_MAX_JSON_DEPTH``
   or holding NaN / Infinity / 1e999 422, a 30^3 workspace 422, each answered at once;
+- repeated reads are answered from memory (``SOFTEVO_READ_CACHE_SECONDS``) until a write;
 - the CLI: a 30^3 scene, a 20^3 scene of 10^6 steps and a 30^3 workspace are one error line
   and exit status 2, before anything is simulated.
 """
@@ -132,6 +133,18 @@ def test_a_huge_workspace_is_refused(served):
     assert "27000 voxels" in response.json()["detail"] and "SOFTEVO_MAX_VOXELS" in response.json()["detail"]
     experiments = httpx.get(f"{base}/experiments").json()
     assert [e["name"] for e in experiments] == ["test"]  # nothing was created
+
+
+def test_repeated_reads_are_answered_from_memory_until_a_write(served):
+    base, _ = served
+    url = f"{base}/experiments"
+    assert httpx.post(f"{base}/runs/1/cancel", headers=auth()).status_code == 409  # a write
+    first, second = httpx.get(url), httpx.get(url)
+    assert "x-read-cache" not in first.headers and second.headers["x-read-cache"] == "hit"
+    assert second.json() == first.json()
+    assert httpx.post(f"{base}/runs/1/cancel", headers=auth()).status_code == 409  # a write
+    assert "x-read-cache" not in httpx.get(url).headers  # the cache was emptied
+    assert "x-read-cache" not in httpx.get(f"{base}/health").headers  # never cached
 
 
 def test_json_depth():
