@@ -61,17 +61,12 @@ class TreatmentIn(Strict):
     evolve_stiffness: bool = Field(
         Treatment.evolve_stiffness,
         description="evolve a Young's modulus per voxel within stiffness_range_mpa "
-        "(stiffness_mpa is then unused by the physics)",
-    )
+        "(stiffness_mpa is then unused by the physics)")
     frequency_per_voxel: bool = Field(
-        Treatment.frequency_per_voxel, description="each voxel actuates at its own frequency"
-    )
+        Treatment.frequency_per_voxel, description="each voxel actuates at its own frequency")
     stiffness_range_mpa: list[Annotated[float, Field(ge=0.001, le=10.0, allow_inf_nan=False)]] = Field(
-        list(Treatment.stiffness_range_mpa),
-        min_length=2,
-        max_length=2,
-        description="[low, high] MPa of an evolved stiffness (default the paper's S1..S5)",
-    )
+        list(Treatment.stiffness_range_mpa), min_length=2, max_length=2,
+        description="[low, high] MPa of an evolved stiffness (default the paper's S1..S5)")
 
 
 class ExperimentIn(Strict):
