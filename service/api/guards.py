@@ -131,6 +131,10 @@ class BodyLimits:
         return b"".join(parts)
 
 
+UNLIMITED_SUFFIXES = ("/frames", "/report")  # they wait on the background process, holding no
+# connection, and ``service.api.expensive`` bounds them itself (429)
+
+
 class ConcurrencyLimit:
     """See the module doc."""
 
@@ -140,7 +144,7 @@ class ConcurrencyLimit:
         self._slots: asyncio.Semaphore | None = None  # made in the server's event loop
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
+        if scope["type"] != "http" or scope["path"].endswith(UNLIMITED_SUFFIXES):
             await self.app(scope, receive, send)
             return
         if self._slots is None:
