@@ -87,11 +87,11 @@ def test_frames_are_cached_shared_and_refused_when_the_queue_is_full(served):
     again = httpx.get(url, params={"every": 40, "max_frames": 20}, headers=read_auth(), timeout=60)
     assert again.headers["x-cache"] == "hit" and again.content == same[0].content
     assert decode_frames(again.content)["positions"].shape[0] == 20
-    # other recording settings are another key: five distinct simulations at once
+    # other recording settings are another key: eight distinct simulations at once
     started = time.monotonic()
-    mixed = asyncio.run(_frames_at_once(base, [(individual, 50 + k) for k in range(5)]))
+    mixed = asyncio.run(_frames_at_once(base, [(individual, 50 + k) for k in range(8)]))
     codes = sorted(r.status_code for r in mixed)
-    assert codes.count(200) >= 1 and codes.count(429) >= 5 - QUEUE, codes
+    assert codes.count(200) >= QUEUE and codes.count(429) >= 1, codes
     assert set(codes) <= {200, 429}
     for refused in (r for r in mixed if r.status_code == 429):
         assert int(refused.headers["retry-after"]) >= 1
