@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime
 
 import httpx
@@ -65,7 +66,14 @@ def read_auth() -> dict[str, str]:
     return {"Authorization": f"Bearer {READ_TOKEN}"}
 
 
-async def _frames_at_once(base: str, requests: list[tuple[int, int]]) -> list[httpx.Response]:
+def _frames_at_once(base: str, requests: list[tuple[int, int]]) -> list[httpx.Response]:
+    """The frames requests sent at once; in a thread of its own, since another test's
+    browser may have left an event loop running in this one."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, _gather_frames(base, requests)).result()
+
+
+async def _gather_frames(base: str, requests: list[tuple[int, int]]) -> list[httpx.Response]:
     async with httpx.AsyncClient(base_url=base, timeout=120, headers=read_auth()) as client:
         calls = [
             client.get(f"/individuals/{i}/frames", params={"every": every, "max_frames": 20})
@@ -80,7 +88,7 @@ def test_frames_are_cached_shared_and_refused_when_the_queue_is_full(served):
     url = f"{base}/individuals/{individual}/frames"
     assert httpx.get(url, params={"max_frames": 20}).status_code == 401  # SOFTEVO_READ_TOKEN
     # three concurrent requests for one robot: one simulation, none refused (queue of 2)
-    same = asyncio.run(_frames_at_once(base, [(individual, 40)] * 3))
+    same = _frames_at_once(base, [(individual, 40)] * 3)
     assert [r.status_code for r in same] == [200] * 3
     assert len({r.content for r in same}) == 1
     assert [r.headers["x-cache"] for r in same] == ["miss"] * 3
@@ -89,7 +97,7 @@ def test_frames_are_cached_shared_and_refused_when_the_queue_is_full(served):
     assert decode_frames(again.content)["positions"].shape[0] == 20
     # other recording settings are another key: eight distinct simulations at once
     started = time.monotonic()
-    mixed = asyncio.run(_frames_at_once(base, [(individual, 50 + k) for k in range(8)]))
+    mixed = _frames_at_once(base, [(individual, 50 + k) for k in range(8)])
     codes = sorted(r.status_code for r in mixed)
     assert codes.count(200) >= QUEUE and codes.count(429) >= 1, codes
     assert set(codes) <= {200, 429}
