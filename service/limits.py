@@ -6,8 +6,6 @@
 - ``check_scene(scene)``: a scene's body holds at most ``max_voxels`` voxels and its
   simulation at most ``max_voxel_steps`` voxel-steps (``SOFTEVO_MAX_VOXEL_STEPS``, default
   2e9: a few minutes on one core), checked before anything is simulated or allocated.
-- ``recording_every(steps, every, frames)``: the step interval a replay records at so that it
-  keeps at most ``frames`` frames in memory, whatever ``every`` was asked.
 
 Every check raises ``softevo.errors.UserError`` whose message names the limit's variable.
 """
@@ -71,9 +69,3 @@ def check_scene(scene: Mapping[str, Any], settings: Settings | None = None) -> t
             f"more than the limit of {settings.max_voxel_steps:.3g} (SOFTEVO_MAX_VOXEL_STEPS)"
         )
     return voxels, steps
-
-
-def recording_every(steps: int, every: int, frames: int) -> int:
-    """The smallest interval >= ``every`` that records at most ``frames`` frames of a
-    ``steps``-step simulation."""
-    return max(int(every), math.ceil(max(int(steps), 1) / max(1, int(frames) - 1)))
