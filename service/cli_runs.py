@@ -38,6 +38,9 @@ def _parse_workspace(text: str) -> tuple[int, int, int]:
         sizes = ()
     if len(sizes) != 3 or min(sizes) < 1:
         raise UserError(f"--workspace must be three positive integers X,Y,Z (got {text!r})")
+    from softevo.service.limits import check_workspace
+
+    check_workspace(sizes)
     return sizes  # type: ignore[return-value]
 
 

@@ -6,7 +6,8 @@ JSON object; ``--record out.npz`` also writes the frames (``t`` (n_frames,) seco
 without a ``record`` field is recorded at about ``worker.tasks.DEFAULT_RECORD_FPS`` frames
 per simulated second (``worker.tasks.default_record_every``) when ``--record`` is given.
 
-Mistakes (missing file, invalid JSON, malformed scene, unwritable output) raise
+Mistakes (missing file, invalid JSON, malformed scene, a scene over the limits of
+``service.limits``: ``SOFTEVO_MAX_VOXELS``, ``SOFTEVO_MAX_VOXEL_STEPS``, unwritable output) raise
 ``UserError`` / ``sim.SceneError``; ``service.cli.main`` turns them into one line and exit 2.
 An unstable robot is a result, not an error: it is reported with its reason and exit 0.
 """
@@ -96,9 +97,10 @@ def simulate(
 ) -> None:
     """Simulate one scene and print its result."""
     from softevo import sim
+    from softevo.service.limits import check_scene
 
     scene_dict = _read_scene(scene_path)
-    sim.parse_scene(scene_dict)  # fail fast, before compiling anything, on a malformed scene
+    check_scene(scene_dict)  # fail fast, before compiling anything: malformed, too large or too long
     if record is not None and "record" not in scene_dict:
         scene_dict = {**scene_dict, "record": {"every": default_record_every(scene_dict)}}
     started = time.perf_counter()

@@ -28,7 +28,9 @@ from typing import Any
 
 import numpy as np
 from sqlalchemy import Engine
+from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
+from softevo.errors import UserError
 from softevo.evolution.afpo import Evolution
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 from softevo.service.db.generations import GenerationRecord, record_generation
@@ -38,6 +40,27 @@ from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task
+
+SQLITE_UNAVAILABLE = ("disk", "full", "readonly", "read-only", "locked", "unable to open", "i/o")
+
+
+class DatabaseUnavailable(UserError):
+    """The database cannot be reached or written (server down, disk full, read-only file):
+    the run pauses at its last stored generation instead of failing; ``softevo serve``
+    retries, ``softevo run``/``resume`` stop with this one line (exit status 2)."""
+
+
+def database_unavailable(exc: BaseException) -> bool:
+    """Whether ``exc`` says the database is away or cannot be written (not a bug in a run)."""
+    if isinstance(exc, DBAPIError) and exc.connection_invalidated:
+        return True
+    if isinstance(exc, InterfaceError):
+        return True
+    if not isinstance(exc, OperationalError):
+        return False
+    if type(exc.orig).__module__.startswith("sqlite3"):  # sqlite3 says OperationalError for bugs too
+        return any(word in str(exc.orig).lower() for word in SQLITE_UNAVAILABLE)
+    return True
 
 
 @dataclass(frozen=True)
@@ -277,10 +300,18 @@ class Coordinator:
         return True
 
     def _guard(self, run: ActiveRun, function, *args):
-        """Call ``function``; a bug in one run marks it failed and the others go on."""
+        """Call ``function``; a bug in one run marks it failed and the others go on. A
+        database that cannot be reached or written fails no run: ``DatabaseUnavailable``."""
         try:
             return function(*args)
-        except Exception:
+        except Exception as exc:
+            if database_unavailable(exc):
+                reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()[0]
+                raise DatabaseUnavailable(
+                    f"the database cannot be written or reached ({reason}); run {run.run_id} is "
+                    f"paused after generation {run.next_generation - 1}, every generation before "
+                    f"is stored: free space or restart the database, then softevo resume r{run.run_id}"
+                ) from exc
             with self.engine.begin() as conn:
                 set_run_status(conn, run.run_id, RunStatus.FAILED, traceback.format_exc())
             return None

@@ -10,8 +10,10 @@ that expired) resumes every run from its last stored generation.
 
 Locks: with Redis, a key per run (``SET NX PX``, renewed every ``ttl / 3`` seconds by a
 thread, re-taken after a Redis restart if nobody else did); a coordinator that dies lets its
-locks expire within ``ttl``. Without Redis, locks are held in this process only: run one
-``softevo serve`` per database.
+locks expire within ``ttl``. Without Redis, the database holds them
+(``service.db.locks.DatabaseLocks``: PostgreSQL advisory locks, a lock file beside a SQLite
+file). A coordinator that finds a run locked by another logs once who holds it and waits:
+it takes the run over when the lock is freed.
 """
 
 from __future__ import annotations
@@ -24,7 +26,15 @@ from typing import Protocol
 
 from sqlalchemy import Engine
 
-from softevo.service.coordinator import ActiveRun, Coordinator, GenerationReport, load_run, unfinished_runs
+from softevo.service.coordinator import (
+    ActiveRun,
+    Coordinator,
+    DatabaseUnavailable,
+    GenerationReport,
+    database_unavailable,
+    load_run,
+    unfinished_runs,
+)
 from softevo.service.db.models import RunStatus
 from softevo.service.db.runs import set_run_status
 from softevo.service.executors import Executor
@@ -129,6 +139,11 @@ class RedisLocks:
         value = self.connection.get(self.key(run_id))
         return value.decode() if value else None
 
+    def holder(self, run_id: int) -> str:
+        """Who holds ``run_id``'s lock, in words."""
+        owner = self.owner(run_id)
+        return f"Redis key {self.key(run_id)} is held by coordinator {owner or '(expired just now)'}"
+
 
 class CoordinatorLoop:
     """Drives the database's unfinished runs in a background thread (see the module doc)."""
@@ -151,6 +166,7 @@ class CoordinatorLoop:
         self.active: list[ActiveRun] = []
         self.cancelled: set[int] = set()
         self.lost: set[int] = set()
+        self.waiting: set[int] = set()  # runs locked by another coordinator (logged once)
         self.coordinator = Coordinator(engine, executor, on_generation=self._on_generation)
         self._threads: list[threading.Thread] = []
 
@@ -186,7 +202,12 @@ class CoordinatorLoop:
                     self.stop_event.wait(self.poll_seconds)
             except ExecutorStopped:
                 break
-            except Exception:
+            except Exception as exc:
+                if isinstance(exc, DatabaseUnavailable) or database_unavailable(exc):
+                    log.warning("%s; retrying in %.0f s", exc, self.poll_seconds * 5)
+                    self._reset()
+                    self.stop_event.wait(self.poll_seconds * 5)
+                    continue
                 log.exception("coordinator round failed; reloading runs from the database")
                 self._reset()
                 self.stop_event.wait(self.poll_seconds * 5)
@@ -211,8 +232,12 @@ class CoordinatorLoop:
         self.locks.release(dropped)
         held = {run.run_id for run in self.active}
         for run_id in unfinished:
-            if run_id in held or not self.locks.acquire(run_id):
+            if run_id in held:
                 continue
+            if not self.locks.acquire(run_id):
+                self._waits_for(run_id)
+                continue
+            self.waiting.discard(run_id)
             try:
                 run = load_run(self.engine, run_id)
             except Exception as exc:
@@ -223,6 +248,18 @@ class CoordinatorLoop:
             self._mark_running(run_id)
             log.info("driving run %d from generation %d", run_id, run.next_generation)
             self.active.append(run)
+
+    def _waits_for(self, run_id: int) -> None:
+        """Say once why a run is not driven here."""
+        if run_id in self.waiting:
+            return
+        self.waiting.add(run_id)
+        describe = getattr(self.locks, "holder", None)
+        try:
+            who = describe(run_id) if describe else "its lock is taken"
+        except Exception as exc:  # the description must not stop the loop
+            who = f"its lock is taken ({exc})"
+        log.warning("run %d is driven by another coordinator: %s; waiting for its lock", run_id, who)
 
     def _reset(self) -> None:
         self.locks.release([run.run_id for run in self.active])

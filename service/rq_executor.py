@@ -20,6 +20,10 @@ order, ``workers``, ``close``). What travels:
   failed result (worst fitness, the error kept), never an endless retry.
 - Redis restarted or unreachable: the executor waits with back-off and resubmits every job
   Redis forgot; results are taken once per task, so a batch that ran twice changes nothing.
+- A job that returns unusable results (not one well-formed result per task:
+  ``worker.tasks.result_problem``, or more than ``max_result_bytes`` of JSON) is logged with
+  the worker that ran it, deleted and queued again, at most ``MAX_BAD_RESULTS`` times; then
+  its genomes get failed results that say why.
 """
 
 from __future__ import annotations
@@ -45,7 +49,7 @@ from rq.worker_registration import clean_worker_registry
 from softevo import __version__
 from softevo.service.executors import Task, chunks
 from softevo.worker.rq_worker import VERSION_KEY
-from softevo.worker.tasks import failed
+from softevo.worker.tasks import failed, result_problem
 
 JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"
 WAITING = {
@@ -58,6 +62,7 @@ WAITING = {
     JobStatus.RATE_LIMITED.value,
 }
 MAX_BAD_RESULTS = 3  # resubmits of a batch whose job "finished" without usable results
+MAX_RESULT_BYTES = 1_000_000  # JSON of one job's results, at most (SOFTEVO_MAX_RESULT_BYTES)
 
 log = logging.getLogger(__name__)
 
@@ -139,6 +144,7 @@ class RQExecutor:
         maintenance_seconds: float = 2.0,
         stop: threading.Event | None = None,
         across_runs: bool = False,
+        max_result_bytes: int = MAX_RESULT_BYTES,
     ) -> None:
         self.connection = connect(redis_url)
         self.queue = Queue(queue, connection=self.connection, serializer=JSONSerializer)
@@ -148,6 +154,7 @@ class RQExecutor:
         self.retries = retries
         self.result_ttl = result_ttl
         self.maintenance_seconds = maintenance_seconds
+        self.max_result_bytes = max_result_bytes
         self.stop = stop or threading.Event()
         self._last_maintenance = 0.0
 
@@ -313,15 +320,35 @@ class RQExecutor:
         """The batch's results, or None (and the job deleted) if they are missing or wrong."""
         job = Job.fetch_many([batch.job_id], connection=self.connection, serializer=JSONSerializer)
         value = job[0].return_value(refresh=True) if job[0] is not None else None
-        expected = [task["id"] for task in batch.tasks]
-        if isinstance(value, list) and [r.get("id") for r in value if isinstance(r, dict)] == (expected):
+        problem = self._problem(batch, value)
+        if problem is None:
             return value
         batch.bad_results += 1
+        worker = (job[0].worker_name if job[0] is not None else None) or "(unknown)"
+        log.warning(
+            "job %s from worker %s returned unusable results: %s (%d of %d)",
+            batch.job_id, worker, problem, batch.bad_results, MAX_BAD_RESULTS + 1,
+        )  # fmt: skip
         if batch.bad_results > MAX_BAD_RESULTS:
-            error = f"job {batch.job_id} returned no usable results"
+            error = f"job {batch.job_id} returned no usable results: {problem}"
             return [failed_result(task, error) for task in batch.tasks]
         if job[0] is not None:
             job[0].delete()
+        return None
+
+    def _problem(self, batch: Batch, value: Any) -> str | None:
+        """Why ``value`` is not the batch's results (None: it is)."""
+        if value is None:
+            return "no result stored"
+        if not isinstance(value, list) or len(value) != len(batch.tasks):
+            return f"expected a list of {len(batch.tasks)} results, got {type(value).__name__}"
+        size = len(json.dumps(value, separators=(",", ":"), default=str))
+        if size > self.max_result_bytes:
+            return f"{size} bytes of results, more than {self.max_result_bytes} (SOFTEVO_MAX_RESULT_BYTES)"
+        for task, result in zip(batch.tasks, value, strict=True):
+            problem = result_problem(result, task["id"])
+            if problem:
+                return problem
         return None
 
     def _failed(self, batch: Batch) -> list[Task] | dict[str, Batch]:

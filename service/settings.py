@@ -22,7 +22,23 @@ SOFTEVO_RESULT_TTL        seconds Redis keeps a job's result                    
 SOFTEVO_HEARTBEAT_TTL     a worker silent this long has its job re-dispatched      30
 SOFTEVO_COORDINATOR       ``serve`` also drives runs (false: API only)             true
 SOFTEVO_REPORTS           directory of experiment reports                          reports
+SOFTEVO_READ_TOKEN        bearer token of the expensive reads (frames, report)     unset (open)
+SOFTEVO_BACKGROUND_QUEUE  expensive reads computing or waiting at once; more: 429   4
+SOFTEVO_FRAMES_CACHE_MB   memory kept for recorded frames (LRU)                    128
+SOFTEVO_REPORT_INTERVAL   seconds between rebuilds of a live experiment's report   60
+SOFTEVO_MAX_BODY_BYTES    largest request body; larger: 413                        1000000
+SOFTEVO_MAX_JSON_DEPTH    deepest nesting of a JSON body; deeper: 422              32
+SOFTEVO_MAX_VOXELS        voxels of a workspace or scene body, at most             8000
+SOFTEVO_MAX_VOXEL_STEPS   voxels x steps of one ``softevo simulate``, at most      2000000000
+SOFTEVO_MAX_RESULT_BYTES  JSON of one RQ job's results; larger: rejected, re-queued 1000000
+SOFTEVO_MAX_CONCURRENT_REQUESTS  requests in the routes at once (others wait)      32
+SOFTEVO_READ_CACHE_SECONDS  a GET's answer is reused this long (0: off)            1
 ========================  ======================================================  ==============
+
+The last group bounds what one request or command may cost (``service.limits``): an
+expensive read (recorded frames, the report) runs in one background process, at most once at
+a time per key, its answer cached; when ``SOFTEVO_BACKGROUND_QUEUE`` of them are already
+computing or waiting, a new one is refused with 429 and ``Retry-After``.
 
 With no token the write endpoints are open, so the server refuses to start on any address
 but the loopback one (``check_safe``).
@@ -61,8 +77,19 @@ class Settings(BaseSettings):
     heartbeat_ttl: int = Field(30, ge=3)
     coordinator: bool = True
     reports: str = "reports"
+    read_token: SecretStr | None = None
+    background_queue: int = Field(4, ge=1, le=1000)
+    frames_cache_mb: int = Field(128, ge=0)
+    report_interval: float = Field(60.0, ge=0)
+    max_body_bytes: int = Field(1_000_000, ge=1024)
+    max_json_depth: int = Field(32, ge=4, le=1000)
+    max_voxels: int = Field(8000, ge=1)
+    max_voxel_steps: float = Field(2e9, gt=0)
+    max_result_bytes: int = Field(1_000_000, ge=1024)
+    max_concurrent_requests: int = Field(32, ge=1, le=40)  # below the 40 threads, 50 connections
+    read_cache_seconds: float = Field(1.0, ge=0, le=60)
 
-    @field_validator("redis_url", "token", "workers", mode="before")
+    @field_validator("redis_url", "token", "read_token", "workers", mode="before")
     @classmethod
     def _empty_is_unset(cls, value):
         return None if value == "" else value
@@ -71,6 +98,11 @@ class Settings(BaseSettings):
     def token_value(self) -> str | None:
         """The bearer token in clear (None when unset)."""
         return self.token.get_secret_value() if self.token else None
+
+    @property
+    def read_token_value(self) -> str | None:
+        """The token of the expensive reads in clear (None: they are open)."""
+        return self.read_token.get_secret_value() if self.read_token else None
 
     def is_loopback(self) -> bool:
         """Whether ``host`` only accepts connections from this machine."""

@@ -20,7 +20,8 @@
   ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
   phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
   not finish (worst fitness, the reason kept); the score of a finished one follows
-  ``evolution.individual.score``.
+  ``evolution.individual.score``. ``result_problem(data, id)`` says what is wrong with a
+  result received from elsewhere (None: nothing).
 - ``scene_of(task)``: (phenotype, scene) of a task in a pure world, the scene the evaluation
   simulates; ``scenes_of(task)``: (phenotype, scenes) for any world, one scene per part of a
   compound world (``evolution.worlds``: a gradual transition's ``land>water@0.250`` runs
@@ -218,6 +219,24 @@ class Result:
         )
 
 
+def result_problem(data: Any, task_id: Any) -> str | None:
+    """What is wrong with ``data`` as the JSON result of the task ``task_id`` (None: it is
+    one): a dict with that ``id``, a finite number ``distance``, a bool ``stable`` and a
+    string or null ``error``. The receiving side checks every result it did not compute."""
+    if not isinstance(data, dict):
+        return f"a result must be a JSON object, got {type(data).__name__}"
+    if data.get("id") != task_id:
+        return f"result for task {data.get('id')!r} where task {task_id!r} was expected"
+    distance = data.get("distance")
+    if isinstance(distance, bool) or not isinstance(distance, int | float) or not math.isfinite(distance):
+        return f"task {task_id}: distance must be a finite number, got {distance!r:.40}"
+    if not isinstance(data.get("stable"), bool):
+        return f"task {task_id}: stable must be true or false, got {data.get('stable')!r:.40}"
+    if not (data.get("error") is None or isinstance(data.get("error"), str)):
+        return f"task {task_id}: error must be a string or null"
+    return None
+
+
 def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> Result:
     """The result of an evaluation that could not finish (a bad genome, a crash, a lost
     job): ``FAILED_DISTANCE``, unstable, ``reason`` as its error. ``task`` may be a ``Task``
@@ -337,6 +356,14 @@ def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_F
     return max(1, int(round(1.0 / (fps * dt))))
 
 
+def _steps(scene: Mapping[str, Any]) -> int:
+    """Steps the simulation of ``scene`` takes (the engine's own count)."""
+    from softevo.sim.scene import parse_scene
+    from softevo.sim.system import I_STEPS, build_robot
+
+    return max(1, int(build_robot(parse_scene(dict(scene))).iparams[I_STEPS]))
+
+
 def replay(
     task: Task | Mapping[str, Any],
     every: int | None = None,
@@ -345,7 +372,8 @@ def replay(
 ) -> dict[str, np.ndarray]:
     """Simulate ``task`` again recording voxel positions every ``every`` steps (default
     ``default_record_every``); with ``max_frames``, keep at most that many frames (and at
-    most ``MAX_FRAMES``) evenly spread, the first and last kept.
+    most ``MAX_FRAMES``) evenly spread, the first and last kept; at most twice as many are
+    recorded (``every`` raised as needed), so memory stays bounded however long the evaluation.
 
     Returns:
         t: (F,) float64 seconds of simulated time.
@@ -362,6 +390,9 @@ def replay(
     task = task if isinstance(task, Task) else Task.from_json(task)
     phenotype, scenes = scenes_of(task)
     every = int(every if every is not None else default_record_every(scenes[0]))
+    if max_frames is not None:  # record at most twice the frames kept: bounded memory
+        steps = sum(_steps(scene) for scene in scenes)
+        every = max(every, math.ceil(steps / (2 * min(int(max_frames), MAX_FRAMES))))
     for scene in scenes:
         scene["record"] = {"every": every}
     results = sim.simulate_many(scenes, threads=threads)

@@ -12,10 +12,8 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import multiprocessing
 import threading
 from collections.abc import AsyncIterator
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import asynccontextmanager
 from typing import Any
 
@@ -24,20 +22,24 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
 from softevo.errors import UserError
+from softevo.service.api.expensive import Busy, ExpensiveReads
+from softevo.service.api.frames import recorded_frames
+from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
+from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import experiments, health, individuals, phylogeny, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
 from softevo.service.db import open_database
-from softevo.service.driver import CoordinatorLoop, LocalLocks, RedisLocks
+from softevo.service.db.locks import DatabaseLocks
+from softevo.service.driver import CoordinatorLoop, RedisLocks
 from softevo.service.executors import make_executor
 from softevo.service.reports import write_report
 from softevo.service.settings import Settings
-from softevo.worker.evaluate import ensure_compiled, init_pool_process
-from softevo.worker.tasks import replay
 
 log = logging.getLogger("softevo.api")
 
@@ -53,9 +55,7 @@ class Services:
         self.executor_kind = "none"
         self.loop: Any = None
         self._status_queue: Any = None
-        self._background_pool: ProcessPoolExecutor | None = None
-        self._background_mutex = threading.Lock()
-        self._reports: dict[int, asyncio.Future] = {}
+        self.reads = ExpensiveReads(settings.background_queue, settings.frames_cache_mb * 2**20)
 
     # -- building and closing ----------------------------------------------------------------
 
@@ -79,7 +79,7 @@ class Services:
         if settings.redis_url:
             locks = RedisLocks(settings.redis_url, settings.database_namespace())
         else:
-            locks = LocalLocks()
+            locks = DatabaseLocks(self.engine)  # two serve on one database: one drives a run
         self.loop = CoordinatorLoop(self.engine, self.executor, locks, stop=self.stop)
         self.loop.start()
 
@@ -97,6 +97,7 @@ class Services:
                 result_ttl=settings.result_ttl,
                 stop=self.stop,
                 across_runs=settings.jobs_across_runs,
+                max_result_bytes=settings.max_result_bytes,
             )
         self.executor_kind = "local"
         return make_executor(settings.workers, settings.genomes_per_job)
@@ -107,8 +108,7 @@ class Services:
             self.loop.stop()
         if self.executor is not None:
             self.executor.close()
-        if self._background_pool is not None:
-            self._background_pool.shutdown(wait=False, cancel_futures=True)
+        self.reads.close()
         self.engine.dispose()
 
     # -- used by the routes ------------------------------------------------------------------
@@ -132,45 +132,22 @@ class Services:
         if self.loop is not None:
             self.loop.request_cancel(run_id)
 
-    def _background(self) -> ProcessPoolExecutor:
-        """One spawned process for simulations and reports: numba holds the GIL, and the
-        API and the coordinator loop must stay responsive."""
-        with self._background_mutex:
-            if self._background_pool is None:
-                # the simulator (numba) loads only when a background job first needs it
-
-                ensure_compiled()
-
-                self._background_pool = ProcessPoolExecutor(
-                    max_workers=1,
-                    mp_context=multiprocessing.get_context("spawn"),
-                    initializer=init_pool_process,
-                )
-            return self._background_pool
-
-    async def record_motion(self, task, every: int, max_frames: int) -> dict:
-        """``worker.tasks.replay`` of ``task`` in the background process."""
-
-        pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
-        future = pool.submit(replay, task, every, max_frames)
-        return await asyncio.wrap_future(future)
+    async def record_motion(self, task, every: int, max_frames: int) -> tuple[bytes, dict[str, str]]:
+        """(body, headers) of ``task``'s recorded frames (``service.api.frames.recorded_frames``
+        in the background process), cached by individual, world and recording settings;
+        ``X-Cache`` says whether the answer was in the cache (``hit``) or computed (``miss``)."""
+        key = ("frames", task.id, task.environment, task.youngs_modulus, every, max_frames)
+        hit = self.reads.cached(key) is not None
+        body, headers = await self.reads.compute(key, recorded_frames, task, every, max_frames)
+        return body, {**headers, "X-Cache": "hit" if hit else "miss"}
 
     async def write_report(self, experiment_id: int, out_dir) -> Any:
         """``service.reports.write_report`` in the background process; concurrent requests
         for one experiment share one writing."""
-        running = self._reports.get(experiment_id)
-        if running is None:
-            running = asyncio.ensure_future(self._write_report(experiment_id, out_dir))
-            self._reports[experiment_id] = running
-            running.add_done_callback(lambda _: self._reports.pop(experiment_id, None))
-        return await asyncio.shield(running)
-
-    async def _write_report(self, experiment_id: int, out_dir) -> Any:
-        # matplotlib and the analyses load only when a report is first asked for
-
-        pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
-        future = pool.submit(write_report, self.settings.db, experiment_id, str(out_dir))
-        return await asyncio.wrap_future(future)
+        key = ("report", experiment_id)
+        return await self.reads.compute(
+            key, write_report, self.settings.db, experiment_id, str(out_dir), cache=False
+        )
 
 
 # -- errors ------------------------------------------------------------------------------------
@@ -223,6 +200,17 @@ def _allowed_methods(request: Request) -> list[str]:
     return sorted(methods)
 
 
+async def _pool_timeout(request: Request, exc: PoolTimeout) -> JSONResponse:
+    log.warning("no database connection free for %s: %s", request.url.path, exc)
+    return _error(
+        503, "the server is busy: no database connection free; try again shortly", {"Retry-After": "1"}
+    )
+
+
+async def _busy(request: Request, exc: Busy) -> JSONResponse:
+    return _error(429, str(exc), {"Retry-After": str(exc.retry_after)})
+
+
 async def _user_error(request: Request, exc: UserError) -> JSONResponse:
     return _error(422, str(exc), errors=[])
 
@@ -239,6 +227,8 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(UserError, _user_error)
+    app.add_exception_handler(Busy, _busy)
+    app.add_exception_handler(PoolTimeout, _pool_timeout)
     app.add_exception_handler(DBAPIError, _database_error)
 
 
@@ -274,4 +264,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for module in (health, experiments, runs, individuals, phylogeny):
         app.include_router(module.router)
     app.include_router(dashboard_router())  # /dashboard pages and assets
+    app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
+    app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)
+    app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # outermost: hits wait for nothing
     return app

@@ -58,3 +58,17 @@ def decode_frames(data: bytes) -> dict[str, np.ndarray]:
         "material": voxels[:, 3].astype(np.int64),
         "positions": positions,
     }
+
+
+def recorded_frames(task, every: int, max_frames: int) -> tuple[bytes, dict[str, str]]:
+    """The body and headers of ``GET /individuals/{id}/frames`` for ``task``: its evaluation
+    replayed (``worker.tasks.replay``) and encoded; run in the API's background process."""
+    from softevo.worker.tasks import replay
+
+    motion = replay(task, every, max_frames)
+    headers = {
+        "X-Frames": str(len(motion["t"])),
+        "X-Voxels": str(len(motion["voxels"])),
+        "X-Time-Step": repr(float(motion["dt"])),
+    }
+    return encode_frames(motion), headers

@@ -21,6 +21,9 @@ from softevo.service.db.migrate import upgrade
 
 DEFAULT_URL = "sqlite:///softevo.db"
 SQLITE_BUSY_TIMEOUT_MS = 30_000
+# connections per engine: the API's thread pool (40 threads) plus the coordinator and its run
+# locks never wait for one (a wait of 30 s would be a 500 under load)
+POOL_SIZE, MAX_OVERFLOW = 10, 40
 
 
 def database_url(url: str | None = None) -> str:
@@ -60,10 +63,10 @@ def make_engine(url: str | None = None) -> Engine:
         raise UserError(f"not a database URL: {resolved!r}") from exc
     if parsed.get_backend_name() == "sqlite":
         _check_sqlite_path(parsed.database)
-        engine = create_engine(parsed)
+        engine = create_engine(parsed, pool_size=POOL_SIZE, max_overflow=MAX_OVERFLOW)
         event.listen(engine, "connect", _sqlite_pragmas)
         return engine
-    return create_engine(parsed, pool_pre_ping=True)
+    return create_engine(parsed, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=MAX_OVERFLOW)
 
 
 def open_database(url: str | None = None) -> Engine:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from datetime import UTC, datetime
 from pathlib import Path as FilePath
 from typing import Annotated
@@ -14,10 +15,12 @@ from fastapi.responses import FileResponse
 
 from softevo.errors import UserError
 from softevo.service.api.deps import (
+    BUSY,
     COMMON,
     NOT_FOUND,
     UNAUTHORIZED,
     ConnectionDep,
+    ExpensiveReadAccess,
     ServicesDep,
     WriteAccess,
 )
@@ -31,7 +34,9 @@ from softevo.service.api.schemas import (
     PresetIn,
 )
 from softevo.service.db import experiments as db_experiments
+from softevo.service.db import runs as db_runs
 from softevo.service.experiments import create
+from softevo.service.limits import check_workspace
 from softevo.service.treatments import Treatment, preset_grid
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
@@ -65,6 +70,8 @@ def _treatments(body: ExperimentIn):
         )
         for t in body.treatments
     ]
+    for treatment in treatments:
+        check_workspace(treatment.workspace)
     names = [t.name for t in treatments]
     duplicates = sorted({name for name in names if names.count(name) > 1})
     if duplicates:
@@ -79,7 +86,11 @@ def _treatments(body: ExperimentIn):
     status_code=status.HTTP_201_CREATED,
     response_model=ExperimentCreated,
     dependencies=[WriteAccess],
-    responses={**UNAUTHORIZED, 400: {"model": ErrorOut, "description": "The body is not JSON"}},
+    responses={
+        **UNAUTHORIZED,
+        400: {"model": ErrorOut, "description": "The body is not JSON"},
+        413: {"model": ErrorOut, "description": "The body is larger than SOFTEVO_MAX_BODY_BYTES"},
+    },
 )
 def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     """Create an experiment with one pending run per treatment repetition; the coordinator
@@ -115,23 +126,30 @@ def get_experiment(experiment_id: ExperimentId, conn: ConnectionDep):
     return found[0]
 
 
-def _stale(html: FilePath, updated: datetime | None) -> bool:
-    """Whether the report misses generations stored after it was written."""
+def _stale(html: FilePath, updated: datetime | None, live: bool, interval: float) -> bool:
+    """Whether the report should be written again: it is missing, or it misses generations
+    stored after it was written and (while a run of the experiment is live) it is older than
+    ``interval`` seconds (``SOFTEVO_REPORT_INTERVAL``)."""
     if not html.is_file():
         return True
     if updated is None:
         return False
     if updated.tzinfo is None:  # SQLite keeps UTC without its zone
         updated = updated.replace(tzinfo=UTC)
-    return updated.timestamp() > html.stat().st_mtime
+    written = html.stat().st_mtime
+    if updated.timestamp() <= written:
+        return False
+    return not live or time.time() - written >= interval
 
 
 @router.get(
     "/{experiment_id}/report",
     response_class=FileResponse,
+    dependencies=[ExpensiveReadAccess],
     responses={
         200: {"content": {"text/html": {}}, "description": "The experiment's HTML report"},
         **NOT_FOUND,
+        **BUSY,
         500: {"model": ErrorOut, "description": "The report could not be written"},
         504: {"model": ErrorOut, "description": "Writing the report took too long"},
     },
@@ -140,12 +158,14 @@ async def report(experiment_id: ExperimentId, services: ServicesDep):
     """The experiment's self-contained HTML report (figures, statistics, settings).
 
     Written by ``service.reports.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
-    on the first request, again when runs have stored generations since, and served from
-    there. 404 while the experiment has no stored generation."""
-    updated = await run_in_threadpool(_last_update, services, experiment_id)
+    on the first request, again when runs have stored generations since (while a run is
+    live, at most once per ``SOFTEVO_REPORT_INTERVAL`` seconds), and served from there. 404
+    while the experiment has no stored generation; 429 with ``Retry-After`` when
+    ``SOFTEVO_BACKGROUND_QUEUE`` simulations and reports are computing or waiting already."""
+    updated, live = await run_in_threadpool(_last_update, services, experiment_id)
     out_dir = FilePath(services.settings.reports) / f"experiment-{experiment_id}"
     html = out_dir / REPORT_FILE
-    if _stale(html, updated):
+    if _stale(html, updated, live, services.settings.report_interval):
         try:
             written = await asyncio.wait_for(services.write_report(experiment_id, out_dir), REPORT_TIMEOUT_S)
         except TimeoutError as exc:
@@ -161,12 +181,13 @@ async def report(experiment_id: ExperimentId, services: ServicesDep):
     return FileResponse(html, media_type="text/html")
 
 
-def _last_update(services, experiment_id: int) -> datetime | None:
-    """Latest update of the experiment's runs; 404 if there is no such experiment or it has
-    no stored generation (nothing to report)."""
+def _last_update(services, experiment_id: int) -> tuple[datetime | None, bool]:
+    """Latest update of the experiment's runs and whether one of them is pending or running;
+    404 if there is no such experiment or it has no stored generation (nothing to report)."""
     with services.engine.connect() as conn:
         if not db_experiments.experiment_exists(conn, experiment_id):
             raise HTTPException(404, f"no experiment {experiment_id}")
         if db_experiments.experiment_generations(conn, experiment_id) == 0:
             raise HTTPException(404, f"no report for experiment {experiment_id}: no generation stored yet")
-        return db_experiments.experiment_updated_at(conn, experiment_id)
+        live = any(db_runs.list_runs(conn, experiment_id, status, 1) for status in ("running", "pending"))
+        return db_experiments.experiment_updated_at(conn, experiment_id), bool(live)

@@ -10,9 +10,8 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
 from softevo.errors import UserError
-from softevo.service.api.deps import COMMON, NOT_FOUND, ServicesDep
+from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
-from softevo.service.api.frames import encode_frames
 from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
 from softevo.service.db.individuals import individual, individual_context
 from softevo.service.db.rows import finite
@@ -76,6 +75,7 @@ def stored_task(services, individual_id: int, environment: str | None):
     "/{individual_id}/frames",
     response_class=Response,
     description=FRAMES_FORMAT,
+    dependencies=[ExpensiveReadAccess],
     responses={
         200: {
             "content": {"application/octet-stream": {}},
@@ -84,9 +84,14 @@ def stored_task(services, individual_id: int, environment: str | None):
                 "X-Frames": {"schema": {"type": "integer"}, "description": "F"},
                 "X-Voxels": {"schema": {"type": "integer"}, "description": "V"},
                 "X-Time-Step": {"schema": {"type": "number"}, "description": "dt, seconds"},
+                "X-Cache": {
+                    "schema": {"type": "string"},
+                    "description": "hit: from the cache; miss: simulated",
+                },
             },
         },
         **NOT_FOUND,
+        **BUSY,
         504: {"model": ErrorOut, "description": "The simulation took too long"},
     },
 )
@@ -101,21 +106,17 @@ async def frames(
     ] = None,
 ):
     """The individual's evaluated motion, simulated again with recording on (in a separate
-    process: the API stays responsive). The body is the float32 format of
-    ``service.api.frames``."""
+    process: the API stays responsive), and kept in a cache (``SOFTEVO_FRAMES_CACHE_MB``)
+    keyed by individual, world and recording settings. The body is the float32 format of
+    ``service.api.frames``. 429 with ``Retry-After`` when ``SOFTEVO_BACKGROUND_QUEUE``
+    simulations and reports are computing or waiting already."""
     task = await run_in_threadpool(stored_task, services, individual_id, environment)
     try:
-        motion = await asyncio.wait_for(services.record_motion(task, every, max_frames), FRAMES_TIMEOUT_S)
+        body, headers = await asyncio.wait_for(
+            services.record_motion(task, every, max_frames), FRAMES_TIMEOUT_S
+        )
     except TimeoutError as exc:
         raise HTTPException(504, "the simulation took too long") from exc
     except ValueError as exc:  # an empty body: nothing to simulate
         raise HTTPException(404, f"individual {individual_id} has no motion: {exc}") from exc
-    return Response(
-        encode_frames(motion),
-        media_type="application/octet-stream",
-        headers={
-            "X-Frames": str(len(motion["t"])),
-            "X-Voxels": str(len(motion["voxels"])),
-            "X-Time-Step": repr(float(motion["dt"])),
-        },
-    )
+    return Response(body, media_type="application/octet-stream", headers=headers)

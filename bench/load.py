@@ -1,0 +1,282 @@
+"""The service under load: read latency per endpoint and the experiment's throughput.
+
+Usage: python bench/load.py [--quick] [--clients 50,200] [--seconds S] [--generations G]
+                            [--max-requests N] [--json OUT]
+
+Starts ``softevo serve`` on a free loopback port (SQLite in a temporary directory, the
+coordinator with 2 local worker processes, no Redis), then runs the same small experiment
+(same seed, so the same evaluations) three ways:
+
+1. unloaded: alone;
+2. under load: for each client count (default 50, then 200) a fresh copy of the experiment
+   runs while that many concurrent clients (one asyncio task each, httpx, loopback) poll
+   ``GET /experiments/{id}`` (status), ``/runs?experiment=``, ``/runs/{id}/generations``,
+   ``/runs/{id}/front``, ``/individuals/{best}/lineage`` and ``/dashboard/runs/{id}``, each
+   waiting for its answer before the next request.
+
+Printed: per phase and endpoint, requests, requests per second, p50 and p99 latency (ms),
+errors (status >= 400 or no answer; 5xx counted apart); and the experiment's evaluations per
+second (sum of evaluations / sum of ``evaluation_seconds`` of its stored generations)
+loaded against unloaded. Bounded: each phase lasts at most ``--seconds`` (the experiment is
+cut there: the rate counts the generations stored) and ``--max-requests``; ``--quick`` is a
+short run (one minute or so) for CI-sized machines. The clients run on the same machine as
+the server and its workers: on a small machine they take CPU from both, so compare runs on
+the same machine only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+TOKEN = "bench-load-token"
+ENDPOINTS = ("status", "runs", "generations", "front", "lineage", "dashboard")
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def treatment(generations: int, seed: int) -> dict:
+    return {
+        "environment": "land",
+        "stiffness_mpa": 0.1,
+        "population": 8,
+        "generations": generations,
+        "workspace": [5, 5, 5],
+        "cycles": 4,
+        "seed": seed,
+    }
+
+
+class Server:
+    """``softevo serve`` with 2 local workers on a temporary SQLite database."""
+
+    def __init__(self, workdir: Path) -> None:
+        self.port = free_port()
+        self.base = f"http://127.0.0.1:{self.port}"
+        env = {
+            **os.environ,
+            "SOFTEVO_DB": f"sqlite:///{workdir / 'load.db'}",
+            "SOFTEVO_TOKEN": TOKEN,
+            "SOFTEVO_WORKERS": "2",
+            "SOFTEVO_REPORTS": str(workdir / "reports"),
+        }
+        env.pop("SOFTEVO_REDIS_URL", None)
+        self.log = open(workdir / "serve.log", "w")  # noqa: SIM115 - closed in stop()
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "softevo.service.cli", "serve", "--port", str(self.port)],
+            cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                if httpx.get(f"{self.base}/health", timeout=2).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                pass
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                raise SystemExit(f"softevo serve did not start; see {workdir / 'serve.log'}")
+            time.sleep(0.25)
+
+    def submit(self, name: str, generations: int, seed: int) -> tuple[int, int]:
+        body = {"name": name, "treatments": [treatment(generations, seed)]}
+        response = httpx.post(
+            f"{self.base}/experiments", json=body, headers={"Authorization": f"Bearer {TOKEN}"}
+        )
+        response.raise_for_status()
+        data = response.json()
+        return data["id"], data["runs"][0]
+
+    def run(self, run_id: int) -> dict:
+        return httpx.get(f"{self.base}/runs/{run_id}", timeout=30).json()
+
+    def cancel(self, run_id: int) -> None:
+        httpx.post(f"{self.base}/runs/{run_id}/cancel", headers={"Authorization": f"Bearer {TOKEN}"})
+
+    def throughput(self, run_id: int) -> tuple[int, float]:
+        """(evaluations, evaluations per second) of the run's stored generations."""
+        rows = httpx.get(f"{self.base}/runs/{run_id}/generations", timeout=30).json()
+        evaluations = sum(r["evaluations"] for r in rows)
+        seconds = sum(r["evaluation_seconds"] for r in rows)
+        return evaluations, evaluations / seconds if seconds else 0.0
+
+    def stop(self) -> None:
+        self.process.send_signal(signal.SIGTERM)
+        try:
+            self.process.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.process.pid, signal.SIGKILL)
+        self.log.close()
+
+
+def wait_generation(server: Server, run_id: int, generation: int, limit: float) -> dict:
+    deadline = time.monotonic() + limit
+    while True:
+        run = server.run(run_id)
+        if run["generation"] >= generation or run["status"] in ("finished", "failed", "cancelled"):
+            return run
+        if time.monotonic() > deadline:
+            raise SystemExit(f"run {run_id} stored no generation {generation} within {limit:.0f} s")
+        time.sleep(0.2)
+
+
+def run_alone(server: Server, generations: int, seed: int, limit: float) -> dict:
+    experiment_id, run_id = server.submit("unloaded", generations, seed)
+    started = time.monotonic()
+    run = wait_generation(server, run_id, generations - 1, limit)
+    if run["status"] != "finished":
+        server.cancel(run_id)
+    evaluations, rate = server.throughput(run_id)
+    return {"evaluations": evaluations, "eval_per_s": rate, "wall_s": time.monotonic() - started}
+
+
+async def client(
+    http: httpx.AsyncClient, paths: dict[str, str], stats: dict, stop: asyncio.Event, budget: list
+):
+    """One client: the endpoints in turn, each request awaited, until ``stop`` or the
+    request budget is spent."""
+    offset = hash(asyncio.current_task()) % len(ENDPOINTS)
+    k = offset
+    while not stop.is_set() and budget[0] > 0:
+        budget[0] -= 1
+        name = ENDPOINTS[k % len(ENDPOINTS)]
+        k += 1
+        start = time.perf_counter()
+        try:
+            response = await http.get(paths[name])
+            code = response.status_code
+        except httpx.HTTPError:
+            code = 0
+        stats[name]["latency"].append(time.perf_counter() - start)
+        if code >= 400 or code == 0:
+            stats[name]["errors"] += 1
+        if code >= 500:
+            stats[name]["server_errors"] += 1
+
+
+async def load_phase(server: Server, clients: int, run_id: int, experiment_id: int, best: int, args) -> dict:
+    paths = {
+        "status": f"/experiments/{experiment_id}",
+        "runs": f"/runs?experiment={experiment_id}",
+        "generations": f"/runs/{run_id}/generations",
+        "front": f"/runs/{run_id}/front",
+        "lineage": f"/individuals/{best}/lineage",
+        "dashboard": f"/dashboard/runs/{run_id}",
+    }
+    stats = {name: {"latency": [], "errors": 0, "server_errors": 0} for name in ENDPOINTS}
+    stop, budget = asyncio.Event(), [args.max_requests]
+    limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
+    async with httpx.AsyncClient(base_url=server.base, timeout=30, limits=limits) as http:
+        tasks = [asyncio.create_task(client(http, paths, stats, stop, budget)) for _ in range(clients)]
+        started = time.monotonic()
+        try:
+            while time.monotonic() - started < args.seconds and budget[0] > 0:
+                await asyncio.sleep(0.5)
+                try:
+                    run = (await http.get(f"/runs/{run_id}")).json()
+                except (httpx.HTTPError, ValueError):
+                    continue  # counted by the clients; the phase goes on to its end
+                if run.get("status") in ("finished", "failed", "cancelled"):
+                    break
+        finally:
+            stop.set()
+            await asyncio.gather(*tasks)
+        elapsed = time.monotonic() - started
+    return {"stats": stats, "seconds": elapsed}
+
+
+def run_loaded(server: Server, clients: int, args) -> dict:
+    experiment_id, run_id = server.submit(f"loaded-{clients}", args.generations, args.seed)
+    run = wait_generation(server, run_id, 0, 120)  # the front and a best exist from here
+    best = (run.get("best") or {}).get("individual_id") or 1
+    phase = asyncio.run(load_phase(server, clients, run_id, experiment_id, best, args))
+    if server.run(run_id)["status"] != "finished":
+        server.cancel(run_id)
+    evaluations, rate = server.throughput(run_id)
+    rows = []
+    for name in ENDPOINTS:
+        s = phase["stats"][name]
+        latency = np.array(s["latency"]) * 1000.0
+        rows.append(
+            {
+                "endpoint": name,
+                "requests": len(latency),
+                "req_per_s": len(latency) / phase["seconds"],
+                "p50_ms": float(np.percentile(latency, 50)) if len(latency) else float("nan"),
+                "p99_ms": float(np.percentile(latency, 99)) if len(latency) else float("nan"),
+                "errors": s["errors"],
+                "server_errors": s["server_errors"],
+            }
+        )
+    return {"clients": clients, "seconds": phase["seconds"], "rows": rows, "evaluations": evaluations,
+            "eval_per_s": rate}  # fmt: skip
+
+
+def print_table(unloaded: dict, loaded: list[dict]) -> None:
+    print(f"unloaded: {unloaded['evaluations']} evaluations, {unloaded['eval_per_s']:.2f} evaluations/s")
+    print()
+    print("| clients | endpoint | requests | req/s | p50 ms | p99 ms | errors (5xx) |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: |")
+    for phase in loaded:
+        for row in phase["rows"]:
+            print(
+                f"| {phase['clients']} | {row['endpoint']} | {row['requests']} | {row['req_per_s']:.0f} "
+                f"| {row['p50_ms']:.0f} | {row['p99_ms']:.0f} | {row['errors']} ({row['server_errors']}) |"
+            )
+        total = sum(r["requests"] for r in phase["rows"])
+        ratio = phase["eval_per_s"] / unloaded["eval_per_s"] if unloaded["eval_per_s"] else float("nan")
+        print(
+            f"| {phase['clients']} | **all** | {total} | {total / phase['seconds']:.0f} | | | "
+            f"experiment {phase['eval_per_s']:.2f} eval/s = {ratio:.0%} of unloaded |"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short phases (about a minute in all)")
+    parser.add_argument("--clients", default="50,200", help="client counts, one phase each")
+    parser.add_argument("--seconds", type=float, default=None, help="longest phase (default 60, quick 12)")
+    parser.add_argument(
+        "--generations", type=int, default=None, help="of the experiment (default 12, quick 4)"
+    )
+    parser.add_argument("--max-requests", type=int, default=200_000, help="requests per phase, at most")
+    parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    args.seconds = args.seconds or (12.0 if args.quick else 60.0)
+    args.generations = args.generations or (4 if args.quick else 12)
+    counts = [int(c) for c in args.clients.split(",") if c]
+    workdir = Path(tempfile.mkdtemp(prefix="softevo-load-"))
+    server = Server(workdir)
+    try:
+        _, warm_run = server.submit("warm-up", 1, args.seed + 1000)  # spawns and warms the pool
+        wait_generation(server, warm_run, 0, 300)
+        unloaded = run_alone(server, args.generations, args.seed, limit=args.seconds * 3)
+        loaded = [run_loaded(server, clients, args) for clients in counts]
+    finally:
+        server.stop()
+    print_table(unloaded, loaded)
+    if args.json:
+        args.json.write_text(json.dumps({"unloaded": unloaded, "loaded": loaded}, indent=2))
+    shutil.rmtree(workdir, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
