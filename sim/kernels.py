@@ -572,18 +572,23 @@ def world_forces_kernel(p, flags, ext_force, nbr, vconst, quat, lin_mom, ang_mom
     free voxel (fixed ones are left alone); each voxel's own mass and damping."""
     g, drag = p.gravity, p.drag
     water = p.env == ENV_WATER and drag > 0.0
+    U, nc = np.uint64, np.uint64(vconst.shape[1])  # flat views, unsigned offsets (integrate)
+    F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vconst.reshape(-1)
+    LM, AM = lin_mom.reshape(-1), ang_mom.reshape(-1)
+    X, Y, Z = U(0), U(1), U(2)
     for v in range(len(flags)):
         if flags[v] & FLAG_FIXED:
             continue
-        m, inv_m, inv_i = vconst[v, V_MASS], vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
-        c_lin, c_ang = vconst[v, V_CGLIN], vconst[v, V_CGANG]
-        vx, vy, vz = lin_mom[v, 0] * inv_m, lin_mom[v, 1] * inv_m, lin_mom[v, 2] * inv_m
-        fx = force[v, 0] + ext_force[v, 0] - c_lin * vx
-        fy = force[v, 1] + ext_force[v, 1] - c_lin * vy
-        fz = force[v, 2] + ext_force[v, 2] - c_lin * vz - m * g
-        moment[v, 0] = moment[v, 0] - c_ang * ang_mom[v, 0] * inv_i
-        moment[v, 1] = moment[v, 1] - c_ang * ang_mom[v, 1] * inv_i
-        moment[v, 2] = moment[v, 2] - c_ang * ang_mom[v, 2] * inv_i
+        o, c = U(3) * U(v), nc * U(v)
+        m, inv_m, inv_i = VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)]
+        c_lin, c_ang = VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)]
+        vx, vy, vz = LM[o + X] * inv_m, LM[o + Y] * inv_m, LM[o + Z] * inv_m
+        fx = F[o + X] + E[o + X] - c_lin * vx
+        fy = F[o + Y] + E[o + Y] - c_lin * vy
+        fz = F[o + Z] + E[o + Z] - c_lin * vz - m * g
+        M[o + X] = M[o + X] - c_ang * AM[o + X] * inv_i
+        M[o + Y] = M[o + Y] - c_ang * AM[o + Y] * inv_i
+        M[o + Z] = M[o + Z] - c_ang * AM[o + Z] * inv_i
         if water:  # quadratic drag on exposed faces moving outward
             qw, qx, qy, qz = quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3]
             area = size[v] * size[v]
@@ -600,7 +605,7 @@ def world_forces_kernel(p, flags, ext_force, nbr, vconst, quat, lin_mom, ang_mom
                         fx += f * ex
                         fy += f * ey
                         fz += f * ez
-        force[v, 0], force[v, 1], force[v, 2] = fx, fy, fz
+        F[o + X], F[o + Y], F[o + Z] = fx, fy, fz
 
 
 @njit(**JIT)
@@ -612,24 +617,28 @@ def floor_contact_kernel(p, flags, vconst, pos, lin_mom, size, force, static, co
     if p.env != ENV_LAND:
         return
     mu_s, mu_k = p.mu_s, p.mu_k
+    U, nc = np.uint64, np.uint64(vconst.shape[1])  # flat views, unsigned offsets (integrate)
+    P, LM, F, VC = pos.reshape(-1), lin_mom.reshape(-1), force.reshape(-1), vconst.reshape(-1)
+    X, Y, Z = U(0), U(1), U(2)
     for v in range(len(flags)):
         if flags[v] & FLAG_FIXED:
             continue
-        pen = 0.5 * size[v] - pos[v, 2]
+        a, c = U(3) * U(v), nc * U(v)
+        pen = 0.5 * size[v] - P[a + Z]
         contact[v] = pen >= 0.0
         if pen >= 0.0:
-            inv_m, k_floor, c_coll = vconst[v, V_INV_MASS], vconst[v, V_KFLOOR], vconst[v, V_CCOLL]
-            vx, vy, vz = lin_mom[v, 0] * inv_m, lin_mom[v, 1] * inv_m, lin_mom[v, 2] * inv_m
+            inv_m, k_floor, c_coll = VC[c + U(V_INV_MASS)], VC[c + U(V_KFLOOR)], VC[c + U(V_CCOLL)]
+            vx, vy, vz = LM[a + X] * inv_m, LM[a + Y] * inv_m, LM[a + Z] * inv_m
             normal = k_floor * pen
-            force[v, 2] += normal - c_coll * vz
-            fx, fy = force[v, 0], force[v, 1]
+            F[a + Z] += normal - c_coll * vz
+            fx, fy = F[a + X], F[a + Y]
             if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
                 static[v] = False
             elif not static[v]:
                 hv = math.sqrt(vx * vx + vy * vy)
                 if hv > FRICTION_EPS * p.L / p.dt:
-                    force[v, 0] = fx - mu_k * normal * vx / hv
-                    force[v, 1] = fy - mu_k * normal * vy / hv
+                    F[a + X] = fx - mu_k * normal * vx / hv
+                    F[a + Y] = fy - mu_k * normal * vy / hv
         else:
             static[v] = False
 
