@@ -130,6 +130,23 @@ def _unrun(robot: Robot, reason: str) -> Result:
                   {"t": np.zeros(1), "com": com0[None]}, None, robot.removed)
 
 
+def prepare(scenes: list[dict | Scene]) -> tuple[list[Scene], list[Robot], list[Result | None], list[int]]:
+    """Every scene parsed and built, for either engine: (scenes, robots, results, runnable).
+    A scene past its step budget has its unrun ``Result`` already; ``runnable`` lists the
+    indices still to simulate."""
+    parsed = [parse_scene(s) for s in scenes]
+    robots = [build_robot(s) for s in parsed]
+    results: list[Result | None] = [None] * len(parsed)
+    runnable = []
+    for k, (scene, robot) in enumerate(zip(parsed, robots, strict=True)):
+        reason = _budget_reason(scene, robot)
+        if reason:
+            results[k] = _unrun(robot, reason)
+        else:
+            runnable.append(k)
+    return parsed, robots, results, runnable
+
+
 def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine: str = "numba",
                   device: str | None = None) -> list[Result]:
     """Simulate many robots in one compiled call, one robot per parallel task.
@@ -142,16 +159,7 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine
         from . import warp_engine
 
         return warp_engine.simulate_many(scenes, device=device)
-    parsed = [parse_scene(s) for s in scenes]
-    robots = [build_robot(s) for s in parsed]
-    results: list[Result | None] = [None] * len(parsed)
-    runnable = []
-    for k, (scene, robot) in enumerate(zip(parsed, robots, strict=True)):
-        reason = _budget_reason(scene, robot)
-        if reason:
-            results[k] = _unrun(robot, reason)
-        else:
-            runnable.append(k)
+    parsed, robots, results, runnable = prepare(scenes)
     if runnable:
         # longest robots first, so the parallel tasks finish together
         cost = {k: robots[k].iparams[I_STEPS] * len(robots[k].pos) for k in runnable}

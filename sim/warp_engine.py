@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from .engine import Result, _budget_reason, _result, _unrun
+from .engine import Result, _result, prepare
 from .engines import PRECISIONS, EngineUnavailable
 from .kernels import COLLIDE_MARGIN, LINK_OUT_ROWS, LINK_STATE_ROWS
-from .scene import Scene, parse_scene
-from .system import COM_SAMPLES, F_L, I_N_FRAMES, I_STEPS, build_robot, pack
+from .scene import Scene
+from .system import COM_SAMPLES, F_L, I_N_FRAMES, I_STEPS, pack
 
 DEFAULT_DEVICE = "cuda:0"
 # Steps per captured chunk: on a GPU long graphs amortise the launch of each; on the CPU
@@ -94,16 +94,7 @@ def simulate_many(
     if precision not in PRECISIONS:
         raise EngineUnavailable(f"precision: must be one of {', '.join(PRECISIONS)} (got {precision!r})")
     dev = device_of(device)
-    parsed = [parse_scene(s) for s in scenes]
-    robots = [build_robot(s) for s in parsed]
-    results: list[Result | None] = [None] * len(parsed)
-    runnable = []
-    for k, (scene, robot) in enumerate(zip(parsed, robots, strict=True)):
-        reason = _budget_reason(scene, robot)
-        if reason:
-            results[k] = _unrun(robot, reason)
-        else:
-            runnable.append(k)
+    parsed, robots, results, runnable = prepare(scenes)
     if runnable:
         sub = [robots[k] for k in runnable]
         out = run_batch(sub, dev, precision, chunk)

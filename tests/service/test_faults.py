@@ -61,12 +61,7 @@ TINY_BODY = {
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The undisturbed run (SQLite, in this process)."""
-    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('ref') / 'ref.db'}")
-    run_id = tinyrun.new_run(engine)
-    tinyrun.run_to_end(engine, run_id)
-    snap = tinyrun.snapshot(engine, run_id)
-    engine.dispose()
-    return snap
+    return tinyrun.reference_snapshot(tmp_path_factory.mktemp("ref"))
 
 
 def _generation(engine, run_id: int = 1) -> int:

@@ -8,14 +8,13 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 from sqlalchemy import select
 
-from softevo.service.db import open_database
 from softevo.service.db.models import Evaluation, Run
-from softevo.service.treatments import Treatment
 from tests.service import tinyrun
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -24,37 +23,17 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The uninterrupted run (SQLite)."""
-    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('ref') / 'ref.db'}")
-    run_id = tinyrun.new_run(engine)
-    tinyrun.run_to_end(engine, run_id)
-    snap = tinyrun.snapshot(engine, run_id)
-    engine.dispose()
-    return snap
+    return tinyrun.reference_snapshot(tmp_path_factory.mktemp("ref"))
 
 
 # generations 0-1 on land, 2-3 in land>water@0.333 / @0.667, 4 in water
-GRADUAL = Treatment(
-    "land-water",
-    0.1,
-    population=4,
-    generations=5,
-    workspace=(4, 4, 4),
-    cycles=2,
-    switch_at=2,
-    switch_over=2,
-    seed=11,
-)
+GRADUAL = replace(tinyrun.TINY, switch_at=2, switch_over=2)
 
 
 @pytest.fixture(scope="module")
 def gradual_reference(tmp_path_factory):
     """The uninterrupted gradual run (SQLite)."""
-    engine = open_database(f"sqlite:///{tmp_path_factory.mktemp('gradual') / 'ref.db'}")
-    run_id = tinyrun.new_run(engine, GRADUAL)
-    tinyrun.run_to_end(engine, run_id)
-    snap = tinyrun.snapshot(engine, run_id)
-    engine.dispose()
-    return snap
+    return tinyrun.reference_snapshot(tmp_path_factory.mktemp("gradual"), GRADUAL)
 
 
 def _python(*args: str) -> subprocess.Popen:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Engine, select
 
 from softevo.service.coordinator import Coordinator
+from softevo.service.db import open_database
 from softevo.service.db.models import Evaluation, Individual, PopulationMember, Run
 from softevo.service.executors import Executor, InlineExecutor
 from softevo.service.experiments import create
@@ -31,6 +33,17 @@ def new_run(engine: Engine, treatment: Treatment = TINY) -> int:
 
 def run_to_end(engine: Engine, run_id: int, executor: Executor | None = None) -> None:
     Coordinator(engine, executor or InlineExecutor()).run([run_id])
+
+
+def reference_snapshot(folder: Path, treatment: Treatment = TINY) -> dict[str, Any]:
+    """The snapshot of an undisturbed run of ``treatment`` (SQLite in ``folder``, this
+    process): what an interrupted run must equal."""
+    engine = open_database(f"sqlite:///{folder / 'ref.db'}")
+    run_id = new_run(engine, treatment)
+    run_to_end(engine, run_id)
+    snap = snapshot(engine, run_id)
+    engine.dispose()
+    return snap
 
 
 def snapshot(engine: Engine, run_id: int) -> dict[str, Any]:
