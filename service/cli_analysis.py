@@ -17,6 +17,7 @@ unless ``--environment`` is given.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -163,42 +164,32 @@ def power(
         typer.echo(f"{name}: not in this experiment")
 
 
+@contextmanager
+def _progress(enabled: bool, title: str, total: int | None = None):
+    """A transient rich bar on stderr, yielding ``update(**fields)`` (None when disabled)."""
+    if not enabled:
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import Progress
+
+    with Progress(console=Console(stderr=True), transient=True) as progress:
+        task = progress.add_task(title, total=total)
+        yield lambda **fields: progress.update(task, **fields)
+
+
+@contextmanager
 def _steps_progress(enabled: bool, total: int):
-    """A context giving ``on_step(description)`` that advances a rich bar (or does nothing)."""
-    from contextlib import contextmanager
-
-    @contextmanager
-    def bar():
-        if not enabled:
-            yield None
-            return
-        from rich.console import Console
-        from rich.progress import Progress
-
-        with Progress(console=Console(stderr=True), transient=True) as progress:
-            task = progress.add_task("power", total=total)
-            yield lambda description: progress.update(task, advance=1, description=description)
-
-    return bar()
+    """``on_step(description)`` advancing a bar of ``total`` steps (None when disabled)."""
+    with _progress(enabled, "power", total) as update:
+        yield update and (lambda description: update(advance=1, description=description))
 
 
+@contextmanager
 def _frame_progress(enabled: bool):
-    """A context giving ``on_frame(i, n)`` that drives a rich bar (or does nothing)."""
-    from contextlib import contextmanager
-
-    @contextmanager
-    def bar():
-        if not enabled:
-            yield None
-            return
-        from rich.console import Console
-        from rich.progress import Progress
-
-        with Progress(console=Console(stderr=True), transient=True) as progress:
-            task = progress.add_task("rendering frames", total=None)
-            yield lambda i, n: progress.update(task, completed=i + 1, total=n)
-
-    return bar()
+    """``on_frame(i, n)`` driving a bar of rendered frames (None when disabled)."""
+    with _progress(enabled, "rendering frames") as update:
+        yield update and (lambda i, n: update(completed=i + 1, total=n))
 
 
 def register(app: typer.Typer) -> None:

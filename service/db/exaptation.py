@@ -24,10 +24,11 @@ from __future__ import annotations
 from typing import Any
 
 import pandas as pd
-from sqlalchemy import Connection, literal, select
+from sqlalchemy import Connection, select
 
 from softevo.errors import UserError
-from softevo.service.db.models import Individual, PopulationMember
+from softevo.service.db.models import PopulationMember
+from softevo.service.db.phylogeny import population_lines
 from softevo.service.db.rows import finite
 from softevo.service.db.run_tree import birth_evaluations, run_facts
 
@@ -47,23 +48,7 @@ def _members(conn: Connection, run_id: int, generation: int) -> pd.DataFrame:
 def final_ancestry(conn: Connection, run_id: int, generation: int) -> pd.DataFrame:
     """Every member of the population kept at ``generation`` with each of its ancestors:
     final_id, id, parent_id, generation_born, depth (0 = the member), newest first."""
-    ind, pm = Individual.__table__, PopulationMember.__table__
-    anchor = (
-        select(
-            ind.c.id.label("final_id"),
-            ind.c.id,
-            ind.c.parent_id,
-            ind.c.generation_born,
-            literal(0).label("depth"),
-        )
-        .join(pm, pm.c.individual_id == ind.c.id)
-        .where(pm.c.run_id == run_id, pm.c.generation == generation)
-    )
-    cte = anchor.cte("line", recursive=True)
-    step = select(
-        cte.c.final_id, ind.c.id, ind.c.parent_id, ind.c.generation_born, (cte.c.depth + 1).label("depth")
-    ).join(cte, ind.c.id == cte.c.parent_id)
-    cte = cte.union_all(step)
+    cte = population_lines(run_id, generation, "final_id", down=False)
     result = conn.execute(select(cte).order_by(cte.c.final_id, cte.c.depth))
     return pd.DataFrame(result.fetchall(), columns=list(result.keys()))
 

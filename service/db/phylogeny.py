@@ -107,6 +107,26 @@ def switch_generation(bind: Connection | Engine, run_id: int) -> int | None:
     return TreatmentSettings.from_settings(frame.iloc[0]["settings"]).switch_generation()
 
 
+def population_lines(run_id: int, generation: int, label: str, down: bool):
+    """A recursive CTE of every member of the population kept at ``generation`` (its id in
+    column ``label``) with all its descendants (``down``) or all its ancestors: label, id,
+    parent_id, generation_born, depth (0 = the member)."""
+    ind, pm = Individual.__table__, PopulationMember.__table__
+    anchor = (
+        select(
+            ind.c.id.label(label), ind.c.id, ind.c.parent_id, ind.c.generation_born, literal(0).label("depth")
+        )
+        .join(pm, pm.c.individual_id == ind.c.id)
+        .where(pm.c.run_id == run_id, pm.c.generation == generation)
+    )
+    cte = anchor.cte("line", recursive=True)
+    link = ind.c.parent_id == cte.c.id if down else ind.c.id == cte.c.parent_id
+    step = select(
+        cte.c[label], ind.c.id, ind.c.parent_id, ind.c.generation_born, (cte.c.depth + 1).label("depth")
+    ).join(cte, link)
+    return cte.union_all(step)
+
+
 def transition_lineages(bind: Connection | Engine, run_id: int, switch_at: int | None = None) -> pd.DataFrame:
     """Descendants of the individuals alive when the environment switched.
 
@@ -129,27 +149,8 @@ def transition_lineages(bind: Connection | Engine, run_id: int, switch_at: int |
                     "last_generation",
                 ]
             )
-    individuals, members = Individual.__table__, PopulationMember.__table__
-    anchor = (
-        select(
-            individuals.c.id.label("founder_id"),
-            individuals.c.id,
-            individuals.c.parent_id,
-            individuals.c.generation_born,
-            literal(0).label("depth"),
-        )
-        .join(members, members.c.individual_id == individuals.c.id)
-        .where(members.c.run_id == run_id, members.c.generation == switch_at - 1)
-    )
-    cte = anchor.cte("lineage", recursive=True)
-    step = select(
-        cte.c.founder_id,
-        individuals.c.id,
-        individuals.c.parent_id,
-        individuals.c.generation_born,
-        (cte.c.depth + 1).label("depth"),
-    ).join(cte, individuals.c.parent_id == cte.c.id)
-    cte = cte.union_all(step)
+    members = PopulationMember.__table__
+    cte = population_lines(run_id, switch_at - 1, "founder_id", down=True)
     last = (
         select(members.c.individual_id, func.max(members.c.generation).label("last_generation"))
         .where(members.c.run_id == run_id)
