@@ -9,12 +9,17 @@ imports ``service.db.models``, and runs only under Alembic.
 
 from __future__ import annotations
 
+import fcntl
 import importlib.util
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
-from sqlalchemy import Engine
+from sqlalchemy import Engine, text
+
+MIGRATION_LOCK = 0x50F8  # PostgreSQL advisory lock key held while the schema is upgraded
 
 
 def script_location() -> Path:
@@ -31,6 +36,28 @@ def alembic_config(engine: Engine) -> Config:
     return config
 
 
+@contextmanager
+def one_at_a_time(engine: Engine) -> Iterator[None]:
+    """Hold off every other process upgrading the same database: two coordinators started
+    together on a new database would otherwise both create the schema (PostgreSQL: an
+    advisory lock; SQLite file: a lock on ``<file>.migrate.lock``)."""
+    url = engine.url
+    if url.get_backend_name() == "postgresql":
+        with engine.connect() as conn:
+            conn.execute(text("SELECT pg_advisory_lock(:k)"), {"k": MIGRATION_LOCK})
+            try:
+                yield
+            finally:
+                conn.execute(text("SELECT pg_advisory_unlock(:k)"), {"k": MIGRATION_LOCK})
+    elif url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
+        with open(f"{url.database}.migrate.lock", "a") as handle:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+            yield
+    else:
+        yield
+
+
 def upgrade(engine: Engine, revision: str = "head") -> None:
-    """Upgrade the schema of ``engine``'s database to ``revision``."""
-    command.upgrade(alembic_config(engine), revision)
+    """Upgrade the schema of ``engine``'s database to ``revision``, one process at a time."""
+    with one_at_a_time(engine):
+        command.upgrade(alembic_config(engine), revision)

@@ -203,10 +203,7 @@ def test_two_coordinators_on_one_database(tmp_path, reference):
         assert f"run {run_id}" in waiting and f"held by process {first.pid}" in waiting, waiting
         assert f"driving run {run_id}" in log_of(first) and "driving run" not in log_of(second)
 
-        def generation() -> int:
-            return httpx.get(f"{served[second]}/runs/{run_id}", timeout=5).json()["generation"]
-
-        wait_for(lambda: generation() >= 1, 120, "generation 1")
+        # killed as soon as it drives: a tiny run can finish between two polls of its progress
         os.killpg(first.pid, signal.SIGKILL)  # the second takes the run over
         first.wait(10)
 
