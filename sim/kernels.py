@@ -3,19 +3,20 @@
 ``run_batch`` runs each robot as one task of a ``prange``; ``run_robot`` loops over the steps,
 records frames and centre-of-mass samples and stops at divergence; ``step`` is one step:
 
-    actuate -> link_forces -> collide -> world_forces -> floor_contact -> integrate
+    actuate -> link_forces -> collide -> voxel_update (world forces, floor, integrate)
 
 - ``actuate``: voxel size s = max(L (1 + amp w(omega t + phase)), 0.1 L) for active voxels;
 - ``link_forces``: co-rotational 3-D beams (``link_kernel``: gather, then beams as SIMD), summed
   per voxel (``link_sums``); stiffness-proportional bond damping;
 - ``collide``: penalty contact k overlap - c v_n (>= 0) between unbonded surface voxels;
-- ``world_forces``: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
-  quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
-- ``floor_contact``: on land, normal force k_floor pen - c_coll v_z for pen = s/2 - z >= 0,
-  static friction up to mu_s N, kinetic friction mu_k N against the horizontal velocity;
-- ``integrate``: semi-implicit Euler, p += F dt then x += p / m dt, and L += M dt then
-  q = exp(L / I dt) q (renormalised); a sliding voxel in floor contact sticks when friction
-  would reverse it.
+- ``voxel_update``, one pass over the voxels (``voxel_kernel``), each voxel in turn:
+  - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
+    quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
+  - floor contact: on land, normal force k_floor pen - c_coll v_z for pen = s/2 - z >= 0,
+    static friction up to mu_s N, kinetic friction mu_k N against the horizontal velocity;
+  - integration: semi-implicit Euler, p += F dt then x += p / m dt, and L += M dt then
+    q = exp(L / I dt) q (renormalised); a sliding voxel in floor contact sticks when
+    friction would reverse it.
 
 A robot's constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
 ``Voxels``, ``Links``, its body state as ``State`` and its scratch as ``Work``, all private
@@ -198,6 +199,24 @@ def rotvec(w, x, y, z):
     """Rotation vector (axis * angle) of a unit quaternion; q and -q give the same one."""
     f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
     return f * x, f * y, f * z
+
+
+@njit(**INLINE)
+def qmul_x0(aw, ay, az, bw, bx, by, bz):
+    """``qmul`` of a = (aw, 0, ay, az) and b, without the products with a's zero."""
+    return (
+        aw * bw - ay * by - az * bz,
+        aw * bx + ay * bz - az * by,
+        aw * by + ay * bw + az * bx,
+        aw * bz - ay * bx + az * bw,
+    )
+
+
+@njit(**INLINE)
+def rotvec_x0(w, y, z):
+    """The y and z parts of ``rotvec`` of the unit quaternion (w, 0, y, z) (its x part is 0)."""
+    f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
+    return f * y, f * z
 
 
 @njit(**INLINE)
@@ -401,18 +420,20 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
         cy = rz if back else 0.0
         cz = -ry if back else 1.0
         k = 1.0 / math.sqrt(2.0 * length * h) if back else 1.0
-        pw, px, py, pz = qmul(cw, 0.0, cy, cz, ow, ox, oy, oz)
-        cw, cy, cz = cw * k, cy * k, cz * k
-        t1x, t1y, t1z = rotvec(cw, 0.0, cy, cz)
-        lx, ly, lz = rotvec(pw * k, px * k, py * k, pz * k)
-        sx, sy, sz = rotvec(ow, ox, oy, oz)
+        pw, px, py, pz = qmul_x0(cw, cy, cz, ow, ox, oy, oz)
         if now_small:  # the voxel's own frame: the offset off the axis is shear
             dx, dy, dz = rx - rest, ry, rz
-            t1x, t1y, t1z, t2x, t2y, t2z = 0.0, 0.0, 0.0, sx, sy, sz
-            cw, cy, cz = 1.0, 0.0, 0.0
+            cw, cy, cz = 1.0, 0.0, 0.0  # no turn onto the centre line: t1 = 0
+            pw, px, py, pz = ow, ox, oy, oz  # t2: the relative rotation itself
         else:
             dx, dy, dz = length - rest, 0.0, 0.0
-            t2x, t2y, t2z = lx, ly, lz
+            cw, cy, cz = cw * k, cy * k, cz * k
+            pw, px, py, pz = pw * k, px * k, py * k, pz * k
+        # two rotation vectors per link whichever the frame (selected inputs, one polynomial
+        # each); c has no x part, so t1 has none
+        t1y, t1z = rotvec_x0(cw, cy, cz)
+        t1x = 0.0
+        t2x, t2y, t2z = rotvec(pw, px, py, pz)
 
         # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
         m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
@@ -565,100 +586,57 @@ def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, vconst, pairs,
 
 
 # ---------------------------------------------------------------- voxels
+@njit(**INLINE)
+def add_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz, area):
+    """The force (fx, fy, fz) plus the quadratic drag -0.5 rho C_d s^2 v_n^2 n (``drag`` =
+    0.5 rho C_d) of each exposed face moving outward (v_n > 0); ``exposed`` has bit f set when
+    face f (ordered as ``nbr``) has no neighbour."""
+    for a in range(3):
+        ex, ey, ez = qrot(qw, qx, qy, qz, 1.0 if a == 0 else 0.0, 1.0 if a == 1 else 0.0,
+                          1.0 if a == 2 else 0.0)
+        for side in range(2):
+            if not (exposed >> (2 * a + side)) & 1:
+                continue
+            sgn = 1.0 if side == 1 else -1.0
+            vn = sgn * (vx * ex + vy * ey + vz * ez)
+            if vn > 0.0:
+                f = -drag * area * vn * vn * sgn
+                fx += f * ex
+                fy += f * ey
+                fz += f * ez
+    return fx, fy, fz
+
+
 @njit(**JIT)
-def world_forces_kernel(p, flags, ext_force, nbr, vconst, quat, lin_mom, ang_mom, size, force,
-                        moment):
-    """Gravity, global damping and, in water, drag, added to the force and moment of every
-    free voxel (fixed ones are left alone); each voxel's own mass and damping."""
-    g, drag = p.gravity, p.drag
+def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, size, force,
+                 moment, static, contact):
+    """Everything that acts on one voxel alone, then its step, in one pass over the voxels
+    (each voxel's state is read once into locals and written once):
+
+    - world forces: gravity, global damping and, in water, drag, added to the links' and
+      collisions' force and moment (each voxel's own mass and damping);
+    - on land, a penalty floor at z = 0 with static and kinetic (Coulomb) friction: a static
+      voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
+      sliding one feels mu_k times the normal force against its horizontal velocity;
+    - semi-implicit Euler: momenta first, then position and orientation from the new momenta;
+      a sliding voxel in floor contact sticks when friction would reverse it (work-energy), and
+      a static one keeps no horizontal momentum.
+
+    Fixed voxels feel nothing and keep zero momenta. ``force``/``moment`` come in holding the
+    link and collision terms and leave holding the totals; ``contact`` marks the voxels on the
+    floor. Returns the largest squared speed of a voxel after the step, or -1 if any voxel left
+    the sane range (or went NaN)."""
+    dt, g, drag = p.dt, p.gravity, p.drag
     water = p.env == ENV_WATER and drag > 0.0
-    U, nc = np.uint64, np.uint64(vconst.shape[1])  # flat views, unsigned offsets (integrate)
-    F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vconst.reshape(-1)
-    LM, AM = lin_mom.reshape(-1), ang_mom.reshape(-1)
-    X, Y, Z = U(0), U(1), U(2)
-    for v in range(len(flags)):
-        if flags[v] & FLAG_FIXED:
-            continue
-        o, c = U(3) * U(v), nc * U(v)
-        m, inv_m, inv_i = VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)]
-        c_lin, c_ang = VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)]
-        vx, vy, vz = LM[o + X] * inv_m, LM[o + Y] * inv_m, LM[o + Z] * inv_m
-        fx = F[o + X] + E[o + X] - c_lin * vx
-        fy = F[o + Y] + E[o + Y] - c_lin * vy
-        fz = F[o + Z] + E[o + Z] - c_lin * vz - m * g
-        M[o + X] = M[o + X] - c_ang * AM[o + X] * inv_i
-        M[o + Y] = M[o + Y] - c_ang * AM[o + Y] * inv_i
-        M[o + Z] = M[o + Z] - c_ang * AM[o + Z] * inv_i
-        if water:  # quadratic drag on exposed faces moving outward
-            qw, qx, qy, qz = quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3]
-            area = size[v] * size[v]
-            for a in range(3):
-                ex, ey, ez = qrot(qw, qx, qy, qz, 1.0 if a == 0 else 0.0,
-                                  1.0 if a == 1 else 0.0, 1.0 if a == 2 else 0.0)
-                for side in range(2):
-                    if nbr[v, 2 * a + side] >= 0:
-                        continue
-                    sgn = 1.0 if side == 1 else -1.0
-                    vn = sgn * (vx * ex + vy * ey + vz * ez)
-                    if vn > 0.0:
-                        f = -drag * area * vn * vn * sgn
-                        fx += f * ex
-                        fy += f * ey
-                        fz += f * ez
-        F[o + X], F[o + Y], F[o + Z] = fx, fy, fz
-
-
-@njit(**JIT)
-def floor_contact_kernel(p, flags, vconst, pos, lin_mom, size, force, static, contact):
-    """On land, a penalty floor at z = 0 with static and kinetic (Coulomb) friction, added to
-    the force of every free voxel; marks the voxels in contact for ``integrate``. A static
-    voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
-    sliding one feels mu_k times the normal force against its horizontal velocity."""
-    if p.env != ENV_LAND:
-        return
+    land = p.env == ENV_LAND
     mu_s, mu_k = p.mu_s, p.mu_k
-    U, nc = np.uint64, np.uint64(vconst.shape[1])  # flat views, unsigned offsets (integrate)
-    P, LM, F, VC = pos.reshape(-1), lin_mom.reshape(-1), force.reshape(-1), vconst.reshape(-1)
-    X, Y, Z = U(0), U(1), U(2)
-    for v in range(len(flags)):
-        if flags[v] & FLAG_FIXED:
-            continue
-        a, c = U(3) * U(v), nc * U(v)
-        pen = 0.5 * size[v] - P[a + Z]
-        contact[v] = pen >= 0.0
-        if pen >= 0.0:
-            inv_m, k_floor, c_coll = VC[c + U(V_INV_MASS)], VC[c + U(V_KFLOOR)], VC[c + U(V_CCOLL)]
-            vx, vy, vz = LM[a + X] * inv_m, LM[a + Y] * inv_m, LM[a + Z] * inv_m
-            normal = k_floor * pen
-            F[a + Z] += normal - c_coll * vz
-            fx, fy = F[a + X], F[a + Y]
-            if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
-                static[v] = False
-            elif not static[v]:
-                hv = math.sqrt(vx * vx + vy * vy)
-                if hv > FRICTION_EPS * p.L / p.dt:
-                    F[a + X] = fx - mu_k * normal * vx / hv
-                    F[a + Y] = fy - mu_k * normal * vy / hv
-        else:
-            static[v] = False
-
-
-@njit(**JIT)
-def integrate_kernel(p, flags, vconst, pos, quat, lin_mom, ang_mom, force, moment, static,
-                     contact):
-    """Semi-implicit Euler step of every free voxel from its force and moment: momenta
-    first, then position and orientation from the new momenta (fixed voxels: momenta zeroed).
-    A sliding voxel in floor contact sticks when friction would reverse it (work-energy),
-    and a static one keeps no horizontal momentum. Returns the largest squared speed of a
-    voxel after the step, or -1 if any voxel left the sane range (or went NaN)."""
-    dt = p.dt
+    slide = FRICTION_EPS * p.L / p.dt
     ok = True
     speed2 = 0.0
-    # flat views with unsigned offsets (no negative-index wrap-around to test per access);
-    # each voxel's state is read once into locals and written once
+    # flat views with unsigned offsets (no negative-index wrap-around to test per access)
     U, nc = np.uint64, np.uint64(vconst.shape[1])
     P, Q, LM, AM = pos.reshape(-1), quat.reshape(-1), lin_mom.reshape(-1), ang_mom.reshape(-1)
-    F, M, VC = force.reshape(-1), moment.reshape(-1), vconst.reshape(-1)
+    F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vconst.reshape(-1)
     X, Y, Z, W = U(0), U(1), U(2), U(3)
     for v in range(len(flags)):
         a, q, c = U(3) * U(v), U(4) * U(v), nc * U(v)
@@ -666,26 +644,68 @@ def integrate_kernel(p, flags, vconst, pos, quat, lin_mom, ang_mom, force, momen
             LM[a + X] = LM[a + Y] = LM[a + Z] = 0.0
             AM[a + X] = AM[a + Y] = AM[a + Z] = 0.0
             continue
-        inv_m, inv_i = VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)]
-        fx, fy, fz = F[a + X], F[a + Y], F[a + Z]
-        px, py, pz = LM[a + X] + fx * dt, LM[a + Y] + fy * dt, LM[a + Z] + fz * dt
-        if contact[v]:
+        m, inv_m, inv_i = VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)]
+        c_lin, c_ang = VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)]
+        px, py, pz = LM[a + X], LM[a + Y], LM[a + Z]
+        lx, ly, lz = AM[a + X], AM[a + Y], AM[a + Z]
+        x, y, z = P[a + X], P[a + Y], P[a + Z]
+        qw, qx, qy, qz = Q[q + X], Q[q + Y], Q[q + Z], Q[q + W]
+        vx, vy, vz = px * inv_m, py * inv_m, pz * inv_m
+
+        # world forces
+        fx = F[a + X] + E[a + X] - c_lin * vx
+        fy = F[a + Y] + E[a + Y] - c_lin * vy
+        fz = F[a + Z] + E[a + Z] - c_lin * vz - m * g
+        mx = M[a + X] - c_ang * lx * inv_i
+        my = M[a + Y] - c_ang * ly * inv_i
+        mz = M[a + Z] - c_ang * lz * inv_i
+        if water:
+            exposed = 0
+            for f in range(6):
+                exposed |= (1 if nbr[v, f] < 0 else 0) << f
+            fx, fy, fz = add_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz,
+                                  size[v] * size[v])
+
+        # floor contact and friction
+        touch = False
+        if land:
+            pen = 0.5 * size[v] - z
+            touch = pen >= 0.0
+            if touch:
+                normal = VC[c + U(V_KFLOOR)] * pen
+                fz += normal - VC[c + U(V_CCOLL)] * vz
+                if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
+                    static[v] = False
+                elif not static[v]:
+                    hv = math.sqrt(vx * vx + vy * vy)
+                    if hv > slide:
+                        fx = fx - mu_k * normal * vx / hv
+                        fy = fy - mu_k * normal * vy / hv
+            else:
+                static[v] = False
+        contact[v] = touch
+        F[a + X], F[a + Y], F[a + Z] = fx, fy, fz
+        M[a + X], M[a + Y], M[a + Z] = mx, my, mz
+
+        # semi-implicit Euler
+        px, py, pz = px + fx * dt, py + fy * dt, pz + fz * dt
+        if touch:
             work_ = (fx * px + fy * py) * inv_m * dt
             if 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
                 static[v] = True
             if static[v]:
                 px, py = 0.0, 0.0
         LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
-        x = P[a + X] + px * inv_m * dt
-        y = P[a + Y] + py * inv_m * dt
-        z = P[a + Z] + pz * inv_m * dt
+        x = x + px * inv_m * dt
+        y = y + py * inv_m * dt
+        z = z + pz * inv_m * dt
         P[a + X], P[a + Y], P[a + Z] = x, y, z
         speed2 = max(speed2, (px * px + py * py + pz * pz) * (inv_m * inv_m))
 
-        lx, ly, lz = AM[a + X] + M[a + X] * dt, AM[a + Y] + M[a + Y] * dt, AM[a + Z] + M[a + Z] * dt
+        lx, ly, lz = lx + mx * dt, ly + my * dt, lz + mz * dt
         AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
         dw, dx, dy, dz = quat_from_rotvec(lx * inv_i * dt, ly * inv_i * dt, lz * inv_i * dt)
-        qw, qx, qy, qz = qmul(dw, dx, dy, dz, Q[q + X], Q[q + Y], Q[q + Z], Q[q + W])
+        qw, qx, qy, qz = qmul(dw, dx, dy, dz, qw, qx, qy, qz)
         norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         qw = qw * norm
         Q[q + X], Q[q + Y], Q[q + Z], Q[q + W] = qw, qx * norm, qy * norm, qz * norm
@@ -770,24 +790,12 @@ def collide(p, voxels, body, work, contacts):
 
 
 @njit(**INLINE)
-def world_forces(p, voxels, body, work):
-    """Gravity, global damping and water drag, added to ``work.force``/``work.moment``."""
-    world_forces_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, body.quat,
-                        body.lin_mom, body.ang_mom, work.size, work.force, work.moment)
-
-
-@njit(**INLINE)
-def floor_contact(p, voxels, body, work):
-    """Floor and friction forces on land, added to ``work.force``; marks ``work.contact``."""
-    floor_contact_kernel(p, voxels.flags, voxels.vconst, body.pos, body.lin_mom, work.size,
-                         work.force, work.static, work.contact)
-
-
-@njit(**INLINE)
-def integrate(p, voxels, body, work):
-    """Semi-implicit Euler step of ``body``; returns the largest squared speed or -1."""
-    return integrate_kernel(p, voxels.flags, voxels.vconst, body.pos, body.quat, body.lin_mom,
-                            body.ang_mom, work.force, work.moment, work.static, work.contact)
+def voxel_update(p, voxels, body, work):
+    """World forces, floor contact and the Euler step of every voxel (``voxel_kernel``);
+    returns the largest squared speed or -1."""
+    return voxel_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, body.pos,
+                        body.quat, body.lin_mom, body.ang_mom, work.size, work.force,
+                        work.moment, work.static, work.contact)
 
 
 @njit(**INLINE)
@@ -799,9 +807,7 @@ def step(t, p, voxels, links, body, work, contacts):
     actuate(t, p, voxels, work)
     bad = link_forces(p, links, body, work)
     contacts = collide(p, voxels, body, work, contacts)
-    world_forces(p, voxels, body, work)
-    floor_contact(p, voxels, body, work)
-    speed2 = integrate(p, voxels, body, work)
+    speed2 = voxel_update(p, voxels, body, work)
     travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
     return bad, speed2, Contacts(contacts.count, travel)
 

@@ -9,9 +9,10 @@ a step needs, all over flat struct-of-arrays buffers holding every robot of the 
     forces    one thread per voxel: sums its links' forces (``kernels.link_sums``), rebuilds
               its self-collision candidates when the robot's travel says so and adds the
               contact forces (``kernels.collide_kernel``), then gravity, external force,
-              global damping, water drag and, on land, floor and friction (``kernels.
-              world_forces_kernel``, ``kernels.floor_contact_kernel``);
-    integrate one thread per voxel: semi-implicit Euler (``kernels.integrate_kernel``),
+              global damping, water drag and, on land, floor and friction (the forces
+              of ``kernels.voxel_kernel``);
+    integrate one thread per voxel: semi-implicit Euler (the step of
+              ``kernels.voxel_kernel``),
               the robot's largest speed by atomic max, then the voxel's actuated size for
               the next step (``kernels.actuate_kernel``);
     robots    one thread per robot: after a step, its status (strain, non-finite), the
@@ -557,7 +558,7 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
                     fy = fy - fc * ny
                     fz = fz - fc * nz
 
-        if (flags[v] & FLAG_FIXED) == 0:  # ``kernels.world_forces_kernel``
+        if (flags[v] & FLAG_FIXED) == 0:  # world forces of ``kernels.voxel_kernel``
             m = vc[v, V_MASS]
             inv_m = vc[v, V_INV_MASS]
             inv_i = vc[v, V_INV_INERTIA]
@@ -602,7 +603,7 @@ def _define(S) -> Kernels:  # noqa: C901 (one closure per precision holds every 
                                 fx += fd * ex
                                 fy += fd * ey
                                 fz += fd * ez
-            if env == ENV_LAND:  # ``kernels.floor_contact_kernel``
+            if env == ENV_LAND:  # floor of ``kernels.voxel_kernel``
                 pen = S(0.5) * size[v] - pos[v, 2]
                 if pen >= S(0.0):
                     contact[v] = 1

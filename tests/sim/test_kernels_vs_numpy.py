@@ -128,9 +128,7 @@ def test_trajectory_matches_numpy(env, mixed):
     small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, len(batch.link_neg)))
     for _ in range(60):
         _link_forces(batch, p, mine.pos, mine.quat, size, work, _f, _m)
-        kernels.world_forces(p, voxels, mine, work)
-        kernels.floor_contact(p, voxels, mine, work)
-        kernels.integrate(p, voxels, mine, work)
+        kernels.voxel_update(p, voxels, mine, work)
         ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env],
                  mats, scene)
     np.testing.assert_array_equal(static, static_ref)
