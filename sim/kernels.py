@@ -432,7 +432,6 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
         # two rotation vectors per link whichever the frame (selected inputs, one polynomial
         # each); c has no x part, so t1 has none
         t1y, t1z = rotvec_x0(cw, cy, cz)
-        t1x = 0.0
         t2x, t2y, t2z = rotvec(pw, px, py, pz)
 
         # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
@@ -453,14 +452,14 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
         ex = dx + g * (dx - link_state[S0 + J])
         ey = dy + g * (dy - link_state[S1 + J])
         ez = dz + g * (dz - link_state[S2 + J])
-        e1x = t1x + g * (t1x - link_state[S3 + J])
+        e1x = 0.0  # t1 has no x part (so row S3 stays 0)
         e1y = t1y + g * (t1y - link_state[S4 + J])
         e1z = t1z + g * (t1z - link_state[S5 + J])
         e2x = t2x + g * (t2x - link_state[S6 + J])
         e2y = t2y + g * (t2y - link_state[S7 + J])
         e2z = t2z + g * (t2z - link_state[S8 + J])
         link_state[S0 + J], link_state[S1 + J], link_state[S2 + J] = dx, dy, dz
-        link_state[S3 + J], link_state[S4 + J], link_state[S5 + J] = t1x, t1y, t1z
+        link_state[S4 + J], link_state[S5 + J] = t1y, t1z
         link_state[S6 + J], link_state[S7 + J], link_state[S8 + J] = t2x, t2y, t2z
 
         # E A_current strain: area and rest length both scale with the voxel size
