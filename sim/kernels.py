@@ -124,7 +124,7 @@ MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared di
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
 SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2
 # Self-collision candidates are unbonded surface pairs within the largest contact distance plus
-# this margin (in voxel lengths); the list is rebuilt once voxels may have closed the margin.
+# this margin (in voxel lengths); the list is rebuilt once surface voxels have moved half of it.
 COLLIDE_MARGIN = 0.2
 FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
 MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
@@ -364,7 +364,7 @@ def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, qu
     U = np.uint64
     I0, I1, I2, I3, I4, I5 = U(0), U(m), U(2 * m), U(3 * m), U(4 * m), U(5 * m)
     I6, I7, I8, I9, I10, I11 = U(6 * m), U(7 * m), U(8 * m), U(9 * m), U(10 * m), U(11 * m)
-    S0, S1, S2, S3, S4 = I0, I1, I2, I3, I4  # the same row offsets, other buffers
+    S0, S1, S2, S4 = I0, I1, I2, I4  # the same row offsets, other buffers (row 3: unused)
     S5, S6, S7, S8, S9 = I5, I6, I7, I8, I9
     M = U(m + 1)  # link_out's rows end in a zero (read by link_sums for a missing link)
     O0, O1, O2, O3, O4 = I0, M, U(2) * M, U(3) * M, U(4) * M
@@ -569,17 +569,40 @@ def collision_forces(count, pairs, pos, lin_mom, size, vconst, force):
 
 
 @njit(**JIT)
-def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, vconst, pairs, force):
-    """Self-collision forces when the robot has them on; rebuilds the candidate list once two
-    voxels may have closed the margin. Returns the updated ``Contacts``."""
+def surface_moved(surface, pos, built):
+    """The largest distance any surface voxel has moved from ``built`` (its positions when
+    the candidate list was built); NaN before the first build (``built`` holds NaN)."""
+    most = 0.0
+    for a in range(len(surface)):
+        v = surface[a]
+        dx, dy, dz = pos[v, 0] - built[a, 0], pos[v, 1] - built[a, 1], pos[v, 2] - built[a, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        most = d2 if not (d2 <= most) else most  # NaN propagates
+    return math.sqrt(most)
+
+
+@njit(**JIT)
+def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, vconst, pairs, built, force):
+    """Self-collision forces when the robot has them on; returns the updated ``Contacts``.
+
+    ``contacts.travel`` bounds how far any surface voxel has moved since the candidate list
+    was built (the step adds the largest voxel speed times dt). Once two voxels may have
+    closed the margin by it, the surface voxels' actual displacement is measured: the list is
+    rebuilt only if that too reaches half the margin, otherwise the bound restarts from it
+    (a voxel that vibrates fast but goes nowhere does not force rebuilds)."""
     if not p.collide:
         return contacts
     count, travel = contacts.count, contacts.travel
     margin = COLLIDE_MARGIN * p.L
     if 2.0 * travel >= margin:
-        reach = p.L * (1.0 + p.amp) + margin
-        count = collision_pairs(surface, pos, nbr, reach, pairs)
-        travel = 0.0
+        travel = surface_moved(surface, pos, built)
+        if not (2.0 * travel < margin):  # NaN before the first build
+            reach = p.L * (1.0 + p.amp) + margin
+            count = collision_pairs(surface, pos, nbr, reach, pairs)
+            for a in range(len(surface)):
+                for c in range(3):
+                    built[a, c] = pos[surface[a], c]
+            travel = 0.0
     collision_forces(count, pairs, pos, lin_mom, size, vconst, force)
     return Contacts(count, travel)
 
@@ -751,6 +774,7 @@ class Work(NamedTuple):
     link_in: np.ndarray  # LINK_IN_ROWS * m
     link_state: np.ndarray  # LINK_STATE_ROWS * m
     link_out: np.ndarray  # LINK_OUT_ROWS * (m + 1): each row's last entry stays 0
+    built: np.ndarray  # (s, 3) surface voxels' positions when the candidates were listed
 
 
 class Contacts(NamedTuple):
@@ -785,7 +809,7 @@ def collide(p, voxels, body, work, contacts):
     """Self-collision forces (if on), added to ``work.force``; returns the updated
     ``Contacts``."""
     return collide_kernel(p, contacts, voxels.surface, voxels.nbr, body.pos, body.lin_mom,
-                          work.size, voxels.vconst, work.pairs, work.force)
+                          work.size, voxels.vconst, work.pairs, work.built, work.force)
 
 
 @njit(**INLINE)
@@ -869,13 +893,15 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, n_links, n_pairs):
+def robot_work(n_voxels, n_links, n_pairs, n_surface):
     """``Work`` of one robot's run: static friction flags set, link frame mode 0
-    (small-angle, nothing to damp against yet), everything else zero."""
+    (small-angle, nothing to damp against yet), no candidate list built yet (NaN positions),
+    everything else zero."""
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.bool_), np.zeros(LINK_IN_ROWS * n_links),
-                np.zeros(LINK_STATE_ROWS * n_links), np.zeros(LINK_OUT_ROWS * (n_links + 1)))
+                np.zeros(LINK_STATE_ROWS * n_links), np.zeros(LINK_OUT_ROWS * (n_links + 1)),
+                np.full((n_surface, 3), np.nan))
 
 
 @njit(**JIT)
@@ -905,7 +931,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     p, own_voxels, own_links, own_body = take_robot(batch, state, r)
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
-    own_work = robot_work(n, len(own_links.neg), batch.poff[r + 1] - batch.poff[r])
+    own_work = robot_work(n, len(own_links.neg), batch.poff[r + 1] - batch.poff[r],
+                          len(own_voxels.surface))
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)
     body, work = borrow(own_body), borrow(own_work)

@@ -43,14 +43,14 @@ def _perturb(state, rng, angle: float, shift: float, speed: float):
 
 
 def _work(batch, n):
-    return kernels.robot_work(n, len(batch.link_neg), int(batch.poff[-1]))
+    return kernels.robot_work(n, len(batch.link_neg), int(batch.poff[-1]), len(batch.surface))
 
 
 def _link_forces(batch, p, pos, quat, size, work, force, moment):
     """The two link kernels as the step runs them: per-link beams, then per-voxel sums.
     The sums are also checked against a NumPy scatter of the per-link forces."""
     m, n = len(batch.link_neg), len(pos)
-    link_in, link_state, link_out = work[-3:]
+    link_in, link_state, link_out = work.link_in, work.link_state, work.link_out
     bad = kernels.link_kernel(p, batch.link_neg, batch.link_pos, batch.link_axis,
                               batch.link_stiff, batch.link_damp, pos, quat, size, link_in,
                               link_state, link_out)
@@ -71,7 +71,7 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
 def _link_state(work, m):
     """The kernel's link state as the reference keeps it: small-angle flags, previous
     deformation (9, m), and whether that previous deformation exists."""
-    state = work[-2].reshape(10, m)
+    state = work.link_state.reshape(10, m)
     return state[9] >= 0, state[:9], state[9] != 0
 
 
@@ -200,6 +200,41 @@ def test_collision_pairs_and_forces_match_brute_force():
     assert touching, "the perturbed cup must have overlapping voxels"
     i, j = touching[0]
     assert (force[j] - force[i]) @ (state.pos[j] - state.pos[i]) > 0, "contacts push apart"
+
+
+def test_candidates_are_rebuilt_only_when_a_surface_voxel_moved_half_the_margin():
+    """The travel bound triggers a measurement, not a rebuild: the list is rebuilt once the
+    surface has actually moved half the margin (0.2 L / 2 = 5 mm here), and then holds every
+    pair within reach of the moved voxels."""
+    body = np.ones((4, 4, 4), int)
+    body[1:3, 1:3, 1:] = 0
+    scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
+    batch, state = system.pack([system.build_robot(scene)])
+    p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
+    work = _work(batch, len(mine.pos))
+    work.size[:] = 0.05
+    margin = kernels.COLLIDE_MARGIN * p.L
+
+    def collide(travel):
+        return kernels.collide_kernel(p, kernels.Contacts(count, travel), voxels.surface,
+                                      voxels.nbr, mine.pos, mine.lin_mom, work.size,
+                                      voxels.vconst, work.pairs, work.built, work.force)
+
+    count = 0
+    first = collide(margin)  # the first step: NaN positions, so a build
+    count = first.count
+    assert first.travel == 0.0 and count > 0
+    np.testing.assert_array_equal(work.built, mine.pos[voxels.surface])
+    inner = voxels.surface[0]
+    mine.pos[inner, 0] += 0.4 * margin  # moved less than half the margin: no rebuild
+    kept = collide(margin)
+    assert kept.travel == pytest.approx(0.4 * margin) and kept.count == count
+    np.testing.assert_array_equal(work.built[0], mine.pos[inner] - [0.4 * margin, 0, 0])
+    mine.pos[inner, 0] += 0.2 * margin  # now 0.6 of the margin: rebuilt
+    rebuilt = collide(margin)
+    assert rebuilt.travel == 0.0
+    np.testing.assert_array_equal(work.built, mine.pos[voxels.surface])
+    assert kernels.surface_moved(voxels.surface, mine.pos, work.built) == 0.0
 
 
 def test_rotation_vector_matches_scipy():
