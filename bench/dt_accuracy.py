@@ -6,8 +6,13 @@ reference at ``--reference`` (default 0.1). Prints the error table and, per stif
 largest fraction within 1%. Then evaluations per second of the paper-like robot (7^3 workspace,
 50 cycles) at each stiffness with the default fraction, one core.
 
+With ``--caps``, the other limit on the step instead: at the soft stiffnesses the step is set
+by the actuation cap (at least ``sim.system.STEPS_PER_CYCLE`` steps per actuation cycle), so
+the travelled distance is compared at several caps against a reference of 8000 steps per
+cycle, and the smallest cap within 1% (with every larger one) is printed.
+
 Usage: python bench/dt_accuracy.py [--cycles 10] [--reference 0.1] [--skip-speed]
-       [--skip-accuracy]
+       [--skip-accuracy] [--caps]
 """
 
 from __future__ import annotations
@@ -18,10 +23,13 @@ import time
 import numpy as np
 
 from softevo import sim
+from softevo.sim import system
 from softevo.sim.scene import Scene
 
 STIFFNESS_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 FRACTIONS = (0.15, 0.2, 0.3, 0.5, 0.7, 0.9, 1.2)
+CAPS = (4000, 2000, 1000, 500, 250, 125)  # steps per cycle, against CAP_REFERENCE
+CAP_REFERENCE = 8000
 
 
 def walker() -> tuple[np.ndarray, np.ndarray]:
@@ -82,6 +90,39 @@ def accuracy(cycles: float, reference: float) -> None:
     print(f"largest fraction safe at every stiffness and world: {min(safe_all)}")
 
 
+def caps(cycles: float) -> None:
+    """Distance error at each cap of steps per cycle, for the stiffnesses it binds."""
+    default = system.STEPS_PER_CYCLE
+    print(f"relative distance error vs {CAP_REFERENCE} steps per cycle ({cycles:g} cycles, "
+          f"default cap {default})")
+    print(f"{'world':<7}{'MPa':>7}{'ref dist':>10}" + "".join(f"{c:>8}" for c in CAPS)
+          + "   smallest safe")
+    safe_all = []
+    try:
+        for kind in ("land", "water"):
+            for mpa in STIFFNESS_MPA[:3]:
+                distances, stable = [], []
+                for cap in (CAP_REFERENCE, *CAPS):
+                    system.STEPS_PER_CYCLE = cap  # read by build_robot when it sets the step
+                    r = sim.simulate(scene(kind, mpa, 0.5, cycles))
+                    distances.append(r.distance)
+                    stable.append(r.stable)
+                base = distances[0]
+                errors = [abs(d - base) / max(abs(base), 1e-9) if ok else np.inf
+                          for d, ok in zip(distances[1:], stable[1:], strict=True)]
+                smallest = None  # the smallest cap with it and every larger one within 1%
+                for cap, e in zip(CAPS, errors, strict=True):
+                    if e > 0.01:
+                        break
+                    smallest = cap
+                safe_all.append(smallest or CAP_REFERENCE)
+                print(f"{kind:<7}{mpa:>7g}{base:>10.3f}" + "".join(f"{e:>8.2%}" for e in errors)
+                      + f"   {smallest}")
+    finally:
+        system.STEPS_PER_CYCLE = default
+    print(f"smallest cap safe at every soft stiffness and world: {max(safe_all)} steps per cycle")
+
+
 def speed() -> None:
     rng = np.random.default_rng(1)
     body = rng.choice([0, 1, 2], size=(7, 7, 7), p=[0.4, 0.3, 0.3])
@@ -109,7 +150,11 @@ def main() -> None:
     parser.add_argument("--reference", type=float, default=0.1)
     parser.add_argument("--skip-speed", action="store_true")
     parser.add_argument("--skip-accuracy", action="store_true")
+    parser.add_argument("--caps", action="store_true", help="the actuation cap's table instead")
     args = parser.parse_args()
+    if args.caps:
+        caps(args.cycles)
+        return
     if not args.skip_accuracy:
         accuracy(args.cycles, args.reference)
     if not args.skip_speed:
