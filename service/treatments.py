@@ -33,7 +33,7 @@ ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")
 STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
-SCALES = ("tiny", "small", "paper")
+SCALES = ("tiny", "pilot", "study", "small", "paper")
 
 
 @dataclass(frozen=True)
@@ -197,10 +197,15 @@ class Scale:
     switch_over: int = 0  # the gradual preset's span (generations of compound worlds)
 
 
-# tiny: the whole grid in minutes on 2 cores (CI); small: about an hour on 2 cores;
+# tiny: the whole grid in minutes on 2 cores (CI); pilot: 3 repetitions of a short run, for
+# ``softevo power`` (9 minutes on 2 cores); study: the pilot's runs with the repetitions that
+# ``softevo power`` asked of it for the stiffness comparisons (docs/results; about 25 minutes
+# on 2 cores); small: about an hour on 2 cores;
 # paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2),
+    "pilot": Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2),
+    "study": Scale(8, 10, 10, (6, 6, 6), 8, 7, switch_over=2),
     "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
     "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15, switch_over=1000),
 }
