@@ -18,7 +18,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.service.treatments import Treatment
+from softevo.service.treatments import SCALES, Treatment
 
 DbOption = Annotated[
     str | None,
@@ -167,7 +167,7 @@ def experiment(
         typer.Argument(help="paper: the paper's grid (SPEC.md section 5); gradual: its two "
                        "transitions, abrupt and gradual"),
     ],
-    scale: Annotated[str, typer.Option("--scale", help="tiny | pilot | study | small | paper")] = "tiny",
+    scale: Annotated[str, typer.Option("--scale", help=" | ".join(SCALES))] = "tiny",
     repetitions: Annotated[int | None, typer.Option("--repetitions")] = None,
     seed: Annotated[int, typer.Option("--seed")] = 0,
     db: DbOption = None,

@@ -33,7 +33,6 @@ ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")
 STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
-SCALES = ("tiny", "pilot", "study", "small", "paper")
 
 
 @dataclass(frozen=True)
@@ -202,13 +201,22 @@ class Scale:
 # ``softevo power`` asked of it for the stiffness comparisons (docs/results; about 25 minutes
 # on 2 cores); small: about an hour on 2 cores;
 # paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
+PILOT = Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2)
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2),
-    "pilot": Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2),
-    "study": Scale(8, 10, 10, (6, 6, 6), 8, 7, switch_over=2),
+    "pilot": PILOT,
+    "study": dataclasses.replace(PILOT, repetitions=7),
     "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
     "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15, switch_over=1000),
 }
+SCALES = tuple(PRESET_SCALES)
+
+
+def preset_scale(scale: str) -> Scale:
+    """The sizes of preset scale ``scale``; UserError for an unknown one."""
+    if scale not in PRESET_SCALES:
+        raise UserError(f"unknown scale {scale!r}; choose one of {', '.join(SCALES)}")
+    return PRESET_SCALES[scale]
 
 
 def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 0) -> list[Treatment]:
@@ -217,9 +225,7 @@ def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 
     At paper scale the S3 static treatments run as long as the transitions (9000
     generations), as in the paper, for a fair comparison.
     """
-    if scale not in PRESET_SCALES:
-        raise UserError(f"unknown scale {scale!r}; choose one of {', '.join(SCALES)}")
-    sizes = PRESET_SCALES[scale]
+    sizes = preset_scale(scale)
     reps = sizes.repetitions if repetitions is None else repetitions
     common = {
         "population": sizes.population,
@@ -259,9 +265,7 @@ def gradual_grid(scale: str = "tiny", repetitions: int | None = None, seed: int 
     """The paper's two transitions at S3 (land-water, water-land), each abrupt and gradual
     (``switch_over`` of the scale: tiny 2, small 4, paper 1000 generations), switching at
     half the generations; same sizes and seeds as ``paper_grid``'s transitions."""
-    if scale not in PRESET_SCALES:
-        raise UserError(f"unknown scale {scale!r}; choose one of {', '.join(SCALES)}")
-    sizes = PRESET_SCALES[scale]
+    sizes = preset_scale(scale)
     common = {
         "population": sizes.population,
         "workspace": sizes.workspace,

@@ -335,6 +335,7 @@ def from_link_matrix(axis, r00, r01, r02, r10, r11, r12, r20, r21, r22):
 # free of dependences between iterations (a 2-D array's runtime row stride would not be).
 LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
 LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
+# (row 3, the first end's x rotation, stays 0 here: the turn onto the centre line has none)
 LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on the positive end
 
 

@@ -19,7 +19,7 @@ from pydantic import (
     Tag,
 )
 
-from softevo.service.treatments import Treatment
+from softevo.service.treatments import SCALES, Treatment
 
 MAX_INT32 = 2**31 - 1
 Name = Annotated[
@@ -85,7 +85,7 @@ class PresetIn(Strict):
 
     preset: Literal["paper", "gradual"] = Field(
         description="paper: the paper's grid; gradual: its two transitions, abrupt and gradual")
-    scale: Literal["tiny", "pilot", "study", "small", "paper"] = "tiny"
+    scale: Literal[SCALES] = "tiny"  # type: ignore[valid-type]
     repetitions: int | None = Field(None, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
     name: Name | None = None
