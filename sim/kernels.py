@@ -320,8 +320,9 @@ def beam(ex, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3):
 
 
 @njit(**INLINE)
-def from_link_matrix(axis, r00, r01, r02, r10, r11, r12, r20, r21, r22):
-    """R times the inverse axis permutation: world axes from link axes, as selects."""
+def from_link_matrix(axis, R):
+    """R (rows) times the inverse axis permutation: world axes from link axes, as selects."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
     return (r00 if axis == 0 else (r01 if axis == 1 else r02),
             -r00 if axis == 1 else r01, -r00 if axis == 2 else r02,
             r10 if axis == 0 else (r11 if axis == 1 else r12),
@@ -330,175 +331,280 @@ def from_link_matrix(axis, r00, r01, r02, r10, r11, r12, r20, r21, r22):
             -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
 
 
-# Per-link buffers are flat: ROWS rows of m values (m links), row k of link j at k * m + j.
-# With unsigned indices LLVM sees rows as whole trip counts apart and proves the link loop
-# free of dependences between iterations (a 2-D array's runtime row stride would not be).
+# One flat buffer per robot holds everything the link loops read and write: LINK_ROWS rows of
+# m + 1 values (m links), row k of link j at k (m + 1) + j. With unsigned offsets into one
+# array LLVM sees rows as more than a trip count apart and proves the loops free of dependences
+# between iterations with no runtime alias checks (separate arrays took hundreds of them per
+# call), where a 2-D array's runtime row stride would defeat the proof. Column m of every row
+# stays 0: ``link_sums`` reads it for a face without a link.
 LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
 LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
-# (row 3, the first end's x rotation, stays 0 here: the turn onto the centre line has none)
+# (row 3, the first end's x rotation, stays 0: the turn onto the centre line has none)
 LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on the positive end
+LINK_CONST_ROWS = 3  # axis (0., 1., 2.), stiffness scale E_link / E_ref, bond damping
+ROW_IN, ROW_STATE = 0, LINK_IN_ROWS
+ROW_OUT = ROW_STATE + LINK_STATE_ROWS
+ROW_CONST = ROW_OUT + LINK_OUT_ROWS
+LINK_ROWS = ROW_CONST + LINK_CONST_ROWS
+ROW_MODE = ROW_STATE + 9  # frame mode: +1 small-angle, -1 large, 0 before the first step
+ROW_AXIS, ROW_STIFF, ROW_DAMP = ROW_CONST, ROW_CONST + 1, ROW_CONST + 2
+# the mode a frame loop leaves on a link that must be computed again in the other frame
+LEAVES, RETURNS = 2.0, -2.0
+MOVED = 1 << 32  # a link that changes frame, in link_kernel's count
+
+
+@njit(**INLINE)
+def at(row, M, J):
+    """Offset of link J in buffer row ``row`` (rows of M values; a signed product, which
+    LLVM knows does not wrap)."""
+    return np.uint64(row * M) + J
+
+
+@njit(**INLINE)
+def link_geometry(B, M, J):
+    """Link J's inputs from the buffer: the rotation matrix R (rows) of its negative voxel, its
+    axis, the centre offset (rx, ry, rz) and relative rotation (ow, ox, oy, oz) of its two
+    voxels in the link frame (that voxel's frame turned so that the link's axis is +x), and
+    its rest length."""
+    qw, qx, qy, qz = B[at(0, M, J)], B[at(1, M, J)], B[at(2, M, J)], B[at(3, M, J)]
+    R = rotation_matrix(qw, qx, qy, qz)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    ax = B[at(ROW_AXIS, M, J)]
+    wx, wy, wz = B[at(8, M, J)], B[at(9, M, J)], B[at(10, M, J)]
+    rx, ry, rz = to_link(ax, r00 * wx + r10 * wy + r20 * wz,
+                         r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
+    ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, B[at(4, M, J)], B[at(5, M, J)], B[at(6, M, J)],
+                          B[at(7, M, J)])
+    ox, oy, oz = to_link(ax, ox, oy, oz)
+    return R, ax, rx, ry, rz, ow, ox, oy, oz, B[at(11, M, J)]
+
+
+@njit(**INLINE)
+def beam_out(p, B, M, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
+    """Damp link J's deformation (elongation d, end rotations t1 = (0, t1y, t1z) and t2) by g
+    times its change since the previous step, keep it as the new previous one, and write the
+    beam's forces and moments, turned to world axes by W (world from the beam's frame), to
+    the output rows. Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or
+    NaN), else 0."""
+    S = ROW_STATE
+    ex = dx + g * (dx - B[at(S, M, J)])
+    ey = dy + g * (dy - B[at(S + 1, M, J)])
+    ez = dz + g * (dz - B[at(S + 2, M, J)])
+    e1y = t1y + g * (t1y - B[at(S + 4, M, J)])
+    e1z = t1z + g * (t1z - B[at(S + 5, M, J)])
+    e2x = t2x + g * (t2x - B[at(S + 6, M, J)])
+    e2y = t2y + g * (t2y - B[at(S + 7, M, J)])
+    e2z = t2z + g * (t2z - B[at(S + 8, M, J)])
+    B[at(S, M, J)], B[at(S + 1, M, J)], B[at(S + 2, M, J)] = dx, dy, dz
+    B[at(S + 4, M, J)], B[at(S + 5, M, J)] = t1y, t1z
+    B[at(S + 6, M, J)], B[at(S + 7, M, J)], B[at(S + 8, M, J)] = t2x, t2y, t2z
+    # E A_current strain: area and rest length both scale with the voxel size
+    s = B[at(ROW_STIFF, M, J)]  # E_link / E_ref
+    fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
+        ex * rest * (1.0 / p.L), ey, ez, 0.0, e1y, e1z, e2x, e2y, e2z, p.a1 * s, p.a2 * s,
+        p.b1 * s, p.b2 * s, p.b3 * s)
+    w00, w01, w02, w10, w11, w12, w20, w21, w22 = W
+    O = ROW_OUT
+    B[at(O, M, J)] = w00 * fax + w01 * fay + w02 * faz
+    B[at(O + 1, M, J)] = w10 * fax + w11 * fay + w12 * faz
+    B[at(O + 2, M, J)] = w20 * fax + w21 * fay + w22 * faz
+    B[at(O + 3, M, J)] = w00 * max_ + w01 * may + w02 * maz
+    B[at(O + 4, M, J)] = w10 * max_ + w11 * may + w12 * maz
+    B[at(O + 5, M, J)] = w20 * max_ + w21 * may + w22 * maz
+    B[at(O + 6, M, J)] = w00 * mbx + w01 * mby + w02 * mbz
+    B[at(O + 7, M, J)] = w10 * mbx + w11 * mby + w12 * mbz
+    B[at(O + 8, M, J)] = w20 * mbx + w21 * mby + w22 * mbz
+    return 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
+
+
+@njit(**INLINE)
+def small_frame(p, B, M, J, g):
+    """Link J in its negative voxel's frame: the offset off the axis is shear, the first end
+    does not turn and the second turns by the voxels' relative rotation. Returns the
+    divergence flag and whether the bend or the extension has outgrown the frame."""
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, M, J)
+    t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
+    bad = beam_out(p, B, M, J, g, rest, from_link_matrix(ax, R), rx - rest, ry, rz, 0.0, 0.0,
+                   t2x, t2y, t2z)
+    leave = abs(ry) + abs(rz) > SMALL_TURN * rx or abs(rx - rest) > SMALL_EXTEND * rest
+    return bad, leave
+
+
+@njit(**INLINE)
+def large_frame(p, B, M, J, g):
+    """Link J in the frame of its centre line, which c = k (|r| + rx, 0, rz, -ry) with
+    k = 1 / sqrt(2 |r| (|r| + rx)) turns onto +x (half-angle identity; a half turn about z
+    when r points back): no shear, the bend shows in both end rotations. Returns the
+    divergence flag and whether the link is back within the small-angle frame's bounds
+    (which are tighter by HYSTERESIS than those it left)."""
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, M, J)
+    length = math.sqrt(rx * rx + ry * ry + rz * rz)
+    h = length + rx
+    back = h > 1e-4 * length
+    cw = h if back else 0.0
+    cy = rz if back else 0.0
+    cz = -ry if back else 1.0
+    k = 1.0 / math.sqrt(2.0 * length * h) if back else 1.0
+    # products with the unnormalised c run while k is computed
+    pw, px, py, pz = qmul_x0(cw, cy, cz, ow, ox, oy, oz)
+    cw, cy, cz = cw * k, cy * k, cz * k
+    t1y, t1z = rotvec_x0(cw, cy, cz)  # c has no x part, so t1 has none
+    t2x, t2y, t2z = rotvec(pw * k, px * k, py * k, pz * k)
+    # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(ax, R)
+    c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
+    c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
+    c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
+    c22 = 1.0 - 2.0 * cy * cy
+    W = (m00 * c00 - m01 * c01 - m02 * c02, m00 * c01 + m01 * c11 + m02 * c12,
+         m00 * c02 + m01 * c12 + m02 * c22,
+         m10 * c00 - m11 * c01 - m12 * c02, m10 * c01 + m11 * c11 + m12 * c12,
+         m10 * c02 + m11 * c12 + m12 * c22,
+         m20 * c00 - m21 * c01 - m22 * c02, m20 * c01 + m21 * c11 + m22 * c12,
+         m20 * c02 + m21 * c12 + m22 * c22)
+    bad = beam_out(p, B, M, J, g, rest, W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z)
+    enter = (abs(ry) + abs(rz) < (SMALL_TURN / HYSTERESIS) * rx
+             and abs(rx - rest) < (SMALL_EXTEND / HYSTERESIS) * rest)
+    return bad, enter
 
 
 @njit(**JIT)
-def link_kernel(p, link_neg, link_pos, link_axis, link_stiff, link_damp, pos, quat, size,
-                link_in, link_state, link_out):
-    """Beam forces of every link, in world axes, into ``link_out``. Returns
-    how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
+def swap_links(a, b, B, ends, vlink, link_id):
+    """Exchange the places of links a and b: their rows in the buffer (all but the inputs,
+    which the next gather rewrites), their voxels, ids, and the voxel faces that name them."""
+    m = len(link_id)
+    M = m + 1
+    A, C = np.uint64(a), np.uint64(b)
+    for row in range(ROW_STATE, LINK_ROWS):
+        x, y = at(row, M, A), at(row, M, C)
+        B[x], B[y] = B[y], B[x]
+    for e in (0, m):
+        ends[e + a], ends[e + b] = ends[e + b], ends[e + a]
+    link_id[a], link_id[b] = link_id[b], link_id[a]
+    for s in (a, b):
+        ax = int(B[at(ROW_AXIS, M, np.uint64(s))])
+        vlink[ends[s], 2 * ax + 1] = s
+        vlink[ends[m + s], 2 * ax] = s
 
-    Co-rotational: the frame follows the negative-side voxel while the bend is small and the
-    centre-to-centre line when it is large (hysteresis as Voxelyze). In the large-angle frame
-    the link is rotated by c = (cw, 0, cy, cz) onto the centre line, so shear is zero and the
-    bend shows in both end rotations. Bond damping is stiffness-proportional: the beam sees
-    d + link_damp[j] * (change of d per step), link_damp = gamma_link / (2 dt), which gives
-    every beam term the damping coefficient 2 zeta sqrt(m_link k). Link j's beam constants
-    are ``p.a1`` ... times ``link_stiff[j]`` = E_link / E_ref. The mode row holds +1
-    (small-angle frame) or -1 (large), and 0 before the first step (small, no previous
-    deformation to damp against).
 
-    Two loops: a gather of each link's inputs from its two voxels, then the beam maths over
-    contiguous rows with both frames computed and one selected, so that LLVM compiles it to
-    SIMD (four links per instruction on AVX2 and up).
+@njit(**JIT)
+def change_frames(p, B, ends, vlink, link_id, split):
+    """Links that a frame loop marked LEAVES or RETURNS, computed again in their new frame
+    (undamped: their previous deformation was measured in the other frame), then moved into
+    that frame's run; ``split`` gets the new boundary. Returns how many of them diverged."""
+    m = len(link_id)
+    M = m + 1
+    bad = 0
+    for j in range(m):
+        J = np.uint64(j)
+        mode = B[at(ROW_MODE, M, J)]
+        if mode == LEAVES:
+            bad += large_frame(p, B, M, J, 0.0)[0]
+            B[at(ROW_MODE, M, J)] = -1.0
+        elif mode == RETURNS:
+            bad += small_frame(p, B, M, J, 0.0)[0]
+            B[at(ROW_MODE, M, J)] = 1.0
+    # leavers (now -1 in the small run) and returners (now +1 in the large run) swap in pairs;
+    # what is left of either kind then crosses the boundary one by one
+    ns = split[0]
+    a, b = 0, ns
+    while True:
+        while a < ns and B[at(ROW_MODE, M, np.uint64(a))] >= 0.0:
+            a += 1
+        while b < m and B[at(ROW_MODE, M, np.uint64(b))] < 0.0:
+            b += 1
+        if a >= ns or b >= m:
+            break
+        swap_links(a, b, B, ends, vlink, link_id)
+        a, b = a + 1, b + 1
+    for s in range(ns - 1, a - 1, -1):  # leavers left: to the top of the small run
+        if B[at(ROW_MODE, M, np.uint64(s))] < 0.0:
+            ns -= 1
+            if s != ns:
+                swap_links(s, ns, B, ends, vlink, link_id)
+    for s in range(b, m):  # returners left: to the bottom of the large run
+        if B[at(ROW_MODE, M, np.uint64(s))] >= 0.0:
+            if s != ns:
+                swap_links(s, ns, B, ends, vlink, link_id)
+            ns += 1
+    split[0] = ns
+    return bad
+
+
+@njit(**JIT)
+def link_kernel(p, ends, vlink, link_id, split, pos, quat, size, B):
+    """Beam forces of every link, in world axes, into the output rows of the link buffer B.
+    Returns how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
+
+    Co-rotational: the frame follows the negative-side voxel while the bend is small
+    (``small_frame``) and the centre-to-centre line when it is large (``large_frame``), with
+    hysteresis as Voxelyze. Bond damping is stiffness-proportional: the beam sees
+    d + damp_j (change of d per step), damp_j = gamma_link / (2 dt), which gives every beam
+    term the damping coefficient 2 zeta sqrt(m_link k); a link with no previous step in its
+    frame (the first step, or just changed frame) is not damped. Link j's beam constants are
+    ``p.a1`` ... times its stiffness scale E_link / E_ref.
+
+    The links are stored in two runs: [0, split[0]) in the small-angle frame, the rest in the
+    large one. Each run is one loop over contiguous rows with no branch, which LLVM compiles
+    to SIMD, and computes only its own frame (the small one is about half the work of the
+    large). ``ends`` holds the links' negative voxels, then their positive ones; ``vlink``
+    each voxel's link per face and ``link_id`` each place's original link index, all in the
+    stored order, which ``change_frames`` updates when links change runs. A voxel's force and
+    moment do not depend on where its links are stored (``link_sums`` sums them by face).
     """
-    a1, a2, b1, b2, b3 = p.a1, p.a2, p.b1, p.b2, p.b3
-    inv_l = 1.0 / p.L
-    m = len(link_neg)
+    m = len(link_id)
     U = np.uint64
-    I0, I1, I2, I3, I4, I5 = U(0), U(m), U(2 * m), U(3 * m), U(4 * m), U(5 * m)
-    I6, I7, I8, I9, I10, I11 = U(6 * m), U(7 * m), U(8 * m), U(9 * m), U(10 * m), U(11 * m)
-    S0, S1, S2, S4 = I0, I1, I2, I4  # the same row offsets, other buffers (row 3: unused)
-    S5, S6, S7, S8, S9 = I5, I6, I7, I8, I9
-    M = U(m + 1)  # link_out's rows end in a zero (read by link_sums for a missing link)
-    O0, O1, O2, O3, O4 = I0, M, U(2) * M, U(3) * M, U(4) * M
-    O5, O6, O7, O8 = U(5) * M, U(6) * M, U(7) * M, U(8) * M
+    M = m + 1
     # gather: the one loop with indirect access, on flat views with unsigned offsets (no
     # negative-index wrap-around to test per load)
     Q, P = quat.reshape(-1), pos.reshape(-1)
     for j in range(m):
         J = U(j)
-        i, k = U(link_neg[j]), U(link_pos[j])
+        i, k = U(ends[j]), U(ends[m + j])
         qi, qk, pi, pk = U(4) * i, U(4) * k, U(3) * i, U(3) * k
-        link_in[I0 + J], link_in[I1 + J] = Q[qi], Q[qi + U(1)]
-        link_in[I2 + J], link_in[I3 + J] = Q[qi + U(2)], Q[qi + U(3)]
-        link_in[I4 + J], link_in[I5 + J] = Q[qk], Q[qk + U(1)]
-        link_in[I6 + J], link_in[I7 + J] = Q[qk + U(2)], Q[qk + U(3)]
-        link_in[I8 + J] = P[pk] - P[pi]
-        link_in[I9 + J] = P[pk + U(1)] - P[pi + U(1)]
-        link_in[I10 + J] = P[pk + U(2)] - P[pi + U(2)]
-        link_in[I11 + J] = 0.5 * (size[i] + size[k])
-    bad = 0
-    for j in range(m):
+        B[at(0, M, J)], B[at(1, M, J)] = Q[qi], Q[qi + U(1)]
+        B[at(2, M, J)], B[at(3, M, J)] = Q[qi + U(2)], Q[qi + U(3)]
+        B[at(4, M, J)], B[at(5, M, J)] = Q[qk], Q[qk + U(1)]
+        B[at(6, M, J)], B[at(7, M, J)] = Q[qk + U(2)], Q[qk + U(3)]
+        B[at(8, M, J)] = P[pk] - P[pi]
+        B[at(9, M, J)] = P[pk + U(1)] - P[pi + U(1)]
+        B[at(10, M, J)] = P[pk + U(2)] - P[pi + U(2)]
+        B[at(11, M, J)] = 0.5 * (size[i] + size[k])
+    ns = max(0, min(split[0], m))  # (bounds that let LLVM prove the rows apart)
+    count = 0  # diverged links plus MOVED times the links that change frame (one reduction)
+    for j in range(ns):  # mode +1, or 0 before the first step (nothing to damp against)
         J = U(j)
-        ax = link_axis[j]
-        qw, qx, qy, qz = link_in[I0 + J], link_in[I1 + J], link_in[I2 + J], link_in[I3 + J]
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(qw, qx, qy, qz)
-        wx, wy, wz = link_in[I8 + J], link_in[I9 + J], link_in[I10 + J]
-        rx, ry, rz = to_link(ax, r00 * wx + r10 * wy + r20 * wz,
-                             r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
-        ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, link_in[I4 + J], link_in[I5 + J],
-                              link_in[I6 + J], link_in[I7 + J])
-        ox, oy, oz = to_link(ax, ox, oy, oz)
-        rest = link_in[I11 + J]
-
-        # hysteresis between the two frames, compared without divisions
-        turn = abs(ry) + abs(rz)
-        extend = abs(rx - rest)
-        leave = turn > SMALL_TURN * rx or extend > SMALL_EXTEND * rest
-        enter = (turn < (SMALL_TURN / HYSTERESIS) * rx
-                 and extend < (SMALL_EXTEND / HYSTERESIS) * rest)
-        mode = link_state[S9 + J]
-        was_small = mode >= 0.0
-        now_small = (not leave) if was_small else enter
-        g = link_damp[j] if (mode != 0.0 and now_small == was_small) else 0.0
-        link_state[S9 + J] = 1.0 if now_small else -1.0
-
-        # large-angle frame: c takes the centre line onto +x (half-angle identity),
-        # c = k (|r| + rx, 0, rz, -ry) with k = 1 / sqrt(2 |r| (|r| + rx)); a half turn about
-        # z when r points back. Products with the unnormalised c run while k is computed.
-        length = math.sqrt(rx * rx + ry * ry + rz * rz)
-        h = length + rx
-        back = h > 1e-4 * length
-        cw = h if back else 0.0
-        cy = rz if back else 0.0
-        cz = -ry if back else 1.0
-        k = 1.0 / math.sqrt(2.0 * length * h) if back else 1.0
-        pw, px, py, pz = qmul_x0(cw, cy, cz, ow, ox, oy, oz)
-        if now_small:  # the voxel's own frame: the offset off the axis is shear
-            dx, dy, dz = rx - rest, ry, rz
-            cw, cy, cz = 1.0, 0.0, 0.0  # no turn onto the centre line: t1 = 0
-            pw, px, py, pz = ow, ox, oy, oz  # t2: the relative rotation itself
-        else:
-            dx, dy, dz = length - rest, 0.0, 0.0
-            cw, cy, cz = cw * k, cy * k, cz * k
-            pw, px, py, pz = pw * k, px * k, py * k, pz * k
-        # two rotation vectors per link whichever the frame (selected inputs, one polynomial
-        # each); c has no x part, so t1 has none
-        t1y, t1z = rotvec_x0(cw, cy, cz)
-        t2x, t2y, t2z = rotvec(pw, px, py, pz)
-
-        # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
-        m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(
-            ax, r00, r01, r02, r10, r11, r12, r20, r21, r22)
-        c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
-        c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
-        c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
-        c22 = 1.0 - 2.0 * cy * cy
-        m00, m01, m02 = (m00 * c00 - m01 * c01 - m02 * c02, m00 * c01 + m01 * c11 + m02 * c12,
-                         m00 * c02 + m01 * c12 + m02 * c22)
-        m10, m11, m12 = (m10 * c00 - m11 * c01 - m12 * c02, m10 * c01 + m11 * c11 + m12 * c12,
-                         m10 * c02 + m11 * c12 + m12 * c22)
-        m20, m21, m22 = (m20 * c00 - m21 * c01 - m22 * c02, m20 * c01 + m21 * c11 + m22 * c12,
-                         m20 * c02 + m21 * c12 + m22 * c22)
-
-        # stiffness-proportional damping from the change since the last step
-        ex = dx + g * (dx - link_state[S0 + J])
-        ey = dy + g * (dy - link_state[S1 + J])
-        ez = dz + g * (dz - link_state[S2 + J])
-        e1x = 0.0  # t1 has no x part (so row S3 stays 0)
-        e1y = t1y + g * (t1y - link_state[S4 + J])
-        e1z = t1z + g * (t1z - link_state[S5 + J])
-        e2x = t2x + g * (t2x - link_state[S6 + J])
-        e2y = t2y + g * (t2y - link_state[S7 + J])
-        e2z = t2z + g * (t2z - link_state[S8 + J])
-        link_state[S0 + J], link_state[S1 + J], link_state[S2 + J] = dx, dy, dz
-        link_state[S4 + J], link_state[S5 + J] = t1y, t1z
-        link_state[S6 + J], link_state[S7 + J], link_state[S8 + J] = t2x, t2y, t2z
-
-        # E A_current strain: area and rest length both scale with the voxel size
-        s = link_stiff[j]  # E_link / E_ref
-        fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
-            ex * rest * inv_l, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1 * s, a2 * s, b1 * s,
-            b2 * s, b3 * s)
-        link_out[O0 + J] = m00 * fax + m01 * fay + m02 * faz
-        link_out[O1 + J] = m10 * fax + m11 * fay + m12 * faz
-        link_out[O2 + J] = m20 * fax + m21 * fay + m22 * faz
-        link_out[O3 + J] = m00 * max_ + m01 * may + m02 * maz
-        link_out[O4 + J] = m10 * max_ + m11 * may + m12 * maz
-        link_out[O5 + J] = m20 * max_ + m21 * may + m22 * maz
-        link_out[O6 + J] = m00 * mbx + m01 * mby + m02 * mbz
-        link_out[O7 + J] = m10 * mbx + m11 * mby + m12 * mbz
-        link_out[O8 + J] = m20 * mbx + m21 * mby + m22 * mbz
-        bad += 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
-    return bad
+        g = B[at(ROW_DAMP, M, J)] if B[at(ROW_MODE, M, J)] != 0.0 else 0.0
+        flag, leave = small_frame(p, B, M, J, g)
+        B[at(ROW_MODE, M, J)] = LEAVES if leave else 1.0
+        count += MOVED if leave else flag
+    for j in range(ns, m):  # mode -1
+        J = U(j)
+        flag, enter = large_frame(p, B, M, J, B[at(ROW_DAMP, M, J)])
+        B[at(ROW_MODE, M, J)] = RETURNS if enter else -1.0
+        count += MOVED if enter else flag
+    return count % MOVED, count // MOVED
 
 
 @njit(**JIT)
-def link_sums(vlink, link_out, force, moment):
+def link_sums(vlink, B, force, moment):
     """Force and moment on every voxel from its links (overwrites ``force``/``moment``).
 
-    ``vlink[v, 2a + 1]`` is the link on v's +a face (v its negative end), ``vlink[v, 2a]`` the
-    one on its -a face (v its positive end); a face without a link holds m, the index of the
-    zero that ends every row of ``link_out`` (rows of m + 1), so every voxel sums six entries
-    per row without a branch.
+    ``vlink[v, 2a + 1]`` is the place of the link on v's +a face (v its negative end),
+    ``vlink[v, 2a]`` of the one on its -a face (v its positive end); a face without a link
+    holds m, the zero column that ends every row of the link buffer B, so every voxel sums six
+    entries per row without a branch.
     """
     U = np.uint64
-    ms = U(len(link_out) // LINK_OUT_ROWS)
-    R1, R2, R3, R4 = ms, U(2) * ms, U(3) * ms, U(4) * ms
-    R5, R6, R7, R8 = U(5) * ms, U(6) * ms, U(7) * ms, U(8) * ms
-    o = link_out
+    M = len(B) // LINK_ROWS
+    R0, R1, R2 = at(ROW_OUT, M, U(0)), at(ROW_OUT + 1, M, U(0)), at(ROW_OUT + 2, M, U(0))
+    R3, R4, R5 = at(ROW_OUT + 3, M, U(0)), at(ROW_OUT + 4, M, U(0)), at(ROW_OUT + 5, M, U(0))
+    R6, R7, R8 = at(ROW_OUT + 6, M, U(0)), at(ROW_OUT + 7, M, U(0)), at(ROW_OUT + 8, M, U(0))
+    o = B
     for v in range(len(vlink)):
         p0, p1, p2 = U(vlink[v, 1]), U(vlink[v, 3]), U(vlink[v, 5])
         n0, n1, n2 = U(vlink[v, 0]), U(vlink[v, 2]), U(vlink[v, 4])
-        force[v, 0] = (o[p0] + o[p1] + o[p2]) - (o[n0] + o[n1] + o[n2])
+        force[v, 0] = (o[R0 + p0] + o[R0 + p1] + o[R0 + p2]) - (o[R0 + n0] + o[R0 + n1] + o[R0 + n2])
         force[v, 1] = (o[R1 + p0] + o[R1 + p1] + o[R1 + p2]) - (o[R1 + n0] + o[R1 + n1] + o[R1 + n2])
         force[v, 2] = (o[R2 + p0] + o[R2 + p1] + o[R2 + p2]) - (o[R2 + n0] + o[R2 + n1] + o[R2 + n2])
         moment[v, 0] = (o[R3 + p0] + o[R3 + p1] + o[R3 + p2]) + (o[R6 + n0] + o[R6 + n1] + o[R6 + n2])
@@ -772,10 +878,13 @@ class Work(NamedTuple):
     static: np.ndarray  # (n,) bool: held by static friction
     pairs: np.ndarray  # (p, 2) self-collision candidates
     contact: np.ndarray  # (n,) bool: touching the floor this step
-    link_in: np.ndarray  # LINK_IN_ROWS * m
-    link_state: np.ndarray  # LINK_STATE_ROWS * m
-    link_out: np.ndarray  # LINK_OUT_ROWS * (m + 1): each row's last entry stays 0
     built: np.ndarray  # (s, 3) surface voxels' positions when the candidates were listed
+    # the links as ``link_kernel`` keeps them, in two runs by frame (see there):
+    link_buf: np.ndarray  # LINK_ROWS * (m + 1): inputs, state, output, constants per link
+    link_ends: np.ndarray  # (2 m,) negative voxels, then positive voxels
+    vlink: np.ndarray  # (n, 6) place of the link on each face (m: none)
+    link_id: np.ndarray  # (m,) the link (index in ``Links``) at each place
+    split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
 
 
 class Contacts(NamedTuple):
@@ -799,9 +908,12 @@ def actuate(t, p, voxels, work):
 def link_forces(p, links, body, work):
     """Beam forces of every link, summed into each voxel's force and moment (overwritten).
     Returns how many links diverged."""
-    bad = link_kernel(p, links.neg, links.pos, links.axis, links.stiff, links.damp, body.pos,
-                      body.quat, work.size, work.link_in, work.link_state, work.link_out)
-    link_sums(links.vlink, work.link_out, work.force, work.moment)
+    bad, moves = link_kernel(p, work.link_ends, work.vlink, work.link_id, work.split,
+                             body.pos, body.quat, work.size, work.link_buf)
+    if moves:
+        bad += change_frames(p, work.link_buf, work.link_ends, work.vlink, work.link_id,
+                             work.split)
+    link_sums(work.vlink, work.link_buf, work.force, work.moment)
     return bad
 
 
@@ -894,15 +1006,22 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, n_links, n_pairs, n_surface):
-    """``Work`` of one robot's run: static friction flags set, link frame mode 0
-    (small-angle, nothing to damp against yet), no candidate list built yet (NaN positions),
-    everything else zero."""
+def robot_work(n_voxels, links, n_pairs, n_surface):
+    """``Work`` of one robot's run: static friction flags set, every link in the small-angle
+    run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
+    built yet (NaN positions), everything else zero."""
+    m = len(links.neg)
+    M = m + 1
+    buf = np.zeros(LINK_ROWS * M)
+    for j in range(m):
+        buf[ROW_AXIS * M + j] = links.axis[j]
+        buf[ROW_STIFF * M + j] = links.stiff[j]
+        buf[ROW_DAMP * M + j] = links.damp[j]
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
-                np.zeros(n_voxels, dtype=np.bool_), np.zeros(LINK_IN_ROWS * n_links),
-                np.zeros(LINK_STATE_ROWS * n_links), np.zeros(LINK_OUT_ROWS * (n_links + 1)),
-                np.full((n_surface, 3), np.nan))
+                np.zeros(n_voxels, dtype=np.bool_), np.full((n_surface, 3), np.nan), buf,
+                np.concatenate((links.neg, links.pos)), links.vlink.copy(), np.arange(m),
+                np.full(1, m))
 
 
 @njit(**JIT)
@@ -932,7 +1051,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     p, own_voxels, own_links, own_body = take_robot(batch, state, r)
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
-    own_work = robot_work(n, len(own_links.neg), batch.poff[r + 1] - batch.poff[r],
+    own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r],
                           len(own_voxels.surface))
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)

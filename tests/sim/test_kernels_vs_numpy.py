@@ -42,22 +42,45 @@ def _perturb(state, rng, angle: float, shift: float, speed: float):
     state.ang_mom[:] = rng.normal(0, speed * 1e-3, state.ang_mom.shape)
 
 
+def _links(batch):
+    return kernels.Links(batch.link_neg, batch.link_pos, batch.link_axis, batch.vlink,
+                         batch.link_stiff, batch.link_damp)
+
+
 def _work(batch, n):
-    return kernels.robot_work(n, len(batch.link_neg), int(batch.poff[-1]), len(batch.surface))
+    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), len(batch.surface))
+
+
+def _rows(work, first, count):
+    """Rows ``first`` ... of the kernel's link buffer, in the links' own order (the kernel
+    keeps them by frame: ``work.link_id`` names the link at each place)."""
+    m = len(work.link_id)
+    rows = work.link_buf.reshape(kernels.LINK_ROWS, m + 1)[first:first + count]
+    assert not rows[:, m].any()  # the zero that link_sums reads for a face without a link
+    out = np.empty((count, m))
+    out[:, work.link_id] = rows[:, :m]
+    return out
 
 
 def _link_forces(batch, p, pos, quat, size, work, force, moment):
-    """The two link kernels as the step runs them: per-link beams, then per-voxel sums.
-    The sums are also checked against a NumPy scatter of the per-link forces."""
-    m, n = len(batch.link_neg), len(pos)
-    link_in, link_state, link_out = work.link_in, work.link_state, work.link_out
-    bad = kernels.link_kernel(p, batch.link_neg, batch.link_pos, batch.link_axis,
-                              batch.link_stiff, batch.link_damp, pos, quat, size, link_in,
-                              link_state, link_out)
-    kernels.link_sums(batch.vlink, link_out, force, moment)
-    out = link_out.reshape(9, m + 1)
-    assert not out[:, m].any()  # the zero that link_sums reads for a face without a link
-    out = out[:, :m]
+    """The link forces as the step computes them (``kernels.link_forces``: beams in their two
+    runs, frame changes, per-voxel sums). The sums are also checked against a NumPy scatter
+    of the per-link forces, and the kernel's places of the links against their voxels."""
+    n = len(pos)
+    body = system.State(pos, quat, np.zeros_like(pos), np.zeros_like(pos))
+    bad = kernels.link_forces(p, _links(batch), body, work)
+    m = len(work.link_id)
+    assert sorted(work.link_id) == list(range(m))
+    ends = work.link_ends.reshape(2, m)
+    np.testing.assert_array_equal(ends[0], batch.link_neg[work.link_id])
+    np.testing.assert_array_equal(ends[1], batch.link_pos[work.link_id])
+    small = _rows(work, kernels.ROW_MODE, 1)[0] >= 0
+    assert small[work.link_id[:work.split[0]]].all() and not small[work.link_id[work.split[0]:]].any()
+    faces = np.full(batch.vlink.shape, m)
+    place = np.argsort(work.link_id)
+    faces[batch.vlink < m] = place[batch.vlink[batch.vlink < m]]
+    np.testing.assert_array_equal(work.vlink, faces)
+    out = _rows(work, kernels.ROW_OUT, kernels.LINK_OUT_ROWS)
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
     np.add.at(f, batch.link_neg, out[0:3].T)
     np.add.at(f, batch.link_pos, -out[0:3].T)
@@ -71,7 +94,7 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
 def _link_state(work, m):
     """The kernel's link state as the reference keeps it: small-angle flags, previous
     deformation (9, m), and whether that previous deformation exists."""
-    state = work.link_state.reshape(10, m)
+    state = _rows(work, kernels.ROW_STATE, kernels.LINK_STATE_ROWS)
     return state[9] >= 0, state[:9], state[9] != 0
 
 
