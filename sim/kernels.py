@@ -351,6 +351,7 @@ ROW_AXIS, ROW_STIFF, ROW_DAMP = ROW_CONST, ROW_CONST + 1, ROW_CONST + 2
 # the mode a frame loop leaves on a link that must be computed again in the other frame
 LEAVES, RETURNS = 2.0, -2.0
 MOVED = 1 << 32  # a link that changes frame, in link_kernel's count
+CHANGE_BLOCK = 64  # links per block of change_frames' search
 
 
 @njit(**INLINE)
@@ -491,42 +492,50 @@ def swap_links(a, b, B, ends, vlink, link_id):
 def change_frames(p, B, ends, vlink, link_id, split):
     """Links that a frame loop marked LEAVES or RETURNS, computed again in their new frame
     (undamped: their previous deformation was measured in the other frame), then moved into
-    that frame's run; ``split`` gets the new boundary. Returns how many of them diverged."""
+    that frame's run; ``split`` gets the new boundary. Returns how many of them diverged.
+
+    The marked links are found block by block (a vectorized count per block of
+    CHANGE_BLOCK links, then a scan of the blocks that hold any), so a step in which a few
+    links change frame costs little more than one that has none."""
     m = len(link_id)
     M = m + 1
-    bad = 0
-    for j in range(m):
-        J = np.uint64(j)
-        mode = B[at(ROW_MODE, M, J)]
-        if mode == LEAVES:
-            bad += large_frame(p, B, M, J, 0.0)[0]
-            B[at(ROW_MODE, M, J)] = -1.0
-        elif mode == RETURNS:
-            bad += small_frame(p, B, M, J, 0.0)[0]
-            B[at(ROW_MODE, M, J)] = 1.0
-    # leavers (now -1 in the small run) and returners (now +1 in the large run) swap in pairs;
-    # what is left of either kind then crosses the boundary one by one
     ns = split[0]
-    a, b = 0, ns
-    while True:
-        while a < ns and B[at(ROW_MODE, M, np.uint64(a))] >= 0.0:
-            a += 1
-        while b < m and B[at(ROW_MODE, M, np.uint64(b))] < 0.0:
-            b += 1
-        if a >= ns or b >= m:
-            break
-        swap_links(a, b, B, ends, vlink, link_id)
-        a, b = a + 1, b + 1
-    for s in range(ns - 1, a - 1, -1):  # leavers left: to the top of the small run
-        if B[at(ROW_MODE, M, np.uint64(s))] < 0.0:
-            ns -= 1
-            if s != ns:
-                swap_links(s, ns, B, ends, vlink, link_id)
-    for s in range(b, m):  # returners left: to the bottom of the large run
-        if B[at(ROW_MODE, M, np.uint64(s))] >= 0.0:
-            if s != ns:
-                swap_links(s, ns, B, ends, vlink, link_id)
-            ns += 1
+    moved = np.empty(m, dtype=np.int64)  # leavers (ascending), then returners (ascending)
+    count = 0
+    bad = 0
+    for lo in range(0, m, CHANGE_BLOCK):
+        hi = min(lo + CHANGE_BLOCK, m)
+        marked = 0
+        for j in range(lo, hi):
+            marked += 1 if abs(B[at(ROW_MODE, M, np.uint64(j))]) > 1.5 else 0
+        if marked == 0:
+            continue
+        for j in range(lo, hi):
+            J = np.uint64(j)
+            mode = B[at(ROW_MODE, M, J)]
+            if mode == LEAVES:
+                bad += large_frame(p, B, M, J, 0.0)[0]
+                B[at(ROW_MODE, M, J)] = -1.0
+            elif mode == RETURNS:
+                bad += small_frame(p, B, M, J, 0.0)[0]
+                B[at(ROW_MODE, M, J)] = 1.0
+            else:
+                continue
+            moved[count] = j
+            count += 1
+    # leavers (all below ns), from the highest down, to the top of the small run; then
+    # returners (all at ns or above), from the lowest up, to the bottom of the large run
+    first = 0
+    while first < count and moved[first] < ns:
+        first += 1
+    for q in range(first - 1, -1, -1):
+        ns -= 1
+        if moved[q] != ns:
+            swap_links(moved[q], ns, B, ends, vlink, link_id)
+    for q in range(first, count):
+        if moved[q] != ns:
+            swap_links(moved[q], ns, B, ends, vlink, link_id)
+        ns += 1
     split[0] = ns
     return bad
 
