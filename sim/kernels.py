@@ -6,8 +6,9 @@ records frames and centre-of-mass samples and stops at divergence; ``step`` is o
     actuate -> link_forces -> collide -> voxel_update (world forces, floor, integrate)
 
 - ``actuate``: voxel size s = max(L (1 + amp w(omega t + phase)), 0.1 L) for active voxels;
-- ``link_forces``: co-rotational 3-D beams (``link_kernel``: gather, then beams as SIMD), summed
-  per voxel (``link_sums``); stiffness-proportional bond damping;
+- ``link_forces``: co-rotational 3-D beams (``link_kernel``: gather, then one SIMD loop per
+  frame over the links kept in that frame's run; ``change_frames`` for the few that switch),
+  summed per voxel (``link_sums``); stiffness-proportional bond damping;
 - ``collide``: penalty contact k overlap - c v_n (>= 0) between unbonded surface voxels;
 - ``voxel_update``, one pass over the voxels (``voxel_kernel``), each voxel in turn:
   - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
@@ -61,6 +62,7 @@ import math
 from typing import NamedTuple
 
 import llvmlite.binding
+import llvmlite.ir
 import numpy as np
 from numba import njit, prange, types
 from numba.core import cgutils
@@ -110,6 +112,8 @@ from .system import (
 # fastmath without 'nnan'/'ninf' (divergence stays detectable by comparisons) and without
 # 'reassoc'/'contract': with those, a freshly compiled kernel and the same kernel loaded from
 # numba's cache round differently, and the same seed must give the same run in every process.
+# The hot products are fused by hand instead (``fma``, ``dot3``), which rounds the same way in
+# every process.
 FASTMATH = {"arcp", "nsz", "afn"}
 JIT = dict(cache=True, fastmath=FASTMATH, error_model="numpy")
 INLINE = dict(inline="always", **JIT)
@@ -118,6 +122,27 @@ INLINE = dict(inline="always", **JIT)
 # budget of 128 (one per pair of link rows that could overlap); a process-wide setting that only
 # lets the vectorizer take loops it would otherwise leave scalar.
 llvmlite.binding.set_option("softevo", "-vectorize-memory-check-threshold=1024")
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a * b + c with one rounding (LLVM's fma: one instruction on CPUs with FMA, vectorized
+    with the loop). Explicit, so its results do not depend on how or when a kernel was
+    compiled, as LLVM's own contraction ('contract' above) would."""
+    if not all(isinstance(t, types.Float) for t in (a, b, c)):
+        return None
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        args = [context.cast(builder, v, t, types.float64)
+                for v, t in zip(args, signature.args, strict=True)]
+        f64 = llvmlite.ir.DoubleType()
+        fn = cgutils.get_or_insert_function(
+            builder.module, llvmlite.ir.FunctionType(f64, [f64, f64, f64]), "llvm.fma.f64")
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
 
 STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
 MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
@@ -132,13 +157,19 @@ MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
 
 # ---------------------------------------------------------------- quaternion helpers
 @njit(**INLINE)
+def dot3(ax, ay, az, bx, by, bz):
+    """a . b with fused multiply-adds."""
+    return fma(ax, bx, fma(ay, by, az * bz))
+
+
+@njit(**INLINE)
 def qmul(aw, ax, ay, az, bw, bx, by, bz):
     """Hamilton product a * b."""
     return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
+        fma(aw, bw, -fma(ax, bx, fma(ay, by, az * bz))),
+        fma(aw, bx, fma(ax, bw, fma(ay, bz, -(az * by)))),
+        fma(aw, by, fma(ay, bw, fma(az, bx, -(ax * bz)))),
+        fma(aw, bz, fma(ax, by, fma(az, bw, -(ay * bx)))),
     )
 
 
@@ -187,11 +218,11 @@ def angle_over_sin(u):
     u2 = u * u
     u4 = u2 * u2
     u8 = u4 * u4
-    lo = ((c[0] + c[1] * u) + u2 * (c[2] + c[3] * u)
-          + u4 * ((c[4] + c[5] * u) + u2 * (c[6] + c[7] * u)))
-    hi = ((c[8] + c[9] * u) + u2 * (c[10] + c[11] * u)
-          + u4 * ((c[12] + c[13] * u) + u2 * (c[14] + c[15] * u)))
-    return lo + u8 * (hi + u8 * c[16])
+    lo = fma(u4, fma(u2, fma(c[7], u, c[6]), fma(c[5], u, c[4])),
+             fma(u2, fma(c[3], u, c[2]), fma(c[1], u, c[0])))
+    hi = fma(u4, fma(u2, fma(c[15], u, c[14]), fma(c[13], u, c[12])),
+             fma(u2, fma(c[11], u, c[10]), fma(c[9], u, c[8])))
+    return fma(u8, fma(u8, c[16], hi), lo)
 
 
 @njit(**INLINE)
@@ -205,10 +236,10 @@ def rotvec(w, x, y, z):
 def qmul_x0(aw, ay, az, bw, bx, by, bz):
     """``qmul`` of a = (aw, 0, ay, az) and b, without the products with a's zero."""
     return (
-        aw * bw - ay * by - az * bz,
-        aw * bx + ay * bz - az * by,
-        aw * by + ay * bw + az * bx,
-        aw * bz - ay * bx + az * bw,
+        fma(aw, bw, -fma(ay, by, az * bz)),
+        fma(aw, bx, fma(ay, bz, -(az * by))),
+        fma(aw, by, fma(ay, bw, az * bx)),
+        fma(aw, bz, fma(az, bw, -(ay * bx))),
     )
 
 
@@ -290,9 +321,9 @@ def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, vconst, size):
 def rotation_matrix(w, x, y, z):
     """Rows of the rotation matrix of the unit quaternion (w, x, y, z): world = R local."""
     return (
-        1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
-        2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
-        2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y),
+        fma(-2.0, fma(y, y, z * z), 1.0), 2.0 * fma(x, y, -(w * z)), 2.0 * fma(x, z, w * y),
+        2.0 * fma(x, y, w * z), fma(-2.0, fma(x, x, z * z), 1.0), 2.0 * fma(y, z, -(w * x)),
+        2.0 * fma(x, z, -(w * y)), 2.0 * fma(y, z, w * x), fma(-2.0, fma(x, x, y * y), 1.0),
     )
 
 
@@ -372,8 +403,8 @@ def link_geometry(B, M, J):
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
     ax = B[at(ROW_AXIS, M, J)]
     wx, wy, wz = B[at(8, M, J)], B[at(9, M, J)], B[at(10, M, J)]
-    rx, ry, rz = to_link(ax, r00 * wx + r10 * wy + r20 * wz,
-                         r01 * wx + r11 * wy + r21 * wz, r02 * wx + r12 * wy + r22 * wz)
+    rx, ry, rz = to_link(ax, dot3(r00, r10, r20, wx, wy, wz), dot3(r01, r11, r21, wx, wy, wz),
+                         dot3(r02, r12, r22, wx, wy, wz))
     ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, B[at(4, M, J)], B[at(5, M, J)], B[at(6, M, J)],
                           B[at(7, M, J)])
     ox, oy, oz = to_link(ax, ox, oy, oz)
@@ -388,14 +419,14 @@ def beam_out(p, B, M, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
     the output rows. Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or
     NaN), else 0."""
     S = ROW_STATE
-    ex = dx + g * (dx - B[at(S, M, J)])
-    ey = dy + g * (dy - B[at(S + 1, M, J)])
-    ez = dz + g * (dz - B[at(S + 2, M, J)])
-    e1y = t1y + g * (t1y - B[at(S + 4, M, J)])
-    e1z = t1z + g * (t1z - B[at(S + 5, M, J)])
-    e2x = t2x + g * (t2x - B[at(S + 6, M, J)])
-    e2y = t2y + g * (t2y - B[at(S + 7, M, J)])
-    e2z = t2z + g * (t2z - B[at(S + 8, M, J)])
+    ex = fma(g, dx - B[at(S, M, J)], dx)
+    ey = fma(g, dy - B[at(S + 1, M, J)], dy)
+    ez = fma(g, dz - B[at(S + 2, M, J)], dz)
+    e1y = fma(g, t1y - B[at(S + 4, M, J)], t1y)
+    e1z = fma(g, t1z - B[at(S + 5, M, J)], t1z)
+    e2x = fma(g, t2x - B[at(S + 6, M, J)], t2x)
+    e2y = fma(g, t2y - B[at(S + 7, M, J)], t2y)
+    e2z = fma(g, t2z - B[at(S + 8, M, J)], t2z)
     B[at(S, M, J)], B[at(S + 1, M, J)], B[at(S + 2, M, J)] = dx, dy, dz
     B[at(S + 4, M, J)], B[at(S + 5, M, J)] = t1y, t1z
     B[at(S + 6, M, J)], B[at(S + 7, M, J)], B[at(S + 8, M, J)] = t2x, t2y, t2z
@@ -406,15 +437,15 @@ def beam_out(p, B, M, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
         p.b1 * s, p.b2 * s, p.b3 * s)
     w00, w01, w02, w10, w11, w12, w20, w21, w22 = W
     O = ROW_OUT
-    B[at(O, M, J)] = w00 * fax + w01 * fay + w02 * faz
-    B[at(O + 1, M, J)] = w10 * fax + w11 * fay + w12 * faz
-    B[at(O + 2, M, J)] = w20 * fax + w21 * fay + w22 * faz
-    B[at(O + 3, M, J)] = w00 * max_ + w01 * may + w02 * maz
-    B[at(O + 4, M, J)] = w10 * max_ + w11 * may + w12 * maz
-    B[at(O + 5, M, J)] = w20 * max_ + w21 * may + w22 * maz
-    B[at(O + 6, M, J)] = w00 * mbx + w01 * mby + w02 * mbz
-    B[at(O + 7, M, J)] = w10 * mbx + w11 * mby + w12 * mbz
-    B[at(O + 8, M, J)] = w20 * mbx + w21 * mby + w22 * mbz
+    B[at(O, M, J)] = dot3(w00, w01, w02, fax, fay, faz)
+    B[at(O + 1, M, J)] = dot3(w10, w11, w12, fax, fay, faz)
+    B[at(O + 2, M, J)] = dot3(w20, w21, w22, fax, fay, faz)
+    B[at(O + 3, M, J)] = dot3(w00, w01, w02, max_, may, maz)
+    B[at(O + 4, M, J)] = dot3(w10, w11, w12, max_, may, maz)
+    B[at(O + 5, M, J)] = dot3(w20, w21, w22, max_, may, maz)
+    B[at(O + 6, M, J)] = dot3(w00, w01, w02, mbx, mby, mbz)
+    B[at(O + 7, M, J)] = dot3(w10, w11, w12, mbx, mby, mbz)
+    B[at(O + 8, M, J)] = dot3(w20, w21, w22, mbx, mby, mbz)
     return 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
 
 
@@ -457,12 +488,12 @@ def large_frame(p, B, M, J, g):
     c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
     c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
     c22 = 1.0 - 2.0 * cy * cy
-    W = (m00 * c00 - m01 * c01 - m02 * c02, m00 * c01 + m01 * c11 + m02 * c12,
-         m00 * c02 + m01 * c12 + m02 * c22,
-         m10 * c00 - m11 * c01 - m12 * c02, m10 * c01 + m11 * c11 + m12 * c12,
-         m10 * c02 + m11 * c12 + m12 * c22,
-         m20 * c00 - m21 * c01 - m22 * c02, m20 * c01 + m21 * c11 + m22 * c12,
-         m20 * c02 + m21 * c12 + m22 * c22)
+    W = (dot3(m00, m01, m02, c00, -c01, -c02), dot3(m00, m01, m02, c01, c11, c12),
+         dot3(m00, m01, m02, c02, c12, c22),
+         dot3(m10, m11, m12, c00, -c01, -c02), dot3(m10, m11, m12, c01, c11, c12),
+         dot3(m10, m11, m12, c02, c12, c22),
+         dot3(m20, m21, m22, c00, -c01, -c02), dot3(m20, m21, m22, c01, c11, c12),
+         dot3(m20, m21, m22, c02, c12, c22))
     bad = beam_out(p, B, M, J, g, rest, W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z)
     enter = (abs(ry) + abs(rz) < (SMALL_TURN / HYSTERESIS) * rx
              and abs(rx - rest) < (SMALL_EXTEND / HYSTERESIS) * rest)

@@ -317,3 +317,18 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
     assert np.abs(force).max() > 0
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12 * np.abs(force).max())
+
+
+def test_fma_rounds_once():
+    """kernels.fma is a fused multiply-add: (1 + e)(1 - e) - 1 = -e^2 exactly, where the
+    product rounded first gives 0; and it agrees with the plain expression elsewhere."""
+    from numba import njit
+
+    e = 2.0 ** -30
+    fused = njit(lambda a, b, c: kernels.fma(a, b, c))
+    assert fused(1.0 + e, 1.0 - e, -1.0) == -(e * e)
+    assert (1.0 + e) * (1.0 - e) - 1.0 == 0.0
+    rng = np.random.default_rng(0)
+    a, b, c = rng.normal(size=(3, 100))
+    got = np.array([fused(x, y, z) for x, y, z in zip(a, b, c, strict=True)])
+    np.testing.assert_allclose(got, a * b + c, rtol=1e-15, atol=1e-15)
