@@ -123,6 +123,7 @@ INLINE = dict(inline="always", **JIT)
 # lets the vectorizer take loops it would otherwise leave scalar.
 llvmlite.binding.set_option("softevo", "-vectorize-memory-check-threshold=1024")
 
+
 @intrinsic
 def fma(typingctx, a, b, c):
     """a * b + c with one rounding (LLVM's fma: one instruction on CPUs with FMA, vectorized
@@ -141,7 +142,6 @@ def fma(typingctx, a, b, c):
         return builder.call(fn, args)
 
     return sig, codegen
-
 
 
 STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
@@ -363,17 +363,16 @@ def from_link_matrix(axis, R):
 
 
 # One flat buffer per robot holds everything the link loops read and write: LINK_ROWS rows of
-# m + 1 values (m links), row k of link j at k (m + 1) + j. With unsigned offsets into one
-# array LLVM sees rows as more than a trip count apart and proves the loops free of dependences
-# between iterations with no runtime alias checks (separate arrays took hundreds of them per
-# call), where a 2-D array's runtime row stride would defeat the proof. Column m of every row
-# stays 0: ``link_sums`` reads it for a face without a link.
+# m + 1 values (m links), row k of link j at k (m + 1) + j, so that moving a link to another
+# place (``swap_links``) is one loop over rows. LLVM vectorizes the loops behind runtime checks
+# that the rows do not overlap (a 2-D array's runtime row stride would defeat them). Column m
+# of every row stays 0: ``link_sums`` reads it for a face without a link.
 LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
 LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
 # (row 3, the first end's x rotation, stays 0: the turn onto the centre line has none)
 LINK_OUT_ROWS = 9  # force on the negative end, moment on the negative end, on the positive end
 LINK_CONST_ROWS = 3  # axis (0., 1., 2.), stiffness scale E_link / E_ref, bond damping
-ROW_IN, ROW_STATE = 0, LINK_IN_ROWS
+ROW_STATE = LINK_IN_ROWS  # the input rows come first
 ROW_OUT = ROW_STATE + LINK_STATE_ROWS
 ROW_CONST = ROW_OUT + LINK_OUT_ROWS
 LINK_ROWS = ROW_CONST + LINK_CONST_ROWS
@@ -387,8 +386,7 @@ CHANGE_BLOCK = 64  # links per block of change_frames' search
 
 @njit(**INLINE)
 def at(row, M, J):
-    """Offset of link J in buffer row ``row`` (rows of M values; a signed product, which
-    LLVM knows does not wrap)."""
+    """Offset of link J (unsigned) in buffer row ``row`` (rows of M values)."""
     return np.uint64(row * M) + J
 
 
@@ -520,10 +518,11 @@ def swap_links(a, b, B, ends, vlink, link_id):
 
 
 @njit(**JIT)
-def change_frames(p, B, ends, vlink, link_id, split):
+def change_frames(p, B, ends, vlink, link_id, split, moved):
     """Links that a frame loop marked LEAVES or RETURNS, computed again in their new frame
     (undamped: their previous deformation was measured in the other frame), then moved into
-    that frame's run; ``split`` gets the new boundary. Returns how many of them diverged.
+    that frame's run; ``split`` gets the new boundary; ``moved`` (m places) is scratch.
+    Returns how many of them diverged.
 
     The marked links are found block by block (a vectorized count per block of
     CHANGE_BLOCK links, then a scan of the blocks that hold any), so a step in which a few
@@ -531,8 +530,7 @@ def change_frames(p, B, ends, vlink, link_id, split):
     m = len(link_id)
     M = m + 1
     ns = split[0]
-    moved = np.empty(m, dtype=np.int64)  # leavers (ascending), then returners (ascending)
-    count = 0
+    count = 0  # moved[:count]: leavers (ascending), then returners (ascending)
     bad = 0
     for lo in range(0, m, CHANGE_BLOCK):
         hi = min(lo + CHANGE_BLOCK, m)
@@ -925,6 +923,7 @@ class Work(NamedTuple):
     vlink: np.ndarray  # (n, 6) place of the link on each face (m: none)
     link_id: np.ndarray  # (m,) the link (index in ``Links``) at each place
     split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
+    changed: np.ndarray  # (m,) scratch of ``change_frames``
 
 
 class Contacts(NamedTuple):
@@ -952,7 +951,7 @@ def link_forces(p, links, body, work):
                              body.pos, body.quat, work.size, work.link_buf)
     if moves:
         bad += change_frames(p, work.link_buf, work.link_ends, work.vlink, work.link_id,
-                             work.split)
+                             work.split, work.changed)
     link_sums(work.vlink, work.link_buf, work.force, work.moment)
     return bad
 
@@ -1051,17 +1050,14 @@ def robot_work(n_voxels, links, n_pairs, n_surface):
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), everything else zero."""
     m = len(links.neg)
-    M = m + 1
-    buf = np.zeros(LINK_ROWS * M)
-    for j in range(m):
-        buf[ROW_AXIS * M + j] = links.axis[j]
-        buf[ROW_STIFF * M + j] = links.stiff[j]
-        buf[ROW_DAMP * M + j] = links.damp[j]
+    buf = np.zeros(LINK_ROWS * (m + 1))
+    rows = buf.reshape(LINK_ROWS, m + 1)
+    rows[ROW_AXIS, :m], rows[ROW_STIFF, :m], rows[ROW_DAMP, :m] = links.axis, links.stiff, links.damp
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.bool_), np.full((n_surface, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), links.vlink.copy(), np.arange(m),
-                np.full(1, m))
+                np.full(1, m), np.empty(m, dtype=np.int64))
 
 
 @njit(**JIT)
