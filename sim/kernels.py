@@ -253,10 +253,10 @@ def rotvec_x0(w, y, z):
 @njit(**INLINE)
 def quat_from_rotvec(px, py, pz):
     """Unit quaternion of the rotation vector p (series when the angle is small)."""
-    a2 = 0.25 * (px * px + py * py + pz * pz)  # (half angle)^2
+    a2 = 0.25 * dot3(px, py, pz, px, py, pz)  # (half angle)^2
     if a2 < 1e-2:
-        c = 1.0 - a2 * (0.5 - a2 / 24.0)
-        f = 0.5 * (1.0 - a2 * (1.0 / 6.0 - a2 / 120.0))
+        c = fma(-a2, fma(-a2, 1.0 / 24.0, 0.5), 1.0)
+        f = 0.5 * fma(-a2, fma(-a2, 1.0 / 120.0, 1.0 / 6.0), 1.0)
     else:
         h = math.sqrt(a2)
         c = math.cos(h)
@@ -820,12 +820,13 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
         vx, vy, vz = px * inv_m, py * inv_m, pz * inv_m
 
         # world forces
-        fx = F[a + X] + E[a + X] - c_lin * vx
-        fy = F[a + Y] + E[a + Y] - c_lin * vy
-        fz = F[a + Z] + E[a + Z] - c_lin * vz - m * g
-        mx = M[a + X] - c_ang * lx * inv_i
-        my = M[a + Y] - c_ang * ly * inv_i
-        mz = M[a + Z] - c_ang * lz * inv_i
+        fx = fma(-c_lin, vx, F[a + X] + E[a + X])
+        fy = fma(-c_lin, vy, F[a + Y] + E[a + Y])
+        fz = fma(-c_lin, vz, F[a + Z] + E[a + Z]) - m * g
+        w_ang = c_ang * inv_i
+        mx = fma(-w_ang, lx, M[a + X])
+        my = fma(-w_ang, ly, M[a + Y])
+        mz = fma(-w_ang, lz, M[a + Z])
         if water:
             exposed = 0
             for f in range(6):
@@ -855,7 +856,7 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
         M[a + X], M[a + Y], M[a + Z] = mx, my, mz
 
         # semi-implicit Euler
-        px, py, pz = px + fx * dt, py + fy * dt, pz + fz * dt
+        px, py, pz = fma(fx, dt, px), fma(fy, dt, py), fma(fz, dt, pz)
         if touch:
             work_ = (fx * px + fy * py) * inv_m * dt
             if 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
@@ -863,17 +864,19 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
             if static[v]:
                 px, py = 0.0, 0.0
         LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
-        x = x + px * inv_m * dt
-        y = y + py * inv_m * dt
-        z = z + pz * inv_m * dt
+        step_m = inv_m * dt
+        x = fma(px, step_m, x)
+        y = fma(py, step_m, y)
+        z = fma(pz, step_m, z)
         P[a + X], P[a + Y], P[a + Z] = x, y, z
-        speed2 = max(speed2, (px * px + py * py + pz * pz) * (inv_m * inv_m))
+        speed2 = max(speed2, dot3(px, py, pz, px, py, pz) * (inv_m * inv_m))
 
-        lx, ly, lz = lx + mx * dt, ly + my * dt, lz + mz * dt
+        lx, ly, lz = fma(mx, dt, lx), fma(my, dt, ly), fma(mz, dt, lz)
         AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
-        dw, dx, dy, dz = quat_from_rotvec(lx * inv_i * dt, ly * inv_i * dt, lz * inv_i * dt)
+        step_i = inv_i * dt
+        dw, dx, dy, dz = quat_from_rotvec(lx * step_i, ly * step_i, lz * step_i)
         qw, qx, qy, qz = qmul(dw, dx, dy, dz, qw, qx, qy, qz)
-        norm = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        norm = 1.0 / math.sqrt(fma(qw, qw, dot3(qx, qy, qz, qx, qy, qz)))
         qw = qw * norm
         Q[q + X], Q[q + Y], Q[q + Z], Q[q + W] = qw, qx * norm, qy * norm, qz * norm
         if not (abs(x) < POSITION_BOUND and abs(y) < POSITION_BOUND and abs(z) < POSITION_BOUND
