@@ -68,6 +68,7 @@ from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from .scene import MAX_SIDE
 from .system import (
     ENV_LAND,
     ENV_WATER,
@@ -362,11 +363,15 @@ def from_link_matrix(axis, R):
             -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
 
 
-# One flat buffer per robot holds everything the link loops read and write: LINK_ROWS rows of
-# m + 1 values (m links), row k of link j at k (m + 1) + j, so that moving a link to another
-# place (``swap_links``) is one loop over rows. LLVM vectorizes the loops behind runtime checks
-# that the rows do not overlap (a 2-D array's runtime row stride would defeat them). Column m
-# of every row stays 0: ``link_sums`` reads it for a face without a link.
+# One flat buffer per robot holds everything the link loops read and write: LINK_ROWS rows,
+# row k of link j at k LINK_STRIDE + j, so that moving a link to another place (``swap_links``)
+# is one loop over rows. The stride is a compile-time constant that no robot's link count
+# reaches, so LLVM proves the rows of a loop apart by itself: with a stride known only at run
+# time it vectorized the link loops behind some 400 runtime overlap checks per loop and call
+# (about 0.7 us a step on the 7^3 cube), and the per-voxel sums and the loops ran slower too.
+# Only the first m + 1 values of each row (m links) are ever touched, so the rest of the
+# buffer is address space the system never backs with memory. Column m of every row stays 0:
+# ``link_sums`` reads it for a face without a link.
 LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
 LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
 # (row 3, the first end's x rotation, stays 0: the turn onto the centre line has none)
@@ -376,6 +381,10 @@ ROW_STATE = LINK_IN_ROWS  # the input rows come first
 ROW_OUT = ROW_STATE + LINK_STATE_ROWS
 ROW_CONST = ROW_OUT + LINK_OUT_ROWS
 LINK_ROWS = ROW_CONST + LINK_CONST_ROWS
+# more than the links of the largest scene (3 S^2 (S - 1) for a solid cube of side MAX_SIDE),
+# and 8 values past a multiple of 512, so that the rows start on different cache-line sets
+# (a power-of-two stride maps every row onto the same few sets: over twice as slow)
+LINK_STRIDE = 512 * (3 * MAX_SIDE * MAX_SIDE * (MAX_SIDE - 1) // 512 + 1) + 8
 ROW_MODE = ROW_STATE + 9  # frame mode: +1 small-angle, -1 large, 0 before the first step
 ROW_AXIS, ROW_STIFF, ROW_DAMP = ROW_CONST, ROW_CONST + 1, ROW_CONST + 2
 # the mode a frame loop leaves on a link that must be computed again in the other frame
@@ -385,89 +394,89 @@ CHANGE_BLOCK = 64  # links per block of change_frames' search
 
 
 @njit(**INLINE)
-def at(row, M, J):
-    """Offset of link J (unsigned) in buffer row ``row`` (rows of M values)."""
-    return np.uint64(row * M) + J
+def at(row, J):
+    """Offset of link J (unsigned) in buffer row ``row``."""
+    return np.uint64(row * LINK_STRIDE) + J
 
 
 @njit(**INLINE)
-def link_geometry(B, M, J):
+def link_geometry(B, J):
     """Link J's inputs from the buffer: the rotation matrix R (rows) of its negative voxel, its
     axis, the centre offset (rx, ry, rz) and relative rotation (ow, ox, oy, oz) of its two
     voxels in the link frame (that voxel's frame turned so that the link's axis is +x), and
     its rest length."""
-    qw, qx, qy, qz = B[at(0, M, J)], B[at(1, M, J)], B[at(2, M, J)], B[at(3, M, J)]
+    qw, qx, qy, qz = B[at(0, J)], B[at(1, J)], B[at(2, J)], B[at(3, J)]
     R = rotation_matrix(qw, qx, qy, qz)
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
-    ax = B[at(ROW_AXIS, M, J)]
-    wx, wy, wz = B[at(8, M, J)], B[at(9, M, J)], B[at(10, M, J)]
+    ax = B[at(ROW_AXIS, J)]
+    wx, wy, wz = B[at(8, J)], B[at(9, J)], B[at(10, J)]
     rx, ry, rz = to_link(ax, dot3(r00, r10, r20, wx, wy, wz), dot3(r01, r11, r21, wx, wy, wz),
                          dot3(r02, r12, r22, wx, wy, wz))
-    ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, B[at(4, M, J)], B[at(5, M, J)], B[at(6, M, J)],
-                          B[at(7, M, J)])
+    ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, B[at(4, J)], B[at(5, J)], B[at(6, J)],
+                          B[at(7, J)])
     ox, oy, oz = to_link(ax, ox, oy, oz)
-    return R, ax, rx, ry, rz, ow, ox, oy, oz, B[at(11, M, J)]
+    return R, ax, rx, ry, rz, ow, ox, oy, oz, B[at(11, J)]
 
 
 @njit(**INLINE)
-def beam_out(p, B, M, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
+def beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
     """Damp link J's deformation (elongation d, end rotations t1 = (0, t1y, t1z) and t2) by g
     times its change since the previous step, keep it as the new previous one, and write the
     beam's forces and moments, turned to world axes by W (world from the beam's frame), to
     the output rows. Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or
     NaN), else 0."""
     S = ROW_STATE
-    ex = fma(g, dx - B[at(S, M, J)], dx)
-    ey = fma(g, dy - B[at(S + 1, M, J)], dy)
-    ez = fma(g, dz - B[at(S + 2, M, J)], dz)
-    e1y = fma(g, t1y - B[at(S + 4, M, J)], t1y)
-    e1z = fma(g, t1z - B[at(S + 5, M, J)], t1z)
-    e2x = fma(g, t2x - B[at(S + 6, M, J)], t2x)
-    e2y = fma(g, t2y - B[at(S + 7, M, J)], t2y)
-    e2z = fma(g, t2z - B[at(S + 8, M, J)], t2z)
-    B[at(S, M, J)], B[at(S + 1, M, J)], B[at(S + 2, M, J)] = dx, dy, dz
-    B[at(S + 4, M, J)], B[at(S + 5, M, J)] = t1y, t1z
-    B[at(S + 6, M, J)], B[at(S + 7, M, J)], B[at(S + 8, M, J)] = t2x, t2y, t2z
+    ex = fma(g, dx - B[at(S, J)], dx)
+    ey = fma(g, dy - B[at(S + 1, J)], dy)
+    ez = fma(g, dz - B[at(S + 2, J)], dz)
+    e1y = fma(g, t1y - B[at(S + 4, J)], t1y)
+    e1z = fma(g, t1z - B[at(S + 5, J)], t1z)
+    e2x = fma(g, t2x - B[at(S + 6, J)], t2x)
+    e2y = fma(g, t2y - B[at(S + 7, J)], t2y)
+    e2z = fma(g, t2z - B[at(S + 8, J)], t2z)
+    B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)] = dx, dy, dz
+    B[at(S + 4, J)], B[at(S + 5, J)] = t1y, t1z
+    B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = t2x, t2y, t2z
     # E A_current strain: area and rest length both scale with the voxel size
-    s = B[at(ROW_STIFF, M, J)]  # E_link / E_ref
+    s = B[at(ROW_STIFF, J)]  # E_link / E_ref
     fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
         ex * rest * (1.0 / p.L), ey, ez, 0.0, e1y, e1z, e2x, e2y, e2z, p.a1 * s, p.a2 * s,
         p.b1 * s, p.b2 * s, p.b3 * s)
     w00, w01, w02, w10, w11, w12, w20, w21, w22 = W
     O = ROW_OUT
-    B[at(O, M, J)] = dot3(w00, w01, w02, fax, fay, faz)
-    B[at(O + 1, M, J)] = dot3(w10, w11, w12, fax, fay, faz)
-    B[at(O + 2, M, J)] = dot3(w20, w21, w22, fax, fay, faz)
-    B[at(O + 3, M, J)] = dot3(w00, w01, w02, max_, may, maz)
-    B[at(O + 4, M, J)] = dot3(w10, w11, w12, max_, may, maz)
-    B[at(O + 5, M, J)] = dot3(w20, w21, w22, max_, may, maz)
-    B[at(O + 6, M, J)] = dot3(w00, w01, w02, mbx, mby, mbz)
-    B[at(O + 7, M, J)] = dot3(w10, w11, w12, mbx, mby, mbz)
-    B[at(O + 8, M, J)] = dot3(w20, w21, w22, mbx, mby, mbz)
+    B[at(O, J)] = dot3(w00, w01, w02, fax, fay, faz)
+    B[at(O + 1, J)] = dot3(w10, w11, w12, fax, fay, faz)
+    B[at(O + 2, J)] = dot3(w20, w21, w22, fax, fay, faz)
+    B[at(O + 3, J)] = dot3(w00, w01, w02, max_, may, maz)
+    B[at(O + 4, J)] = dot3(w10, w11, w12, max_, may, maz)
+    B[at(O + 5, J)] = dot3(w20, w21, w22, max_, may, maz)
+    B[at(O + 6, J)] = dot3(w00, w01, w02, mbx, mby, mbz)
+    B[at(O + 7, J)] = dot3(w10, w11, w12, mbx, mby, mbz)
+    B[at(O + 8, J)] = dot3(w20, w21, w22, mbx, mby, mbz)
     return 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
 
 
 @njit(**INLINE)
-def small_frame(p, B, M, J, g):
+def small_frame(p, B, J, g):
     """Link J in its negative voxel's frame: the offset off the axis is shear, the first end
     does not turn and the second turns by the voxels' relative rotation. Returns the
     divergence flag and whether the bend or the extension has outgrown the frame."""
-    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, M, J)
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
     t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
-    bad = beam_out(p, B, M, J, g, rest, from_link_matrix(ax, R), rx - rest, ry, rz, 0.0, 0.0,
+    bad = beam_out(p, B, J, g, rest, from_link_matrix(ax, R), rx - rest, ry, rz, 0.0, 0.0,
                    t2x, t2y, t2z)
     leave = abs(ry) + abs(rz) > SMALL_TURN * rx or abs(rx - rest) > SMALL_EXTEND * rest
     return bad, leave
 
 
 @njit(**INLINE)
-def large_frame(p, B, M, J, g):
+def large_frame(p, B, J, g):
     """Link J in the frame of its centre line, which c = k (|r| + rx, 0, rz, -ry) with
     k = 1 / sqrt(2 |r| (|r| + rx)) turns onto +x (half-angle identity; a half turn about z
     when r points back): no shear, the bend shows in both end rotations. Returns the
     divergence flag and whether the link is back within the small-angle frame's bounds
     (which are tighter by HYSTERESIS than those it left)."""
-    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, M, J)
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
     length = math.sqrt(rx * rx + ry * ry + rz * rz)
     h = length + rx
     back = h > 1e-4 * length
@@ -492,7 +501,7 @@ def large_frame(p, B, M, J, g):
          dot3(m10, m11, m12, c02, c12, c22),
          dot3(m20, m21, m22, c00, -c01, -c02), dot3(m20, m21, m22, c01, c11, c12),
          dot3(m20, m21, m22, c02, c12, c22))
-    bad = beam_out(p, B, M, J, g, rest, W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z)
+    bad = beam_out(p, B, J, g, rest, W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z)
     enter = (abs(ry) + abs(rz) < (SMALL_TURN / HYSTERESIS) * rx
              and abs(rx - rest) < (SMALL_EXTEND / HYSTERESIS) * rest)
     return bad, enter
@@ -503,16 +512,15 @@ def swap_links(a, b, B, ends, vlink, link_id):
     """Exchange the places of links a and b: their rows in the buffer (all but the inputs,
     which the next gather rewrites), their voxels, ids, and the voxel faces that name them."""
     m = len(link_id)
-    M = m + 1
     A, C = np.uint64(a), np.uint64(b)
     for row in range(ROW_STATE, LINK_ROWS):
-        x, y = at(row, M, A), at(row, M, C)
+        x, y = at(row, A), at(row, C)
         B[x], B[y] = B[y], B[x]
     for e in (0, m):
         ends[e + a], ends[e + b] = ends[e + b], ends[e + a]
     link_id[a], link_id[b] = link_id[b], link_id[a]
     for s in (a, b):
-        ax = int(B[at(ROW_AXIS, M, np.uint64(s))])
+        ax = int(B[at(ROW_AXIS, np.uint64(s))])
         vlink[ends[s], 2 * ax + 1] = s
         vlink[ends[m + s], 2 * ax] = s
 
@@ -528,7 +536,6 @@ def change_frames(p, B, ends, vlink, link_id, split, moved):
     CHANGE_BLOCK links, then a scan of the blocks that hold any), so a step in which a few
     links change frame costs little more than one that has none."""
     m = len(link_id)
-    M = m + 1
     ns = split[0]
     count = 0  # moved[:count]: leavers (ascending), then returners (ascending)
     bad = 0
@@ -536,18 +543,18 @@ def change_frames(p, B, ends, vlink, link_id, split, moved):
         hi = min(lo + CHANGE_BLOCK, m)
         marked = 0
         for j in range(lo, hi):
-            marked += 1 if abs(B[at(ROW_MODE, M, np.uint64(j))]) > 1.5 else 0
+            marked += 1 if abs(B[at(ROW_MODE, np.uint64(j))]) > 1.5 else 0
         if marked == 0:
             continue
         for j in range(lo, hi):
             J = np.uint64(j)
-            mode = B[at(ROW_MODE, M, J)]
+            mode = B[at(ROW_MODE, J)]
             if mode == LEAVES:
-                bad += large_frame(p, B, M, J, 0.0)[0]
-                B[at(ROW_MODE, M, J)] = -1.0
+                bad += large_frame(p, B, J, 0.0)[0]
+                B[at(ROW_MODE, J)] = -1.0
             elif mode == RETURNS:
-                bad += small_frame(p, B, M, J, 0.0)[0]
-                B[at(ROW_MODE, M, J)] = 1.0
+                bad += small_frame(p, B, J, 0.0)[0]
+                B[at(ROW_MODE, J)] = 1.0
             else:
                 continue
             moved[count] = j
@@ -592,7 +599,6 @@ def link_kernel(p, ends, vlink, link_id, split, pos, quat, size, B):
     """
     m = len(link_id)
     U = np.uint64
-    M = m + 1
     # gather: the one loop with indirect access, on flat views with unsigned offsets (no
     # negative-index wrap-around to test per load)
     Q, P = quat.reshape(-1), pos.reshape(-1)
@@ -600,26 +606,26 @@ def link_kernel(p, ends, vlink, link_id, split, pos, quat, size, B):
         J = U(j)
         i, k = U(ends[j]), U(ends[m + j])
         qi, qk, pi, pk = U(4) * i, U(4) * k, U(3) * i, U(3) * k
-        B[at(0, M, J)], B[at(1, M, J)] = Q[qi], Q[qi + U(1)]
-        B[at(2, M, J)], B[at(3, M, J)] = Q[qi + U(2)], Q[qi + U(3)]
-        B[at(4, M, J)], B[at(5, M, J)] = Q[qk], Q[qk + U(1)]
-        B[at(6, M, J)], B[at(7, M, J)] = Q[qk + U(2)], Q[qk + U(3)]
-        B[at(8, M, J)] = P[pk] - P[pi]
-        B[at(9, M, J)] = P[pk + U(1)] - P[pi + U(1)]
-        B[at(10, M, J)] = P[pk + U(2)] - P[pi + U(2)]
-        B[at(11, M, J)] = 0.5 * (size[i] + size[k])
+        B[at(0, J)], B[at(1, J)] = Q[qi], Q[qi + U(1)]
+        B[at(2, J)], B[at(3, J)] = Q[qi + U(2)], Q[qi + U(3)]
+        B[at(4, J)], B[at(5, J)] = Q[qk], Q[qk + U(1)]
+        B[at(6, J)], B[at(7, J)] = Q[qk + U(2)], Q[qk + U(3)]
+        B[at(8, J)] = P[pk] - P[pi]
+        B[at(9, J)] = P[pk + U(1)] - P[pi + U(1)]
+        B[at(10, J)] = P[pk + U(2)] - P[pi + U(2)]
+        B[at(11, J)] = 0.5 * (size[i] + size[k])
     ns = max(0, min(split[0], m))  # (bounds that let LLVM prove the rows apart)
     count = 0  # diverged links plus MOVED times the links that change frame (one reduction)
     for j in range(ns):  # mode +1, or 0 before the first step (nothing to damp against)
         J = U(j)
-        g = B[at(ROW_DAMP, M, J)] if B[at(ROW_MODE, M, J)] != 0.0 else 0.0
-        flag, leave = small_frame(p, B, M, J, g)
-        B[at(ROW_MODE, M, J)] = LEAVES if leave else 1.0
+        g = B[at(ROW_DAMP, J)] if B[at(ROW_MODE, J)] != 0.0 else 0.0
+        flag, leave = small_frame(p, B, J, g)
+        B[at(ROW_MODE, J)] = LEAVES if leave else 1.0
         count += MOVED if leave else flag
     for j in range(ns, m):  # mode -1
         J = U(j)
-        flag, enter = large_frame(p, B, M, J, B[at(ROW_DAMP, M, J)])
-        B[at(ROW_MODE, M, J)] = RETURNS if enter else -1.0
+        flag, enter = large_frame(p, B, J, B[at(ROW_DAMP, J)])
+        B[at(ROW_MODE, J)] = RETURNS if enter else -1.0
         count += MOVED if enter else flag
     return count % MOVED, count // MOVED
 
@@ -634,10 +640,9 @@ def link_sums(vlink, B, force, moment):
     entries per row without a branch.
     """
     U = np.uint64
-    M = len(B) // LINK_ROWS
-    R0, R1, R2 = at(ROW_OUT, M, U(0)), at(ROW_OUT + 1, M, U(0)), at(ROW_OUT + 2, M, U(0))
-    R3, R4, R5 = at(ROW_OUT + 3, M, U(0)), at(ROW_OUT + 4, M, U(0)), at(ROW_OUT + 5, M, U(0))
-    R6, R7, R8 = at(ROW_OUT + 6, M, U(0)), at(ROW_OUT + 7, M, U(0)), at(ROW_OUT + 8, M, U(0))
+    R0, R1, R2 = at(ROW_OUT, U(0)), at(ROW_OUT + 1, U(0)), at(ROW_OUT + 2, U(0))
+    R3, R4, R5 = at(ROW_OUT + 3, U(0)), at(ROW_OUT + 4, U(0)), at(ROW_OUT + 5, U(0))
+    R6, R7, R8 = at(ROW_OUT + 6, U(0)), at(ROW_OUT + 7, U(0)), at(ROW_OUT + 8, U(0))
     o = B
     for v in range(len(vlink)):
         p0, p1, p2 = U(vlink[v, 1]), U(vlink[v, 3]), U(vlink[v, 5])
@@ -1053,8 +1058,11 @@ def robot_work(n_voxels, links, n_pairs, n_surface):
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), everything else zero."""
     m = len(links.neg)
-    buf = np.zeros(LINK_ROWS * (m + 1))
-    rows = buf.reshape(LINK_ROWS, m + 1)
+    if m >= LINK_STRIDE:
+        raise ValueError("more links than LINK_STRIDE allows")
+    buf = np.empty(LINK_ROWS * LINK_STRIDE)  # only the first m + 1 columns are ever used
+    rows = buf.reshape(LINK_ROWS, LINK_STRIDE)
+    rows[:, : m + 1] = 0.0
     rows[ROW_AXIS, :m], rows[ROW_STIFF, :m], rows[ROW_DAMP, :m] = links.axis, links.stiff, links.damp
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),

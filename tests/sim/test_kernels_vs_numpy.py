@@ -55,7 +55,7 @@ def _rows(work, first, count):
     """Rows ``first`` ... of the kernel's link buffer, in the links' own order (the kernel
     keeps them by frame: ``work.link_id`` names the link at each place)."""
     m = len(work.link_id)
-    rows = work.link_buf.reshape(kernels.LINK_ROWS, m + 1)[first:first + count]
+    rows = work.link_buf.reshape(kernels.LINK_ROWS, kernels.LINK_STRIDE)[first:first + count]
     assert not rows[:, m].any()  # the zero that link_sums reads for a face without a link
     out = np.empty((count, m))
     out[:, work.link_id] = rows[:, :m]
