@@ -68,7 +68,6 @@ from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from .scene import MAX_SIDE
 from .system import (
     ENV_LAND,
     ENV_WATER,
@@ -363,15 +362,17 @@ def from_link_matrix(axis, R):
             -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
 
 
-# One flat buffer per robot holds everything the link loops read and write: LINK_ROWS rows,
-# row k of link j at k LINK_STRIDE + j, so that moving a link to another place (``swap_links``)
-# is one loop over rows. The stride is a compile-time constant that no robot's link count
-# reaches, so LLVM proves the rows of a loop apart by itself: with a stride known only at run
-# time it vectorized the link loops behind some 400 runtime overlap checks per loop and call
-# (about 0.7 us a step on the 7^3 cube), and the per-voxel sums and the loops ran slower too.
-# Only the first m + 1 values of each row (m links) are ever touched, so the rest of the
-# buffer is address space the system never backs with memory. Column m of every row stays 0:
-# ``link_sums`` reads it for a face without a link.
+# One flat buffer per robot holds everything the link loops read and write, in tiles of
+# LINK_TILE places: tile t holds LINK_ROWS rows of LINK_TILE values, row k of the link at
+# place j of the tile at offset (t LINK_ROWS + k) LINK_TILE + j (``place`` and ``at``). Rows are
+# a compile-time constant apart, so LLVM proves the rows of a loop over a tile apart by itself:
+# with rows a run-time stride apart it vectorized the link loops behind some 400 run-time
+# overlap checks per loop and call (about 0.7 us a step on the 7^3 cube), and the per-voxel
+# sums and the loops ran slower too. LINK_TILE is 8 values past a multiple of 512 so that the
+# rows of a tile start on different cache-line sets (with 1024 every row maps onto the same
+# few sets: over twice as slow). Moving a link to another place (``swap_links``) is one loop
+# over rows. Place m (m links) stays 0 in every row: ``link_sums`` reads it for a face
+# without a link.
 LINK_IN_ROWS = 12  # both orientations (4 + 4), centre offset (3), rest length
 LINK_STATE_ROWS = 10  # previous elongation (3) and end rotations (3 + 3); frame mode
 # (row 3, the first end's x rotation, stays 0: the turn onto the centre line has none)
@@ -381,10 +382,7 @@ ROW_STATE = LINK_IN_ROWS  # the input rows come first
 ROW_OUT = ROW_STATE + LINK_STATE_ROWS
 ROW_CONST = ROW_OUT + LINK_OUT_ROWS
 LINK_ROWS = ROW_CONST + LINK_CONST_ROWS
-# more than the links of the largest scene (3 S^2 (S - 1) for a solid cube of side MAX_SIDE),
-# and 8 values past a multiple of 512, so that the rows start on different cache-line sets
-# (a power-of-two stride maps every row onto the same few sets: over twice as slow)
-LINK_STRIDE = 512 * (3 * MAX_SIDE * MAX_SIDE * (MAX_SIDE - 1) // 512 + 1) + 8
+LINK_TILE = 1032
 ROW_MODE = ROW_STATE + 9  # frame mode: +1 small-angle, -1 large, 0 before the first step
 ROW_AXIS, ROW_STIFF, ROW_DAMP = ROW_CONST, ROW_CONST + 1, ROW_CONST + 2
 # the mode a frame loop leaves on a link that must be computed again in the other frame
@@ -394,9 +392,23 @@ CHANGE_BLOCK = 64  # links per block of change_frames' search
 
 
 @njit(**INLINE)
+def place(j):
+    """Offset of place j in the first row of its tile (unsigned)."""
+    U = np.uint64
+    t = U(j) // U(LINK_TILE)  # unsigned: a multiply and a shift
+    return t * U((LINK_ROWS - 1) * LINK_TILE) + U(j)
+
+
+@njit(**INLINE)
 def at(row, J):
-    """Offset of link J (unsigned) in buffer row ``row``."""
-    return np.uint64(row * LINK_STRIDE) + J
+    """Offset of row ``row`` of the place at offset J (from ``place``)."""
+    return np.uint64(row * LINK_TILE) + J
+
+
+@njit(**INLINE)
+def link_buffer_size(m):
+    """Values in the buffer of m links: whole tiles for m + 1 places (the last one zero)."""
+    return (m // LINK_TILE + 1) * LINK_ROWS * LINK_TILE
 
 
 @njit(**INLINE)
@@ -512,7 +524,7 @@ def swap_links(a, b, B, ends, vlink, link_id):
     """Exchange the places of links a and b: their rows in the buffer (all but the inputs,
     which the next gather rewrites), their voxels, ids, and the voxel faces that name them."""
     m = len(link_id)
-    A, C = np.uint64(a), np.uint64(b)
+    A, C = place(a), place(b)
     for row in range(ROW_STATE, LINK_ROWS):
         x, y = at(row, A), at(row, C)
         B[x], B[y] = B[y], B[x]
@@ -520,9 +532,9 @@ def swap_links(a, b, B, ends, vlink, link_id):
         ends[e + a], ends[e + b] = ends[e + b], ends[e + a]
     link_id[a], link_id[b] = link_id[b], link_id[a]
     for s in (a, b):
-        ax = int(B[at(ROW_AXIS, np.uint64(s))])
-        vlink[ends[s], 2 * ax + 1] = s
-        vlink[ends[m + s], 2 * ax] = s
+        ax = int(B[at(ROW_AXIS, place(s))])
+        vlink[ends[s], 2 * ax + 1] = place(s)
+        vlink[ends[m + s], 2 * ax] = place(s)
 
 
 @njit(**JIT)
@@ -533,42 +545,44 @@ def change_frames(p, B, ends, vlink, link_id, split, moved):
     Returns how many of them diverged.
 
     The marked links are found block by block (a vectorized count per block of
-    CHANGE_BLOCK links, then a scan of the blocks that hold any), so a step in which a few
-    links change frame costs little more than one that has none."""
+    CHANGE_BLOCK places of a tile, then a scan of the blocks that hold any), so a step in
+    which a few links change frame costs little more than one that has none."""
     m = len(link_id)
     ns = split[0]
     count = 0  # moved[:count]: leavers (ascending), then returners (ascending)
     bad = 0
-    for lo in range(0, m, CHANGE_BLOCK):
-        hi = min(lo + CHANGE_BLOCK, m)
-        marked = 0
-        for j in range(lo, hi):
-            marked += 1 if abs(B[at(ROW_MODE, np.uint64(j))]) > 1.5 else 0
-        if marked == 0:
-            continue
-        for j in range(lo, hi):
-            J = np.uint64(j)
-            mode = B[at(ROW_MODE, J)]
-            if mode == LEAVES:
-                bad += large_frame(p, B, J, 0.0)[0]
-                B[at(ROW_MODE, J)] = -1.0
-            elif mode == RETURNS:
-                bad += small_frame(p, B, J, 0.0)[0]
-                B[at(ROW_MODE, J)] = 1.0
-            else:
+    for first in range(0, m, LINK_TILE):
+        tile = place(first)
+        for lo in range(0, min(LINK_TILE, m - first), CHANGE_BLOCK):
+            hi = min(lo + CHANGE_BLOCK, m - first)
+            marked = 0
+            for lane in range(lo, hi):
+                marked += 1 if abs(B[at(ROW_MODE, tile + np.uint64(lane))]) > 1.5 else 0
+            if marked == 0:
                 continue
-            moved[count] = j
-            count += 1
+            for lane in range(lo, hi):
+                J = tile + np.uint64(lane)
+                mode = B[at(ROW_MODE, J)]
+                if mode == LEAVES:
+                    bad += large_frame(p, B, J, 0.0)[0]
+                    B[at(ROW_MODE, J)] = -1.0
+                elif mode == RETURNS:
+                    bad += small_frame(p, B, J, 0.0)[0]
+                    B[at(ROW_MODE, J)] = 1.0
+                else:
+                    continue
+                moved[count] = first + lane
+                count += 1
     # leavers (all below ns), from the highest down, to the top of the small run; then
     # returners (all at ns or above), from the lowest up, to the bottom of the large run
-    first = 0
-    while first < count and moved[first] < ns:
-        first += 1
-    for q in range(first - 1, -1, -1):
+    leavers = 0
+    while leavers < count and moved[leavers] < ns:
+        leavers += 1
+    for q in range(leavers - 1, -1, -1):
         ns -= 1
         if moved[q] != ns:
             swap_links(moved[q], ns, B, ends, vlink, link_id)
-    for q in range(first, count):
+    for q in range(leavers, count):
         if moved[q] != ns:
             swap_links(moved[q], ns, B, ends, vlink, link_id)
         ns += 1
@@ -577,9 +591,10 @@ def change_frames(p, B, ends, vlink, link_id, split, moved):
 
 
 @njit(**JIT)
-def link_kernel(p, ends, vlink, link_id, split, pos, quat, size, B):
+def link_kernel(p, ends, split, pos, quat, size, B):
     """Beam forces of every link, in world axes, into the output rows of the link buffer B.
-    Returns how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN).
+    Returns how many links diverged (|elongation| > MAX_STRAIN * rest length, or NaN) and how
+    many changed frame (marked LEAVES or RETURNS, for ``change_frames``).
 
     Co-rotational: the frame follows the negative-side voxel while the bend is small
     (``small_frame``) and the centre-to-centre line when it is large (``large_frame``), with
@@ -589,44 +604,50 @@ def link_kernel(p, ends, vlink, link_id, split, pos, quat, size, B):
     frame (the first step, or just changed frame) is not damped. Link j's beam constants are
     ``p.a1`` ... times its stiffness scale E_link / E_ref.
 
-    The links are stored in two runs: [0, split[0]) in the small-angle frame, the rest in the
-    large one. Each run is one loop over contiguous rows with no branch, which LLVM compiles
-    to SIMD, and computes only its own frame (the small one is about half the work of the
-    large). ``ends`` holds the links' negative voxels, then their positive ones; ``vlink``
-    each voxel's link per face and ``link_id`` each place's original link index, all in the
-    stored order, which ``change_frames`` updates when links change runs. A voxel's force and
-    moment do not depend on where its links are stored (``link_sums`` sums them by face).
+    The links are stored in two runs: places [0, split[0]) in the small-angle frame, the rest
+    in the large one. Each run is, per tile, one loop over contiguous lanes with no branch,
+    which LLVM compiles to SIMD, and computes only its own frame (the small one is about half
+    the work of the large). ``ends`` holds the links' negative voxels, then their positive
+    ones, by place. A voxel's force and moment do not depend on where its links are stored
+    (``link_sums`` sums them by face).
     """
-    m = len(link_id)
+    m = len(ends) // 2
     U = np.uint64
     # gather: the one loop with indirect access, on flat views with unsigned offsets (no
     # negative-index wrap-around to test per load)
     Q, P = quat.reshape(-1), pos.reshape(-1)
-    for j in range(m):
-        J = U(j)
-        i, k = U(ends[j]), U(ends[m + j])
-        qi, qk, pi, pk = U(4) * i, U(4) * k, U(3) * i, U(3) * k
-        B[at(0, J)], B[at(1, J)] = Q[qi], Q[qi + U(1)]
-        B[at(2, J)], B[at(3, J)] = Q[qi + U(2)], Q[qi + U(3)]
-        B[at(4, J)], B[at(5, J)] = Q[qk], Q[qk + U(1)]
-        B[at(6, J)], B[at(7, J)] = Q[qk + U(2)], Q[qk + U(3)]
-        B[at(8, J)] = P[pk] - P[pi]
-        B[at(9, J)] = P[pk + U(1)] - P[pi + U(1)]
-        B[at(10, J)] = P[pk + U(2)] - P[pi + U(2)]
-        B[at(11, J)] = 0.5 * (size[i] + size[k])
-    ns = max(0, min(split[0], m))  # (bounds that let LLVM prove the rows apart)
+    for first in range(0, m, LINK_TILE):
+        tile = place(first)
+        for lane in range(min(LINK_TILE, m - first)):
+            J, j = tile + U(lane), first + lane
+            i, k = U(ends[j]), U(ends[m + j])
+            qi, qk, pi, pk = U(4) * i, U(4) * k, U(3) * i, U(3) * k
+            B[at(0, J)], B[at(1, J)] = Q[qi], Q[qi + U(1)]
+            B[at(2, J)], B[at(3, J)] = Q[qi + U(2)], Q[qi + U(3)]
+            B[at(4, J)], B[at(5, J)] = Q[qk], Q[qk + U(1)]
+            B[at(6, J)], B[at(7, J)] = Q[qk + U(2)], Q[qk + U(3)]
+            B[at(8, J)] = P[pk] - P[pi]
+            B[at(9, J)] = P[pk + U(1)] - P[pi + U(1)]
+            B[at(10, J)] = P[pk + U(2)] - P[pi + U(2)]
+            B[at(11, J)] = 0.5 * (size[i] + size[k])
+    ns = split[0]
     count = 0  # diverged links plus MOVED times the links that change frame (one reduction)
-    for j in range(ns):  # mode +1, or 0 before the first step (nothing to damp against)
-        J = U(j)
-        g = B[at(ROW_DAMP, J)] if B[at(ROW_MODE, J)] != 0.0 else 0.0
-        flag, leave = small_frame(p, B, J, g)
-        B[at(ROW_MODE, J)] = LEAVES if leave else 1.0
-        count += MOVED if leave else flag
-    for j in range(ns, m):  # mode -1
-        J = U(j)
-        flag, enter = large_frame(p, B, J, B[at(ROW_DAMP, J)])
-        B[at(ROW_MODE, J)] = RETURNS if enter else -1.0
-        count += MOVED if enter else flag
+    # each run tile by tile: one SIMD loop over the run's lanes [lo, hi) of each tile
+    for first in range(0, m, LINK_TILE):
+        tile = place(first)
+        lo, hi = 0, max(0, min(LINK_TILE, ns - first))
+        for lane in range(lo, hi):  # mode +1, or 0 before the first step (nothing to damp)
+            J = tile + U(lane)
+            g = B[at(ROW_DAMP, J)] if B[at(ROW_MODE, J)] != 0.0 else 0.0
+            flag, leave = small_frame(p, B, J, g)
+            B[at(ROW_MODE, J)] = LEAVES if leave else 1.0
+            count += MOVED if leave else flag
+        lo, hi = hi, min(LINK_TILE, m - first)
+        for lane in range(lo, hi):  # mode -1
+            J = tile + U(lane)
+            flag, enter = large_frame(p, B, J, B[at(ROW_DAMP, J)])
+            B[at(ROW_MODE, J)] = RETURNS if enter else -1.0
+            count += MOVED if enter else flag
     return count % MOVED, count // MOVED
 
 
@@ -634,10 +655,10 @@ def link_kernel(p, ends, vlink, link_id, split, pos, quat, size, B):
 def link_sums(vlink, B, force, moment):
     """Force and moment on every voxel from its links (overwrites ``force``/``moment``).
 
-    ``vlink[v, 2a + 1]`` is the place of the link on v's +a face (v its negative end),
-    ``vlink[v, 2a]`` of the one on its -a face (v its positive end); a face without a link
-    holds m, the zero column that ends every row of the link buffer B, so every voxel sums six
-    entries per row without a branch.
+    ``vlink[v, 2a + 1]`` is the offset (``place``) of the link on v's +a face (v its negative
+    end), ``vlink[v, 2a]`` of the one on its -a face (v its positive end); a face without a
+    link holds that of place m, which stays zero in every row of the link buffer B, so every
+    voxel sums six entries per row without a branch.
     """
     U = np.uint64
     R0, R1, R2 = at(ROW_OUT, U(0)), at(ROW_OUT + 1, U(0)), at(ROW_OUT + 2, U(0))
@@ -926,9 +947,9 @@ class Work(NamedTuple):
     contact: np.ndarray  # (n,) bool: touching the floor this step
     built: np.ndarray  # (s, 3) surface voxels' positions when the candidates were listed
     # the links as ``link_kernel`` keeps them, in two runs by frame (see there):
-    link_buf: np.ndarray  # LINK_ROWS * (m + 1): inputs, state, output, constants per link
+    link_buf: np.ndarray  # link_buffer_size(m): inputs, state, output, constants per link
     link_ends: np.ndarray  # (2 m,) negative voxels, then positive voxels
-    vlink: np.ndarray  # (n, 6) place of the link on each face (m: none)
+    vlink: np.ndarray  # (n, 6) offset (``place``) of the link on each face (of place m: none)
     link_id: np.ndarray  # (m,) the link (index in ``Links``) at each place
     split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
     changed: np.ndarray  # (m,) scratch of ``change_frames``
@@ -955,8 +976,8 @@ def actuate(t, p, voxels, work):
 def link_forces(p, links, body, work):
     """Beam forces of every link, summed into each voxel's force and moment (overwritten).
     Returns how many links diverged."""
-    bad, moves = link_kernel(p, work.link_ends, work.vlink, work.link_id, work.split,
-                             body.pos, body.quat, work.size, work.link_buf)
+    bad, moves = link_kernel(p, work.link_ends, work.split, body.pos, body.quat, work.size,
+                             work.link_buf)
     if moves:
         bad += change_frames(p, work.link_buf, work.link_ends, work.vlink, work.link_id,
                              work.split, work.changed)
@@ -1058,16 +1079,19 @@ def robot_work(n_voxels, links, n_pairs, n_surface):
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), everything else zero."""
     m = len(links.neg)
-    if m >= LINK_STRIDE:
-        raise ValueError("more links than LINK_STRIDE allows")
-    buf = np.empty(LINK_ROWS * LINK_STRIDE)  # only the first m + 1 columns are ever used
-    rows = buf.reshape(LINK_ROWS, LINK_STRIDE)
-    rows[:, : m + 1] = 0.0
-    rows[ROW_AXIS, :m], rows[ROW_STIFF, :m], rows[ROW_DAMP, :m] = links.axis, links.stiff, links.damp
+    buf = np.zeros(link_buffer_size(m))
+    for j in range(m):
+        J = place(j)
+        buf[at(ROW_AXIS, J)], buf[at(ROW_STIFF, J)] = links.axis[j], links.stiff[j]
+        buf[at(ROW_DAMP, J)] = links.damp[j]
+    vlink = np.empty_like(links.vlink)
+    for v in range(len(vlink)):
+        for f in range(6):
+            vlink[v, f] = place(links.vlink[v, f])
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.bool_), np.full((n_surface, 3), np.nan), buf,
-                np.concatenate((links.neg, links.pos)), links.vlink.copy(), np.arange(m),
+                np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
                 np.full(1, m), np.empty(m, dtype=np.int64))
 
 

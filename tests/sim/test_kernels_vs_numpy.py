@@ -52,10 +52,12 @@ def _work(batch, n):
 
 
 def _rows(work, first, count):
-    """Rows ``first`` ... of the kernel's link buffer, in the links' own order (the kernel
-    keeps them by frame: ``work.link_id`` names the link at each place)."""
-    m = len(work.link_id)
-    rows = work.link_buf.reshape(kernels.LINK_ROWS, kernels.LINK_STRIDE)[first:first + count]
+    """Rows ``first`` ... of the kernel's link buffer (tiles of LINK_TILE places), in the
+    links' own order (the kernel keeps them by frame: ``work.link_id`` names the link at each
+    place)."""
+    m, tile = len(work.link_id), kernels.LINK_TILE
+    tiles = work.link_buf.reshape(-1, kernels.LINK_ROWS, tile)
+    rows = tiles.transpose(1, 0, 2).reshape(kernels.LINK_ROWS, -1)[first:first + count]
     assert not rows[:, m].any()  # the zero that link_sums reads for a face without a link
     out = np.empty((count, m))
     out[:, work.link_id] = rows[:, :m]
@@ -79,7 +81,8 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
     faces = np.full(batch.vlink.shape, m)
     place = np.argsort(work.link_id)
     faces[batch.vlink < m] = place[batch.vlink[batch.vlink < m]]
-    np.testing.assert_array_equal(work.vlink, faces)
+    offsets = np.array([kernels.place(f) for f in faces.ravel()]).reshape(faces.shape)
+    np.testing.assert_array_equal(work.vlink, offsets)
     out = _rows(work, kernels.ROW_OUT, kernels.LINK_OUT_ROWS)
     f, mo = np.zeros((n, 3)), np.zeros((n, 3))
     np.add.at(f, batch.link_neg, out[0:3].T)
@@ -103,7 +106,19 @@ def _link_state(work, m):
 def test_link_forces_match_numpy(angle, shift, mixed):
     """Small-angle and large-angle link frames, with bond damping from a previous state;
     one material and a random per-voxel material field."""
-    batch, state, rng, mats, scene = _robot("void", seed=3, mixed=mixed)
+    _check_link_forces(angle, shift, mixed, (3, 2, 2))
+
+
+def test_link_forces_match_numpy_over_several_tiles():
+    """A robot with more links than one tile of the kernel's link buffer holds, in both
+    frames, links changing frame between the calls."""
+    m = _check_link_forces(0.4, 0.3, True, (9, 9, 5))
+    assert m > kernels.LINK_TILE
+
+
+def _check_link_forces(angle, shift, mixed, shape):
+    """Two calls of the link forces against the NumPy reference; returns the link count."""
+    batch, state, rng, mats, scene = _robot("void", seed=3, mixed=mixed, shape=shape)
     _perturb(state, rng, angle, shift, 0.0)
     n = len(state.pos)
     work = _work(batch, n)
@@ -128,6 +143,7 @@ def test_link_forces_match_numpy(angle, shift, mixed):
         state.pos[:] += rng.normal(0, 1e-5, state.pos.shape)
     if angle > 1:
         assert not small.all(), "large deformations must use the large-angle frame"
+    return m
 
 
 @pytest.mark.parametrize("mixed", [False, True], ids=["one_material", "mixed_field"])
