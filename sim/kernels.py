@@ -367,8 +367,8 @@ def from_link_matrix(axis, R):
 # place j of the tile at offset (t LINK_ROWS + k) LINK_TILE + j (``place`` and ``at``). Rows are
 # a compile-time constant apart, so LLVM proves the rows of a loop over a tile apart by itself:
 # with rows a run-time stride apart it vectorized the link loops behind some 400 run-time
-# overlap checks per loop and call (about 0.7 us a step on the 7^3 cube), and the per-voxel
-# sums and the loops ran slower too. LINK_TILE is 8 values past a multiple of 512 so that the
+# overlap checks per loop and call (the link kernel took 11.6 us a step on the 7^3 cube
+# instead of 10.5). LINK_TILE is 8 values past a multiple of 512 so that the
 # rows of a tile start on different cache-line sets (with 1024 every row maps onto the same
 # few sets: over twice as slow). Moving a link to another place (``swap_links``) is one loop
 # over rows. Place m (m links) stays 0 in every row: ``link_sums`` reads it for a face
@@ -382,7 +382,7 @@ ROW_STATE = LINK_IN_ROWS  # the input rows come first
 ROW_OUT = ROW_STATE + LINK_STATE_ROWS
 ROW_CONST = ROW_OUT + LINK_OUT_ROWS
 LINK_ROWS = ROW_CONST + LINK_CONST_ROWS
-LINK_TILE = 1032
+LINK_TILE = 1032  # places per tile: 2 * 512 + 8
 ROW_MODE = ROW_STATE + 9  # frame mode: +1 small-angle, -1 large, 0 before the first step
 ROW_AXIS, ROW_STIFF, ROW_DAMP = ROW_CONST, ROW_CONST + 1, ROW_CONST + 2
 # the mode a frame loop leaves on a link that must be computed again in the other frame
