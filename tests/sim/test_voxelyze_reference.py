@@ -1,6 +1,6 @@
 """softevo's engine against trajectories recorded from Voxelyze itself.
 
-The five scenes of ``<repo>/../shared/reference/voxelyze/`` (or ``$SOFTEVO_REFERENCE_DIR``) run
+The five scenes of ``tests/sim/reference/voxelyze/`` (or ``$SOFTEVO_REFERENCE_DIR``) run
 with ``dt_fraction`` 1 (Voxelyze's step), self-collisions off, frames at Voxelyze's frame
 times. Voxelyze puts voxel (i, j, k) at (i, j, k) s with the floor at z = -s/2; we add s/2.
 Tolerances follow the reference README: a few percent for the cantilevers and the dropped
@@ -24,7 +24,7 @@ from tests.sim._support import frames, report, simulate, voxel_index
 REFERENCE_DIR = Path(
     os.environ.get(
         "SOFTEVO_REFERENCE_DIR",
-        Path(__file__).resolve().parents[3] / "shared" / "reference" / "voxelyze",
+        Path(__file__).resolve().parent / "reference" / "voxelyze",
     )
 )
 pytestmark = pytest.mark.skipif(
