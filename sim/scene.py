@@ -20,6 +20,15 @@ the scalar everywhere: ``material.youngs_modulus``, ``material.density``,
 robot's mean frequency over its active voxels (those of ``body`` as given: seconds = cycles /
 mean f); with no active voxel the scalar ``actuation.frequency`` counts them. How the engine
 combines two materials at a link: ``sim.kernels``' docstring.
+
+The physics model (optional, top level): ``"model"`` is ``"voxelyze-2"`` (the default: the
+model validated against Voxelyze 2.0, analytic solutions and conservation laws) or
+``"voxcad-land-water"`` (the paper's own engine, the VoxCAD land/water fork in evosoro: what
+``softevo import-vxa`` writes and the paper presets run). ``"model_options"`` overrides any
+of the model's switches (``ModelOptions``; each one documented in docs/fidelity.md), e.g.
+``{"model": "voxcad-land-water", "model_options": {"rotation_damping": 1}}``. The model also
+sets the defaults of ``dt_fraction`` (0.5 / 0.7) and ``actuation.amplitude`` (0.39 / 0.14:
+the fork reads its files' TempAmp 39, TempBase 25, CTE 0.01 as 0.14 strain).
 """
 
 from __future__ import annotations
@@ -31,6 +40,8 @@ from typing import Any
 import numpy as np
 
 WAVEFORMS = ("sine", "square", "impulse")
+MODELS = ("voxelyze-2", "voxcad-land-water")
+DEFAULT_MODEL = "voxelyze-2"
 ENVIRONMENTS = ("land", "water", "void")
 DEFAULT_MAX_STEPS = 20_000_000
 MAX_SIDE = 64  # workspace side limit: a guard against absurd inputs, far above any robot here
@@ -71,6 +82,50 @@ class Actuation:
 
 
 @dataclass(frozen=True)
+class ModelOptions:
+    """The physics choices where the paper's engine (the VoxCAD land/water fork in evosoro)
+    and Voxelyze 2.0 differ; each one a switch (docs/fidelity.md has the fork's file and line
+    and the measured effect of each). The defaults are Voxelyze 2.0's; ``MODEL_OPTIONS``
+    gives each model's."""
+
+    rotation_damping: float = 1.0  # factor on the global angular damping (the fork: 10)
+    collision_horizon: int = 1  # voxels within this many bond hops never collide (1: bonded)
+    actuation_start: str = "settled"  # actuation begins after settling, or at the "start"
+    actuation_clock: str = "settled"  # the sine's time: since settling, or "absolute"
+    distance: str = "horizontal"  # on land: "horizontal" or "3d" (water is 3-D anyway)
+    drag: str = "faces"  # water drag on each voxel's own faces, or on the deformed "mesh"
+    min_steps_per_cycle: int = 2000  # the step resolves an actuation cycle at least this finely
+
+
+OPTION_CHOICES = {
+    "actuation_start": ("settled", "start"),
+    "actuation_clock": ("settled", "absolute"),
+    "distance": ("horizontal", "3d"),
+    "drag": ("faces", "mesh"),
+}
+# Each model's options, and its defaults for fields a scene may leave out.
+MODEL_OPTIONS = {
+    "voxelyze-2": ModelOptions(),
+    "voxcad-land-water": ModelOptions(rotation_damping=10.0, collision_horizon=3,
+                                      actuation_start="settled", actuation_clock="absolute",
+                                      distance="3d", drag="mesh", min_steps_per_cycle=0),
+}
+MODEL_DEFAULTS = {  # dt_fraction, actuation amplitude
+    "voxelyze-2": {"dt_fraction": 0.5, "amplitude": 0.39},
+    "voxcad-land-water": {"dt_fraction": 0.7, "amplitude": 0.14},
+}
+
+
+def model_defaults(model: str) -> dict[str, Any]:
+    """The scene defaults of a physics model: its ``dt_fraction``, actuation ``amplitude`` and
+    ``model_options`` (a dict), e.g. for code that writes scenes for that model."""
+    if model not in MODELS:
+        raise SceneError(f"model: must be one of {', '.join(MODELS)} (got {model!r})")
+    return {**MODEL_DEFAULTS[model],
+            "model_options": dict(MODEL_OPTIONS[model].__dict__)}
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated scene. Arrays are indexed body[x][y][z] (x-major)."""
 
@@ -102,6 +157,8 @@ class Scene:
     self_collisions: bool = True
     record_every: int = 0  # 0: no frames
     max_steps: int = DEFAULT_MAX_STEPS
+    model: str = DEFAULT_MODEL
+    options: ModelOptions = field(default_factory=ModelOptions)
 
     @property
     def total_seconds(self) -> float:
@@ -112,7 +169,7 @@ _TOP_FIELDS = {
     "voxel_size", "material", "environment", "body", "phase", "actuation", "fixed", "forces",
     "initial_velocity", "initial_angular_velocity", "initial_offset", "duration", "settle_seconds",
     "dt_fraction", "self_collisions", "record", "notes", "max_steps",
-    "youngs_modulus_field", "density_field", "frequency_field",
+    "youngs_modulus_field", "density_field", "frequency_field", "model", "model_options",
 }
 FIELDS = ("youngs_modulus_field", "density_field", "frequency_field")
 
@@ -213,10 +270,34 @@ def _parse_environment(data: Any) -> Environment:
     return Environment(kind=kind, gravity=gravity, fluid_density=rho, drag_coefficient=cd)
 
 
-def _parse_actuation(data: Any) -> Actuation:
+def _parse_model(data: dict) -> tuple[str, ModelOptions]:
+    model = data.get("model", DEFAULT_MODEL)
+    if model not in MODELS:
+        raise SceneError(f"model: must be one of {', '.join(MODELS)} (got {model!r})")
+    base = MODEL_OPTIONS[model]
+    d = _section(data.get("model_options"), "model_options", set(ModelOptions.__dataclass_fields__))
+    kw = dict(base.__dict__)
+    for key, value in d.items():
+        name = f"model_options.{key}"
+        if key in OPTION_CHOICES:
+            if value not in OPTION_CHOICES[key]:
+                raise SceneError(f"{name}: must be one of {', '.join(OPTION_CHOICES[key])} "
+                                 f"(got {value!r})")
+            kw[key] = value
+        elif key == "rotation_damping":
+            kw[key] = _number(value, name, low=0, high=1e3)
+        else:
+            x = _number(value, name, low=1 if key == "collision_horizon" else 0, high=1e6)
+            if x != int(x):
+                raise SceneError(f"{name}: must be a whole number (got {value!r})")
+            kw[key] = int(x)
+    return model, ModelOptions(**kw)
+
+
+def _parse_actuation(data: Any, default_amplitude: float) -> Actuation:
     d = _section(data, "actuation", set(Actuation.__dataclass_fields__))
     freq = _number(d.get("frequency", 3.0), "actuation.frequency", low=0)
-    amp = _number(d.get("amplitude", 0.39), "actuation.amplitude", low=0, high=0.9)
+    amp = _number(d.get("amplitude", default_amplitude), "actuation.amplitude", low=0, high=0.9)
     wave = d.get("waveform", "sine")
     if wave not in WAVEFORMS:
         raise SceneError(f"actuation.waveform: must be one of {', '.join(WAVEFORMS)} (got {wave!r})")
@@ -265,9 +346,10 @@ def parse_scene(data: Any) -> Scene:
     voxel_size = _number(
         data.get("voxel_size", Scene.voxel_size), "voxel_size", low=0, low_open=True, high=10
     )
+    model, options = _parse_model(data)
     material = _parse_material(data.get("material"))
     environment = _parse_environment(data.get("environment"))
-    actuation = _parse_actuation(data.get("actuation"))
+    actuation = _parse_actuation(data.get("actuation"), MODEL_DEFAULTS[model]["amplitude"])
 
     fixed_list = data.get("fixed") or []
     if not isinstance(fixed_list, list):
@@ -331,10 +413,11 @@ def parse_scene(data: Any) -> Scene:
         initial_offset=_vector3(data.get("initial_offset", [0, 0, 0]), "initial_offset"),
         duration_seconds=seconds,
         settle_seconds=_number(data.get("settle_seconds", 0.0), "settle_seconds", low=0),
-        dt_fraction=_number(data.get("dt_fraction", Scene.dt_fraction), "dt_fraction", low=0,
-                            low_open=True,
-                            high=10),
+        dt_fraction=_number(data.get("dt_fraction", MODEL_DEFAULTS[model]["dt_fraction"]),
+                            "dt_fraction", low=0, low_open=True, high=10),
         self_collisions=self_collisions,
         record_every=record_every,
         max_steps=max_steps,
+        model=model,
+        options=options,
     )
