@@ -47,7 +47,7 @@ class Result:
     com_start: np.ndarray  # (3,) metres, after settling
     com_end: np.ndarray  # (3,) metres
     displacement: np.ndarray  # (3,) metres
-    distance: float  # voxel lengths: horizontal on land, 3-D otherwise; 0 when unstable
+    distance: float  # voxel lengths: horizontal on land (voxelyze-2), 3-D otherwise; 0 when unstable
     com_trajectory: dict = field(default_factory=dict)  # {"t": (k,), "com": (k, 3)}
     frames: dict | None = None  # {"t": (f,), "positions": (f, n, 3)} when recorded
     removed_voxels: int = 0  # voxels dropped as not face-connected to the largest component
@@ -97,7 +97,7 @@ def _result(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, 
         reason = f"diverged: a link's axial strain exceeded {kernels.MAX_STRAIN:g} at step {steps_done[r]}"
     elif status[r] == kernels.STATUS_NONFINITE or not stable:
         reason = f"diverged: a voxel's state became non-finite or exploded at step {steps_done[r]}"
-    horizontal = scene.environment.kind == "land"
+    horizontal = scene.environment.kind == "land" and scene.options.distance == "horizontal"
     distance = float(np.hypot(disp[0], disp[1]) if horizontal else np.linalg.norm(disp)) / L
     recorded = None
     every = int(robot.iparams[I_RECORD])

@@ -9,7 +9,10 @@ records frames and centre-of-mass samples and stops at divergence; ``step`` is o
 - ``link_forces``: co-rotational 3-D beams (``link_kernel``: gather, then one SIMD loop per
   frame over the links kept in that frame's run; ``change_frames`` for the few that switch),
   summed per voxel (``link_sums``); stiffness-proportional bond damping;
-- ``collide``: penalty contact k overlap - c v_n (>= 0) between unbonded surface voxels;
+- ``collide``: penalty contact k overlap - c v_n (>= 0) between surface voxels that are not
+  within the model's collision horizon (bonded pairs in voxelyze-2; ``Voxels.near``);
+- ``mesh_drag_kernel`` (water, the paper's engine's model): drag on the triangles of the
+  deformed surface mesh; otherwise ``voxel_kernel`` puts the drag on each voxel's faces;
 - ``voxel_update``, one pass over the voxels (``voxel_kernel``), each voxel in turn:
   - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
     quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
@@ -82,11 +85,13 @@ from .system import (
     F_GRAVITY,
     F_L,
     F_MUK,
+    F_MESH_DRAG,
     F_MUS,
     F_OMEGA,
     F_SETTLE,
     FLAG_ACTIVE,
     FLAG_FIXED,
+    I_ACT_START,
     I_COLLIDE,
     I_COM_EVERY,
     I_ENV,
@@ -678,9 +683,11 @@ def link_sums(vlink, B, force, moment):
 
 # ---------------------------------------------------------------- self-collisions
 @njit(**JIT)
-def collision_pairs(surface, pos, nbr, reach, pairs):
-    """Candidate pairs of unbonded surface voxels closer than ``reach`` (sweep along x), into
-    ``pairs``; returns how many (at most its length)."""
+def collision_pairs(surface, pos, near, reach, pairs):
+    """Candidate pairs of surface voxels closer than ``reach`` (sweep along x) that ``near``
+    does not list for each other (its rows: the voxels a voxel never touches, -1 pads; the
+    face neighbours ``nbr`` for bonded pairs only), into ``pairs``; returns how many (at
+    most its length)."""
     ns = len(surface)
     xs = np.empty(ns)
     for a in range(ns):
@@ -698,14 +705,21 @@ def collision_pairs(surface, pos, nbr, reach, pairs):
                 break
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
-            if dx * dx + dy * dy + dz * dz < reach2 and not (
-                    nbr[i, 0] == j or nbr[i, 1] == j or nbr[i, 2] == j or nbr[i, 3] == j
-                    or nbr[i, 4] == j or nbr[i, 5] == j):  # not bonded
+            if dx * dx + dy * dy + dz * dz < reach2 and not listed(near, i, j):
                 if count < cap:
                     pairs[count, 0] = i
                     pairs[count, 1] = j
                     count += 1
     return count
+
+
+@njit(**INLINE)
+def listed(near, i, j):
+    """Whether row i of ``near`` holds j."""
+    for q in range(near.shape[1]):
+        if near[i, q] == j:
+            return True
+    return False
 
 
 @njit(**JIT)
@@ -753,7 +767,7 @@ def surface_moved(surface, pos, built):
 
 
 @njit(**JIT)
-def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, vconst, pairs, built, force):
+def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs, built, force):
     """Self-collision forces when the robot has them on; returns the updated ``Contacts``.
 
     ``contacts.travel`` bounds how far any surface voxel has moved since the candidate list
@@ -769,13 +783,58 @@ def collide_kernel(p, contacts, surface, nbr, pos, lin_mom, size, vconst, pairs,
         travel = surface_moved(surface, pos, built)
         if not (2.0 * travel < margin):  # NaN before the first build
             reach = p.L * (1.0 + p.amp) + margin
-            count = collision_pairs(surface, pos, nbr, reach, pairs)
+            count = collision_pairs(surface, pos, near, reach, pairs)
             for a in range(len(surface)):
                 for c in range(3):
                     built[a, c] = pos[surface[a], c]
             travel = 0.0
     collision_forces(count, pairs, pos, lin_mom, size, vconst, force)
     return Contacts(count, travel)
+
+
+# ---------------------------------------------------------------- drag on the surface mesh
+@njit(**JIT)
+def mesh_drag_kernel(drag, mesh_vert, mesh_face, pos, quat, lin_mom, vconst, size, vert_pos,
+                     force):
+    """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
+    surface mesh (``sim.system.surface_mesh``) moving into the fluid, -``drag`` A (v.n)^2 n,
+    A its area, n its unit normal and v the velocity of the voxel whose face it covers
+    (``drag`` = 0.5 rho C_d). A vertex is the mean over the voxels that share it of the
+    voxel's centre plus its corner, rotated, at half the voxel's current size."""
+    for k in range(len(mesh_vert)):
+        ax, ay, az, count = 0.0, 0.0, 0.0, 0
+        for slot in range(8):
+            code = mesh_vert[k, slot]
+            if code < 0:
+                break
+            v, c = code >> 3, code & 7
+            h = 0.5 * size[v]
+            ox = h if (c >> 2) & 1 else -h
+            oy = h if (c >> 1) & 1 else -h
+            oz = h if c & 1 else -h
+            rx, ry, rz = qrot(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3], ox, oy, oz)
+            ax += pos[v, 0] + rx
+            ay += pos[v, 1] + ry
+            az += pos[v, 2] + rz
+            count += 1
+        vert_pos[k, 0], vert_pos[k, 1], vert_pos[k, 2] = ax / count, ay / count, az / count
+    for t in range(len(mesh_face)):
+        a, b, c, v = mesh_face[t, 0], mesh_face[t, 1], mesh_face[t, 2], mesh_face[t, 3]
+        ux, uy, uz = vert_pos[b, 0] - vert_pos[a, 0], vert_pos[b, 1] - vert_pos[a, 1], \
+            vert_pos[b, 2] - vert_pos[a, 2]
+        wx, wy, wz = vert_pos[c, 0] - vert_pos[a, 0], vert_pos[c, 1] - vert_pos[a, 1], \
+            vert_pos[c, 2] - vert_pos[a, 2]
+        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx  # 2 A n
+        twice = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if twice == 0.0:
+            continue
+        inv_m = vconst[v, V_INV_MASS]
+        vn = (lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz) * inv_m / twice
+        if vn > 0.0:
+            f = -drag * 0.5 * vn * vn  # times 2 A n / (2 A) * A: per unit of (nx, ny, nz)
+            force[v, 0] += f * nx
+            force[v, 1] += f * ny
+            force[v, 2] += f * nz
 
 
 # ---------------------------------------------------------------- voxels
@@ -923,6 +982,9 @@ class Voxels(NamedTuple):
     nbr: np.ndarray  # (n, 6) face neighbours (-1: exposed face)
     surface: np.ndarray  # (s,) voxels with an exposed face
     vconst: np.ndarray  # (n, N_VCONST) mass, damping, floor stiffness, frequency (V_*)
+    near: np.ndarray  # (n, k) voxels never in contact with each voxel (-1 pads)
+    mesh_vert: np.ndarray  # (nv, 8) surface-mesh vertices: 8 voxel + corner (-1 pads)
+    mesh_face: np.ndarray  # (nf, 4) surface-mesh triangles: 3 vertices and their voxel
 
 
 class Links(NamedTuple):
@@ -953,6 +1015,7 @@ class Work(NamedTuple):
     link_id: np.ndarray  # (m,) the link (index in ``Links``) at each place
     split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
     changed: np.ndarray  # (m,) scratch of ``change_frames``
+    vert_pos: np.ndarray  # (nv, 3) surface-mesh vertex positions (``mesh_drag_kernel``)
 
 
 class Contacts(NamedTuple):
@@ -989,7 +1052,7 @@ def link_forces(p, links, body, work):
 def collide(p, voxels, body, work, contacts):
     """Self-collision forces (if on), added to ``work.force``; returns the updated
     ``Contacts``."""
-    return collide_kernel(p, contacts, voxels.surface, voxels.nbr, body.pos, body.lin_mom,
+    return collide_kernel(p, contacts, voxels.surface, voxels.near, body.pos, body.lin_mom,
                           work.size, voxels.vconst, work.pairs, work.built, work.force)
 
 
@@ -1005,12 +1068,15 @@ def voxel_update(p, voxels, body, work):
 @njit(**INLINE)
 def step(t, p, voxels, links, body, work, contacts):
     """One step of ``p.dt`` of one robot, its body state updated in place; t is the time
-    since actuation started (negative while settling). Returns how many links diverged, the
+    since actuation started (negative before it starts: ``Params.act_start``). Returns how many links diverged, the
     largest squared voxel speed after the step (-1: a voxel left the sane range) and the
     updated ``Contacts``."""
     actuate(t, p, voxels, work)
     bad = link_forces(p, links, body, work)
     contacts = collide(p, voxels, body, work, contacts)
+    if p.mesh_drag > 0.0:
+        mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face, body.pos, body.quat,
+                         body.lin_mom, voxels.vconst, work.size, work.vert_pos, work.force)
     speed2 = voxel_update(p, voxels, body, work)
     travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
     return bad, speed2, Contacts(contacts.count, travel)
@@ -1050,9 +1116,9 @@ def params(fp, ip):
     """A robot's ``Params`` from its rows of ``Batch.fparams`` and ``Batch.iparams``."""
     return Params(
         fp[F_L], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3], fp[F_DT], fp[F_GRAVITY],
-        fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE],
+        fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE], fp[F_MESH_DRAG],
         ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
-        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD])
+        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD], ip[I_ACT_START])
 
 
 @njit(**JIT)
@@ -1064,7 +1130,10 @@ def take_robot(batch, state, r):
     voxels = Voxels(batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy(),
                     batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy(),
                     batch.phase[v0:v1].copy(), batch.nbr[v0:v1].copy(),
-                    batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy())
+                    batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy(),
+                    batch.near[v0:v1].copy(),
+                    batch.mesh_vert[batch.moff[r]:batch.moff[r + 1]].copy(),
+                    batch.mesh_face[batch.foff[r]:batch.foff[r + 1]].copy())
     links = Links(batch.link_neg[l0:l1].copy(), batch.link_pos[l0:l1].copy(),
                   batch.link_axis[l0:l1].copy(), batch.vlink[v0:v1].copy(),
                   batch.link_stiff[l0:l1].copy(), batch.link_damp[l0:l1].copy())
@@ -1074,7 +1143,7 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, links, n_pairs, n_surface):
+def robot_work(n_voxels, links, n_pairs, n_surface, n_vert=0):
     """``Work`` of one robot's run: static friction flags set, every link in the small-angle
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), everything else zero."""
@@ -1092,7 +1161,7 @@ def robot_work(n_voxels, links, n_pairs, n_surface):
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.bool_), np.full((n_surface, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
-                np.full(1, m), np.empty(m, dtype=np.int64))
+                np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)))
 
 
 @njit(**JIT)
@@ -1123,7 +1192,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
     own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r],
-                          len(own_voxels.surface))
+                          len(own_voxels.surface), len(own_voxels.mesh_vert))
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)
     body, work = borrow(own_body), borrow(own_work)
@@ -1145,7 +1214,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
             n_com += 1
         if k == p.steps:
             break
-        bad, speed2, contacts = step(after * p.dt, p, voxels, links, body, work, contacts)
+        bad, speed2, contacts = step((k - p.act_start) * p.dt, p, voxels, links, body, work,
+                                     contacts)
         if bad:
             code, done = STATUS_STRAIN, k + 1
             break

@@ -20,18 +20,18 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, sparse
 
-from .scene import Scene
+from .scene import ModelOptions, Scene
 
 # Columns of the per-robot float parameter table ``fparams``.
 F_L, F_A1, F_A2, F_B1, F_B2, F_B3, F_DT, F_GRAVITY, F_MUS, F_MUK = range(10)
-F_DRAG, F_OMEGA, F_AMP, F_SETTLE = range(10, 14)
-N_FPARAMS = 14
+F_DRAG, F_OMEGA, F_AMP, F_SETTLE, F_MESH_DRAG = range(10, 15)
+N_FPARAMS = 15
 # Columns of the per-robot integer parameter table ``iparams``.
 I_STEPS, I_SETTLE_STEPS, I_ENV, I_WAVE, I_RECORD, I_COLLIDE, I_COM_EVERY, I_N_FRAMES = range(8)
-I_FREQ_FIELD = 8
-N_IPARAMS = 9
+I_FREQ_FIELD, I_ACT_START = 8, 9
+N_IPARAMS = 10
 # Columns of the per-voxel constant table ``vconst`` (one row per voxel).
 V_MASS, V_INV_MASS, V_INV_INERTIA, V_KFLOOR, V_CCOLL, V_CGLIN, V_CGANG, V_OMEGA = range(8)
 V_WEIGHT = 8
@@ -40,7 +40,8 @@ N_VCONST = 9
 ENV_LAND, ENV_WATER, ENV_VOID = 0, 1, 2
 ENV_CODES = {"land": ENV_LAND, "water": ENV_WATER, "void": ENV_VOID}
 WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
-STEPS_PER_CYCLE = 2000  # the step also resolves the actuation cycle at least this finely
+# voxelyze-2: the step resolves an actuation cycle at least this finely (a model option)
+STEPS_PER_CYCLE = ModelOptions.min_steps_per_cycle
 COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
@@ -80,7 +81,8 @@ class Params(NamedTuple):
     drag: float  # water: 0.5 rho_fluid C_d, kg/m^3 (0 elsewhere)
     omega: float  # actuation angular frequency, rad/s (when every active voxel shares one)
     amp: float  # actuation amplitude (linear strain)
-    settle: float  # settling time before actuation starts, s
+    settle: float  # settling time before the centre-of-mass reference is taken, s
+    mesh_drag: float  # water drag on the deformed surface mesh: 0.5 rho_fluid C_d (0: none)
     steps: int  # total steps, settling included
     settle_steps: int
     env: int  # ENV_LAND, ENV_WATER or ENV_VOID
@@ -90,6 +92,7 @@ class Params(NamedTuple):
     com_every: int  # a centre-of-mass sample every this many steps after settling
     n_frames: int  # frames recorded over the whole run
     freq_field: int  # 1: active voxels have frequencies of their own (``vconst[:, V_OMEGA]``)
+    act_start: int  # the step at which actuation starts (its clock reads 0 there)
 
 
 class Robot(NamedTuple):
@@ -108,6 +111,9 @@ class Robot(NamedTuple):
     link_axis: np.ndarray  # (m,) int64
     vlink: np.ndarray  # (n, 6) int64 link on each face, ordered as nbr (m, the link count: none)
     surface: np.ndarray  # (s,) int64 voxels with at least one exposed face
+    near: np.ndarray  # (n, k) int64 voxels never in contact with each voxel (-1: none)
+    mesh_vert: np.ndarray  # (nv, 8) int64 8 voxel + corner of each surface-mesh vertex (-1: none)
+    mesh_face: np.ndarray  # (nf, 4) int64 a mesh triangle's 3 vertices and its voxel
     vconst: np.ndarray  # (n, N_VCONST) per-voxel constants
     link_stiff: np.ndarray  # (m,) E_link / E_ref
     link_damp: np.ndarray  # (m,) bond damping gamma_link / (2 dt)
@@ -124,6 +130,8 @@ class Batch(NamedTuple):
     voff: np.ndarray  # (R + 1,) int64
     loff: np.ndarray  # (R + 1,) int64
     soff: np.ndarray  # (R + 1,) int64 into ``surface``
+    moff: np.ndarray  # (R + 1,) int64 into ``mesh_vert``
+    foff: np.ndarray  # (R + 1,) int64 into ``mesh_face``
     poff: np.ndarray  # (R + 1,) int64 into the collision pair buffer
     flags: np.ndarray
     cos_phase: np.ndarray
@@ -136,6 +144,9 @@ class Batch(NamedTuple):
     link_axis: np.ndarray
     vlink: np.ndarray  # link indices within the robot (its link count m: no link on that face)
     surface: np.ndarray  # voxel indices within the robot
+    near: np.ndarray  # (N, K) voxel indices within the robot (-1: none), K the batch's widest
+    mesh_vert: np.ndarray  # (NV, 8) 8 voxel + corner, voxels within the robot (-1: none)
+    mesh_face: np.ndarray  # (NF, 4) vertex indices within the robot's mesh, voxel within it
     vconst: np.ndarray  # (N, N_VCONST)
     link_stiff: np.ndarray  # (M,)
     link_damp: np.ndarray  # (M,)
@@ -205,8 +216,17 @@ def build_robot(scene: Scene) -> Robot:
     E_j / E_ref, bond damping gamma_j = 2 zeta_bond sqrt(m_j / (E_j L)) with
     m_j = (m_a + m_b) / 2. Step: dt = dt_fraction / (2 pi sqrt(max_j E_j L / min(m_a, m_b)))
     (``stable_dt`` exactly when every voxel has the same E and rho), capped at
-    1 / (2000 f_max), f_max the highest frequency of an active voxel.
+    1 / (n f_max), f_max the highest frequency of an active voxel and n the model's
+    ``min_steps_per_cycle`` (2000; none in the paper's engine).
+
+    The model's switches (``scene.options``): the angular global damping times
+    ``rotation_damping``; contact never between voxels within ``collision_horizon`` bond hops
+    (``nearby``); actuation from step ``act_start`` (0 or the settling steps) and, with the
+    absolute clock, each phase advanced by omega_i times the start time (so the sine reads
+    the time since t = 0); in water with ``drag`` "mesh", the drag acts on the triangles of
+    the deformed surface mesh (``surface_mesh``) instead of each voxel's own faces.
     """
+    opts = scene.options
     body = largest_component(scene.body)
     removed = int((scene.body > 0).sum() - (body > 0).sum())
     idx, lookup, nbr, link_neg, link_pos, link_axis, vlink = _lattice(body)
@@ -250,8 +270,8 @@ def build_robot(scene: Scene) -> Robot:
     active = (flags & FLAG_ACTIVE) > 0
     f_active = freq_v[active]
     f_max = float(f_active.max()) if active.any() else act.frequency
-    if f_max > 0 and active.any():
-        dt = min(dt, 1.0 / (f_max * STEPS_PER_CYCLE))
+    if f_max > 0 and active.any() and opts.min_steps_per_cycle > 0:
+        dt = min(dt, 1.0 / (f_max * opts.min_steps_per_cycle))
     freq_field = bool(active.any() and not np.all(f_active == f_active[0]))
     f_common = float(f_active[0]) if active.any() else act.frequency
     settle_steps = int(round(scene.settle_seconds / dt))
@@ -265,7 +285,8 @@ def build_robot(scene: Scene) -> Robot:
     sqrt_mel = np.sqrt(mass * E_v * L)
     vc[:, V_CCOLL] = 2.0 * mat.damping_collision * sqrt_mel
     vc[:, V_CGLIN] = 2.0 * mat.damping_global * sqrt_mel
-    vc[:, V_CGANG] = 2.0 * mat.damping_global * np.sqrt(inertia * E_v * L**3)
+    vc[:, V_CGANG] = (2.0 * opts.rotation_damping * mat.damping_global
+                      * np.sqrt(inertia * E_v * L**3))
     vc[:, V_OMEGA] = 2 * math.pi * freq_v
     vc[:, V_WEIGHT] = mass / mass.max()  # centre-of-mass weights (1.0 for one density)
     link_stiff = E_link / E_ref
@@ -282,7 +303,9 @@ def build_robot(scene: Scene) -> Robot:
         E_ref * L**3 / 6.0)
     f[[F_DT, F_GRAVITY]] = dt, gravity
     f[[F_MUS, F_MUK]] = mat.friction_static, mat.friction_kinetic
-    f[F_DRAG] = 0.5 * env.fluid_density * env.drag_coefficient if env.kind == "water" else 0.0
+    drag = 0.5 * env.fluid_density * env.drag_coefficient if env.kind == "water" else 0.0
+    mesh = opts.drag == "mesh" and drag > 0.0
+    f[F_DRAG], f[F_MESH_DRAG] = (0.0, drag) if mesh else (drag, 0.0)
     f[[F_OMEGA, F_AMP, F_SETTLE]] = 2 * math.pi * f_common, act.amplitude, scene.settle_seconds
 
     i = np.zeros(N_IPARAMS, dtype=np.int64)
@@ -293,11 +316,84 @@ def build_robot(scene: Scene) -> Robot:
     i[I_COM_EVERY] = max(1, (steps - settle_steps) // COM_SAMPLES)
     i[I_N_FRAMES] = (steps // scene.record_every + 1) if scene.record_every > 0 else 0
     i[I_FREQ_FIELD] = int(freq_field)
+    i[I_ACT_START] = settle_steps if opts.actuation_start == "settled" else 0
+    phase = scene.phase[tuple(idx.T)].astype(np.float64)
+    if opts.actuation_clock == "absolute":
+        phase = phase + vc[:, V_OMEGA] * (i[I_ACT_START] * dt)
 
     surface = np.flatnonzero((nbr < 0).any(axis=1)).astype(np.int64)
-    return Robot(idx, pos, flags, scene.phase[tuple(idx.T)].astype(np.float64), ext, lin_mom,
-                 ang_mom, nbr, link_neg, link_pos, link_axis, vlink, surface, vc, link_stiff,
+    near = nearby(nbr, opts.collision_horizon) if scene.self_collisions else nbr
+    mesh_vert, mesh_face = surface_mesh(idx, lookup, nbr) if mesh else (
+        np.zeros((0, 8), np.int64), np.zeros((0, 4), np.int64))
+    return Robot(idx, pos, flags, phase, ext, lin_mom, ang_mom, nbr, link_neg, link_pos,
+                 link_axis, vlink, surface, near, mesh_vert, mesh_face, vc, link_stiff,
                  link_damp, f, i, removed)
+
+
+def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
+    """Each voxel's voxels within ``hops`` bond hops, itself left out (the paper's engine:
+    CalcNearby, walking bonds only, never across a gap): rows padded with -1. One hop is
+    ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
+    if hops <= 1:
+        return nbr
+    n = len(nbr)
+    rows, cols = np.nonzero(nbr >= 0)
+    adj = sparse.csr_matrix((np.ones(len(rows), np.int8), (rows, nbr[rows, cols])), shape=(n, n))
+    reach = sparse.identity(n, dtype=np.int8, format="csr")
+    step = reach + adj
+    for _ in range(hops):
+        reach = (reach @ step).astype(bool).astype(np.int8)
+    reach = (reach - sparse.identity(n, dtype=np.int8, format="csr")).tocsr()
+    reach.eliminate_zeros()
+    counts = np.diff(reach.indptr)
+    out = -np.ones((n, max(int(counts.max(initial=0)), 1)), dtype=np.int64)
+    for v in range(n):
+        row = reach.indices[reach.indptr[v]:reach.indptr[v + 1]]
+        out[v, : len(row)] = np.sort(row)
+    return out
+
+
+# The surface mesh of the paper's engine: two triangles per exposed face, each vertex a
+# lattice corner. Corners are (dx, dy, dz) in {0, 1}^3 of a voxel's cell, as code 4 dx + 2 dy
+# + dz; each face's triangles, by its face (ordered as ``nbr``: -x, +x, -y, +y, -z, +z), with
+# vertices counter-clockwise seen from outside (the normal (b - a) x (c - a) points out) and
+# the diagonal through the cell's lowest corner of that face, as the fork triangulates.
+FACE_TRIANGLES = (
+    ((0b000, 0b011, 0b010), (0b000, 0b001, 0b011)),
+    ((0b100, 0b110, 0b111), (0b100, 0b111, 0b101)),
+    ((0b000, 0b101, 0b001), (0b000, 0b100, 0b101)),
+    ((0b010, 0b011, 0b111), (0b010, 0b111, 0b110)),
+    ((0b000, 0b110, 0b100), (0b000, 0b010, 0b110)),
+    ((0b001, 0b101, 0b111), (0b001, 0b111, 0b011)),
+)
+
+
+def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
+    """The vertices and triangles of a robot's surface mesh.
+
+    ``mesh_vert`` (nv, 8): for each vertex, 8 voxel + corner of every voxel whose cell has
+    that lattice corner (-1 pads); its position is the mean over them of the voxel's centre
+    plus its rotated corner (``kernels.mesh_drag_kernel``). ``mesh_face`` (nf, 4): a
+    triangle's three vertices and the voxel whose exposed face it covers."""
+    corners = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])
+    faces, keys = [], {}
+    for v, cell in enumerate(idx):
+        for f in range(6):
+            if nbr[v, f] >= 0:
+                continue
+            for tri in FACE_TRIANGLES[f]:
+                ids = [keys.setdefault(tuple(cell + corners[c]), len(keys)) for c in tri]
+                faces.append((*ids, v))
+    vert = -np.ones((len(keys), 8), dtype=np.int64)
+    shape = np.array(lookup.shape)
+    for point, k in keys.items():
+        slot = 0
+        for c in range(8):
+            cell = np.array(point) - corners[c]  # the cell that has this point as corner c
+            if np.all(cell >= 0) and np.all(cell < shape) and lookup[tuple(cell)] >= 0:
+                vert[k, slot] = 8 * lookup[tuple(cell)] + c
+                slot += 1
+    return vert, np.array(faces, dtype=np.int64).reshape(-1, 4)
 
 
 def _offsets(counts) -> np.ndarray:
@@ -306,8 +402,15 @@ def _offsets(counts) -> np.ndarray:
 
 CONCATENATED = (  # Batch fields that are the robots' arrays one after another
     "flags", "ext_force", "nbr", "link_neg", "link_pos", "link_axis", "vlink", "surface",
-    "vconst", "link_stiff", "link_damp",
+    "mesh_vert", "mesh_face", "vconst", "link_stiff", "link_damp",
 )
+
+
+def _padded(tables: list[np.ndarray]) -> np.ndarray:
+    """Row tables of different widths one after another, padded with -1 to the widest."""
+    width = max(t.shape[1] for t in tables)
+    return np.concatenate([np.pad(t, ((0, 0), (0, width - t.shape[1])), constant_values=-1)
+                           for t in tables]).astype(np.int64)
 
 
 def pack(robots: list[Robot]) -> tuple[Batch, State]:
@@ -318,6 +421,9 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         voff=voff,
         loff=_offsets([len(r.link_neg) for r in robots]),
         soff=_offsets([len(r.surface) for r in robots]),
+        moff=_offsets([len(r.mesh_vert) for r in robots]),
+        foff=_offsets([len(r.mesh_face) for r in robots]),
+        near=_padded([r.near for r in robots]),
         poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
         cos_phase=np.cos(phase),
         sin_phase=np.sin(phase),

@@ -29,6 +29,7 @@ from .engine import Result, _result, prepare
 from .engines import PRECISIONS, EngineUnavailable
 from .kernels import COLLIDE_MARGIN, LINK_OUT_ROWS, LINK_STATE_ROWS
 from .scene import Scene
+from .scene import ModelOptions
 from .system import COM_SAMPLES, F_L, I_N_FRAMES, I_STEPS, pack
 
 DEFAULT_DEVICE = "cuda:0"
@@ -95,6 +96,11 @@ def simulate_many(
         raise EngineUnavailable(f"precision: must be one of {', '.join(PRECISIONS)} (got {precision!r})")
     dev = device_of(device)
     parsed, robots, results, runnable = prepare(scenes)
+    for scene in parsed:
+        if scene.options != ModelOptions():
+            raise EngineUnavailable(
+                f"the warp engine runs only the voxelyze-2 model with its default options "
+                f"(got model {scene.model}); use the numba engine for this scene")
     if runnable:
         sub = [robots[k] for k in runnable]
         out = run_batch(sub, dev, precision, chunk)
