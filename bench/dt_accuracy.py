@@ -98,28 +98,25 @@ def caps(cycles: float) -> None:
     print(f"{'world':<7}{'MPa':>7}{'ref dist':>10}" + "".join(f"{c:>8}" for c in CAPS)
           + "   smallest safe")
     safe_all = []
-    try:
-        for kind in ("land", "water"):
-            for mpa in STIFFNESS_MPA[:3]:
-                distances, stable = [], []
-                for cap in (CAP_REFERENCE, *CAPS):
-                    system.STEPS_PER_CYCLE = cap  # read by build_robot when it sets the step
-                    r = sim.simulate(scene(kind, mpa, 0.5, cycles))
-                    distances.append(r.distance)
-                    stable.append(r.stable)
-                base = distances[0]
-                errors = [abs(d - base) / max(abs(base), 1e-9) if ok else np.inf
-                          for d, ok in zip(distances[1:], stable[1:], strict=True)]
-                smallest = None  # the smallest cap with it and every larger one within 1%
-                for cap, e in zip(CAPS, errors, strict=True):
-                    if e > 0.01:
-                        break
-                    smallest = cap
-                safe_all.append(smallest or CAP_REFERENCE)
-                print(f"{kind:<7}{mpa:>7g}{base:>10.3f}" + "".join(f"{e:>8.2%}" for e in errors)
-                      + f"   {smallest}")
-    finally:
-        system.STEPS_PER_CYCLE = default
+    for kind in ("land", "water"):
+        for mpa in STIFFNESS_MPA[:3]:
+            distances, stable = [], []
+            for cap in (CAP_REFERENCE, *CAPS):
+                r = sim.simulate({**scene(kind, mpa, 0.5, cycles),
+                                  "model_options": {"min_steps_per_cycle": cap}})
+                distances.append(r.distance)
+                stable.append(r.stable)
+            base = distances[0]
+            errors = [abs(d - base) / max(abs(base), 1e-9) if ok else np.inf
+                      for d, ok in zip(distances[1:], stable[1:], strict=True)]
+            smallest = None  # the smallest cap with it and every larger one within 1%
+            for cap, e in zip(CAPS, errors, strict=True):
+                if e > 0.01:
+                    break
+                smallest = cap
+            safe_all.append(smallest or CAP_REFERENCE)
+            print(f"{kind:<7}{mpa:>7g}{base:>10.3f}" + "".join(f"{e:>8.2%}" for e in errors)
+                  + f"   {smallest}")
     print(f"smallest cap safe at every soft stiffness and world: {max(safe_all)} steps per cycle")
 
 
