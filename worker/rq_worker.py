@@ -2,6 +2,14 @@
 
 - Jobs and results travel through RQ's JSON serializer (never pickle); the job function is
   ``worker.evaluate.evaluate_batch``, named by the coordinator by its dotted path.
+- Only that job runs (docs/security.md). Anyone who can write to Redis can enqueue a job
+  naming any function (``os.system``), so the worker checks each job before RQ imports
+  anything for it: a job whose function is not ``JOB_FUNCTION``, that names an instance,
+  success/failure/stopped callbacks or webhooks, or whose data is not RQ's JSON (a pickled
+  job) is refused: logged with its queue, id, function, enqueue time and description,
+  marked failed (never retried) and not run. The worker's job class (``EvaluationJob``)
+  can import ``JOB_FUNCTION`` alone and no callback at all, also in RQ's own registry
+  maintenance.
 - The simulator is compiled (or loaded from numba's cache) once, before the first job, and
   jobs run in this process (RQ's ``SimpleWorker``: no fork per job), one numba thread by
   default: run one worker per core.
@@ -28,9 +36,11 @@ import time
 
 from redis import Redis
 from redis.exceptions import RedisError
-from rq.exceptions import StopRequested
+from rq.exceptions import DeserializationError, StopRequested
+from rq.job import Job
 from rq.serializers import JSONSerializer
-from rq.worker import SimpleWorker
+from rq.utils import import_attribute, now
+from rq.worker import SimpleWorker, WorkerStatus
 
 from softevo import __version__
 from softevo.errors import UserError
@@ -38,16 +48,86 @@ from softevo.errors import UserError
 log = logging.getLogger("softevo.worker")
 
 VERSION_KEY = "softevo_version"  # job meta: the softevo version of the coordinator that made it
+JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"  # the one function a worker runs
+SHOWN = 200  # characters of a refused job's sender-chosen strings that go to the log
+
+
+class RefusedJob(Exception):
+    """A job that is not the evaluation job (``refusal`` says why); it fails without running."""
+
+
+def _short(value: object) -> str:
+    text = repr(value)  # repr: a newline in a sender's string cannot forge a log line
+    return text if len(text) <= SHOWN else text[:SHOWN] + "..."
+
+
+def refusal(job: Job) -> str | None:
+    """Why ``job`` must not run (None: it is the evaluation job, with nothing attached).
+
+    Reads the job's decoded data only: nothing is imported or called."""
+    try:
+        func_name, instance = job.func_name, job.instance
+    except (DeserializationError, ValueError, TypeError) as exc:  # pickled, or not RQ's format
+        return f"its data is not RQ's JSON (pickled, or another serializer): {type(exc).__name__}"
+    if func_name != JOB_FUNCTION:
+        return f"its function is {_short(func_name)}, not {JOB_FUNCTION}"
+    if instance is not None:
+        return f"it calls {JOB_FUNCTION} on an instance ({_short(instance)})"
+    callbacks = {
+        kind: name
+        for kind, name in (
+            ("on_success", job._success_callback_name),
+            ("on_failure", job._failure_callback_name),
+            ("on_stopped", job._stopped_callback_name),
+        )
+        if name
+    }
+    if callbacks:
+        return f"it has callbacks {_short(callbacks)}; evaluation jobs have none"
+    if job.webhooks:
+        return f"it has webhooks ({_short([w.url for w in job.webhooks])}); evaluation jobs have none"
+    return None
+
+
+class EvaluationJob(Job):
+    """RQ's job that can call ``JOB_FUNCTION`` alone and has no callbacks: RQ resolves
+    ``func`` and the callbacks by importing the dotted names the sender wrote, here and in
+    its registry maintenance (an abandoned job's failure callback)."""
+
+    @property
+    def func(self):
+        problem = refusal(self)
+        if problem is not None:
+            raise RefusedJob(problem)
+        return import_attribute(JOB_FUNCTION)  # the constant, never the sender's string
+
+    @property
+    def success_callback(self):
+        return None
+
+    @property
+    def failure_callback(self):
+        return None
+
+    @property
+    def stopped_callback(self):
+        return None
 
 
 class EvaluationWorker(SimpleWorker):
     """RQ's in-process worker, reconnecting to Redis within 5 s of its return, that runs
-    only the jobs of its own softevo version (``refused`` says why it stopped otherwise)."""
+    only evaluation jobs (any other job fails unrun: ``refuse``) and only those of its own
+    softevo version (``refused`` says why it stopped otherwise)."""
 
     max_connection_wait_time = 5.0
+    job_class = EvaluationJob
     refused: str | None = None
 
     def execute_job(self, job, queue) -> None:
+        problem = refusal(job)
+        if problem is not None:  # before the version: a foreign job fails whatever it claims
+            self.refuse(job, queue, problem)
+            return
         made_by = (job.meta or {}).get(VERSION_KEY)
         if made_by != __version__:
             queue.push_job_id(job.id, at_front=True)  # untouched, for a worker of that version
@@ -58,6 +138,50 @@ class EvaluationWorker(SimpleWorker):
             log.error(self.refused)
             raise StopRequested()
         super().execute_job(job, queue)
+
+    def perform_job(self, job, queue, execution) -> bool:
+        problem = refusal(job)  # execute_job has refused it already; no other path runs it
+        if problem is not None:
+            self._fail_unrun(job, queue, execution, problem)
+            return False
+        return super().perform_job(job, queue, execution)
+
+    def refuse(self, job, queue, problem: str) -> None:
+        """Log the refusal with the job's origin, mark the job failed, run nothing."""
+        try:
+            claimed = (job.meta or {}).get(VERSION_KEY)
+        except Exception:  # meta that does not decode
+            claimed = None
+        log.error(
+            "refused job %s from queue %s: %s; enqueued at %s (created %s), description %s, "
+            "claims softevo %s; marked failed, not run (docs/security.md)",
+            _short(job.id), _short(queue.name), problem,
+            job.enqueued_at.isoformat() if job.enqueued_at else "(unknown)",
+            job.created_at.isoformat() if job.created_at else "(unknown)",
+            _short(job.description), _short(claimed),
+        )  # fmt: skip
+        execution = self.prepare_execution(job)
+        self._fail_unrun(job, queue, execution, problem)
+        self.set_state(WorkerStatus.IDLE)
+
+    def _fail_unrun(self, job, queue, execution, problem: str) -> None:
+        """RQ's failure bookkeeping (started -> failed registry, a failed result) for a job
+        that never ran: no retry, no callback, no webhook."""
+        job.retries_left = None
+        job.webhooks = []
+        try:
+            job.func_name  # noqa: B018 - RQ's bookkeeping reads it
+        except (DeserializationError, ValueError, TypeError):
+            job._func_name = "(undecodable job data)"  # the stored bytes stay as they were
+        self.prepare_job_execution(job, remove_from_intermediate_queue=len(self.queues) == 1)
+        job.ended_at = now()
+        self.handle_job_failure(
+            job,
+            queue,
+            started_job_registry=queue.started_job_registry,
+            exc_string=f"{RefusedJob.__name__}: {problem}",
+            execution=execution,
+        )
 
 
 def warm(threads: int = 1) -> float:
@@ -144,6 +268,7 @@ def run_worker(
                         redis_url, socket_timeout=max(20, heartbeat_ttl) + 30, socket_keepalive=True
                     ),
                     serializer=JSONSerializer,
+                    job_class=EvaluationJob,
                     worker_ttl=max(20, heartbeat_ttl),
                 )
                 _announce(heartbeat, worker_name)

@@ -16,6 +16,7 @@ from softevo.service.settings import Settings
 REPO = Path(__file__).resolve().parents[2]
 SETTINGS_VARIABLES = {f"SOFTEVO_{name.upper()}": name for name in Settings.model_fields}
 INTERPOLATION = re.compile(r"\$\{(\w+)(?::?([-?])([^}]*))?\}")
+REQUIRED = {"SOFTEVO_TOKEN": "t0ken", "SOFTEVO_REDIS_PASSWORD": "r3dis"}  # compose has no defaults
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +68,7 @@ def test_services_and_their_commands(compose):
 
 def test_environment_variables_are_settings(compose):
     for name in ("api", "worker"):
-        env = environment_of(compose["services"][name], {"SOFTEVO_TOKEN": "x"})
+        env = environment_of(compose["services"][name], REQUIRED)
         unknown = set(env) - set(SETTINGS_VARIABLES)
         assert not unknown, f"{name}: {unknown} are not fields of service.settings.Settings"
 
@@ -75,8 +76,8 @@ def test_environment_variables_are_settings(compose):
 def test_api_settings_are_valid_and_safe(compose):
     api = compose["services"]["api"]
     with pytest.raises(KeyError, match="SOFTEVO_TOKEN"):
-        environment_of(api)  # compose refuses to start the API without a token
-    env = environment_of(api, {"SOFTEVO_TOKEN": "t0ken"})
+        environment_of(api, {"SOFTEVO_REDIS_PASSWORD": "r3dis"})  # no API without a token
+    env = environment_of(api, REQUIRED)
     settings = Settings(**{SETTINGS_VARIABLES[key]: value for key, value in env.items()})
     settings.check_safe()  # a token is set, so 0.0.0.0 is allowed
     assert settings.host == "0.0.0.0" and settings.token_value == "t0ken"
@@ -89,13 +90,34 @@ def test_api_settings_are_valid_and_safe(compose):
 
 
 def test_workers_need_the_redis_url_alone(compose):
-    env = environment_of(compose["services"]["worker"])
-    api = environment_of(compose["services"]["api"], {"SOFTEVO_TOKEN": "x"})
+    env = environment_of(compose["services"]["worker"], REQUIRED)
+    api = environment_of(compose["services"]["api"], REQUIRED)
     assert "SOFTEVO_DB" not in env  # a worker never touches SQL
     assert env["SOFTEVO_REDIS_URL"] == api["SOFTEVO_REDIS_URL"]
     assert env.get("SOFTEVO_QUEUE", "softevo") == api.get("SOFTEVO_QUEUE", "softevo")
     password = compose["services"]["redis"]["command"]
-    assert interpolate(password[-1], {}) in env["SOFTEVO_REDIS_URL"]
+    assert interpolate(password[-1], REQUIRED) == "r3dis"
+    assert env["SOFTEVO_REDIS_URL"] == "redis://:r3dis@redis:6379/0"
+
+
+def test_redis_needs_a_password_and_listens_on_loopback(compose):
+    """No fallback password (issue 30: anyone who writes to Redis tells the workers what to
+    do), and Redis is published on 127.0.0.1 unless SOFTEVO_REDIS_PUBLISH says otherwise."""
+    redis = compose["services"]["redis"]
+    only_token = {"SOFTEVO_TOKEN": "t0ken"}
+    for value in [*redis["command"], *redis["environment"].values()]:
+        if "SOFTEVO_REDIS_PASSWORD" in str(value):
+            with pytest.raises(KeyError, match="SOFTEVO_REDIS_PASSWORD"):
+                interpolate(value, only_token)
+    for name in ("api", "worker"):
+        with pytest.raises(KeyError, match="SOFTEVO_REDIS_PASSWORD"):
+            environment_of(compose["services"][name], only_token)
+    assert "softevo" not in interpolate(redis["command"][-1], REQUIRED)
+    assert redis["environment"]["REDISCLI_AUTH"].startswith("${SOFTEVO_REDIS_PASSWORD:?")
+    published = [interpolate(port, REQUIRED) for port in redis["ports"]]
+    assert published == ["127.0.0.1:6379:6379"]
+    text = (REPO / "docker-compose.yml").read_text()
+    assert "SOFTEVO_REDIS_PASSWORD:-" not in text and "0.0.0.0:6379" not in text
 
 
 def test_dockerfile_installs_the_package_with_postgres(compose):
