@@ -360,7 +360,11 @@ def run_driver(driver: str, vxa: str, work: Path, name: str, coarse: int | None 
     lines = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
     out = {"header": lines[0], "frames": [x for x in lines if x["kind"] == "frame"],
            "coarse": [x for x in lines if x["kind"] == "com"], "result": lines[-1], "process_seconds": wall}
-    out["fitness_file"] = {el.tag: float(el.text) for el in ET.parse(fit).getroot().find("Fitness")}
+    # the convex-hull and shape-complexity entries are left out: main.cpp's qhull / python
+    # measurements are not run (they do not affect the physics)
+    out["fitness_file"] = {el.tag: (int(el.text) if el.tag == "VoxelNumber" else float(el.text))
+                           for el in ET.parse(fit).getroot().find("Fitness")
+                           if not el.tag.startswith(("ConvexHull", "ShapeComplexity"))}
     return out
 
 
