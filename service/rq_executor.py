@@ -48,10 +48,9 @@ from rq.worker_registration import clean_worker_registry
 
 from softevo import __version__
 from softevo.service.executors import Task, chunks
-from softevo.worker.rq_worker import VERSION_KEY
+from softevo.worker.rq_worker import JOB_FUNCTION, VERSION_KEY, EvaluationJob
 from softevo.worker.tasks import failed, result_problem
 
-JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"
 WAITING = {
     JobStatus.QUEUED.value,
     JobStatus.STARTED.value,
@@ -147,7 +146,11 @@ class RQExecutor:
         max_result_bytes: int = MAX_RESULT_BYTES,
     ) -> None:
         self.connection = connect(redis_url)
-        self.queue = Queue(queue, connection=self.connection, serializer=JSONSerializer)
+        # EvaluationJob: RQ's maintenance here imports no function, callback or webhook named
+        # in Redis (an abandoned job's failure callback), as on the workers (docs/security.md)
+        self.queue = Queue(
+            queue, connection=self.connection, serializer=JSONSerializer, job_class=EvaluationJob
+        )
         self.genomes_per_job = genomes_per_job
         self.across_runs = across_runs
         self.job_timeout = job_timeout
@@ -253,8 +256,12 @@ class RQExecutor:
             meta={VERSION_KEY: __version__},
         )
 
+    def _fetch(self, job_id: str) -> EvaluationJob | None:
+        """The job (None: Redis does not hold it), as ``EvaluationJob`` (no callbacks)."""
+        return EvaluationJob.fetch_many([job_id], connection=self.connection, serializer=JSONSerializer)[0]
+
     def _delete(self, job_id: str) -> None:
-        job = Job.fetch_many([job_id], connection=self.connection, serializer=JSONSerializer)[0]
+        job = self._fetch(job_id)
         if job is not None:
             job.delete()
 
@@ -282,7 +289,7 @@ class RQExecutor:
         if now - self._last_maintenance < self.maintenance_seconds:
             return
         self._last_maintenance = now
-        StartedJobRegistry(queue=self.queue).cleanup()
+        StartedJobRegistry(queue=self.queue, job_class=EvaluationJob).cleanup()
 
     def _poll(
         self, waiting: dict[str, Batch], cursors: dict[str, str]
@@ -318,13 +325,13 @@ class RQExecutor:
 
     def _finished(self, batch: Batch) -> list[Task] | None:
         """The batch's results, or None (and the job deleted) if they are missing or wrong."""
-        job = Job.fetch_many([batch.job_id], connection=self.connection, serializer=JSONSerializer)
-        value = job[0].return_value(refresh=True) if job[0] is not None else None
+        job = self._fetch(batch.job_id)
+        value = job.return_value(refresh=True) if job is not None else None
         problem = self._problem(batch, value)
         if problem is None:
             return value
         batch.bad_results += 1
-        worker = (job[0].worker_name if job[0] is not None else None) or "(unknown)"
+        worker = (job.worker_name if job is not None else None) or "(unknown)"
         log.warning(
             "job %s from worker %s returned unusable results: %s (%d of %d)",
             batch.job_id, worker, problem, batch.bad_results, MAX_BAD_RESULTS + 1,
@@ -332,8 +339,8 @@ class RQExecutor:
         if batch.bad_results > MAX_BAD_RESULTS:
             error = f"job {batch.job_id} returned no usable results: {problem}"
             return [failed_result(task, error) for task in batch.tasks]
-        if job[0] is not None:
-            job[0].delete()
+        if job is not None:
+            job.delete()
         return None
 
     def _problem(self, batch: Batch, value: Any) -> str | None:
@@ -354,7 +361,7 @@ class RQExecutor:
     def _failed(self, batch: Batch) -> list[Task] | dict[str, Batch]:
         """A job that failed for good: split it into one-genome jobs, or fail its genome."""
         if len(batch.tasks) == 1:
-            job = Job.fetch_many([batch.job_id], connection=self.connection, serializer=JSONSerializer)[0]
+            job = self._fetch(batch.job_id)
             reason = _failure_reason(job)
             return [failed_result(batch.tasks[0], f"evaluation job failed: {reason}")]
         parts = {}

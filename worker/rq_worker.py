@@ -90,9 +90,10 @@ def refusal(job: Job) -> str | None:
 
 
 class EvaluationJob(Job):
-    """RQ's job that can call ``JOB_FUNCTION`` alone and has no callbacks: RQ resolves
-    ``func`` and the callbacks by importing the dotted names the sender wrote, here and in
-    its registry maintenance (an abandoned job's failure callback)."""
+    """RQ's job that can call ``JOB_FUNCTION`` alone and has no callbacks or webhooks: RQ
+    resolves ``func`` and the callbacks by importing the dotted names the sender wrote, here
+    and in its registry maintenance (an abandoned job's failure callback and webhooks), on
+    the workers and in the coordinator (``service.rq_executor``)."""
 
     @property
     def func(self):
@@ -112,6 +113,9 @@ class EvaluationJob(Job):
     @property
     def stopped_callback(self):
         return None
+
+    def send_webhooks(self, status, *, exc_string=None) -> None:
+        """Send nothing: RQ's registry cleanup would POST to the URLs a job's sender wrote."""
 
 
 class EvaluationWorker(SimpleWorker):
