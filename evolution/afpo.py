@@ -1,24 +1,36 @@
-"""Age-Fitness Pareto Optimisation (Schmidt & Lipson 2011) and plain Pareto, ask/tell.
+"""The paper's plain Pareto optimisation and Age-Fitness Pareto Optimisation, ask/tell.
 
-A generation, in ``mode="afpo"``:
+A generation:
 1. every survivor's age grows by one;
 2. every survivor makes one mutated child (which inherits its parent's age and differs from
-   it in phenotype, see ``mutate_genotype``), and one random newcomer of age 0 joins;
+   it in phenotype, see ``mutate_genotype``); in ``mode="afpo"`` one random newcomer of age
+   0 joins too;
 3. the new individuals are handed out by :meth:`Evolution.ask` and their results come back
    through :meth:`Evolution.tell`;
-4. survivors and offspring together are cut back to ``population_size`` by successive
-   non-dominated fronts over the objectives plus age (minimised); the front that does not fit
-   whole is cut by crowding distance, then by lower id (the older individual).
-``mode="pareto"`` is the same without the age objective and without the newcomer.
+4. survivors and offspring together (parents survive: a (mu + mu) scheme) are cut back to
+   ``population_size``:
+   - ``mode="pareto"``, the paper's algorithm (its section 2.4: three objectives, mutation
+     only; evosoro's ``ParetoOptimization``, tools/algorithms.py:97-148, 156-158): over the
+     three objectives alone, by evosoro's ``pareto_selection``
+     (``selection.evosoro_survivors``: levels by dominance count, the newer of identical
+     twins preferred, a log-biased random pick within the level that does not fit);
+   - ``mode="afpo"`` (Schmidt & Lipson 2011, the remedy the paper names for premature
+     convergence): over the objectives plus age (minimised), by successive non-dominated
+     fronts; the front that does not fit whole is cut by crowding distance, then by lower id
+     (the older individual) (``selection.select_survivors``).
+evosoro's ``run`` adds ``num_random_individuals`` newcomers (default 1) whatever the
+objectives; the paper describes none and names age-based diversity as future work, so
+``pareto`` adds none.
 
-Failed evaluations (a crash, an unstable simulation, an empty body) get distance 0 and rank
-behind every successful individual. Offspring whose phenotype hash equals a living
-individual's evaluated in the same environment inherit that evaluation instead of being
-simulated again. Survivors are never simulated again in the world they were evaluated in:
-``ask`` hands out only this generation's new individuals (all of them, survivors included,
-after ``reevaluate_all`` moved the population to a new world) and refuses to hand out a
-survivor (RuntimeError). ``not_simulated`` counts this generation's individuals evaluated
-without a simulation (``reused`` from a living twin, ``empty`` bodies).
+Failed evaluations (a crash, an unstable simulation, an empty body, a body the encoding's
+``body_rule`` rejects) get distance 0 and rank behind every successful individual.
+Offspring whose phenotype hash equals a living individual's evaluated in the same
+environment inherit that evaluation instead of being simulated again. Survivors are never
+simulated again in the world they were evaluated in: ``ask`` hands out only this
+generation's new individuals (all of them, survivors included, after ``reevaluate_all``
+moved the population to a new world) and refuses to hand out a survivor (RuntimeError).
+``not_simulated`` counts this generation's individuals evaluated without a simulation
+(``reused`` from a living twin, ``empty`` bodies, rejected ones included).
 
 The whole state (including the random generator) is JSON: ``state_to_json`` /
 ``from_state_json``; a resumed run continues exactly as the uninterrupted one.
@@ -35,6 +47,7 @@ import numpy as np
 
 from softevo.evolution.genotype import (
     EncodingConfig,
+    is_viable,
     mutate_genotype,
     random_viable_genotype,
 )
@@ -43,10 +56,11 @@ from softevo.evolution.selection import (
     AGE_OBJECTIVE,
     PAPER_OBJECTIVES,
     Objective,
+    evosoro_survivors,
     objective_matrix,
     select_survivors,
 )
-from softevo.sim.scene import DEFAULT_CYCLES
+from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 MODES = ("afpo", "pareto")
 
@@ -56,7 +70,8 @@ class EvolutionConfig:
     """Everything that defines a run's algorithm and its evaluation scenes.
 
     youngs_modulus: Pa; cycles: actuation cycles per evaluation; environment: the starting
-    world ("land", "water"); descriptors: compute shape descriptors at each tell.
+    world ("land", "water"); model: the physics model of the scenes (``sim.scene.MODELS``);
+    descriptors: compute shape descriptors at each tell.
     """
 
     population_size: int = 12
@@ -68,10 +83,13 @@ class EvolutionConfig:
     encoding: EncodingConfig = field(default_factory=EncodingConfig)
     objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
     descriptors: bool = True
+    model: str = DEFAULT_MODEL
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES} (got {self.mode!r})")
+        if self.model not in MODELS:
+            raise ValueError(f"model must be one of {MODELS} (got {self.model!r})")
         if self.population_size < 1:
             raise ValueError("population_size must be >= 1")
 
@@ -90,6 +108,7 @@ class EvolutionConfig:
             "encoding": self.encoding.to_dict(),
             "objectives": [[o.name, o.direction] for o in self.objectives],
             "descriptors": self.descriptors,
+            "model": self.model,
         }
 
     @classmethod
@@ -166,7 +185,8 @@ class Evolution:
     def scene(self, ind: Individual, **extra: Any) -> dict[str, Any]:
         """The simulator scene that evaluates ``ind`` in the current environment."""
         phenotype = ind.phenotype(self.config.encoding)
-        return phenotype.to_scene(self.environment, self.config.youngs_modulus, self.config.cycles, **extra)
+        return phenotype.to_scene(self.environment, self.config.youngs_modulus, self.config.cycles,
+                                  model=self.config.model, **extra)
 
     @property
     def generation_complete(self) -> bool:
@@ -197,8 +217,8 @@ class Evolution:
         self.not_simulated = {"reused": 0, "empty": 0}
 
     def _fill_known(self) -> None:
-        """Evaluate without simulation: empty bodies fail, known phenotypes reuse results
-        (counted in ``not_simulated``)."""
+        """Evaluate without simulation: empty bodies and bodies the encoding rejects fail
+        (both counted as ``empty`` in ``not_simulated``), known phenotypes reuse results."""
         known = {
             ind.phenotype(self.config.encoding).phenotype_hash(): ind
             for ind in self.population
@@ -211,6 +231,9 @@ class Evolution:
             twin = known.get(phenotype.phenotype_hash())
             if phenotype.voxel_count == 0:
                 self._record(ind, Evaluation(FAILED_DISTANCE, False, "empty body"))
+                self.not_simulated["empty"] += 1
+            elif self.config.encoding.rejects_invalid and not is_viable(phenotype, self.config.encoding):
+                self._record(ind, Evaluation(FAILED_DISTANCE, False, "invalid body"))
                 self.not_simulated["empty"] += 1
             elif twin is not None:
                 self.not_simulated["reused"] += 1
@@ -241,7 +264,12 @@ class Evolution:
         valid = np.array([not ind.failed for ind in combined])
         # rows in id order, so "lower index" in select_survivors means "lower id"
         order = np.argsort([ind.id for ind in combined], kind="stable")
-        kept = select_survivors(F[order], self.config.population_size, valid[order])
+        size = self.config.population_size
+        if self.config.mode == "pareto":
+            ages = np.array([ind.age for ind in combined])[order]
+            kept = evosoro_survivors(F[order], size, ages, self.rng, valid[order])
+        else:
+            kept = select_survivors(F[order], size, valid[order])
         self.population = [combined[i] for i in order[kept]]
         self.pending = []
 

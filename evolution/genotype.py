@@ -22,6 +22,30 @@ Options beyond the paper, off by default (``EncodingConfig``):
   own frequency, carried by the scene as ``frequency_field``; active voxels actuate at their
   own frequency, and an evaluation's cycles count at the mean over the active voxels (sim.scene).
   ``Phenotype.frequency`` stays the mapped mean output over present voxels (a descriptor).
+
+The paper's own choices, named and off by default (what the paper presets use):
+- ``control_mapping="evosoro"``: the control outputs as the paper-era evosoro scripts read
+  them (examples/swimming_complex.py:67-71,101-104 and land_continuous.py:67-70,94-97 of
+  skriegman/evosoro; tools/read_write_voxelyze.py:48,151; the fork's
+  _voxcad_land_water/Voxelyze/VXS_Voxel.cpp:230). With s the ``frequency`` output (in
+  (-1, 1)) at *every* voxel of the workspace, empty ones included:
+  f = 4 * 2.5 / (mean(1 / s) + 1.5) Hz (the fork's TempPeriod is 1 / f): s = 1 everywhere
+  gives the 4 Hz of ``MAX_FREQUENCY``, s = 0.5 gives 2.86 Hz, s -> 0+ gives f -> 0, and
+  negative outputs can give more than 4 Hz or a negative f. The ``phase`` output s becomes
+  PhaseOffset p = pi (1 + s) (``rescaled_positive_sigmoid`` onto (0, 2 pi)), which the fork
+  reads in *cycles*: sin(2 pi (t / TempPeriod + p)), so the phase in radians is 2 pi p
+  (stored modulo 2 pi). A negative f is the fork's sine run backwards:
+  sin(-2 pi |f| t + 2 pi p) = sin(2 pi |f| t + pi - 2 pi p), so the phenotype actuates at |f|
+  with phase pi - 2 pi p. A frequency of 0 or not finite (an output exactly 0) has no
+  period: the body is invalid (see ``is_viable``).
+- ``body_rule="evosoro"``: the scripts' ``MyPhenotype.is_valid`` (swimming_complex.py:138-151,
+  land_continuous.py:131-144, also basic.py and swimming_basic.py): a body is valid when at
+  least 30% of the workspace's voxels are full and at least 10% of them are active (counted
+  after keeping the largest component, as evosoro's ``make_material_tree`` does). Random
+  genomes are drawn again until valid (softbot.py:447-454) and a mutation is tried again until
+  the child is valid and differs from its parent (tools/mutation.py:120); a child that finds
+  none keeps its parent's genome (tools/mutation.py:129-135); an invalid body is never
+  simulated and gets the worst fitness (tools/evaluation.py:65-69).
 """
 
 from __future__ import annotations
@@ -35,8 +59,16 @@ import numpy as np
 
 from softevo.evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
 from softevo.evolution.mutation import mutate_cppn
-from softevo.sim.scene import DEFAULT_CYCLES, Actuation, Material, Scene
+from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, Material, Scene, model_defaults
 from softevo.sim.system import largest_component
+
+CONTROL_MAPPINGS = ("linear", "evosoro")
+BODY_RULES: dict[str, tuple[float, float]] = {  # (min full, min active) shares of the workspace
+    "any": (0.0, 0.0),
+    "evosoro": (0.3, 0.1),
+}
+EVOSORO_MAX_FREQUENCY = 4.0  # Hz, the scripts' MAX_FREQUENCY
+PAPER_SETTLE_SECONDS = 0.5  # the scripts' INIT_TIME (InitCmTime), land and water alike
 
 
 @dataclass(frozen=True)
@@ -50,6 +82,24 @@ class EncodingConfig:
     frequency_per_voxel: bool = False
     initial_hidden_nodes: int = 4  # add_node mutations applied to a newcomer
     initial_links: int = 6  # add_link mutations applied to a newcomer
+    control_mapping: str = "linear"  # or "evosoro" (the paper's; module doc)
+    body_rule: str = "any"  # or "evosoro" (the paper's; module doc)
+
+    def __post_init__(self) -> None:
+        if self.control_mapping not in CONTROL_MAPPINGS:
+            raise ValueError(f"control_mapping must be one of {CONTROL_MAPPINGS} "
+                             f"(got {self.control_mapping!r})")
+        if self.body_rule not in BODY_RULES:
+            raise ValueError(f"body_rule must be one of {tuple(BODY_RULES)} (got {self.body_rule!r})")
+        if self.control_mapping == "evosoro" and self.frequency_per_voxel:
+            raise ValueError("control_mapping 'evosoro' gives one frequency per robot: "
+                             "it cannot be combined with frequency_per_voxel")
+
+    @property
+    def rejects_invalid(self) -> bool:
+        """Whether newcomers and children are drawn again until ``is_viable`` (the paper's
+        choices); the defaults keep any non-empty newcomer and any changed child."""
+        return self.body_rule != "any" or self.control_mapping != "linear"
 
     @property
     def body_outputs(self) -> tuple[str, ...]:
@@ -68,6 +118,8 @@ class EncodingConfig:
             "frequency_per_voxel": self.frequency_per_voxel,
             "initial_hidden_nodes": self.initial_hidden_nodes,
             "initial_links": self.initial_links,
+            "control_mapping": self.control_mapping,
+            "body_rule": self.body_rule,
         }
 
     @classmethod
@@ -166,20 +218,30 @@ class Phenotype:
         voxel_size: float = Scene.voxel_size,
         density: float = Material.density,
         poisson_ratio: float = Material.poisson_ratio,
-        amplitude: float = Actuation.amplitude,
+        amplitude: float | None = None,
         settle_seconds: float | None = None,
+        model: str = DEFAULT_MODEL,
         **extra: Any,
     ) -> dict[str, Any]:
         """A simulator scene (SPEC.md section 1 schema), plain JSON types.
 
-        ``settle_seconds`` defaults to 0.5 on land and 0 elsewhere. ``extra`` fields are copied
-        into the scene as given (e.g. ``record``). An evolved stiffness field enters as
-        ``youngs_modulus_field`` (Pa; it overrides ``youngs_modulus``), a per-voxel frequency
-        field as ``frequency_field`` (Hz; it overrides the robot frequency, and ``cycles`` count
-        at the mean frequency of the active voxels).
+        ``model`` is the physics model (``sim.scene.MODELS``); the scene names it unless it is
+        the default, so scenes of the default model are as they always were. ``amplitude``
+        defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to 0.5 on
+        land and 0 elsewhere, and to the paper scripts' INIT_TIME 0.5 in every world under
+        "voxcad-land-water" (examples/swimming_complex.py:55: the fork's InitCmTime, from which
+        its distance counts). ``extra`` fields are copied into the scene as given (e.g.
+        ``record``). An evolved stiffness field enters as ``youngs_modulus_field`` (Pa; it
+        overrides ``youngs_modulus``), a per-voxel frequency field as ``frequency_field`` (Hz;
+        it overrides the robot frequency, and ``cycles`` count at the mean frequency of the
+        active voxels).
         """
+        defaults = model_defaults(model)
+        if amplitude is None:
+            amplitude = defaults["amplitude"]
         if settle_seconds is None:
-            settle_seconds = 0.5 if environment == "land" else 0.0
+            paper = model == "voxcad-land-water"
+            settle_seconds = PAPER_SETTLE_SECONDS if paper or environment == "land" else 0.0
         scene = {
             "voxel_size": voxel_size,
             "material": {
@@ -198,6 +260,8 @@ class Phenotype:
             scene["youngs_modulus_field"] = np.asarray(self.stiffness, np.float64).tolist()
         if self.frequency_field is not None:
             scene["frequency_field"] = np.asarray(self.frequency_field, np.float64).tolist()
+        if model != DEFAULT_MODEL:
+            scene["model"] = model
         scene.update(extra)
         return scene
 
@@ -207,6 +271,32 @@ def _map_linear(value: np.ndarray | float, bounds: tuple[float, float]) -> np.nd
     return low + (np.asarray(value) + 1.0) / 2.0 * (high - low)
 
 
+def evosoro_frequency(output: np.ndarray) -> float:
+    """The paper scripts' signed frequency (Hz) of a robot from its ``frequency`` output s
+    at every workspace voxel: 4 * 2.5 / (mean(1 / s) + 1.5) (module doc); 0 when an output
+    is exactly 0 (no period), +-inf when the denominator is 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denominator = float(np.mean(1.0 / np.asarray(output, dtype=np.float64))) + 1.5
+        return float(EVOSORO_MAX_FREQUENCY * 2.5 / np.float64(denominator))
+
+
+def evosoro_phase_cycles(output: np.ndarray) -> np.ndarray:
+    """The scripts' PhaseOffset of each voxel from its ``phase`` output s: pi (1 + s), which
+    the fork reads in cycles (module doc)."""
+    return np.pi * (1.0 + np.asarray(output, dtype=np.float64))
+
+
+def _evosoro_control(control_out: dict[str, np.ndarray], kept: np.ndarray) -> tuple[np.ndarray, float]:
+    """(phase in radians, frequency in Hz) of the evosoro mapping: a negative frequency runs
+    at |f| with phase pi - 2 pi p (module doc)."""
+    signed = evosoro_frequency(control_out["frequency"])
+    angle = 2.0 * np.pi * evosoro_phase_cycles(control_out["phase"])
+    if signed < 0:
+        angle = np.pi - angle
+    phase = np.where(kept, np.mod(angle, 2.0 * np.pi), 0.0)
+    return phase, abs(signed)
+
+
 def develop(genotype: Genotype, config: EncodingConfig = EncodingConfig()) -> Phenotype:
     """Express both CPPNs over ``config.workspace`` and apply the expression pattern."""
     body_out = express(genotype.body, config.workspace)
@@ -214,8 +304,12 @@ def develop(genotype: Genotype, config: EncodingConfig = EncodingConfig()) -> Ph
     full = body_out["present"] >= 0.0
     kept = largest_component(full)
     body = np.where(kept, np.where(body_out["active"] >= 0.0, 2, 1), 0).astype(np.int8)
-    phase = np.where(kept, control_out["phase"] * np.pi, 0.0)
-    mean_output = float(control_out["frequency"][kept].mean()) if kept.any() else 0.0
+    if config.control_mapping == "evosoro":
+        phase, frequency = _evosoro_control(control_out, kept)
+    else:
+        phase = np.where(kept, control_out["phase"] * np.pi, 0.0)
+        mean_output = float(control_out["frequency"][kept].mean()) if kept.any() else 0.0
+        frequency = float(_map_linear(mean_output, config.frequency_range))
     stiffness = None
     if config.evolve_stiffness:
         low, high = config.stiffness_range
@@ -227,7 +321,7 @@ def develop(genotype: Genotype, config: EncodingConfig = EncodingConfig()) -> Ph
     return Phenotype(
         body=body,
         phase=phase,
-        frequency=float(_map_linear(mean_output, config.frequency_range)),
+        frequency=frequency,
         removed_voxels=int(np.count_nonzero(full) - np.count_nonzero(kept)),
         stiffness=stiffness,
         frequency_field=field_hz,
@@ -259,13 +353,33 @@ def random_genotype(
     )
 
 
+def is_viable(phenotype: Phenotype, config: EncodingConfig = EncodingConfig()) -> bool:
+    """Whether a body may be simulated: at least one voxel, the ``body_rule``'s shares of
+    full and active voxels of the workspace (evosoro: a body with fewer than 30% / 10% is
+    invalid, examples/swimming_complex.py:146-150) and a finite positive frequency."""
+    min_full, min_active = BODY_RULES[config.body_rule]
+    cells = float(np.prod(config.workspace))
+    active = int(np.count_nonzero(phenotype.body == 2))
+    return (
+        phenotype.voxel_count > 0
+        and phenotype.voxel_count >= min_full * cells
+        and active >= min_active * cells
+        and bool(np.isfinite(phenotype.frequency) and phenotype.frequency > 0)
+    )
+
+
+MAX_NEWCOMER_TRIES = 1000
+"""Bounded draws for a viable newcomer (evosoro draws until one is valid, softbot.py:447-454)."""
+
+
 def random_viable_genotype(
-    rng: np.random.Generator, config: EncodingConfig = EncodingConfig(), max_tries: int = 100
+    rng: np.random.Generator, config: EncodingConfig = EncodingConfig(),
+    max_tries: int = MAX_NEWCOMER_TRIES,
 ) -> Genotype:
-    """A random genotype whose body has at least one voxel (the last try if all are empty)."""
+    """A random genotype whose phenotype ``is_viable`` (the last try if none is)."""
     for _ in range(max_tries):
         genotype = random_genotype(rng, config)
-        if develop(genotype, config).voxel_count > 0:
+        if is_viable(develop(genotype, config), config):
             return genotype
     return genotype
 
@@ -286,6 +400,11 @@ def mutate_genotype(
     and applies 1 + try // 10 mutations to it (so late tries take larger steps). The first
     child whose phenotype hash differs from the parent's is returned; after ``max_tries``
     the last child is returned with ``changed=False``.
+
+    With ``config.rejects_invalid`` (the paper's choices) a child must also be viable
+    (``is_viable``; evosoro, tools/mutation.py:120); after ``max_tries`` the parent's genome
+    itself is returned with ``changed=False``, as evosoro keeps the unmutated clone
+    (tools/mutation.py:129-135).
     """
     parent_hash = develop(parent, config).phenotype_hash()
     for attempt in range(max_tries):
@@ -296,6 +415,11 @@ def mutate_genotype(
             cppn, op = mutate_cppn(cppn, rng)
             ops.append(f"{which}.{op}")
         child = Genotype(cppn, parent.control) if which == "body" else Genotype(parent.body, cppn)
-        if develop(child, config).phenotype_hash() != parent_hash:
+        phenotype = develop(child, config)
+        if phenotype.phenotype_hash() != parent_hash and (
+            not config.rejects_invalid or is_viable(phenotype, config)
+        ):
             return child, ops, True
+    if config.rejects_invalid:
+        return parent, [], False
     return child, ops, False

@@ -3,6 +3,13 @@
 ``F`` is an (n_individuals, n_objectives) float array in *minimisation* form: objectives to
 maximise are negated by :func:`objective_matrix`. Row i dominates row j when it is no worse
 on every objective and strictly better on at least one.
+
+Two survivor selections:
+- :func:`select_survivors` (AFPO): NSGA-II style, successive non-dominated fronts, the front
+  that does not fit cut by crowding distance, then by lower index;
+- :func:`evosoro_survivors` (``pareto``, the paper's): evosoro's ``pareto_selection``
+  (tools/selection.py:5-73 of skriegman/evosoro), levels by *dominance count* and a
+  log-biased random pick in the level that does not fit; see its docstring.
 """
 
 from __future__ import annotations
@@ -113,3 +120,72 @@ def select_survivors(F: np.ndarray, k: int, valid: np.ndarray | None = None) -> 
         crowding[members] = crowding_distance(F[members])
     order = np.lexsort((np.arange(n), -crowding, ranks))
     return np.sort(order[:k])
+
+
+def dominance_counts(F: np.ndarray) -> np.ndarray:
+    """How many rows dominate each row, shape (n,) int, as evosoro counts them
+    (softbot.py:515-539, ``calc_dominance``): a row identical to row i on every objective
+    counts as dominating it when it comes later (a newer individual, rows in id order), so
+    of identical twins the newest is the one not dominated."""
+    F = np.asarray(F, dtype=float)
+    equal = np.all(F[:, None, :] == F[None, :, :], axis=2)
+    newer = np.arange(len(F))[:, None] > np.arange(len(F))[None, :]
+    return (dominance_matrix(F) | (equal & newer)).sum(axis=0)
+
+
+def evosoro_order(F: np.ndarray, levels: np.ndarray, ages: np.ndarray) -> np.ndarray:
+    """Row indices in evosoro's ``sort_by_objectives`` order (softbot.py:478-493): by level,
+    then by each objective in declared order (the first most important), then younger age,
+    then later index (newer individual)."""
+    F = np.asarray(F, dtype=float)
+    n = len(F)
+    keys = (-np.arange(n), np.asarray(ages, dtype=float)) + tuple(F[:, ::-1].T) + (levels,)
+    return np.lexsort(keys)
+
+
+def log_biased_pick(level_size: int, draw: float) -> int:
+    """The position (1 .. level_size - 1) evosoro picks in a sorted level from a uniform
+    ``draw`` in [0, 1): the i with log(i) / log(L) <= draw < log(i + 1) / log(L), that is
+    floor(L ** draw); position i has chance log((i + 1) / i) / log(L), so better-sorted
+    members are likelier (tools/selection.py:52-61)."""
+    return min(max(int(np.floor(level_size**draw)), 1), level_size - 1)
+
+
+def evosoro_survivors(
+    F: np.ndarray,
+    k: int,
+    ages: np.ndarray,
+    rng: np.random.Generator,
+    valid: np.ndarray | None = None,
+) -> np.ndarray:
+    """Indices of the k rows kept by evosoro's ``pareto_selection``, rows in id order.
+
+    Levels are dominance counts (:func:`dominance_counts`; invalid rows, failed evaluations,
+    come after every valid one, as evosoro's ``2 * pop_size`` extra dominators put them).
+    Whole levels are taken in increasing order while they fit; of the level that does not
+    fit (sorted by :func:`evosoro_order`) the first member is taken, then members at
+    positions :func:`log_biased_pick` of uniform draws from ``rng`` (a position already
+    taken draws again) until k are kept. Returns indices sorted ascending.
+    """
+    F = np.asarray(F, dtype=float)
+    n = len(F)
+    valid = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    levels = np.zeros(n, dtype=np.int64)
+    for group, offset in ((valid, 0), (~valid, n)):
+        members = np.flatnonzero(group)
+        levels[members] = dominance_counts(F[members]) + offset
+    order = evosoro_order(F, levels, ages)
+    kept: list[int] = []
+    for level in np.unique(levels):
+        members = [int(i) for i in order if levels[i] == level]
+        room = k - len(kept)
+        if room <= 0:
+            break
+        if len(members) <= room:
+            kept.extend(members)
+            continue
+        chosen = {0}
+        while len(chosen) < room:
+            chosen.add(log_biased_pick(len(members), float(rng.random())))
+        kept.extend(members[i] for i in sorted(chosen))
+    return np.sort(np.array(kept, dtype=np.int64))
