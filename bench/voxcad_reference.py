@@ -61,6 +61,7 @@ CYCLES = 5  # actuation cycles of the CPPN robots (after 0.5 s of settling on la
 
 # --------------------------------------------------------------------------- source and build
 
+
 def _skip(rel: str) -> bool:
     return rel.endswith((".a", ".o", ".d")) or rel == "voxelyzeMain/voxelyze"
 
@@ -75,11 +76,14 @@ def copy_source(evosoro: Path, dest: Path) -> str:
     probe = subprocess.run(git + ["rev-parse", "HEAD"], capture_output=True, text=True)
     if probe.returncode == 0 and not (evosoro / FORK).exists():
         commit = probe.stdout.strip()
-        listing = subprocess.run(git + ["ls-tree", "-r", "-z", "HEAD", FORK], capture_output=True,
-                                 check=True).stdout.decode().split("\0")
+        listing = (
+            subprocess.run(git + ["ls-tree", "-r", "-z", "HEAD", FORK], capture_output=True, check=True)
+            .stdout.decode()
+            .split("\0")
+        )
         for entry in filter(None, listing):
             meta, path = entry.split("\t", 1)
-            rel = path[len(FORK) + 1:]
+            rel = path[len(FORK) + 1 :]
             if not rel.startswith(PARTS) or _skip(rel):
                 continue
             blob = subprocess.run(git + ["cat-file", "blob", meta.split()[2]], capture_output=True)
@@ -104,38 +108,77 @@ def copy_source(evosoro: Path, dest: Path) -> str:
     return head.stdout.strip() if head.returncode == 0 else "unknown"
 
 
-def build(evosoro: Path, out: Path, flags: str = "-O3", main_flags: str = "-O3",
-          rebuild: bool = False) -> dict:
+def build(
+    evosoro: Path, out: Path, flags: str = "-O3", main_flags: str = "-O3", rebuild: bool = False
+) -> dict:
     """Build the fork under ``out``: {"src", "voxelyze", "driver", "commit"} (cached)."""
     stamp = out / "build.json"
     if stamp.exists() and not rebuild:
         info = json.loads(stamp.read_text())
         driver = Path(info["driver"])
-        if (info.get("flags") == [flags, main_flags] and driver.exists()
-                and driver.stat().st_mtime > DRIVER.stat().st_mtime):
+        if (
+            info.get("flags") == [flags, main_flags]
+            and driver.exists()
+            and driver.stat().st_mtime > DRIVER.stat().st_mtime
+        ):
             return info
     src = out / "src"
     print(f"copying the fork from {evosoro} into {src} ...", flush=True)
     commit = copy_source(evosoro, src)
     jobs = str(max(1, os.cpu_count() or 1))
     print(f"building libvoxelyze.0.9.a (make CXXFLAGS='{flags} -std=c++11 -w') ...", flush=True)
-    subprocess.run(["make", "-C", str(src / "Voxelyze"), "-j", jobs, f"CXXFLAGS={flags} -std=c++11 -w"],
-                   check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(
+        ["make", "-C", str(src / "Voxelyze"), "-j", jobs, f"CXXFLAGS={flags} -std=c++11 -w"],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
     lib = src / "Voxelyze" / "libvoxelyze.0.9.a"
     inc = ["-I", str(src / "Voxelyze"), "-I", str(src / "Voxelyze" / "Utils")]
     voxelyze = src / "voxelyzeMain" / "voxelyze"
-    subprocess.run(["g++", *main_flags.split(), "-std=c++11", "-w", *inc, str(src / "voxelyzeMain" / "main.cpp"),
-                    str(lib), "-lz", "-o", str(voxelyze)], check=True)
+    subprocess.run(
+        [
+            "g++",
+            *main_flags.split(),
+            "-std=c++11",
+            "-w",
+            *inc,
+            str(src / "voxelyzeMain" / "main.cpp"),
+            str(lib),
+            "-lz",
+            "-o",
+            str(voxelyze),
+        ],
+        check=True,
+    )
     driver = out / "voxcad-driver"
-    subprocess.run(["g++", *main_flags.split(), "-std=c++11", "-w", *inc, str(DRIVER), str(lib), "-lz",
-                    "-o", str(driver)], check=True)
-    info = {"src": str(src), "voxelyze": str(voxelyze), "driver": str(driver), "commit": commit,
-            "flags": [flags, main_flags]}
+    subprocess.run(
+        [
+            "g++",
+            *main_flags.split(),
+            "-std=c++11",
+            "-w",
+            *inc,
+            str(DRIVER),
+            str(lib),
+            "-lz",
+            "-o",
+            str(driver),
+        ],
+        check=True,
+    )
+    info = {
+        "src": str(src),
+        "voxelyze": str(voxelyze),
+        "driver": str(driver),
+        "commit": commit,
+        "flags": [flags, main_flags],
+    }
     stamp.write_text(json.dumps(info, indent=1))
     return info
 
 
 # --------------------------------------------------------------------------- VXA files
+
 
 def _g(value: float) -> str:
     return f"{float(value):.10g}"
@@ -174,9 +217,19 @@ def _layers(values: np.ndarray, fmt) -> list[str]:
     return [fmt(values[:, :, z].ravel(order="F")) for z in range(values.shape[2])]
 
 
-def make_vxa(body: np.ndarray, phase_cycles: np.ndarray, period: float, youngs: float, water: bool,
-             collisions: bool, stop_time: float, stiffness: np.ndarray | None = None,
-             voxel_size: float = 0.05, density: float = 1200.0, poisson: float = 0.4) -> str:
+def make_vxa(
+    body: np.ndarray,
+    phase_cycles: np.ndarray,
+    period: float,
+    youngs: float,
+    water: bool,
+    collisions: bool,
+    stop_time: float,
+    stiffness: np.ndarray | None = None,
+    voxel_size: float = 0.05,
+    density: float = 1200.0,
+    poisson: float = 0.4,
+) -> str:
     """A VXA in the layout of the fork's sample files, with only tags the fork reads.
 
     body[x, y, z]: 0 empty, 1 passive (material 1), 2 active (material 3, CTE +0.01).
@@ -187,17 +240,22 @@ def make_vxa(body: np.ndarray, phase_cycles: np.ndarray, period: float, youngs: 
     data = _layers(digits, lambda row: "".join(str(v) for v in row))
     phases = _layers(np.where(body > 0, phase_cycles, 0.0), lambda row: "".join(f"{_g(v)}, " for v in row))
     nx, ny, nz = body.shape
-    palette = (_material(1, "Passive_Soft", (0, 1, 1), youngs, 0, density, poisson)
-               + _material(2, "Passive_Hard", (0, 0, 1), 100 * youngs, 0, density, poisson)
-               + _material(3, "Active_+", (1, 0, 0), youngs, 0.01, density, poisson)
-               + _material(4, "Active_-", (0, 1, 0), youngs, -0.01, density, poisson))
+    palette = (
+        _material(1, "Passive_Soft", (0, 1, 1), youngs, 0, density, poisson)
+        + _material(2, "Passive_Hard", (0, 0, 1), 100 * youngs, 0, density, poisson)
+        + _material(3, "Active_+", (1, 0, 0), youngs, 0.01, density, poisson)
+        + _material(4, "Active_-", (0, 1, 0), youngs, -0.01, density, poisson)
+    )
     layer = "\n".join(f"<Layer><![CDATA[{row}]]></Layer>" for row in data)
     phase = "\n".join(f"<Layer><![CDATA[{row}]]></Layer>" for row in phases)
     extra = ""
     if stiffness is not None:
         rows = _layers(np.where(body > 0, stiffness, 0.0), lambda row: "".join(f"{_g(v)}, " for v in row))
-        extra = ("<Stiffness>\n<MinElasticMod>1000.0</MinElasticMod>\n<MaxElasticMod>10000000.0</MaxElasticMod>\n"
-                 + "\n".join(f"<Layer><![CDATA[{row}]]></Layer>" for row in rows) + "\n</Stiffness>\n")
+        extra = (
+            "<Stiffness>\n<MinElasticMod>1000.0</MinElasticMod>\n<MaxElasticMod>10000000.0</MaxElasticMod>\n"
+            + "\n".join(f"<Layer><![CDATA[{row}]]></Layer>" for row in rows)
+            + "\n</Stiffness>\n"
+        )
     return f"""<?xml version="1.0" encoding="ISO-8859-1"?>
 <VXA Version="1.0">
 <Simulator>
@@ -302,8 +360,14 @@ def cases(src: Path) -> list[dict]:
     """All reference cases: {"name", "group", "vxa", "notes"}."""
     out = []
     for path in sorted((src / "sample_vxa").glob("*.vxa")):
-        out.append({"name": f"sample_{path.stem}", "group": "sample", "vxa": path.read_text(encoding="latin-1"),
-                    "notes": f"the fork's sample_vxa/{path.name}, unchanged"})
+        out.append(
+            {
+                "name": f"sample_{path.stem}",
+                "group": "sample",
+                "vxa": path.read_text(encoding="latin-1"),
+                "notes": f"the fork's sample_vxa/{path.name}, unchanged",
+            }
+        )
     seed = 100
     for level, youngs in STIFFNESS.items():
         for env in ("land", "water"):
@@ -312,35 +376,79 @@ def cases(src: Path) -> list[dict]:
             period = 1.0 / pheno.frequency
             stop = cycles * period + (0.0 if env == "water" else 0.5)
             for collisions in (True, False):
-                vxa = make_vxa(pheno.body, pheno.phase / (2 * np.pi), period, youngs, env == "water", collisions, stop)
-                out.append({"name": f"cppn_{level}_{env}_{'col' if collisions else 'nocol'}", "group": "cppn",
-                            "vxa": vxa, "robot": {"seed": seed, "workspace": [5, 5, 5], "frequency": pheno.frequency,
-                                                  "cycles": cycles, "youngs_modulus": youngs, "environment": env,
-                                                  "self_collisions": collisions},
-                            "notes": f"softevo random_viable_genotype(default_rng({seed})), 5x5x5, {level}"})
+                vxa = make_vxa(
+                    pheno.body, pheno.phase / (2 * np.pi), period, youngs, env == "water", collisions, stop
+                )
+                out.append(
+                    {
+                        "name": f"cppn_{level}_{env}_{'col' if collisions else 'nocol'}",
+                        "group": "cppn",
+                        "vxa": vxa,
+                        "robot": {
+                            "seed": seed,
+                            "workspace": [5, 5, 5],
+                            "frequency": pheno.frequency,
+                            "cycles": cycles,
+                            "youngs_modulus": youngs,
+                            "environment": env,
+                            "self_collisions": collisions,
+                        },
+                        "notes": f"softevo random_viable_genotype(default_rng({seed})), 5x5x5, {level}",
+                    }
+                )
             seed += 1
     for k, env in enumerate(("land", "water", "land", "water")):
         seed, pheno = cppn_robot(500 + 10 * k, (6, 6, 6), evolve_stiffness=True)
         period = 1.0 / pheno.frequency
         stop = CYCLES * period + (0.0 if env == "water" else 0.5)
-        vxa = make_vxa(pheno.body, pheno.phase / (2 * np.pi), period, 1e5, env == "water", True, stop,
-                       stiffness=pheno.stiffness)
-        out.append({"name": f"cppn_field{k // 2 + 1}_{env}_col", "group": "cppn-stiffness-field", "vxa": vxa,
-                    "robot": {"seed": seed, "workspace": [6, 6, 6], "frequency": pheno.frequency, "cycles": CYCLES,
-                              "youngs_modulus": "field", "environment": env, "self_collisions": True},
-                    "notes": f"softevo random_viable_genotype(default_rng({seed})) with evolve_stiffness, "
-                             "6x6x6, per-voxel E 1e3..1e7 Pa in <Stiffness>"})
+        vxa = make_vxa(
+            pheno.body,
+            pheno.phase / (2 * np.pi),
+            period,
+            1e5,
+            env == "water",
+            True,
+            stop,
+            stiffness=pheno.stiffness,
+        )
+        out.append(
+            {
+                "name": f"cppn_field{k // 2 + 1}_{env}_col",
+                "group": "cppn-stiffness-field",
+                "vxa": vxa,
+                "robot": {
+                    "seed": seed,
+                    "workspace": [6, 6, 6],
+                    "frequency": pheno.frequency,
+                    "cycles": CYCLES,
+                    "youngs_modulus": "field",
+                    "environment": env,
+                    "self_collisions": True,
+                },
+                "notes": f"softevo random_viable_genotype(default_rng({seed})) with evolve_stiffness, "
+                "6x6x6, per-voxel E 1e3..1e7 Pa in <Stiffness>",
+            }
+        )
     return out
 
 
 # --------------------------------------------------------------------------- running
 
+
 def stop_time(vxa: str) -> float:
     return float(re.search(r"<StopConditionValue>([^<]+)<", vxa).group(1))
 
 
-def run_driver(driver: str, vxa: str, work: Path, name: str, coarse: int | None = None,
-               every: int = EVERY, frames: int = FRAMES, voxels: str | None = None) -> dict:
+def run_driver(
+    driver: str,
+    vxa: str,
+    work: Path,
+    name: str,
+    coarse: int | None = None,
+    every: int = EVERY,
+    frames: int = FRAMES,
+    voxels: str | None = None,
+) -> dict:
     """Run one VXA text; the parsed header, frames, coarse COM samples, result, fitness XML."""
     work.mkdir(parents=True, exist_ok=True)
     path, fit = work / f"{name}.vxa", work / f"{name}.fitness.xml"
@@ -358,13 +466,20 @@ def run_driver(driver: str, vxa: str, work: Path, name: str, coarse: int | None 
     if proc.returncode not in (0, 1):
         sys.exit(f"error: driver failed on {name}: {proc.stderr}")
     lines = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
-    out = {"header": lines[0], "frames": [x for x in lines if x["kind"] == "frame"],
-           "coarse": [x for x in lines if x["kind"] == "com"], "result": lines[-1], "process_seconds": wall}
+    out = {
+        "header": lines[0],
+        "frames": [x for x in lines if x["kind"] == "frame"],
+        "coarse": [x for x in lines if x["kind"] == "com"],
+        "result": lines[-1],
+        "process_seconds": wall,
+    }
     # the convex-hull and shape-complexity entries are left out: main.cpp's qhull / python
     # measurements are not run (they do not affect the physics)
-    out["fitness_file"] = {el.tag: (int(el.text) if el.tag == "VoxelNumber" else float(el.text))
-                           for el in ET.parse(fit).getroot().find("Fitness")
-                           if not el.tag.startswith(("ConvexHull", "ShapeComplexity"))}
+    out["fitness_file"] = {
+        el.tag: (int(el.text) if el.tag == "VoxelNumber" else float(el.text))
+        for el in ET.parse(fit).getroot().find("Fitness")
+        if not el.tag.startswith(("ConvexHull", "ShapeComplexity"))
+    }
     return out
 
 
@@ -391,45 +506,97 @@ def reference(args, info: dict) -> None:
         first = run_driver(info["driver"], case["vxa"], work, case["name"], every=0)
         n, steps = first["header"]["voxels"], first["result"]["steps"]
         coarse = max(1, steps // COARSE_POINTS)
-        run = run_driver(info["driver"], case["vxa"], work, case["name"], coarse=coarse,
-                         voxels=",".join(map(str, tracked(n))))
+        run = run_driver(
+            info["driver"],
+            case["vxa"],
+            work,
+            case["name"],
+            coarse=coarse,
+            voxels=",".join(map(str, tracked(n))),
+        )
         res, head = run["result"], run["header"]
-        assert res["steps"] == steps and res["normAbsoluteDisplacement"] == first["result"]["normAbsoluteDisplacement"]
+        assert (
+            res["steps"] == steps
+            and res["normAbsoluteDisplacement"] == first["result"]["normAbsoluteDisplacement"]
+        )
         doc = {
-            "name": case["name"], "group": case["group"], "notes": case["notes"],
-            "engine": {"source": "skriegman/evosoro " + FORK, "commit": info["commit"][:7],
-                       "build": f"g++ {' '.join(info['flags'])}", "driver": "bench/voxcad/driver.cpp"},
+            "name": case["name"],
+            "group": case["group"],
+            "notes": case["notes"],
+            "engine": {
+                "source": "skriegman/evosoro " + FORK,
+                "commit": info["commit"][:7],
+                "build": f"g++ {' '.join(info['flags'])}",
+                "driver": "bench/voxcad/driver.cpp",
+            },
             "robot": case.get("robot"),
             "vxa": case["vxa"],
             "voxcad": {
-                "voxels": n, "bonds": head["bonds"], "surface_voxels": head["surface_voxels"],
-                "lattice_dim": head["lattice_dim"], "dt": head["dt"], "optimal_dt": head["optimal_dt"],
-                "dt_frac": head["dt_frac"], "steps": steps, "t_end": r(res["t"], 12),
+                "voxels": n,
+                "bonds": head["bonds"],
+                "surface_voxels": head["surface_voxels"],
+                "lattice_dim": head["lattice_dim"],
+                "dt": head["dt"],
+                "optimal_dt": head["optimal_dt"],
+                "dt_frac": head["dt_frac"],
+                "steps": steps,
+                "t_end": r(res["t"], 12),
                 "stable": res["stable"],
-                "fitness": {k: r(res[k]) for k in ("normAbsoluteDisplacement", "normDistX", "normDistY",
-                                                  "normDistZ", "RobotVolumeStart", "RobotVolumeEnd")},
+                "fitness": {
+                    k: r(res[k])
+                    for k in (
+                        "normAbsoluteDisplacement",
+                        "normDistX",
+                        "normDistY",
+                        "normDistZ",
+                        "RobotVolumeStart",
+                        "RobotVolumeEnd",
+                    )
+                },
                 "fitness_file": run["fitness_file"],
-                "ini_cm": r(res["ini_cm"]), "final_cm": r(res["final_cm"]),
+                "ini_cm": r(res["ini_cm"]),
+                "final_cm": r(res["final_cm"]),
                 "ijk": head["ijk"],
                 "tracked": head["tracked"],
-                "frames": {"step": [f["step"] for f in run["frames"]], "t": [r(f["t"], 12) for f in run["frames"]],
-                           "com": [r(f["com"]) for f in run["frames"]],
-                           "positions": [r(f["pos"]) for f in run["frames"]]},
-                "coarse": {"step": [c["step"] for c in run["coarse"]], "t": [r(c["t"], 9) for c in run["coarse"]],
-                           "com": [r(c["com"], 8) for c in run["coarse"]]},
+                "frames": {
+                    "step": [f["step"] for f in run["frames"]],
+                    "t": [r(f["t"], 12) for f in run["frames"]],
+                    "com": [r(f["com"]) for f in run["frames"]],
+                    "positions": [r(f["pos"]) for f in run["frames"]],
+                },
+                "coarse": {
+                    "step": [c["step"] for c in run["coarse"]],
+                    "t": [r(c["t"], 9) for c in run["coarse"]],
+                    "com": [r(c["com"], 8) for c in run["coarse"]],
+                },
                 "seconds": round(res["seconds"], 3),
             },
         }
         (out / f"{case['name']}.json").write_text(json.dumps(doc, separators=(",", ":")) + "\n")
         fit = doc["voxcad"]["fitness"]["normAbsoluteDisplacement"]
-        index.append({"name": case["name"], "group": case["group"], "voxels": n, "dt": head["dt"], "steps": steps,
-                      "t_end": r(res["t"], 9), "normAbsoluteDisplacement": fit,
-                      "fitness_file_normAbsoluteDisplacement": run["fitness_file"]["normAbsoluteDisplacement"],
-                      "stable": res["stable"], "seconds": round(res["seconds"], 3)})
-        print(f"{case['name']:<42}{n:>5} vox  dt {head['dt']:.4e}  {steps:>7} steps  "
-              f"normAbsDisp {fit:9.5f}  {res['seconds']:6.2f} s", flush=True)
+        index.append(
+            {
+                "name": case["name"],
+                "group": case["group"],
+                "voxels": n,
+                "dt": head["dt"],
+                "steps": steps,
+                "t_end": r(res["t"], 9),
+                "normAbsoluteDisplacement": fit,
+                "fitness_file_normAbsoluteDisplacement": run["fitness_file"]["normAbsoluteDisplacement"],
+                "stable": res["stable"],
+                "seconds": round(res["seconds"], 3),
+            }
+        )
+        print(
+            f"{case['name']:<42}{n:>5} vox  dt {head['dt']:.4e}  {steps:>7} steps  "
+            f"normAbsDisp {fit:9.5f}  {res['seconds']:6.2f} s",
+            flush=True,
+        )
     if not args.only:
-        (out / "index.json").write_text(json.dumps({"engine_commit": info["commit"][:7], "cases": index}, indent=1) + "\n")
+        (out / "index.json").write_text(
+            json.dumps({"engine_commit": info["commit"][:7], "cases": index}, indent=1) + "\n"
+        )
     print(f"total {time.perf_counter() - total:.1f} s; written to {out}")
 
 
@@ -451,15 +618,23 @@ def check_main(info: dict, count: int, work: Path) -> None:
         subprocess.run([info["voxelyze"], "-f", "in.vxa"], cwd=d, capture_output=True, timeout=900)
         stock = {el.tag: el.text for el in ET.parse(d / "fitnessFiles" / "out.xml").getroot().find("Fitness")}
         ours = run_driver(info["driver"], vxa, work, case["name"] + "_check", every=0)["fitness_file"]
-        same = all(float(stock[k]) == ours[k] for k in ("normAbsoluteDisplacement", "normDistX", "normDistY", "normDistZ"))
-        print(f"{case['name']:<40} stock voxelyze {stock['normAbsoluteDisplacement']:>10}  driver "
-              f"{ours['normAbsoluteDisplacement']:<10} {'identical' if same else 'DIFFERENT'}", flush=True)
+        same = all(
+            float(stock[k]) == ours[k]
+            for k in ("normAbsoluteDisplacement", "normDistX", "normDistY", "normDistZ")
+        )
+        print(
+            f"{case['name']:<40} stock voxelyze {stock['normAbsoluteDisplacement']:>10}  driver "
+            f"{ours['normAbsoluteDisplacement']:<10} {'identical' if same else 'DIFFERENT'}",
+            flush=True,
+        )
 
 
 def speed(args, infos: dict[str, dict]) -> None:
     """Wall time per evaluation of the sample robots, one process at a time."""
-    print(f"{'build':<10}{'robot':<34}{'env':<7}{'vox':>5}{'steps':>8}{'sim s':>7}{'wall s':>8}"
-          f"{'eval/s':>8}{'Mvox-step/s':>13}")
+    print(
+        f"{'build':<10}{'robot':<34}{'env':<7}{'vox':>5}{'steps':>8}{'sim s':>7}{'wall s':>8}"
+        f"{'eval/s':>8}{'Mvox-step/s':>13}"
+    )
     for label, info in infos.items():
         rows = {"land": [], "water": []}
         for case in cases(Path(info["src"]))[:8]:
@@ -475,27 +650,41 @@ def speed(args, infos: dict[str, dict]) -> None:
             res = best["result"]
             vps = res["voxels"] * res["steps"] / res["seconds"]
             rows[env].append((best["process_seconds"], vps))
-            print(f"{label:<10}{case['name'][7:]:<34}{env:<7}{res['voxels']:>5}{res['steps']:>8}"
-                  f"{res['t']:>7.2f}{best['process_seconds']:>8.3f}{1 / best['process_seconds']:>8.3f}"
-                  f"{vps / 1e6:>13.3f}", flush=True)
+            print(
+                f"{label:<10}{case['name'][7:]:<34}{env:<7}{res['voxels']:>5}{res['steps']:>8}"
+                f"{res['t']:>7.2f}{best['process_seconds']:>8.3f}{1 / best['process_seconds']:>8.3f}"
+                f"{vps / 1e6:>13.3f}",
+                flush=True,
+            )
         for env, values in rows.items():
-            walls, vpss = zip(*values)
-            print(f"{label:<10}{'mean of the ' + env + ' samples':<41}{'':>13}{statistics.mean(walls):>8.3f}"
-                  f"{1 / statistics.mean(walls):>8.3f}{statistics.mean(vpss) / 1e6:>13.3f}")
+            walls, vpss = zip(*values, strict=True)
+            print(
+                f"{label:<10}{'mean of the ' + env + ' samples':<41}{'':>13}{statistics.mean(walls):>8.3f}"
+                f"{1 / statistics.mean(walls):>8.3f}{statistics.mean(vpss) / 1e6:>13.3f}"
+            )
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--evosoro", type=Path, default=MIRROR, help="evosoro git dir or checkout")
     parser.add_argument("--build", type=Path, default=Path("/tmp/voxcad-build"), help="scratch build folder")
     parser.add_argument("--out", type=Path, default=OUT, help="where the reference JSON goes")
     parser.add_argument("--only", help="regex: run only the matching cases (no index.json)")
     parser.add_argument("--rebuild", action="store_true")
     parser.add_argument("--speed", action="store_true", help="time the fork on the sample robots instead")
-    parser.add_argument("--speed-seconds", type=float, help="simulated seconds per sample run (default: as shipped)")
+    parser.add_argument(
+        "--speed-seconds", type=float, help="simulated seconds per sample run (default: as shipped)"
+    )
     parser.add_argument("--repeat", type=int, default=1, help="runs per robot in --speed (best kept)")
-    parser.add_argument("--check-main", type=int, default=0, metavar="N",
-                        help="also compare the stock voxelyze binary with the driver on N cases")
+    parser.add_argument(
+        "--check-main",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also compare the stock voxelyze binary with the driver on N cases",
+    )
     args = parser.parse_args()
     info = build(args.evosoro, args.build / "O3", rebuild=args.rebuild)
     if args.speed:
