@@ -8,7 +8,10 @@ With ``switch_over = G > 0`` the move is gradual: generations ``switch_at .. swi
 are evaluated in compound worlds (``evolution.worlds``; the new world's share of each
 evaluation's cycles rising linearly, the population re-evaluated at each), pure second world
 from ``switch_at + G``; ``docs/gradual.md`` explains the choice.
-Repetition ``r`` of a treatment runs with seed ``seed + r``.
+Repetition ``r`` of a treatment runs with seed ``seed + r``. In a preset every treatment has
+seeds of its own (treatment k from ``seed + first_seed + k * SEED_STRIDE``), so that no two
+treatments start from the same population, and the ``study`` scale starts past the
+``pilot``'s seeds, so that a study never repeats a pilot run (docs/analysis.md).
 
 Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
 Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,
@@ -194,6 +197,7 @@ class Scale:
     cycles: int
     repetitions: int
     switch_over: int = 0  # the gradual preset's span (generations of compound worlds)
+    first_seed: int = 0  # each treatment's first seed past its block's start
 
 
 # tiny: the whole grid in minutes on 2 cores (CI); pilot: 3 repetitions of a short run, for
@@ -205,11 +209,12 @@ PILOT = Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2)
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2),
     "pilot": PILOT,
-    "study": dataclasses.replace(PILOT, repetitions=7),
+    "study": dataclasses.replace(PILOT, repetitions=7, first_seed=PILOT.repetitions),
     "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
     "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15, switch_over=1000),
 }
 SCALES = tuple(PRESET_SCALES)
+SEED_STRIDE = 1_000  # seeds per treatment of a preset
 
 
 def preset_scale(scale: str) -> Scale:
@@ -258,7 +263,17 @@ def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 
                 **common,
             )
         )
-    return treatments
+    return own_seeds(treatments, seed, sizes.first_seed)
+
+
+def own_seeds(treatments: list[Treatment], seed: int, first_seed: int = 0) -> list[Treatment]:
+    """The treatments, treatment k with seeds from ``seed + first_seed + k * SEED_STRIDE``: no
+    two share a seed, so their runs are independent samples (UserError if the repetitions
+    overflow a block)."""
+    if any(first_seed + t.repetitions > SEED_STRIDE for t in treatments):
+        raise UserError(f"at most {SEED_STRIDE - first_seed} repetitions per treatment in a preset")
+    start = seed + first_seed
+    return [dataclasses.replace(t, seed=start + k * SEED_STRIDE) for k, t in enumerate(treatments)]
 
 
 def gradual_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 0) -> list[Treatment]:
