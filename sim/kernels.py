@@ -80,6 +80,9 @@ from .system import (
     F_B1,
     F_B2,
     F_B3,
+    F_CONTACT_DAMP,
+    F_CONTACT_REACH,
+    F_CONTACT_STIFF,
     F_DRAG,
     F_DT,
     F_GRAVITY,
@@ -723,21 +726,24 @@ def listed(near, i, j):
 
 
 @njit(**JIT)
-def collision_forces(count, pairs, pos, lin_mom, size, vconst, force):
-    """Penalty contact between unbonded voxels: equal and opposite, so momentum is kept.
-    Stiffness: the harmonic mean of the two voxels' 2 E L (exactly it for one material);
-    damping: the mean of their collision damping coefficients."""
+def collision_forces(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5, stiff=1.0,
+                     damp=1.0):
+    """Penalty contact between voxels of the candidate pairs: equal and opposite, so momentum
+    is kept. Contact begins at ``reach`` times the sum of the two sizes (0.5: touching
+    cubes); stiffness: ``stiff`` times the harmonic mean of the two voxels' 2 E L (exactly it
+    for one material); damping: ``damp`` times the mean of their collision damping
+    coefficients. The paper's engine: 0.75, 0.5, 0 (``Params.contact_*``)."""
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
         ki, kj = vconst[i, V_KFLOOR], vconst[j, V_KFLOOR]
-        k = ki if ki == kj else 2.0 * ki * kj / (ki + kj)
-        c = 0.5 * (vconst[i, V_CCOLL] + vconst[j, V_CCOLL])
+        k = stiff * (ki if ki == kj else 2.0 * ki * kj / (ki + kj))
+        c = damp * (0.5 * (vconst[i, V_CCOLL] + vconst[j, V_CCOLL]))
         inv_mi, inv_mj = vconst[i, V_INV_MASS], vconst[j, V_INV_MASS]
         dx = pos[j, 0] - pos[i, 0]
         dy = pos[j, 1] - pos[i, 1]
         dz = pos[j, 2] - pos[i, 2]
         dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        overlap = 0.5 * (size[i] + size[j]) - dist
+        overlap = reach * (size[i] + size[j]) - dist
         if overlap <= 0.0 or dist == 0.0:
             continue
         nx, ny, nz = dx / dist, dy / dist, dz / dist
@@ -782,13 +788,14 @@ def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs
     if 2.0 * travel >= margin:
         travel = surface_moved(surface, pos, built)
         if not (2.0 * travel < margin):  # NaN before the first build
-            reach = p.L * (1.0 + p.amp) + margin
+            reach = 2.0 * p.contact_reach * p.L * (1.0 + p.amp) + margin
             count = collision_pairs(surface, pos, near, reach, pairs)
             for a in range(len(surface)):
                 for c in range(3):
                     built[a, c] = pos[surface[a], c]
             travel = 0.0
-    collision_forces(count, pairs, pos, lin_mom, size, vconst, force)
+    collision_forces(count, pairs, pos, lin_mom, size, vconst, force, p.contact_reach,
+                     p.contact_stiff, p.contact_damp)
     return Contacts(count, travel)
 
 
@@ -1117,6 +1124,7 @@ def params(fp, ip):
     return Params(
         fp[F_L], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3], fp[F_DT], fp[F_GRAVITY],
         fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE], fp[F_MESH_DRAG],
+        fp[F_CONTACT_REACH], fp[F_CONTACT_STIFF], fp[F_CONTACT_DAMP],
         ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
         ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD], ip[I_ACT_START])
 

@@ -95,6 +95,8 @@ class ModelOptions:
     distance: str = "horizontal"  # on land: "horizontal" or "3d" (water is 3-D anyway)
     drag: str = "faces"  # water drag on each voxel's own faces, or on the deformed "mesh"
     min_steps_per_cycle: int = 2000  # the step resolves an actuation cycle at least this finely
+    contact: str = "voxelyze-2"  # self-contact: "voxelyze-2" or the fork's 1.5-voxel "voxcad" spheres
+    bond_damping: float = 1.0  # factor on the bond damping ratio (the fork: 0.5)
 
 
 OPTION_CHOICES = {
@@ -102,13 +104,15 @@ OPTION_CHOICES = {
     "actuation_clock": ("settled", "absolute"),
     "distance": ("horizontal", "3d"),
     "drag": ("faces", "mesh"),
+    "contact": ("voxelyze-2", "voxcad"),
 }
 # Each model's options, and its defaults for fields a scene may leave out.
 MODEL_OPTIONS = {
     "voxelyze-2": ModelOptions(),
     "voxcad-land-water": ModelOptions(rotation_damping=10.0, collision_horizon=3,
                                       actuation_start="settled", actuation_clock="absolute",
-                                      distance="3d", drag="mesh", min_steps_per_cycle=0),
+                                      distance="3d", drag="mesh", min_steps_per_cycle=0,
+                                      contact="voxcad", bond_damping=0.5),
 }
 MODEL_DEFAULTS = {  # dt_fraction, actuation amplitude
     "voxelyze-2": {"dt_fraction": 0.5, "amplitude": 0.39},
@@ -284,7 +288,7 @@ def _parse_model(data: dict) -> tuple[str, ModelOptions]:
                 raise SceneError(f"{name}: must be one of {', '.join(OPTION_CHOICES[key])} "
                                  f"(got {value!r})")
             kw[key] = value
-        elif key == "rotation_damping":
+        elif key in ("rotation_damping", "bond_damping"):
             kw[key] = _number(value, name, low=0, high=1e3)
         else:
             x = _number(value, name, low=1 if key == "collision_horizon" else 0, high=1e6)

@@ -27,7 +27,8 @@ from .scene import ModelOptions, Scene
 # Columns of the per-robot float parameter table ``fparams``.
 F_L, F_A1, F_A2, F_B1, F_B2, F_B3, F_DT, F_GRAVITY, F_MUS, F_MUK = range(10)
 F_DRAG, F_OMEGA, F_AMP, F_SETTLE, F_MESH_DRAG = range(10, 15)
-N_FPARAMS = 15
+F_CONTACT_REACH, F_CONTACT_STIFF, F_CONTACT_DAMP = range(15, 18)
+N_FPARAMS = 18
 # Columns of the per-robot integer parameter table ``iparams``.
 I_STEPS, I_SETTLE_STEPS, I_ENV, I_WAVE, I_RECORD, I_COLLIDE, I_COM_EVERY, I_N_FRAMES = range(8)
 I_FREQ_FIELD, I_ACT_START = 8, 9
@@ -83,6 +84,9 @@ class Params(NamedTuple):
     amp: float  # actuation amplitude (linear strain)
     settle: float  # settling time before the centre-of-mass reference is taken, s
     mesh_drag: float  # water drag on the deformed surface mesh: 0.5 rho_fluid C_d (0: none)
+    contact_reach: float  # self-contact begins at this times the sum of the two sizes
+    contact_stiff: float  # self-contact stiffness: this times the harmonic mean of 2 E L
+    contact_damp: float  # self-contact damping: this times the collision damping
     steps: int  # total steps, settling included
     settle_steps: int
     env: int  # ENV_LAND, ENV_WATER or ENV_VOID
@@ -293,7 +297,7 @@ def build_robot(scene: Scene) -> Robot:
     # Bond damping as stiffness-proportional (Rayleigh) damping: C = gamma K, which gives each
     # beam term the coefficient 2 zeta sqrt(m k) (sqrt(I k) for the rotational ones).
     m_link = 0.5 * (mass[link_neg] + mass[link_pos])
-    gamma = 2.0 * mat.damping_bond * np.sqrt(m_link / (E_link * L))
+    gamma = 2.0 * opts.bond_damping * mat.damping_bond * np.sqrt(m_link / (E_link * L))
     link_damp = gamma * 0.5 / dt
 
     f = np.zeros(N_FPARAMS)
@@ -307,6 +311,10 @@ def build_robot(scene: Scene) -> Robot:
     mesh = opts.drag == "mesh" and drag > 0.0
     f[F_DRAG], f[F_MESH_DRAG] = (0.0, drag) if mesh else (drag, 0.0)
     f[[F_OMEGA, F_AMP, F_SETTLE]] = 2 * math.pi * f_common, act.amplitude, scene.settle_seconds
+    # self-contact: voxelyze-2 touches at the sum of half sizes with the floor's stiffness,
+    # damped; the fork's spheres of 1.5 voxels repel with the bond's a1 = E_link L, undamped
+    f[[F_CONTACT_REACH, F_CONTACT_STIFF, F_CONTACT_DAMP]] = (
+        (0.5, 1.0, 1.0) if opts.contact == "voxelyze-2" else (0.75, 0.5, 0.0))
 
     i = np.zeros(N_IPARAMS, dtype=np.int64)
     i[I_STEPS], i[I_SETTLE_STEPS] = steps, settle_steps

@@ -226,3 +226,33 @@ def test_model_defaults_and_errors():
         with pytest.raises(SceneError) as err:
             parse_scene({"body": [[[1]]], **bad})
         assert str(err.value).startswith(start)
+
+
+def test_voxcad_contact_repels_spheres_of_one_and_a_half_voxels_undamped():
+    """The fork's contact (``contact`` "voxcad"): two voxels 1.2 L apart overlap as spheres of
+    1.5 L diameter by 0.3 L and repel with a1 = E L times it, whatever their relative speed;
+    Voxelyze 2's touching cubes do not touch yet."""
+    L, E = 0.05, 1e5
+    pos = np.array([[0.0, 0.0, 0.0], [1.2 * L, 0.0, 0.0]])
+    mom = np.array([[0.0, 0.0, 0.0], [-0.01, 0.0, 0.0]])  # closing: damping would add force
+    size = np.full(2, L)
+    vconst = np.zeros((2, system.N_VCONST))
+    vconst[:, system.V_KFLOOR] = 2 * E * L
+    vconst[:, system.V_CCOLL] = 3.0
+    vconst[:, system.V_INV_MASS] = 1 / (1200 * L**3)
+    pairs = np.array([[0, 1]])
+    for reach, stiff, damp, want in ((0.5, 1.0, 1.0, 0.0), (0.75, 0.5, 0.0, E * L * 0.3 * L)):
+        force = np.zeros((2, 3))
+        kernels.collision_forces(1, pairs, pos, mom, size, vconst, force, reach, stiff, damp)
+        assert force[1, 0] == pytest.approx(want, rel=1e-12, abs=1e-15)
+        assert force[0, 0] == -force[1, 0]
+    robot = system.build_robot(parse_scene({"body": [[[1]]], "model": "voxcad-land-water"}))
+    assert tuple(robot.fparams[[system.F_CONTACT_REACH, system.F_CONTACT_STIFF,
+                                system.F_CONTACT_DAMP]]) == (0.75, 0.5, 0.0)
+
+
+def test_bond_damping_factor_scales_each_link_damping():
+    body = [[[1, 1]], [[1, 1]]]
+    plain = system.build_robot(parse_scene({"body": body}))
+    half = system.build_robot(parse_scene({"body": body, "model_options": {"bond_damping": 0.5}}))
+    np.testing.assert_allclose(half.link_damp, 0.5 * plain.link_damp, rtol=1e-15)
