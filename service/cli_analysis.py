@@ -1,10 +1,12 @@
-"""``softevo report | show | export-vxa | power`` (SPEC.md section 7).
+"""``softevo report | show | export-vxa | import-vxa | power`` (SPEC.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
   statistics and the run settings (``service.reports.write_report``).
 - ``softevo show INDIVIDUAL --out FILE.gif|FILE.mp4``: re-simulate a stored individual and
   animate its motion (MP4 needs ffmpeg).
 - ``softevo export-vxa INDIVIDUAL --out FILE.vxa``: the individual as a VoxCAD file.
+- ``softevo import-vxa FILE.vxa --out SCENE.json``: a VoxCAD / evosoro file as a scene
+  (``analysis.vxa_import``; what it cannot map: one ``warning:`` line each on stderr).
 - ``softevo power EXPERIMENT``: from a pilot experiment's runs, the repetitions and
   generations the paper's comparisons need for the target power after Bonferroni
   (``analysis.power``).
@@ -86,12 +88,51 @@ def export_vxa(
 
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")
-    document = record_vxa(individual_record(open_database(db), individual), environment)
+    with _warning_lines():
+        document = record_vxa(individual_record(open_database(db), individual), environment)
     try:
         out.write_text(document, encoding="iso-8859-1")
     except OSError as exc:
         raise UserError(f"cannot write {out}: {exc.strerror or exc}") from exc
     typer.echo(str(out))
+
+
+def import_vxa(
+    vxa: Annotated[Path, typer.Argument(metavar="FILE.vxa", help="a VoxCAD / evosoro file")],
+    out: Annotated[Path, typer.Option("--out", help="SCENE.json")],
+) -> None:
+    """Read a VoxCAD / evosoro .vxa file as a scene (JSON) for softevo simulate."""
+    import json
+
+    from softevo.analysis.vxa_import import read_vxa
+
+    if out.suffix.lower() != ".json":
+        raise UserError(f"--out must end in .json (got {out.name!r})")
+    imported = read_vxa(vxa)
+    for message in imported.warnings:
+        typer.echo(f"warning: {message}", err=True)
+    try:
+        out.write_text(json.dumps(imported.scene) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise UserError(f"cannot write {out}: {exc.strerror or exc}") from exc
+    typer.echo(str(out))
+
+
+@contextmanager
+def _warning_lines():
+    """Print each ``VxaWarning`` raised inside as one ``warning:`` line on stderr."""
+    import warnings
+
+    from softevo.analysis.vxa import VxaWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", VxaWarning)
+        yield
+    for warning in caught:
+        if issubclass(warning.category, VxaWarning):
+            typer.echo(f"warning: {warning.message}", err=True)
+        else:
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
 
 
 def power(
@@ -193,8 +234,9 @@ def _frame_progress(enabled: bool):
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``report``, ``show``, ``export-vxa`` and ``power`` to ``app``."""
+    """Add ``report``, ``show``, ``export-vxa``, ``import-vxa`` and ``power`` to ``app``."""
     app.command("report")(report)
     app.command("power")(power)
     app.command("show")(show)
     app.command("export-vxa")(export_vxa)
+    app.command("import-vxa")(import_vxa)

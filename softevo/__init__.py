@@ -5,13 +5,14 @@ The project's folders install as one package: ``softevo.sim`` (the physics engin
 ``softevo.service`` (SQL storage, coordinator, CLI, REST API), ``softevo.analysis``
 (statistics, figures, reports) and ``softevo.migrations``.
 
-For notebooks and scripts, four functions cover the common uses::
+For notebooks and scripts, five functions cover the common uses::
 
     import softevo
     result = softevo.simulate(scene)                 # a scene dict (docs/contracts.md) -> Result
     softevo.describe(body)                           # shape descriptors of a voxel array
     algo = softevo.evolve("water", 0.1, generations=10)   # a local run in memory
     data = softevo.load_experiment("sqlite:///softevo.db", "latest")   # DataFrames
+    scene = softevo.import_vxa("robot.vxa")          # a VoxCAD / evosoro file -> scene dict
 
 Each imports its layer when called, so that ``import softevo.sim`` in a worker does not load
 pandas, SQLAlchemy or the web stack.
@@ -22,7 +23,7 @@ from __future__ import annotations
 from typing import Any
 
 __version__ = "0.1.0"
-__all__ = ["describe", "evolve", "load_experiment", "simulate", "simulate_many"]
+__all__ = ["describe", "evolve", "import_vxa", "load_experiment", "simulate", "simulate_many"]
 
 
 def simulate(scene: dict[str, Any], **options: Any):
@@ -45,6 +46,16 @@ def describe(body, frequency: float | None = None) -> dict[str, Any]:
     from softevo.evolution.descriptors import describe as describe_body
 
     return describe_body(body, frequency)
+
+
+def import_vxa(path) -> dict[str, Any]:
+    """The scene (a dict, ``"model": "voxcad-land-water"``) of a VoxCAD / evosoro ``.vxa``
+    file; what the scene cannot hold is said by a ``softevo.analysis.vxa.VxaWarning``, and a
+    file that cannot be read raises ``softevo.analysis.vxa.VxaError`` (a ``UserError``).
+    The mapping: ``softevo.analysis.vxa_import``."""
+    from softevo.analysis.vxa_import import import_vxa as read
+
+    return read(path)
 
 
 def evolve(

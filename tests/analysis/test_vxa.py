@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from softevo.analysis.robots import record_scene
-from softevo.analysis.vxa import data_layers, phase_layers, scene_to_vxa, write_vxa
+from softevo.analysis.vxa import data_layers, scene_to_vxa, value_layers, write_vxa
 from softevo.service.db.individuals import individual_record
 from tests.analysis.cli import softevo
 
@@ -57,21 +57,58 @@ def test_layers_are_z_bottom_first_then_y_rows_of_x():
         assert layer == expected
     assert layers == ["122001", "021120"]
     phases = [[float(v) for v in layer.text.split(",")] for layer in structure.findall("PhaseOffset/Layer")]
-    assert phases[1] == pytest.approx([0.1, 0.7, 0.3, 0.9, 0.5, 1.1])
+    # in cycles, as the fork reads them: sin(2 pi (t / TempPeriod + offset))
+    assert phases[1] == pytest.approx(np.array([0.1, 0.7, 0.3, 0.9, 0.5, 1.1]) / (2 * np.pi))
 
 
 def test_layer_helpers_on_a_single_voxel_column():
     column = np.array([[[1, 2, 0]]])  # x = y = 1, z = 3
     assert data_layers(column) == ["1", "2", "0"]
-    assert phase_layers(np.array([[[0.5, -1.25, 0.0]]])) == ["0.5", "-1.25", "0"]
+    assert value_layers(np.array([[[0.5, -1.25, 0.0]]])) == ["0.5", "-1.25", "0"]
 
 
-def test_water_has_no_gravity_no_floor_and_a_fluid():
+def test_water_has_no_gravity_no_floor_and_the_forks_fluid_tags():
     root = _parse(scene_to_vxa({**SCENE, "environment": {"kind": "water"}}))
     assert root.findtext("Environment/Gravity/GravEnabled") == "0"
     assert root.findtext("Environment/Gravity/FloorEnabled") == "0"
-    assert root.findtext("Environment/Fluid/FluidEnvironment") == "1"
-    assert root.findtext("Environment/Fluid/DragCoefficient") == "1.5"
+    # directly under <Environment>, where the fork reads them (VX_Environment.cpp)
+    assert root.findtext("Environment/FluidEnvironment") == "1"
+    assert float(root.findtext("Environment/AggregateDragCoefficient")) == 0.5 * 1000 * 1.5
+
+
+@pytest.mark.parametrize("amplitude", [0.14, 0.39, 0.05])
+def test_the_fork_reads_the_scenes_amplitude(amplitude):
+    root = _parse(scene_to_vxa({**SCENE, "actuation": {"frequency": 2.0, "amplitude": amplitude}}))
+    # the fork: TempAmplitude = TempAmp - TempBase, strain = TempAmplitude x CTE
+    thermal = root.find("Environment/Thermal")
+    swing = float(thermal.findtext("TempAmp")) - float(thermal.findtext("TempBase"))
+    ctes = [float(m.findtext("Mechanical/CTE")) for m in root.findall("VXC/Palette/Material")]
+    assert ctes == [0.0, 0.01]
+    assert swing * ctes[1] == pytest.approx(amplitude, rel=1e-12)
+
+
+@pytest.mark.parametrize(("horizon", "text"), [(1, "0.666666666667"), (2, None), (3, "2"), (7, None)])
+def test_collision_horizon_reads_back_in_the_forks_rounding(horizon, text):
+    scene = {**SCENE, "model": "voxcad-land-water", "model_options": {"collision_horizon": horizon}}
+    value = _parse(scene_to_vxa(scene)).findtext("Simulator/Collisions/CollisionHorizon")
+    assert int(float(value) * 1.5) == horizon  # VX_Sim.cpp: CalcNearby(int(CollisionHorizon * 1.5))
+    assert text is None or value == text
+
+
+def test_stop_condition_is_simulated_seconds_from_the_settled_start():
+    root = _parse(scene_to_vxa(SCENE))
+    assert root.findtext("Simulator/StopCondition/StopConditionType") == "2"
+    assert float(root.findtext("Simulator/StopCondition/StopConditionValue")) == pytest.approx(0.5 + 4 / 2.0)
+    assert float(root.findtext("Simulator/StopCondition/InitCmTime")) == 0.5
+
+
+def test_a_frequency_field_of_several_values_warns_and_writes_the_mean():
+    field = np.full((2, 3, 2), 2.0)
+    field[0, 1, 0] = 4.0  # an active voxel
+    with pytest.warns(UserWarning, match="one actuation period"):
+        root = _parse(scene_to_vxa({**SCENE, "frequency_field": field.tolist()}))
+    active = np.array(BODY) == 2
+    assert float(root.findtext("Environment/Thermal/TempPeriod")) == pytest.approx(1 / field[active].mean())
 
 
 def test_export_vxa_command_writes_the_stored_individual(capsys, tiny, tiny_data, tmp_path):
