@@ -29,6 +29,8 @@ WorkersOption = Annotated[
     typer.Option("--workers", help="evaluation processes (default: all cores; 0: inline)"),
 ]
 QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
+ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
+MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
 
 
 def _parse_workspace(text: str) -> tuple[int, int, int]:
@@ -128,11 +130,20 @@ def run(
     frequency_per_voxel: Annotated[
         bool, typer.Option("--frequency-per-voxel", help="each voxel actuates at its own frequency")
     ] = False,
+    algorithm: Annotated[str, typer.Option("--algorithm", help=ALGORITHM_HELP)] = Treatment.algorithm,
+    model: Annotated[str, typer.Option("--model", help=MODEL_HELP)] = Treatment.model,
+    control_mapping: Annotated[
+        str, typer.Option("--control-mapping", help="linear (1-5 Hz) | evosoro (the paper scripts')")
+    ] = Treatment.control_mapping,
+    body_rule: Annotated[
+        str, typer.Option("--body-rule", help="any | evosoro (>= 30% full, >= 10% active)")
+    ] = Treatment.body_rule,
     db: DbOption = None,
     workers: WorkersOption = None,
     quiet: QuietOption = False,
 ) -> None:
-    """Evolve one treatment (one run) and store every individual."""
+    """Evolve one treatment (one run) and store every individual. The defaults keep the
+    quick start's meaning (AFPO, voxelyze-2); ``softevo experiment`` runs the paper's choices."""
     from softevo.service.db import open_database
     from softevo.service.experiments import create
     from softevo.service.treatments import Treatment
@@ -154,6 +165,10 @@ def run(
         evolve_stiffness=evolve_stiffness,
         frequency_per_voxel=frequency_per_voxel,
         stiffness_range_mpa=_parse_range(stiffness_range),
+        algorithm=algorithm,
+        model=model,
+        control_mapping=control_mapping,
+        body_rule=body_rule,
     )
     engine = open_database(db)
     experiment_id, run_ids = create(engine, "run", [treatment])
@@ -170,20 +185,28 @@ def experiment(
     scale: Annotated[str, typer.Option("--scale", help=" | ".join(SCALES))] = "tiny",
     repetitions: Annotated[int | None, typer.Option("--repetitions")] = None,
     seed: Annotated[int, typer.Option("--seed")] = 0,
+    algorithm: Annotated[
+        str | None, typer.Option("--algorithm", help=f"{ALGORITHM_HELP} (default pareto)")
+    ] = None,
+    model: Annotated[
+        str | None, typer.Option("--model", help=f"{MODEL_HELP} (default voxcad-land-water)")
+    ] = None,
     db: DbOption = None,
     workers: WorkersOption = None,
     quiet: QuietOption = False,
 ) -> None:
-    """Run a preset experiment: every treatment and repetition."""
+    """Run a preset experiment: every treatment and repetition, with the paper's algorithm
+    (plain Pareto), model (voxcad-land-water) and encoding unless --algorithm / --model."""
     from softevo.service.db import open_database
     from softevo.service.experiments import create_paper
     from softevo.service.treatments import preset_grid
 
     if repetitions is not None and repetitions < 1:
         raise UserError(f"--repetitions must be >= 1 (got {repetitions})")
-    preset_grid(preset, scale)  # validates preset and scale before touching the database
+    choices = {"algorithm": algorithm, "model": model}
+    preset_grid(preset, scale, **choices)  # validates everything before touching the database
     engine = open_database(db)
-    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed, preset=preset)
+    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed, preset=preset, **choices)
     typer.echo(f"experiment {experiment_id} (e{experiment_id}): runs {run_ids[0]}..{run_ids[-1]}", err=True)
     _execute(engine, run_ids, workers, quiet)
 

@@ -134,6 +134,7 @@ def ask(run: ActiveRun) -> list[dict[str, Any]]:
             id=ind.id,
             run_id=run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
             generation=generation,
+            model=run.treatment.model,
         ).to_json()
         for ind in asked
     ]

@@ -33,11 +33,17 @@ def create(
 
 
 def create_paper(
-    engine: Engine, scale: str, repetitions: int | None = None, seed: int = 0, preset: str = "paper"
+    engine: Engine,
+    scale: str,
+    repetitions: int | None = None,
+    seed: int = 0,
+    preset: str = "paper",
+    **choices: str | None,
 ) -> tuple[int, list[int]]:
     """A preset's treatments (``service.treatments.PRESETS``; default the paper's grid,
-    SPEC.md section 5) at ``scale`` as a new experiment."""
-    treatments = preset_grid(preset, scale, repetitions=repetitions, seed=seed)
+    SPEC.md section 5) at ``scale`` as a new experiment; ``choices`` (e.g. ``algorithm``,
+    ``model``; None: the paper's) as ``preset_grid`` takes them."""
+    treatments = preset_grid(preset, scale, repetitions=repetitions, seed=seed, **choices)
     return create(engine, f"{preset}-{scale}", treatments, preset=preset, scale=scale)
 
 
@@ -56,4 +62,5 @@ def evolution_config(treatment: Treatment, seed: int):
         cycles=treatment.cycles,
         encoding=encoding_of(treatment.to_settings()),
         descriptors=False,
+        model=treatment.model,
     )

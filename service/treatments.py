@@ -13,6 +13,20 @@ seeds of its own (treatment k from ``seed + first_seed + k * SEED_STRIDE``), so 
 treatments start from the same population, and the ``study`` scale starts past the
 ``pilot``'s seeds, so that a study never repeats a pilot run (docs/analysis.md).
 
+The algorithm and the physics: ``algorithm`` is ``pareto`` (the paper's plain 3-objective
+Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
+``evolution.afpo``) or ``afpo`` (Age-Fitness Pareto, a named variant: the remedy the paper
+names for its algorithm's loss of diversity); ``model`` is the physics model of every
+evaluation's scene (``sim.scene.MODELS``: ``voxelyze-2``, or ``voxcad-land-water``, the
+paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
+encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro`` (the
+scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz, at most 4 Hz for positive outputs, and
+phase offsets in cycles) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
+workspace full or 10% active are drawn or mutated again). Plain treatments default to AFPO,
+``voxelyze-2``, the linear 1-5 Hz mapping and any non-empty body, so stored runs and the
+quick start keep their meaning (settings stored before these fields existed read so too);
+the paper presets use the paper's four (``PAPER_CHOICES``).
+
 Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
 Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,
 0.001..10 MPa; the treatment's ``stiffness_mpa`` is then unused by the physics), and
@@ -28,12 +42,18 @@ from dataclasses import dataclass
 from typing import Any
 
 from softevo.errors import UserError
-from softevo.evolution.genotype import EncodingConfig
+from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
-from softevo.sim.scene import DEFAULT_CYCLES
+from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")
+PAPER_CHOICES = {  # what the paper presets run (SPEC.md section 3; evolution.genotype)
+    "algorithm": "pareto",
+    "model": "voxcad-land-water",
+    "control_mapping": "evosoro",
+    "body_rule": "evosoro",
+}
 STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 
@@ -58,6 +78,9 @@ class Treatment:
     evolve_stiffness: bool = False
     frequency_per_voxel: bool = False
     stiffness_range_mpa: tuple[float, float] = STIFFNESS_RANGE_MPA
+    model: str = DEFAULT_MODEL
+    control_mapping: str = "linear"
+    body_rule: str = "any"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -87,6 +110,13 @@ class Treatment:
             raise UserError(f"seed must be >= 0 (got {self.seed})")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose afpo or pareto")
+        for name, choices in (("model", MODELS), ("control_mapping", CONTROL_MAPPINGS),
+                              ("body_rule", tuple(BODY_RULES))):
+            if getattr(self, name) not in choices:
+                raise UserError(f"unknown {name} {getattr(self, name)!r}; choose {' or '.join(choices)}")
+        if self.control_mapping == "evosoro" and self.frequency_per_voxel:
+            raise UserError("control_mapping evosoro gives one frequency per robot: "
+                            "it cannot be combined with frequency_per_voxel")
         for flag in ("evolve_stiffness", "frequency_per_voxel"):
             if not isinstance(getattr(self, flag), bool):
                 raise UserError(f"{flag} must be true or false (got {getattr(self, flag)!r})")
@@ -224,8 +254,12 @@ def preset_scale(scale: str) -> Scale:
     return PRESET_SCALES[scale]
 
 
-def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 0) -> list[Treatment]:
-    """The paper's grid (SPEC.md section 5): land and water at S1..S5, transitions at S3.
+def paper_grid(
+    scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str
+) -> list[Treatment]:
+    """The paper's grid (SPEC.md section 5): land and water at S1..S5, transitions at S3,
+    with the paper's algorithm, model and encoding (``PAPER_CHOICES``; ``choices`` override
+    any of them, e.g. ``algorithm="afpo"``).
 
     At paper scale the S3 static treatments run as long as the transitions (9000
     generations), as in the paper, for a fair comparison.
@@ -238,6 +272,7 @@ def paper_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 
         "cycles": sizes.cycles,
         "repetitions": reps,
         "seed": seed,
+        **_paper_choices(choices),
     }
     treatments = []
     for environment in ("land", "water"):
@@ -276,10 +311,13 @@ def own_seeds(treatments: list[Treatment], seed: int, first_seed: int = 0) -> li
     return [dataclasses.replace(t, seed=start + k * SEED_STRIDE) for k, t in enumerate(treatments)]
 
 
-def gradual_grid(scale: str = "tiny", repetitions: int | None = None, seed: int = 0) -> list[Treatment]:
+def gradual_grid(
+    scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str
+) -> list[Treatment]:
     """The paper's two transitions at S3 (land-water, water-land), each abrupt and gradual
     (``switch_over`` of the scale: tiny 2, small 4, paper 1000 generations), switching at
-    half the generations; same sizes and seeds as ``paper_grid``'s transitions."""
+    half the generations; same sizes, seeds and choices (``PAPER_CHOICES``, ``choices``
+    override them) as ``paper_grid``'s transitions."""
     sizes = preset_scale(scale)
     common = {
         "population": sizes.population,
@@ -288,6 +326,7 @@ def gradual_grid(scale: str = "tiny", repetitions: int | None = None, seed: int 
         "repetitions": sizes.repetitions if repetitions is None else repetitions,
         "seed": seed,
         "generations": sizes.transition_generations,
+        **_paper_choices(choices),
     }
     return [
         Treatment(environment, 0.1, name=f"{environment} S3 {kind}", switch_over=over, **common)
@@ -296,11 +335,23 @@ def gradual_grid(scale: str = "tiny", repetitions: int | None = None, seed: int 
     ]
 
 
+def _paper_choices(overrides: dict[str, str | None]) -> dict[str, str]:
+    """``PAPER_CHOICES`` with the given (non-None) overrides; UserError for an unknown key."""
+    unknown = sorted(set(overrides) - set(PAPER_CHOICES))
+    if unknown:
+        raise UserError(f"a preset cannot set {', '.join(unknown)}")
+    return {**PAPER_CHOICES, **{k: v for k, v in overrides.items() if v is not None}}
+
+
 PRESETS = {"paper": paper_grid, "gradual": gradual_grid}
 
 
-def preset_grid(preset: str, scale: str = "tiny", repetitions: int | None = None, seed: int = 0):
-    """The treatments of preset ``preset`` (``PRESETS``); UserError for an unknown one."""
+def preset_grid(
+    preset: str, scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str | None
+):
+    """The treatments of preset ``preset`` (``PRESETS``); UserError for an unknown one.
+    ``choices`` (``algorithm``, ``model``, ``control_mapping``, ``body_rule``; None: the
+    paper's) override ``PAPER_CHOICES``."""
     if preset not in PRESETS:
         raise UserError(f"unknown experiment preset {preset!r}; choose {' or '.join(PRESETS)}")
-    return PRESETS[preset](scale, repetitions=repetitions, seed=seed)
+    return PRESETS[preset](scale, repetitions=repetitions, seed=seed, **choices)

@@ -1,7 +1,7 @@
 """Evaluation tasks and results, and the one path from a genome to a simulated robot.
 
 - ``Task``: one genome to evaluate (genome, environment, Young's modulus, cycles,
-  encoding), built by the coordinator from the algorithm's individuals
+  encoding, physics model), built by the coordinator from the algorithm's individuals
   (``Task.from_genome``) or from a stored individual and its treatment's settings
   (``Task.from_stored``). ``to_json`` / ``from_json`` are the wire format every executor
   and RQ job exchanges:
@@ -14,7 +14,8 @@
        "youngs_modulus": float,        # Pa
        "cycles": int,
        "workspace": [x, y, z],
-       "encoding": {...}}              # optional EncodingConfig.to_dict(); wins over workspace
+       "encoding": {...},              # optional EncodingConfig.to_dict(); wins over workspace
+       "model": "voxcad-land-water"}   # optional sim.scene model; absent: "voxelyze-2"
 
 - ``Result``: what an evaluation returns, ``to_json`` / ``from_json`` with the keys
   ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
@@ -51,14 +52,17 @@ MAX_FRAMES = 2000  # frames a replay keeps at most when ``max_frames`` is given
 def encoding_of(settings: Mapping[str, Any]):
     """The ``EncodingConfig`` of a treatment's runs from its settings
     (``service.treatments.Treatment.to_settings()``): ``workspace``, ``evolve_stiffness``,
-    ``frequency_per_voxel`` and ``stiffness_range_mpa`` (MPa; the encoding takes Pa). Settings
-    without the last three (stored before they existed) give the defaults: both off."""
+    ``frequency_per_voxel``, ``stiffness_range_mpa`` (MPa; the encoding takes Pa),
+    ``control_mapping`` and ``body_rule``. Settings stored before the later ones existed give
+    their defaults: both options off, the linear mapping, any non-empty body."""
     from softevo.evolution.genotype import EncodingConfig
 
     config = EncodingConfig(
         workspace=tuple(int(n) for n in settings["workspace"]),
         evolve_stiffness=bool(settings.get("evolve_stiffness", False)),
         frequency_per_voxel=bool(settings.get("frequency_per_voxel", False)),
+        control_mapping=str(settings.get("control_mapping", "linear")),
+        body_rule=str(settings.get("body_rule", "any")),
     )
     if "stiffness_range_mpa" in settings and config.evolve_stiffness:
         low, high = (float(x) * 1e6 for x in settings["stiffness_range_mpa"])
@@ -79,6 +83,7 @@ class Task:
     encoding: dict[str, Any] | None = None  # EncodingConfig.to_dict(); None: from workspace
     run_id: int | None = None
     generation: int | None = None
+    model: str = "voxelyze-2"  # sim.scene.MODELS: the physics of the task's scenes
 
     @classmethod
     def from_genome(
@@ -91,9 +96,10 @@ class Task:
         id: int | None = 0,
         run_id: int | None = None,
         generation: int | None = None,
+        model: str = "voxelyze-2",
     ) -> Task:
         """A task of ``genome`` (a ``Genotype`` or its ``to_dict()``) expressed with
-        ``encoding`` (an ``EncodingConfig`` or its ``to_dict()``)."""
+        ``encoding`` (an ``EncodingConfig`` or its ``to_dict()``), simulated in ``model``."""
         genome = genome if isinstance(genome, dict) else genome.to_dict()
         encoding = encoding if isinstance(encoding, dict) else encoding.to_dict()
         return cls(
@@ -106,6 +112,7 @@ class Task:
             encoding=encoding,
             run_id=run_id,
             generation=generation,
+            model=model,
         )
 
     @classmethod
@@ -118,8 +125,9 @@ class Task:
         youngs_modulus: float,
     ) -> Task:
         """The task of a stored individual: its genome (``Genotype.to_dict()`` JSON), its
-        treatment's settings (``Treatment.to_settings()``; encoding and cycles) and the
-        environment and Young's modulus (Pa) of the evaluation to reproduce."""
+        treatment's settings (``Treatment.to_settings()``; encoding, cycles and model, absent
+        in settings stored before it existed: ``voxelyze-2``) and the environment and Young's
+        modulus (Pa) of the evaluation to reproduce."""
         return cls.from_genome(
             genome,
             environment,
@@ -127,6 +135,7 @@ class Task:
             int(settings["cycles"]),
             encoding_of(settings),
             id=int(individual_id),
+            model=str(settings.get("model", "voxelyze-2")),
         )
 
     def encoding_config(self):
@@ -153,6 +162,8 @@ class Task:
         )
         if self.encoding is not None:
             out["encoding"] = self.encoding
+        if self.model != "voxelyze-2":
+            out["model"] = self.model
         return out
 
     @classmethod
@@ -170,6 +181,7 @@ class Task:
             encoding=encoding,
             run_id=data.get("run_id"),
             generation=data.get("generation"),
+            model=data.get("model", "voxelyze-2"),
         )
 
 
@@ -307,7 +319,7 @@ def scenes_of(task: Task, **extra: Any):
     parts = worlds.parts(task.environment)
     scenes = []
     for world, share in parts:
-        scene = phenotype.to_scene(world, task.youngs_modulus, task.cycles, **extra)
+        scene = phenotype.to_scene(world, task.youngs_modulus, task.cycles, model=task.model, **extra)
         if len(parts) > 1:
             scene["duration"] = {"cycles": float(task.cycles) * share}
         scenes.append(scene)

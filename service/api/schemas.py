@@ -27,6 +27,10 @@ Name = Annotated[
     StringConstraints(min_length=1, max_length=200, strip_whitespace=True, pattern=r"^[^\x00-\x1f\x7f]+$"),
 ]
 Environment = Literal["land", "water", "land-water", "water-land"]
+Algorithm = Literal["afpo", "pareto"]
+Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.scene.MODELS
+ControlMapping = Literal["linear", "evosoro"]  # evolution.genotype.CONTROL_MAPPINGS
+BodyRule = Literal["any", "evosoro"]  # evolution.genotype.BODY_RULES
 RunStatusName = Literal["pending", "running", "finished", "failed", "cancelled"]
 
 
@@ -61,7 +65,24 @@ class TreatmentIn(Strict):
     cycles: int = Field(Treatment.cycles, ge=1, le=10_000, description="actuation cycles per evaluation")
     repetitions: int = Field(1, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
-    algorithm: Literal["afpo", "pareto"] = "afpo"
+    algorithm: Algorithm = Field(
+        Treatment.algorithm,
+        description="pareto: the paper's plain 3-objective Pareto optimisation (mutation only); "
+        "afpo: Age-Fitness Pareto, a named variant (age objective, one random newcomer a "
+        "generation)")
+    model: Model = Field(
+        Treatment.model,
+        description="physics model of every evaluation: voxelyze-2, or voxcad-land-water (the "
+        "paper's engine: 3-D distance in both worlds)")
+    control_mapping: ControlMapping = Field(
+        Treatment.control_mapping,
+        description="linear: frequency 1-5 Hz from the mean output over present voxels; "
+        "evosoro: the paper scripts' 10 / (mean(1/s) + 1.5) Hz over the workspace and phase "
+        "offsets in cycles")
+    body_rule: BodyRule = Field(
+        Treatment.body_rule,
+        description="any: every non-empty body is simulated; evosoro: bodies with under 30% of "
+        "the workspace full or 10% active are drawn or mutated again")
     evolve_stiffness: bool = Field(
         Treatment.evolve_stiffness,
         description="evolve a Young's modulus per voxel within stiffness_range_mpa "
@@ -81,7 +102,8 @@ class ExperimentIn(Strict):
 
 
 class PresetIn(Strict):
-    """A preset experiment: the paper's grid at a scale (SPEC.md section 5)."""
+    """A preset experiment: the paper's grid at a scale (SPEC.md section 5), with the paper's
+    algorithm, model and encoding unless ``algorithm`` or ``model`` says otherwise."""
 
     preset: Literal["paper", "gradual"] = Field(
         description="paper: the paper's grid; gradual: its two transitions, abrupt and gradual")
@@ -89,6 +111,8 @@ class PresetIn(Strict):
     repetitions: int | None = Field(None, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
     name: Name | None = None
+    algorithm: Algorithm | None = Field(None, description="default the paper's: pareto")
+    model: Model | None = Field(None, description="default the paper's: voxcad-land-water")
 
 
 def _experiment_kind(value: Any) -> str:

@@ -64,6 +64,9 @@ def _treatments(body: ExperimentIn):
             repetitions=t.repetitions,
             seed=t.seed,
             algorithm=t.algorithm,
+            model=t.model,
+            control_mapping=t.control_mapping,
+            body_rule=t.body_rule,
             evolve_stiffness=t.evolve_stiffness,
             frequency_per_voxel=t.frequency_per_voxel,
             stiffness_range_mpa=tuple(t.stiffness_range_mpa),
@@ -97,7 +100,8 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     picks them up within a second. Body: ``{"name", "treatments": [...]}`` or
     ``{"preset": "paper", "scale"}``."""
     if isinstance(body, PresetIn):
-        treatments = preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed)
+        treatments = preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed,
+                                 algorithm=body.algorithm, model=body.model)
         name = body.name or f"{body.preset}-{body.scale}"
         experiment_id, run_ids = create(
             services.engine, name, treatments, preset=body.preset, scale=body.scale

@@ -1,0 +1,115 @@
+"""The paper presets run the paper's algorithm, model and encoding; ``--algorithm`` and
+``--model`` (CLI) or ``algorithm`` and ``model`` (REST, over real HTTP on loopback,
+coordinator off) choose others; the model travels from the treatment to every scene."""
+
+from __future__ import annotations
+
+import httpx
+import numpy as np
+import pytest
+
+from softevo.errors import UserError
+from softevo.evolution.genotype import random_viable_genotype
+from softevo.service.db import open_database
+from softevo.service.experiments import evolution_config
+from softevo.service.treatments import PAPER_CHOICES, Treatment, preset_grid
+from softevo.worker.tasks import Task, scene_of
+from tests.analysis.cli import softevo
+from tests.service.rq_support import Processes, auth, service_env
+
+
+def choices(treatment: Treatment) -> tuple[str, str, str, str]:
+    return treatment.algorithm, treatment.model, treatment.control_mapping, treatment.body_rule
+
+
+@pytest.mark.parametrize("preset", ["paper", "gradual"])
+def test_presets_run_the_papers_choices_unless_told_otherwise(preset):
+    paper = tuple(PAPER_CHOICES.values())
+    assert paper == ("pareto", "voxcad-land-water", "evosoro", "evosoro")
+    assert {choices(t) for t in preset_grid(preset, "tiny")} == {paper}
+    afpo = {choices(t) for t in preset_grid(preset, "tiny", algorithm="afpo")}
+    assert afpo == {("afpo", *paper[1:])}
+    plain = {t.model for t in preset_grid(preset, "tiny", model="voxelyze-2", algorithm=None)}
+    assert plain == {"voxelyze-2"}
+
+
+def test_plain_treatments_and_old_settings_keep_their_meaning():
+    treatment = Treatment("land", 0.1)
+    assert choices(treatment) == ("afpo", "voxelyze-2", "linear", "any")
+    stored = {k: v for k, v in treatment.to_settings().items()
+              if k not in ("model", "control_mapping", "body_rule")}
+    assert Treatment.from_settings(stored) == treatment
+    with pytest.raises(UserError, match="unknown model"):
+        Treatment("land", 0.1, model="voxelyze-3")
+    with pytest.raises(UserError, match="frequency_per_voxel"):
+        Treatment("land", 0.1, control_mapping="evosoro", frequency_per_voxel=True)
+
+
+def test_the_model_reaches_every_scene_and_back_from_storage():
+    treatment = preset_grid("paper", "tiny")[5]  # water S1
+    config = evolution_config(treatment, seed=3)
+    assert config.model == "voxcad-land-water" and config.mode == "pareto"
+    genome = random_viable_genotype(np.random.default_rng(3), config.encoding)
+    task = Task.from_stored(7, genome.to_dict(), treatment.to_settings(), "water", 1e3)
+    assert Task.from_json(task.to_json()) == task
+    _, scene = scene_of(task)
+    assert scene["model"] == "voxcad-land-water" and scene["actuation"]["amplitude"] == 0.14
+    old = {k: v for k, v in treatment.to_settings().items() if k != "model"}
+    _, old_scene = scene_of(Task.from_stored(7, genome.to_dict(), old, "water", 1e3))
+    assert "model" not in old_scene
+
+
+def test_cli_experiment_takes_algorithm_and_model(capsys, tmp_path):
+    db = f"sqlite:///{tmp_path / 'x.db'}"
+    code, _, err = softevo(capsys, "experiment", "paper", "--algorithm", "afpo", "--db", db,
+                           "--workers", "0", "--quiet", "--repetitions", "1", "--scale", "tiny",
+                           "--model", "nope")
+    assert code == 2 and "unknown model 'nope'" in err
+    code, _, err = softevo(capsys, "experiment", "paper", "--algorithm", "genetic", "--db", db)
+    assert code == 2 and "unknown algorithm 'genetic'" in err
+    code, _, err = softevo(capsys, "run", "--env", "land", "--stiffness", "1", "--model", "nope",
+                           "--db", db)
+    assert code == 2 and "unknown model" in err
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    tmp_path = tmp_path_factory.mktemp("presets")
+    url = f"sqlite:///{tmp_path / 'presets.db'}"
+    open_database(url).dispose()
+    group = Processes(tmp_path, service_env(url, None, SOFTEVO_COORDINATOR="false"))
+    _, base = group.serve()
+    yield base
+    group.stop_all()
+
+
+def settings_of(base: str, run_id: int) -> dict:
+    return httpx.get(f"{base}/runs/{run_id}").json()["treatment"]["settings"]
+
+
+def test_rest_presets_and_treatments_take_algorithm_and_model(server):
+    created = httpx.post(f"{server}/experiments", json={"preset": "paper"}, headers=auth())
+    assert created.status_code == 201, created.text
+    settings = settings_of(server, created.json()["runs"][0])
+    assert (settings["algorithm"], settings["model"]) == ("pareto", "voxcad-land-water")
+    assert (settings["control_mapping"], settings["body_rule"]) == ("evosoro", "evosoro")
+    body = {"preset": "gradual", "algorithm": "afpo", "model": "voxelyze-2", "name": "g"}
+    created = httpx.post(f"{server}/experiments", json=body, headers=auth())
+    settings = settings_of(server, created.json()["runs"][0])
+    assert (settings["algorithm"], settings["model"]) == ("afpo", "voxelyze-2")
+    treatment = {"environment": "land", "stiffness_mpa": 0.1, "model": "voxcad-land-water"}
+    created = httpx.post(f"{server}/experiments", json={"name": "t", "treatments": [treatment]},
+                         headers=auth())
+    settings = settings_of(server, created.json()["runs"][0])
+    assert (settings["algorithm"], settings["model"]) == ("afpo", "voxcad-land-water")
+
+
+@pytest.mark.parametrize("body", [
+    {"name": "t", "treatments": [{"environment": "land", "stiffness_mpa": 0.1, "model": "voxelyze-3"}]},
+    {"name": "t", "treatments": [{"environment": "land", "stiffness_mpa": 0.1, "body_rule": "all"}]},
+    {"preset": "paper", "model": "bullet"},
+    {"preset": "paper", "algorithm": "nsga2"},
+])
+def test_rest_rejects_unknown_models_and_algorithms_with_422(server, body):
+    answer = httpx.post(f"{server}/experiments", json=body, headers=auth())
+    assert answer.status_code == 422, answer.text
