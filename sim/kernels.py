@@ -801,13 +801,16 @@ def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs
 
 # ---------------------------------------------------------------- drag on the surface mesh
 @njit(**JIT)
-def mesh_drag_kernel(drag, mesh_vert, mesh_face, pos, quat, lin_mom, vconst, size, vert_pos,
-                     force):
+def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vconst, size,
+                     vert_pos, force):
     """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
     surface mesh (``sim.system.surface_mesh``) moving into the fluid, -``drag`` A (v.n)^2 n,
     A its area, n its unit normal and v the velocity of the voxel whose face it covers
     (``drag`` = 0.5 rho C_d). A vertex is the mean over the voxels that share it of the
-    voxel's centre plus its corner, rotated, at half the voxel's current size."""
+    voxel's centre plus its corner, rotated; as in the fork, a corner sits half the voxel's
+    current size out along an axis where the voxel has a neighbour on that side, and half
+    the nominal size L out where that face is exposed (the fork places corners by the bonds'
+    strains, and an exposed face has none)."""
     for k in range(len(mesh_vert)):
         ax, ay, az, count = 0.0, 0.0, 0.0, 0
         for slot in range(8):
@@ -815,10 +818,10 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, pos, quat, lin_mom, vconst, siz
             if code < 0:
                 break
             v, c = code >> 3, code & 7
-            h = 0.5 * size[v]
-            ox = h if (c >> 2) & 1 else -h
-            oy = h if (c >> 1) & 1 else -h
-            oz = h if c & 1 else -h
+            sx, sy, sz = (c >> 2) & 1, (c >> 1) & 1, c & 1  # 1: the corner's + side
+            ox = 0.5 * (size[v] if nbr[v, sx] >= 0 else L) * (1.0 if sx else -1.0)
+            oy = 0.5 * (size[v] if nbr[v, 2 + sy] >= 0 else L) * (1.0 if sy else -1.0)
+            oz = 0.5 * (size[v] if nbr[v, 4 + sz] >= 0 else L) * (1.0 if sz else -1.0)
             rx, ry, rz = qrot(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3], ox, oy, oz)
             ax += pos[v, 0] + rx
             ay += pos[v, 1] + ry
@@ -1082,8 +1085,9 @@ def step(t, p, voxels, links, body, work, contacts):
     bad = link_forces(p, links, body, work)
     contacts = collide(p, voxels, body, work, contacts)
     if p.mesh_drag > 0.0:
-        mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face, body.pos, body.quat,
-                         body.lin_mom, voxels.vconst, work.size, work.vert_pos, work.force)
+        mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face, voxels.nbr, p.L,
+                         body.pos, body.quat, body.lin_mom, voxels.vconst, work.size,
+                         work.vert_pos, work.force)
     speed2 = voxel_update(p, voxels, body, work)
     travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
     return bad, speed2, Contacts(contacts.count, travel)

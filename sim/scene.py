@@ -96,7 +96,7 @@ class ModelOptions:
     drag: str = "faces"  # water drag on each voxel's own faces, or on the deformed "mesh"
     min_steps_per_cycle: int = 2000  # the step resolves an actuation cycle at least this finely
     contact: str = "voxelyze-2"  # self-contact: "voxelyze-2" or the fork's 1.5-voxel "voxcad" spheres
-    bond_damping: float = 1.0  # factor on the bond damping ratio (the fork: 0.5)
+    actuation_lag: int = 0  # steps by which the sizes lag the clock (the fork: 1)
 
 
 OPTION_CHOICES = {
@@ -112,7 +112,7 @@ MODEL_OPTIONS = {
     "voxcad-land-water": ModelOptions(rotation_damping=10.0, collision_horizon=3,
                                       actuation_start="settled", actuation_clock="absolute",
                                       distance="3d", drag="mesh", min_steps_per_cycle=0,
-                                      contact="voxcad", bond_damping=0.5),
+                                      contact="voxcad", actuation_lag=1),
 }
 MODEL_DEFAULTS = {  # dt_fraction, actuation amplitude
     "voxelyze-2": {"dt_fraction": 0.5, "amplitude": 0.39},
@@ -288,7 +288,7 @@ def _parse_model(data: dict) -> tuple[str, ModelOptions]:
                 raise SceneError(f"{name}: must be one of {', '.join(OPTION_CHOICES[key])} "
                                  f"(got {value!r})")
             kw[key] = value
-        elif key in ("rotation_damping", "bond_damping"):
+        elif key == "rotation_damping":
             kw[key] = _number(value, name, low=0, high=1e3)
         else:
             x = _number(value, name, low=1 if key == "collision_horizon" else 0, high=1e6)

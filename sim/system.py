@@ -297,7 +297,7 @@ def build_robot(scene: Scene) -> Robot:
     # Bond damping as stiffness-proportional (Rayleigh) damping: C = gamma K, which gives each
     # beam term the coefficient 2 zeta sqrt(m k) (sqrt(I k) for the rotational ones).
     m_link = 0.5 * (mass[link_neg] + mass[link_pos])
-    gamma = 2.0 * opts.bond_damping * mat.damping_bond * np.sqrt(m_link / (E_link * L))
+    gamma = 2.0 * mat.damping_bond * np.sqrt(m_link / (E_link * L))
     link_damp = gamma * 0.5 / dt
 
     f = np.zeros(N_FPARAMS)
@@ -324,10 +324,11 @@ def build_robot(scene: Scene) -> Robot:
     i[I_COM_EVERY] = max(1, (steps - settle_steps) // COM_SAMPLES)
     i[I_N_FRAMES] = (steps // scene.record_every + 1) if scene.record_every > 0 else 0
     i[I_FREQ_FIELD] = int(freq_field)
-    i[I_ACT_START] = settle_steps if opts.actuation_start == "settled" else 0
+    start = settle_steps if opts.actuation_start == "settled" else 0
+    i[I_ACT_START] = start + opts.actuation_lag
     phase = scene.phase[tuple(idx.T)].astype(np.float64)
     if opts.actuation_clock == "absolute":
-        phase = phase + vc[:, V_OMEGA] * (i[I_ACT_START] * dt)
+        phase = phase + vc[:, V_OMEGA] * (start * dt)
 
     surface = np.flatnonzero((nbr < 0).any(axis=1)).astype(np.int64)
     near = nearby(nbr, opts.collision_horizon) if scene.self_collisions else nbr

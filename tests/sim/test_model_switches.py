@@ -249,10 +249,3 @@ def test_voxcad_contact_repels_spheres_of_one_and_a_half_voxels_undamped():
     robot = system.build_robot(parse_scene({"body": [[[1]]], "model": "voxcad-land-water"}))
     assert tuple(robot.fparams[[system.F_CONTACT_REACH, system.F_CONTACT_STIFF,
                                 system.F_CONTACT_DAMP]]) == (0.75, 0.5, 0.0)
-
-
-def test_bond_damping_factor_scales_each_link_damping():
-    body = [[[1, 1]], [[1, 1]]]
-    plain = system.build_robot(parse_scene({"body": body}))
-    half = system.build_robot(parse_scene({"body": body, "model_options": {"bond_damping": 0.5}}))
-    np.testing.assert_allclose(half.link_damp, 0.5 * plain.link_damp, rtol=1e-15)
