@@ -1,8 +1,9 @@
 """``softevo dashboard``: the web dashboard on a database, without a coordinator.
 
-It serves the same FastAPI app as ``softevo serve`` (REST API and ``/dashboard`` pages) with
-``SOFTEVO_COORDINATOR=false``: it only reads, so it can watch a ``softevo run`` writing to the
-same SQLite file. Replays are simulated again on demand in one background process.
+It serves the read routes of ``softevo serve``'s FastAPI app (the read API and the
+``/dashboard`` pages) with ``SOFTEVO_COORDINATOR=false``: it only reads (a write is 405, token
+or not), so it can watch a ``softevo run`` writing to the same SQLite file.
+Replays are simulated again on demand in one background process.
 """
 
 from __future__ import annotations
@@ -57,7 +58,8 @@ def dashboard(
     print(
         f"softevo dashboard on http://{settings.host}:{settings.port}/dashboard/ (Ctrl+C to stop)", flush=True
     )
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=log_level)
+    app = create_app(settings, read_only=True)
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level=log_level)
 
 
 def register(app: typer.Typer) -> None:

@@ -41,7 +41,9 @@ a time per key, its answer cached; when ``SOFTEVO_BACKGROUND_QUEUE`` of them are
 computing or waiting, a new one is refused with 429 and ``Retry-After``.
 
 With no token the write endpoints are open, so the server refuses to start on any address
-but the loopback one (``check_safe``).
+but the loopback one (``check_safe``), serves only requests naming a loopback host
+(``trusted_hosts``) and takes writes with a JSON body or an ``X-Requested-With`` header only.
+Tokens have at least 16 characters (``MIN_TOKEN_LENGTH``).
 """
 
 from __future__ import annotations
@@ -55,6 +57,8 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from softevo.errors import UserError
 
 LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
+LOOPBACK_HOSTS = ("127.0.0.1", "::1", "[::1]", *LOOPBACK_NAMES)  # Host headers served without a token
+MIN_TOKEN_LENGTH = 16
 
 
 class Settings(BaseSettings):
@@ -93,6 +97,20 @@ class Settings(BaseSettings):
     @classmethod
     def _empty_is_unset(cls, value):
         return None if value == "" else value
+
+    @field_validator("token", "read_token")
+    @classmethod
+    def _long_enough(cls, value: SecretStr | None) -> SecretStr | None:
+        if value is not None and len(value.get_secret_value()) < MIN_TOKEN_LENGTH:
+            raise ValueError(
+                f"a token needs at least {MIN_TOKEN_LENGTH} characters; make one with `openssl rand -hex 32`"
+            )
+        return value
+
+    def trusted_hosts(self) -> list[str]:
+        """Host header names served when no token is set: loopback names (and ``host``), so a
+        DNS-rebinding page (``Host: rebind.attacker.example``) is refused."""
+        return sorted({*LOOPBACK_HOSTS, self.host.lower()})
 
     @property
     def token_value(self) -> str | None:

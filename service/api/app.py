@@ -17,13 +17,14 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
 
-from fastapi import FastAPI, HTTPException, Request
+from fastapi import APIRouter, FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.routing import Match
 
 from softevo.errors import UserError
@@ -235,8 +236,9 @@ def install_error_handlers(app: FastAPI) -> None:
 # -- the app -----------------------------------------------------------------------------------
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
-    """The API for ``settings`` (default: from the environment).
+def create_app(settings: Settings | None = None, read_only: bool = False) -> FastAPI:
+    """The API for ``settings`` (default: from the environment); ``read_only``: the read
+    routes alone (``softevo dashboard``: a write there is 405, token or not).
 
     Raises UserError when no token is set and ``settings.host`` is not a loopback address.
     """
@@ -262,9 +264,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     install_error_handlers(app)
     for module in (health, experiments, runs, individuals, phylogeny):
-        app.include_router(module.router)
+        app.include_router(_reads_of(module.router) if read_only else module.router)
     app.include_router(dashboard_router())  # /dashboard pages and assets
     app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
     app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)
-    app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # outermost: hits wait for nothing
+    app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # hits wait for nothing
+    if settings.token_value is None:  # loopback only: refuse DNS-rebinding names (docs/security.md)
+        app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.trusted_hosts())
     return app
+
+
+def _reads_of(router: APIRouter) -> APIRouter:
+    """A router of ``router``'s read routes (GET, HEAD) alone; ``router`` is left as it is."""
+    reads = APIRouter()
+    reads.routes.extend(r for r in router.routes if not set(getattr(r, "methods", ())) - {"GET", "HEAD"})
+    return reads

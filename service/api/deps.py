@@ -20,8 +20,14 @@ bearer = HTTPBearer(auto_error=False, description="SOFTEVO_TOKEN of the server")
 
 NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": ErrorOut, "description": "No such id"}}
 UNAUTHORIZED: dict[int | str, dict[str, Any]] = {
-    401: {"model": ErrorOut, "description": "Missing or wrong bearer token"}
+    401: {"model": ErrorOut, "description": "Missing or wrong bearer token"},
+    403: {
+        "model": ErrorOut,
+        "description": "No token set on the server, and the write has neither a JSON body nor "
+        "an X-Requested-With header (what a cross-site form or simple request cannot send)",
+    },
 }
+SAME_SITE_HEADER = "X-Requested-With"  # any value; browsers send it cross-site only after CORS
 BUSY: dict[int | str, dict[str, Any]] = {
     429: {
         "model": ErrorOut,
@@ -57,10 +63,13 @@ def require_token(
 ) -> None:
     """401 unless the request carries ``Authorization: Bearer <SOFTEVO_TOKEN>``.
 
-    A server without a token (allowed on loopback only) lets every request write.
+    A server without a token (allowed on loopback only) lets a write in when it has a JSON
+    body or an ``X-Requested-With`` header, which a page of another site cannot send without
+    a CORS preflight this server never grants (``same_site_only``).
     """
     expected = request.app.state.settings.token_value
     if expected is None:
+        same_site_only(request)
         return
     given = credentials.credentials if credentials else ""
     if not secrets.compare_digest(given.encode(), expected.encode()):
@@ -68,6 +77,19 @@ def require_token(
             status.HTTP_401_UNAUTHORIZED,
             "missing or wrong bearer token: send 'Authorization: Bearer <SOFTEVO_TOKEN>'",
             headers={"WWW-Authenticate": "Bearer"},
+        )
+
+
+def same_site_only(request: Request) -> None:
+    """403 unless the request has a JSON ``Content-Type`` or ``X-Requested-With``: a
+    cross-site "simple" request (a form, a body-less ``fetch``) carries neither."""
+    media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    is_json = media_type == "application/json" or media_type.endswith("+json")
+    if not is_json and SAME_SITE_HEADER.lower() not in request.headers:
+        raise HTTPException(
+            status.HTTP_403_FORBIDDEN,
+            f"a write needs a JSON body (Content-Type: application/json) or a {SAME_SITE_HEADER} "
+            "header, which cross-site pages cannot send (docs/security.md)",
         )
 
 

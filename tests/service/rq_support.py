@@ -23,7 +23,7 @@ from redis import Redis
 from redis.exceptions import RedisError
 
 REPO = Path(__file__).resolve().parents[2]
-TOKEN = "test-token-123"
+TOKEN = "test-token-123-456789"  # at least 16 characters (MIN_TOKEN_LENGTH)
 
 
 def free_port() -> int:

@@ -32,7 +32,7 @@ from tests.analysis.cli import softevo
 from tests.service import tinyrun
 from tests.service.rq_support import Processes, auth, service_env
 
-READ_TOKEN = "read-token-456"
+READ_TOKEN = "read-token-456-789012"
 QUEUE = 2  # SOFTEVO_BACKGROUND_QUEUE of the test server
 
 

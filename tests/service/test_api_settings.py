@@ -17,17 +17,17 @@ def test_without_a_token_loopback_is_allowed(host):
 def test_without_a_token_other_addresses_are_refused(host):
     with pytest.raises(UserError, match="SOFTEVO_TOKEN"):
         Settings(host=host, token=None).check_safe()
-    Settings(host=host, token="secret").check_safe()
+    Settings(host=host, token="secret-16-characters").check_safe()
 
 
 def test_environment_variables(monkeypatch):
     monkeypatch.setenv("SOFTEVO_DB", "postgresql+psycopg://u:pw@db/softevo")
     monkeypatch.setenv("SOFTEVO_REDIS_URL", "")  # empty counts as unset
-    monkeypatch.setenv("SOFTEVO_TOKEN", "s3cr3t-token")
+    monkeypatch.setenv("SOFTEVO_TOKEN", "s3cr3t-token-0123456")
     monkeypatch.setenv("SOFTEVO_PORT", "9000")
     settings = Settings()
     assert settings.db.startswith("postgresql+psycopg://") and settings.redis_url is None
-    assert settings.token_value == "s3cr3t-token" and "s3cr3t" not in repr(settings)
+    assert settings.token_value == "s3cr3t-token-0123456" and "s3cr3t" not in repr(settings)
     assert (settings.host, settings.port) == ("127.0.0.1", 9000)
 
 

@@ -16,7 +16,7 @@ from softevo.service.settings import Settings
 REPO = Path(__file__).resolve().parents[2]
 SETTINGS_VARIABLES = {f"SOFTEVO_{name.upper()}": name for name in Settings.model_fields}
 INTERPOLATION = re.compile(r"\$\{(\w+)(?::?([-?])([^}]*))?\}")
-REQUIRED = {"SOFTEVO_TOKEN": "t0ken", "SOFTEVO_REDIS_PASSWORD": "r3dis"}  # compose has no defaults
+REQUIRED = {"SOFTEVO_TOKEN": "t0ken-0123456789ab", "SOFTEVO_REDIS_PASSWORD": "r3dis"}  # no defaults
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +80,7 @@ def test_api_settings_are_valid_and_safe(compose):
     env = environment_of(api, REQUIRED)
     settings = Settings(**{SETTINGS_VARIABLES[key]: value for key, value in env.items()})
     settings.check_safe()  # a token is set, so 0.0.0.0 is allowed
-    assert settings.host == "0.0.0.0" and settings.token_value == "t0ken"
+    assert settings.host == "0.0.0.0" and settings.token_value == "t0ken-0123456789ab"
     database = make_url(settings.db)
     assert database.drivername == "postgresql+psycopg" and database.host == "postgres"
     assert database.database == compose["services"]["postgres"]["environment"]["POSTGRES_DB"]
@@ -104,7 +104,7 @@ def test_redis_needs_a_password_and_listens_on_loopback(compose):
     """No fallback password (issue 30: anyone who writes to Redis tells the workers what to
     do), and Redis is published on 127.0.0.1 unless SOFTEVO_REDIS_PUBLISH says otherwise."""
     redis = compose["services"]["redis"]
-    only_token = {"SOFTEVO_TOKEN": "t0ken"}
+    only_token = {"SOFTEVO_TOKEN": "t0ken-0123456789ab"}
     for value in [*redis["command"], *redis["environment"].values()]:
         if "SOFTEVO_REDIS_PASSWORD" in str(value):
             with pytest.raises(KeyError, match="SOFTEVO_REDIS_PASSWORD"):

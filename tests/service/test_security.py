@@ -5,9 +5,14 @@ is ``test_rq_foreign_jobs.py``."""
 from __future__ import annotations
 
 import http.server
+import json
+import os
+import subprocess
+import sys
 import threading
 import uuid
 
+import httpx
 import pytest
 from redis import Redis
 from rq import Callback, Queue
@@ -16,9 +21,11 @@ from rq.registry import StartedJobRegistry
 from rq.serializers import JSONSerializer
 from rq.webhook import Webhook
 
+from softevo.service.db import open_database
 from softevo.service.rq_executor import RQExecutor
 from softevo.worker.rq_worker import JOB_FUNCTION
-from tests.service.rq_support import redis_for_test
+from tests.service import tinyrun
+from tests.service.rq_support import Processes, free_port, redis_for_test, service_env, wait_for
 
 CALLED: list[str] = []  # what ``mark`` saw: a callback that ran
 
@@ -77,3 +84,99 @@ def test_the_coordinators_cleanup_calls_no_callback_and_sends_no_webhook(redis_u
         receiver.shutdown()
     assert connection.hget(f"rq:job:{job.id}", "status") == b"failed"  # cleaned up as before
     assert CALLED == [] and Recorder.seen == []
+
+
+# -- items 3 and 4: one door for writes ------------------------------------------------------
+
+EXPERIMENT = {"name": "intruder", "treatments": [{"environment": "land", "stiffness_mpa": 1.0}]}
+EVIL = {"Origin": "http://evil.example", "Referer": "http://evil.example/page.html"}
+
+
+def wait_up(process, base: str, group: Processes) -> None:
+    def up():
+        if process.poll() is not None:
+            pytest.fail(f"the server exited:\n{group.logs()}")
+        return httpx.get(f"{base}/health", timeout=2).status_code in (200, 503)
+
+    wait_for(up, 90, f"{base} to answer /health", every=0.25)
+
+
+@pytest.fixture(scope="module")
+def open_servers(tmp_path_factory):
+    """``softevo serve`` and ``softevo dashboard`` without a token, coordinator off, on one
+    database with a pending run: (serve's URL, dashboard's URL, run id, database URL)."""
+    tmp_path = tmp_path_factory.mktemp("open")
+    url = f"sqlite:///{tmp_path / 'open.db'}"
+    engine = open_database(url)
+    run_id = tinyrun.new_run(engine)
+    engine.dispose()
+    group = Processes(tmp_path, service_env(url, None, SOFTEVO_TOKEN="", SOFTEVO_COORDINATOR="false"))
+    _, base = group.serve()
+    port = free_port()
+    dashboard = group.start("dashboard", "--db", url, "--port", str(port), log=f"dashboard-{port}")
+    board = f"http://127.0.0.1:{port}"
+    wait_up(dashboard, board, group)
+    yield base, board, run_id, url
+    group.stop_all()
+
+
+def test_the_dashboard_serves_no_write(open_servers, tmp_path):
+    _, board, run_id, _ = open_servers
+    before = httpx.get(f"{board}/experiments").json()
+    created = httpx.post(f"{board}/experiments", json=EXPERIMENT)
+    assert created.status_code == 405, created.text
+    assert httpx.post(f"{board}/runs/{run_id}/cancel", json={}).status_code in (404, 405)
+    assert httpx.get(f"{board}/experiments").json() == before
+    assert httpx.get(f"{board}/runs/{run_id}").json()["status"] == "pending"
+    assert httpx.get(f"{board}/dashboard/").status_code == 200  # the pages and reads still work
+    assert not {m for ops in httpx.get(f"{board}/openapi.json").json()["paths"].values() for m in ops} - {
+        "get"
+    }
+
+
+def test_without_a_token_a_rebinding_host_is_refused(open_servers):
+    base, board, run_id, _ = open_servers
+    for server in (base, board):
+        refused = httpx.get(f"{server}/runs/{run_id}", headers={"Host": "rebind.attacker.example"})
+        assert refused.status_code == 400, refused.text
+        assert "rebind" not in refused.text
+        for host in ("127.0.0.1", "localhost"):
+            port = server.rsplit(":", 1)[1]
+            assert httpx.get(f"{server}/runs/{run_id}", headers={"Host": f"{host}:{port}"}).status_code == 200
+
+
+def test_without_a_token_a_cross_site_simple_post_cannot_cancel(open_servers):
+    base, _, run_id, _ = open_servers
+    simple = [
+        httpx.post(f"{base}/runs/{run_id}/cancel", headers=EVIL),  # body-less, as a form or fetch sends
+        httpx.post(
+            f"{base}/runs/{run_id}/cancel", headers={**EVIL, "Content-Type": "text/plain"}, content="{}"
+        ),
+        httpx.post(
+            f"{base}/experiments",
+            headers={**EVIL, "Content-Type": "text/plain"},
+            content=json.dumps(EXPERIMENT),
+        ),
+    ]
+    for response in simple:
+        assert response.status_code in (403, 422), response.text
+    assert simple[0].status_code == 403 and "X-Requested-With" in simple[0].json()["detail"]
+    assert httpx.get(f"{base}/runs/{run_id}").json()["status"] == "pending"
+    assert all(e["name"] != "intruder" for e in httpx.get(f"{base}/experiments").json())
+    # what this machine's own scripts send still works: a JSON body, or the header
+    assert httpx.post(f"{base}/runs/{run_id}/cancel", headers={"X-Requested-With": "curl"}).status_code == 200
+    assert httpx.get(f"{base}/runs/{run_id}").json()["status"] == "cancelled"
+
+
+@pytest.mark.parametrize("variable", ["SOFTEVO_TOKEN", "SOFTEVO_READ_TOKEN"])
+def test_a_short_token_is_refused_in_one_line(variable, tmp_path):
+    env = {**os.environ, variable: "x", "SOFTEVO_DB": f"sqlite:///{tmp_path / 'x.db'}"}
+    done = subprocess.run(
+        [sys.executable, "-m", "softevo.service.cli", "serve", "--port", str(free_port())],
+        env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and variable in lines[0] and "16 characters" in lines[0], done.stderr
+    assert "x" not in lines[0].split(":")[-1].split()  # the token itself is never printed
+
