@@ -20,6 +20,8 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
+# user text (treatment names) in labels, ticks and titles is shown as typed: a `$` must not
+# reach matplotlib's math-text parser (it raised on odd names and broke the report; issue 30)
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -174,13 +176,13 @@ def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) ->
         ax.set_ylabel("best distance (voxel lengths)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper left")
-    fig.suptitle(f"Fitness over generations: mean of {_reps(data)} with 95% bootstrap CI")
+    fig.suptitle(f"Fitness over generations: mean of {_reps(data)} with 95% t interval")
     return save(
         fig,
         out_dir,
         "fitness",
         "Best distance (voxel lengths) of the population at each generation, mean over "
-        "repetitions with its 95% bootstrap confidence band; one panel per environment.",
+        "repetitions with its 95% t confidence band; one panel per environment.",
     )
 
 
@@ -515,11 +517,9 @@ def _end_values(data: ExperimentData) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def start_end_figure(
-    data: ExperimentData, tests: pd.DataFrame, rng: np.random.Generator, out_dir: Path
-) -> FigureFile:
+def start_end_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -> FigureFile:
     """Each trait at generation 0 and at the treatment's end generation: mean of the per-run
-    population means with 95% bootstrap CIs, stars where start and end differ."""
+    population means with 95% t intervals, stars where start and end differ."""
     fig = _new_figure("start_end", data)
     axes = _grid(fig, len(TRAITS), 4)
     names = data.treatment_names
@@ -528,7 +528,7 @@ def start_end_figure(
     x = np.arange(len(names))
     for ax, trait in zip(axes, TRAITS, strict=True):
         for frame, offset, label, filled in ((start, -0.15, "start", False), (end, 0.15, "end", True)):
-            table = ci_table(frame, trait, "treatment", rng, n_resamples=2_000)
+            table = ci_table(frame, trait, "treatment")
             table = table.set_index("treatment").reindex(names)
             for k, name in enumerate(names):
                 mean, low, high = table.loc[name, ["mean", "low", "high"]]
@@ -551,7 +551,7 @@ def start_end_figure(
     axes[0].legend(fontsize=8, loc="best")
     fig.suptitle(
         "Start (open, generation 0) vs end (filled, last generation) of evolution: "
-        "mean over repetitions, 95% bootstrap CI"
+        "mean over repetitions, 95% t interval"
     )
     return save(
         fig,
@@ -559,7 +559,8 @@ def start_end_figure(
         "start_end",
         "Each descriptor at the start (open markers, generation 0) and at the end "
         "(filled, last generation) of evolution: mean of the per-run population means "
-        "with 95% bootstrap CIs. Stars: Bonferroni-adjusted Mann-Whitney p (over runs) "
+        "with 95% t intervals. Stars: Bonferroni-adjusted Wilcoxon signed-rank p (each run "
+        "against itself) "
         "between start and end below 0.05.",
     )
 

@@ -20,11 +20,25 @@ compared at the same generation). Functions of the ``treatments`` and ``runs`` f
 
 Runs that have stored nothing yet (generation -1) are left out; a generation is None when no
 run of the treatments has stored any.
+
+Families (``families``), the one place that says which question each pair answers and which
+pairs are tested together (a Bonferroni family is one question and one metric):
+
+- ``stiffness in W``: treatments of one environment schedule W that differ in stiffness
+  (on the paper's grid 10 pairs per world: 5 stiffness levels);
+- ``T vs its final world``: a transition T against the static treatment of the world it ends
+  in, at its stiffness (land-water S3 vs water S3, water-land S3 vs land S3), a family of one
+  per transition;
+- every other pair (land against water at a stiffness, a transition against its first
+  world, the two transitions against each other) compares distances or traits measured in
+  different worlds, whose absolute difference comes from arbitrary parameter choices: it is
+  described (means, medians), never tested (``DESCRIBED``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
@@ -39,6 +53,50 @@ def comparison_pairs(treatments: pd.DataFrame) -> list[tuple[str, str]]:
         for a, b in combinations(rows, 2)
         if (a.environment == b.environment) != bool(np.isclose(a.stiffness_mpa, b.stiffness_mpa))
     ]
+
+
+DESCRIBED = "cross-world (described, not tested)"
+
+
+@dataclass(frozen=True)
+class Pair:
+    """Treatments ``a`` and ``b`` and the question (family) they answer; ``tested`` is False
+    for a cross-world pair (``DESCRIBED``)."""
+
+    a: str
+    b: str
+    question: str
+
+    @property
+    def tested(self) -> bool:
+        return self.question != DESCRIBED
+
+
+def final_world(environment: str) -> str:
+    """The world a schedule ends in: ``land-water`` -> ``water``; ``land`` -> ``land``."""
+    return environment.split("-")[-1]
+
+
+def question_of(a, b) -> str:
+    """The family of the pair of treatment rows ``a`` and ``b`` (name, environment,
+    stiffness_mpa) that differ in exactly one factor (see the module doc)."""
+    if a.environment == b.environment:
+        return f"stiffness in {a.environment}"
+    for transition, static in ((a, b), (b, a)):
+        if "-" in transition.environment and static.environment == final_world(transition.environment):
+            return f"{transition.name} vs its final world"
+    return DESCRIBED
+
+
+def families(treatments: pd.DataFrame) -> list[Pair]:
+    """Every pair of ``comparison_pairs`` with its question (family), in the same order."""
+    rows = {r.name: r for r in treatments[["name", "environment", "stiffness_mpa"]].itertuples(index=False)}
+    return [Pair(a, b, question_of(rows[a], rows[b])) for a, b in comparison_pairs(treatments)]
+
+
+def family_size(treatments: pd.DataFrame, question: str) -> int:
+    """How many tested pairs the question ``question`` holds for these treatments."""
+    return sum(1 for pair in families(treatments) if pair.tested and pair.question == question)
 
 
 def static_names(treatments: pd.DataFrame) -> list[str]:

@@ -10,8 +10,9 @@ service) reads the data and binds the robots. ``out_dir`` receives::
     report.md            the same content; figures linked from figures/
     figures/NAME.png     and NAME.svg, one pair per figure (see analysis.figures)
     figures/best.gif     the best robot's motion (unless animation=False)
-    statistics.csv       every Mann-Whitney test (analysis.stats_tables.statistics_table)
-    summary.csv          means and bootstrap CIs over repetitions per treatment and metric
+    statistics.csv       every comparison: its family, test, p, A12, detectable A12 and interval
+                         (analysis.stats_tables.statistics_table)
+    summary.csv          means and t intervals over repetitions per treatment and metric
 """
 
 from __future__ import annotations
@@ -35,12 +36,16 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from softevo import sim
 from softevo.analysis import figures as fig
-from softevo.analysis.data import TRAIT_LABELS, ExperimentData
+from softevo.analysis.data import ExperimentData
 from softevo.analysis.exaptation import ExaptationData, exaptation_figure, run_statistics, treatment_summary
 from softevo.analysis.motion import animate
 from softevo.analysis.stats_tables import (
-    CURVE_RESAMPLES,
-    N_RESAMPLES,
+    INTERVAL,
+    MANN_WHITNEY,
+    METRIC_LABELS,
+    NOT_TESTED,
+    RUN_PAIRED,
+    SEED_PAIRED,
     fitness_curves,
     statistics_table,
     summary_table,
@@ -48,20 +53,33 @@ from softevo.analysis.stats_tables import (
 from softevo.errors import UserError
 
 METHODS = (
-    "Confidence intervals: percentile bootstrap of the mean over repetitions "
-    f"({N_RESAMPLES:,} resamples; {CURVE_RESAMPLES:,} for the per-generation curves), 95%. "
-    "The unit is the run: every test compares one value per run (its population's best "
-    "distance, or its population's mean of a descriptor), n = repetitions. Every comparison "
-    "names its generation: static treatments are compared at their common last generation, "
-    "a transition against a static treatment at the last generation both stored, start vs "
-    "end at generation 0 against the treatment's last. Tests: two-sided Mann-Whitney U, "
-    "between treatments that differ in exactly one factor (environment schedule or "
-    "stiffness). Effect sizes: Vargha-Delaney A12 = P(a > b) + P(a = b)/2 (0.5: none; "
-    "0.71 or 0.29 and beyond: large) and the difference of means a - b with its 95% "
-    "bootstrap interval. Bonferroni: p-values are multiplied by the number of comparisons of "
-    "the same kind and metric and capped at 1; * p<0.05, ** p<0.01, *** p<0.001 after "
-    "correction. Distances are in voxel lengths (horizontal on land, 3-D in water); a "
-    "transition run's values after the switch are measured in its second environment."
+    f"Intervals: {INTERVAL} of the mean over repetitions, and of a difference of means "
+    "(Welch's t for independent samples, the paired t for seed-matched runs); their coverage "
+    "at n = 7 was checked by simulation (docs/analysis.md). The unit is the run: every test "
+    "compares one value per run (its population's best distance, or its population's mean of "
+    "a descriptor), n = repetitions. Every comparison names its generation: static "
+    "treatments are compared at their common last generation, a transition against a static "
+    "treatment at the last generation both stored, start vs end at generation 0 against the "
+    "treatment's last. Families (the family column; family_size its tests): stiffness "
+    "within one world, per metric; each transition against the static control of its final "
+    "world, per metric; start vs end per metric. Bonferroni runs within the family: "
+    "p_bonferroni = min(1, p x family_size); * p<0.05, ** p<0.01, *** p<0.001 after "
+    "correction. Cross-world pairs (land against water, a transition against its first "
+    "world, the transitions against each other) are described, never tested: distances are "
+    "horizontal on land and 3-D in water, and their absolute differences come from "
+    f"arbitrary parameter choices. Tests (the test column): {MANN_WHITNEY} when the two "
+    f"treatments' runs have seeds of their own; {SEED_PAIRED} when they share seeds (their "
+    f"generation-0 populations are then identical); {RUN_PAIRED} for start vs end; "
+    f"{NOT_TESTED} for the cross-world rows. All two-sided. Effect sizes: Vargha-Delaney "
+    "A12 = P(a > b) + P(a = b)/2 (for paired rows the share of seed pairs with a above b); "
+    "0.5: none; 0.71 or 0.29 and beyond: large. detectable_A12: the smallest A12 (or its "
+    "mirror) the row's test detects with 80% power at its n and alpha / family_size (normal "
+    "model); empty when the smallest p the rank test can give at that n is not below the "
+    "threshold, so no effect could be significant. Read an ns with it: no difference larger "
+    "than that was detectable, not no difference. frequency (active robots) leaves out the "
+    "robots with no active voxel, whose frequency moves nothing; passive robots is their "
+    "share; both frequencies are shown. A transition run's values after the switch are "
+    "measured in its second environment."
 )
 
 
@@ -249,17 +267,18 @@ def summary_pivot(summary: pd.DataFrame, names: list[str]) -> pd.DataFrame:
         ]
     )
     table = cells.pivot(index=["treatment", "generation"], columns="metric", values="cell")
-    metrics = [m for m in ["best_distance", *TRAIT_LABELS] if m in table.columns]
+    metrics = [m for m in METRIC_LABELS if m in table.columns]
     order = {name: k for k, name in enumerate(names)}
     table = table.reindex(columns=list(dict.fromkeys(metrics)))
     table = table.sort_index(key=lambda col: col.map(order) if col.name == "treatment" else col)
-    table.columns = [TRAIT_LABELS[m] for m in table.columns]
+    table.columns = [METRIC_LABELS[m] for m in table.columns]
     return table.reset_index()
 
 
 def _statistics_display(stats: pd.DataFrame) -> pd.DataFrame:
-    shown = stats.drop(columns=["median_a", "median_b", "difference", "difference_low", "difference_high"])
-    shown["metric"] = [TRAIT_LABELS.get(m, m) for m in shown["metric"]]
+    dropped = ["median_a", "median_b", "difference", "difference_low", "difference_high", "unit"]
+    shown = stats.drop(columns=dropped)
+    shown["metric"] = [METRIC_LABELS.get(m, m) for m in shown["metric"]]
     shown["a - b [95% CI]"] = [
         f"{d:.3g} [{lo:.3g}, {hi:.3g}]" if np.isfinite(d) else ""
         for d, lo, hi in zip(
@@ -321,20 +340,20 @@ def write_report(
 ) -> Report:
     """Write the report of ``data`` into ``out_dir`` (see the module doc). Without ``robots``
     the robot renders, the evaluation settings and the animation are left out. ``seed``
-    seeds the bootstrap. ``exaptation`` (``analysis.exaptation``; transition runs'
-    founders and surviving lines) adds the exaptation section and ``exaptation.csv``."""
+    is kept for callers (the intervals are t intervals: nothing resamples). ``exaptation``
+    (``analysis.exaptation``; transition runs' founders and surviving lines) adds the
+    exaptation section and ``exaptation.csv``."""
     if data.generations.empty:
         raise UserError(f"experiment e{data.experiment['id']} has no stored generation yet")
     out = _output_dir(out_dir)
     figures_dir = out / "figures"
-    rng = np.random.default_rng(seed)
     animation = animation and robots is not None
     with _steps(9 if animation else 8, progress) as step:
         step("statistics")
-        stats, summary = statistics_table(data, seed), summary_table(data, rng)
-        curves = fitness_curves(data, rng)
+        stats, summary = statistics_table(data), summary_table(data)
+        curves = fitness_curves(data)
         figures = []
-        for name, make in _figure_makers(data, robots, stats, curves, rng, figures_dir):
+        for name, make in _figure_makers(data, robots, stats, curves, figures_dir):
             step(f"figure: {name}")
             made = make()
             if made is not None:
@@ -371,14 +390,14 @@ def _output_dir(out_dir: str | Path) -> Path:
     return out
 
 
-def _figure_makers(data, robots, stats, curves, rng, figures_dir):
+def _figure_makers(data, robots, stats, curves, figures_dir):
     makers = [
         ("fitness", lambda: fig.fitness_figure(data, curves, figures_dir)),
         ("descriptors", lambda: fig.descriptors_figure(data, stats, figures_dir)),
         ("pareto", lambda: fig.pareto_figure(data, figures_dir)),
         ("transitions", lambda: fig.transitions_figure(data, curves, stats, figures_dir)),
         ("robots", lambda: fig.robots_figure(data, robots.phenotypes, figures_dir)),
-        ("start_end", lambda: fig.start_end_figure(data, stats, rng, figures_dir)),
+        ("start_end", lambda: fig.start_end_figure(data, stats, figures_dir)),
     ]
     return [(name, make) for name, make in makers if robots is not None or name != "robots"]
 
@@ -456,9 +475,11 @@ def build_document(
         doc.paragraph(evaluation)
     doc.heading("Summary")
     doc.paragraph(
-        "Mean over repetitions with its 95% bootstrap confidence interval, at each "
-        "generation the treatment is shown or compared at. Best distance: each run's best "
-        "at that generation; other columns: each run's population mean then."
+        f"Mean over repetitions with its {INTERVAL} interval, at each generation the "
+        "treatment is shown or compared at. Best distance: each run's best at that "
+        "generation; other columns: each run's population mean then; frequency (active "
+        "robots): the mean over the robots with an active voxel; passive robots: the share of "
+        "the population with no active voxel (their frequency moves nothing)."
     )
     doc.table(summary_pivot(summary, data.treatment_names))
     doc.heading("Figures")

@@ -7,17 +7,33 @@
   ``generation`` column. Static treatments are compared at the static treatments' common
   last generation, a transition against a static treatment at the last generation both
   have stored; start vs end is generation 0 against the treatment's end generation.
-- Confidence intervals: percentile bootstrap 95% intervals of the mean over repetitions.
-- Mann-Whitney U (two-sided) between treatments, and between the start and the end of a
-  treatment (a = start, b = end).
-- Effect sizes: Vargha-Delaney ``A12`` = P(a > b) + P(a = b) / 2 over runs, and
-  ``difference`` = mean_a - mean_b with its 95% percentile bootstrap interval
-  (``difference_low``, ``difference_high``; each sample resampled on its own, seeded per row
-  from the table's seed, so the same data and seed give the same table).
-- Bonferroni: p-values are multiplied by the number of comparisons in their family and
-  capped at 1. A family is one metric of one kind of comparison: e.g. the "symmetry"
-  comparisons between treatments form one family, the start-vs-end comparisons of
-  "symmetry" another.
+- Families (``analysis.matching.families``): each pair answers one question (stiffness
+  within one world; a transition against the static control of its final world); the
+  ``family`` column names it with the metric, ``family_size`` counts its tests, and
+  Bonferroni (``p_bonferroni`` = min(1, p x family size)) runs within it. Cross-world pairs
+  are described (means, medians), never tested. Start vs end: one family per metric across
+  treatments.
+- Tests follow the design. Runs of two treatments that share seeds start from the same
+  generation-0 population: they are paired by seed and tested with the two-sided Wilcoxon
+  signed-rank test on the seed-matched differences (runs without a partner left out).
+  Treatments with seeds of their own (the presets, ``service.treatments``) are
+  independent samples: two-sided Mann-Whitney U. Start vs end pairs each run with itself
+  (signed-rank). The ``test`` column names the test.
+- Intervals (``interval`` column): Student t intervals of the mean over runs
+  (``t_interval``); of a difference, Welch's t for independent samples and the paired t for
+  seed-matched runs. Their coverage at n = 7 was checked by simulation
+  (``analysis.calibration``, docs/analysis.md); the percentile bootstrap they replace
+  covered about 90% at that n.
+- Effect sizes: Vargha-Delaney ``A12`` = P(a > b) + P(a = b) / 2 over runs; for paired rows
+  the share of seed-matched pairs with a above b (ties half). ``difference`` = mean_a -
+  mean_b (the mean of the paired differences) with its 95% interval.
+- ``detectable_A12``: the smallest A12 (above 0.5; its mirror alike) the test detects with
+  80% power at the row's n and alpha / family size (normal model, ``analysis.power``); NaN
+  when the exact-p floor makes every effect undetectable. A "no difference" reads with it.
+- Descriptors over active robots: a robot with no active voxel moves nothing, so its
+  frequency means nothing. ``frequency_active`` is the population mean over robots with an
+  active voxel; ``passive_share`` the share of robots with none (flagged in the summary).
+  Both frequencies are reported, the paper's choice being unclear.
 
 Which treatments are compared: those that differ in exactly one factor, environment
 schedule or stiffness (``comparison_pairs``).
@@ -25,28 +41,32 @@ schedule or stiffness (``comparison_pairs``).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-from softevo.analysis.data import TRAITS, ExperimentData
-from softevo.analysis.matching import comparison_pairs
-from softevo.evolution.stats import (
-    bonferroni,
-    bootstrap_ci,
-    bootstrap_difference,
-    mann_whitney,
-    vargha_delaney,
-)
+from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData
+from softevo.analysis.matching import comparison_pairs, families
+from softevo.analysis.power import detectable_a12
+from softevo.evolution.stats import bonferroni, mann_whitney, vargha_delaney
 
 CONFIDENCE = 0.95
-N_RESAMPLES = 10_000
-CURVE_RESAMPLES = 2_000  # per generation of the fitness curves
 MAX_CURVE_POINTS = 500
 ALPHA = 0.05
+POWER = 0.8
+INTERVAL = "Student t over runs (95%)"
+MANN_WHITNEY = "Mann-Whitney U (independent seeds)"
+SEED_PAIRED = "Wilcoxon signed-rank (seed-matched runs)"
+RUN_PAIRED = "Wilcoxon signed-rank (the same runs)"
+NOT_TESTED = "none (described)"
 STAT_COLUMNS = [
     "comparison",
+    "family",
+    "family_size",
+    "test",
     "metric",
     "unit",
     "a",
@@ -63,11 +83,20 @@ STAT_COLUMNS = [
     "p_bonferroni",
     "significance",
     "A12",
+    "detectable_A12",
     "difference",
     "difference_low",
     "difference_high",
+    "interval",
 ]
-METRICS = ("best_distance", *TRAITS)
+DERIVED = ("frequency_active", "passive_share")
+METRICS = ("best_distance", *TRAITS, *DERIVED)
+METRIC_LABELS = {
+    "best_distance": TRAIT_LABELS["best_distance"],
+    **{trait: TRAIT_LABELS[trait] for trait in TRAITS},
+    "frequency_active": "frequency, active robots (Hz)",
+    "passive_share": "passive robots (share)",
+}
 
 
 def significance_mark(p: float, alpha: float = ALPHA) -> str:
@@ -80,15 +109,36 @@ def significance_mark(p: float, alpha: float = ALPHA) -> str:
     return "ns"
 
 
+def t_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float, float]:
+    """(mean, low, high): Student t interval of the mean, mean -+ t(n-1) sd / sqrt(n); NaN
+    bounds for fewer than 2 values, a zero-width interval when they do not spread."""
+    data = np.asarray(values, float)
+    mean = float(data.mean()) if data.size else float("nan")
+    if data.size < 2:
+        return mean, float("nan"), float("nan")
+    half = stats.t.ppf((1 + confidence) / 2, data.size - 1) * data.std(ddof=1) / math.sqrt(data.size)
+    return mean, float(mean - half), float(mean + half)
+
+
+def welch_interval(a: Sequence[float], b: Sequence[float], confidence: float = CONFIDENCE):
+    """(mean(a) - mean(b), low, high): Welch's t interval of a difference of means
+    (Welch-Satterthwaite degrees of freedom); NaN bounds when a sample has fewer than 2."""
+    x, y = np.asarray(a, float), np.asarray(b, float)
+    difference = float(x.mean() - y.mean())
+    if min(x.size, y.size) < 2:
+        return difference, float("nan"), float("nan")
+    vx, vy = x.var(ddof=1) / x.size, y.var(ddof=1) / y.size
+    if vx + vy == 0:
+        return difference, difference, difference
+    df = (vx + vy) ** 2 / (vx**2 / (x.size - 1) + vy**2 / (y.size - 1))
+    half = stats.t.ppf((1 + confidence) / 2, df) * math.sqrt(vx + vy)
+    return difference, difference - half, difference + half
+
+
 def ci_table(
-    frame: pd.DataFrame,
-    value: str,
-    by: str | Sequence[str],
-    rng: np.random.Generator,
-    confidence: float = CONFIDENCE,
-    n_resamples: int = N_RESAMPLES,
+    frame: pd.DataFrame, value: str, by: str | Sequence[str], confidence: float = CONFIDENCE
 ) -> pd.DataFrame:
-    """Per group of ``by``: n, mean, low, high of column ``value`` (bootstrap CI of the mean).
+    """Per group of ``by``: n, mean, low, high of column ``value`` (``t_interval``).
 
     Missing values are dropped; a group with no value gets NaN mean and bounds.
     """
@@ -96,10 +146,7 @@ def ci_table(
     rows = []
     for key, group in frame.groupby(keys, sort=False, dropna=False):
         values = group[value].dropna().to_numpy(dtype=float)
-        if values.size:
-            mean, low, high = bootstrap_ci(values, rng, confidence, n_resamples)
-        else:
-            mean = low = high = float("nan")
+        mean, low, high = t_interval(values, confidence)
         key = key if isinstance(key, tuple) else (key,)
         rows.append(
             {
@@ -122,66 +169,119 @@ def compare(a: Sequence[float], b: Sequence[float]) -> tuple[float, float]:
     return mann_whitney(a, b)
 
 
-def adjust_families(table: pd.DataFrame, family: Sequence[str] = ("comparison", "metric")) -> None:
-    """Fill ``p_bonferroni`` and ``significance`` in place, Bonferroni within each family
-    (rows sharing the ``family`` columns; NaN p-values are not counted)."""
+def compare_paired(a: Sequence[float], b: Sequence[float]) -> tuple[float, float]:
+    """(W, two-sided p) of the Wilcoxon signed-rank test on the differences a - b (pairs
+    with a missing side left out; zero differences dropped, scipy's default); p = 1 when
+    every difference is 0, NaN without a pair."""
+    difference = np.asarray(a, float) - np.asarray(b, float)
+    difference = difference[np.isfinite(difference)]
+    if difference.size == 0:
+        return float("nan"), float("nan")
+    if not difference.any():
+        return 0.0, 1.0
+    result = stats.wilcoxon(difference)
+    return float(result.statistic), float(result.pvalue)
+
+
+def paired_a12(a: Sequence[float], b: Sequence[float]) -> float:
+    """Share of pairs with a above b, ties counted half."""
+    difference = np.asarray(a, float) - np.asarray(b, float)
+    return float(((difference > 0).sum() + 0.5 * (difference == 0).sum()) / difference.size)
+
+
+def adjust_families(table: pd.DataFrame, family: Sequence[str] = ("family",)) -> None:
+    """Fill ``family_size``, ``p_bonferroni`` and ``significance`` in place, Bonferroni within
+    each family (rows sharing the ``family`` columns; NaN p-values are not counted)."""
     table["p_bonferroni"] = np.nan
+    table["family_size"] = 0
     for _, group in table.groupby(list(family), sort=False):
         valid = group["p"].notna()
         if valid.any():
             index = group.index[valid]
             table.loc[index, "p_bonferroni"] = bonferroni(group.loc[valid, "p"].to_numpy())
+            table.loc[index, "family_size"] = int(valid.sum())
     table["significance"] = [significance_mark(p) for p in table["p_bonferroni"]]
 
 
-def _comparison_row(kind: str, metric: str, generation, names, a, b, rng: np.random.Generator) -> dict:
-    a = pd.Series(a, dtype=float).dropna()
-    b = pd.Series(b, dtype=float).dropna()
-    u, p = compare(a, b)
-    if len(a) and len(b):
-        a12 = vargha_delaney(a, b)
-        difference, low, high = bootstrap_difference(a, b, rng, CONFIDENCE, N_RESAMPLES)
+def _matched(a: pd.Series, b: pd.Series) -> tuple[pd.Series, pd.Series]:
+    """The values of ``a`` and ``b`` (indexed by seed) at the seeds both hold."""
+    common = a.index.intersection(b.index)
+    return a.loc[common], b.loc[common]
+
+
+def _comparison_row(kind: str, question: str, metric: str, generation, names, a, b, design: str) -> dict:
+    """One row; ``a`` and ``b`` are Series indexed by seed (paired designs match on it)."""
+    a, b = pd.Series(a, dtype=float).dropna(), pd.Series(b, dtype=float).dropna()
+    paired = design in (SEED_PAIRED, RUN_PAIRED)
+    if paired:
+        a, b = _matched(a, b)
+    row = {"comparison": kind, "family": f"{question} | {metric}", "test": design, "metric": metric,
+           "unit": "run", "a": names[0], "b": names[1], "generation": generation, "n_a": len(a),
+           "n_b": len(b), "mean_a": a.mean(), "mean_b": b.mean(), "median_a": a.median(),
+           "median_b": b.median()}  # fmt: skip
+    tested = design != NOT_TESTED and len(a) and len(b)
+    if not tested:
+        return {**row, "U": np.nan, "p": np.nan, "A12": np.nan, "detectable_A12": np.nan,
+                "difference": np.nan, "difference_low": np.nan, "difference_high": np.nan,
+                "interval": ""}  # fmt: skip
+    if paired:
+        u, p = compare_paired(a.to_numpy(), b.to_numpy())
+        a12 = paired_a12(a.to_numpy(), b.to_numpy())
+        difference, low, high = t_interval(a.to_numpy() - b.to_numpy())
+        interval = "paired t (95%)"
     else:
-        a12 = difference = low = high = float("nan")
-    return {
-        "comparison": kind,
-        "metric": metric,
-        "unit": "run",
-        "a": names[0],
-        "b": names[1],
-        "generation": generation,
-        "n_a": len(a),
-        "n_b": len(b),
-        "mean_a": a.mean(),
-        "mean_b": b.mean(),
-        "median_a": a.median(),
-        "median_b": b.median(),
-        "U": u,
-        "p": p,
-        "A12": a12,
-        "difference": difference,
-        "difference_low": low,
-        "difference_high": high,
-    }
+        u, p = compare(a, b)
+        a12 = vargha_delaney(a, b)
+        difference, low, high = welch_interval(a, b)
+        interval = "Welch t (95%)"
+    return {**row, "U": u, "p": p, "A12": a12, "difference": difference, "difference_low": low,
+            "difference_high": high, "interval": interval}  # fmt: skip
 
 
 class _Values:
-    """``ExperimentData.run_values`` per generation, each computed once."""
+    """``ExperimentData.run_values`` per generation with ``DERIVED`` and each run's seed,
+    each generation computed once."""
 
     def __init__(self, data: ExperimentData):
         self.data, self.cache = data, {}
+        self.seeds = data.runs.set_index("run_id")["seed"]
+
+    def frame(self, generation: int) -> pd.DataFrame:
+        if generation not in self.cache:
+            values = self.data.run_values(generation)
+            derived = active_descriptors(self.data.populations_at(generation))
+            values = values.merge(derived, on="run_id", how="left")
+            values["seed"] = values["run_id"].map(self.seeds)
+            self.cache[generation] = values
+        return self.cache[generation]
 
     def __call__(self, generation: int | None, treatment: str, metric: str) -> pd.Series:
+        """The treatment's run values of ``metric`` at ``generation``, indexed by seed."""
         if generation is None:
             return pd.Series(dtype=float)
-        if generation not in self.cache:
-            self.cache[generation] = self.data.run_values(generation)
-        values = self.cache[generation]
-        return values.loc[values["treatment"] == treatment, metric]
+        values = self.frame(generation)
+        chosen = values[values["treatment"] == treatment]
+        return pd.Series(chosen[metric].to_numpy(float), index=chosen["seed"].to_numpy())
 
 
-def _row_rng(seed: int, k: int) -> np.random.Generator:
-    return np.random.default_rng([seed, k])
+def active_descriptors(members: pd.DataFrame) -> pd.DataFrame:
+    """Per run (run_id): ``frequency_active``, the mean frequency over its members with an
+    active voxel (NaN when none has one), and ``passive_share``, the share with none."""
+    active = members["active_share"] > 0
+    frequency = members["frequency"].where(active)
+    grouped = pd.DataFrame({"run_id": members["run_id"], "f": frequency, "passive": ~active}).groupby(
+        "run_id"
+    )
+    return pd.DataFrame(
+        {"frequency_active": grouped["f"].mean(), "passive_share": grouped["passive"].mean().astype(float)}
+    ).reset_index()
+
+
+def design_of(data: ExperimentData, a: str, b: str) -> str:
+    """``SEED_PAIRED`` when runs of treatments ``a`` and ``b`` share seeds, else
+    ``MANN_WHITNEY``."""
+    seeds = data.runs.groupby("treatment")["seed"].agg(set)
+    return SEED_PAIRED if seeds.get(a, set()) & seeds.get(b, set()) else MANN_WHITNEY
 
 
 def best_distance_per_run(data: ExperimentData) -> pd.DataFrame:
@@ -191,69 +291,59 @@ def best_distance_per_run(data: ExperimentData) -> pd.DataFrame:
     return values[["run_id", "treatment", "repetition", "generation", "best_distance"]]
 
 
-def treatment_comparisons(
-    data: ExperimentData, metrics: Sequence[str] = METRICS, seed: int = 0
-) -> pd.DataFrame:
-    """Mann-Whitney U, A12 and the bootstrap difference between treatment pairs
-    (``comparison_pairs``) over runs, each pair at its generation; Bonferroni per metric."""
+def treatment_comparisons(data: ExperimentData, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
+    """Every treatment pair (``analysis.matching.families``) at its generation, per metric:
+    tested within its family by the design's test, or described (cross-world)."""
     values = _Values(data)
     rows = []
     for metric in metrics:
-        for a, b in comparison_pairs(data.treatments):
-            generation = data.pair_generation(a, b)
+        for pair in families(data.treatments):
+            generation = data.pair_generation(pair.a, pair.b)
+            design = design_of(data, pair.a, pair.b) if pair.tested else NOT_TESTED
+            kind = "between treatments" if pair.tested else "described"
+            a, b = values(generation, pair.a, metric), values(generation, pair.b, metric)
             rows.append(
-                _comparison_row(
-                    "between treatments",
-                    metric,
-                    generation,
-                    (a, b),
-                    values(generation, a, metric),
-                    values(generation, b, metric),
-                    _row_rng(seed, len(rows)),
-                )
+                _comparison_row(kind, pair.question, metric, generation, (pair.a, pair.b), a, b, design)
             )
     return _finish(rows)
 
 
-def start_end_comparisons(
-    data: ExperimentData, metrics: Sequence[str] = TRAITS, seed: int = 1
-) -> pd.DataFrame:
-    """The same tests of each trait between generation 0 (a = start) and the treatment's end
-    generation (b = end, named in ``generation``) over its runs; Bonferroni per metric across
-    treatments."""
+def start_end_comparisons(data: ExperimentData, metrics: Sequence[str] = (*TRAITS, *DERIVED)) -> pd.DataFrame:
+    """Each trait between generation 0 (a = start) and the treatment's end generation (b =
+    end, named in ``generation``) over its runs, each run paired with itself (signed-rank);
+    one family per metric across treatments."""
     values = _Values(data)
     rows = []
     for metric in metrics:
         for name in data.treatment_names:
             end = data.end_generation(name)
-            rows.append(
-                _comparison_row(
-                    "start vs end",
-                    metric,
-                    end,
-                    (f"{name} start", f"{name} end"),
-                    values(0, name, metric),
-                    values(end, name, metric),
-                    _row_rng(seed, len(rows)),
-                )
-            )
+            names = (f"{name} start", f"{name} end")
+            a, b = values(0, name, metric), values(end, name, metric)
+            rows.append(_comparison_row("start vs end", "start vs end", metric, end, names, a, b, RUN_PAIRED))
     return _finish(rows)
 
 
 def _finish(rows: list[dict]) -> pd.DataFrame:
-    table = pd.DataFrame(rows, columns=[c for c in STAT_COLUMNS if c not in ("p_bonferroni", "significance")])
+    table = pd.DataFrame(
+        rows, columns=[c for c in STAT_COLUMNS if c not in ("p_bonferroni", "significance", "family_size")]
+    )
     table["generation"] = table["generation"].astype("Int64")
     adjust_families(table)
+    table["detectable_A12"] = [
+        _detectable(r.test, r.n_a, r.n_b, r.family_size) for r in table.itertuples(index=False)
+    ]
     return table[STAT_COLUMNS]
 
 
-def statistics_table(data: ExperimentData, seed: int = 0) -> pd.DataFrame:
-    """All tests of the report: between treatments, then start vs end (``seed`` seeds the
-    bootstrap intervals of the differences)."""
-    return pd.concat(
-        [treatment_comparisons(data, seed=seed), start_end_comparisons(data, seed=seed + 1)],
-        ignore_index=True,
-    )
+def _detectable(test: str, n_a: int, n_b: int, family_size: int) -> float:
+    if test == NOT_TESTED or family_size < 1 or min(n_a, n_b) < 2:
+        return float("nan")
+    return detectable_a12(int(n_a), int(n_b), ALPHA / family_size, POWER, test != MANN_WHITNEY)
+
+
+def statistics_table(data: ExperimentData) -> pd.DataFrame:
+    """All rows of the report: between treatments (tested and described), then start vs end."""
+    return pd.concat([treatment_comparisons(data), start_end_comparisons(data)], ignore_index=True)
 
 
 def shown_generations(data: ExperimentData) -> list[tuple[str, int]]:
@@ -271,15 +361,16 @@ def shown_generations(data: ExperimentData) -> list[tuple[str, int]]:
     ]
 
 
-def summary_table(data: ExperimentData, rng: np.random.Generator) -> pd.DataFrame:
+def summary_table(data: ExperimentData) -> pd.DataFrame:
     """Per metric, treatment and generation (``shown_generations``): repetitions, mean and
-    bootstrap CI over runs of the run values (best distance, or population mean of a
-    trait)."""
+    t interval over runs of the run values (best distance, a population mean of a trait,
+    ``frequency_active``, or ``passive_share``: the share of robots without an active
+    voxel)."""
     values = _Values(data)
     parts = []
     for name, generation in shown_generations(data):
         for metric in METRICS:
-            series = values(generation, name, metric)
+            series = values(generation, name, metric).reset_index(drop=True)
             parts.append(
                 pd.DataFrame({"metric": metric, "treatment": name, "generation": generation, "value": series})
             )
@@ -288,7 +379,7 @@ def summary_table(data: ExperimentData, rng: np.random.Generator) -> pd.DataFram
                     {"metric": [metric], "treatment": [name], "generation": [generation], "value": [np.nan]}
                 )
     frame = pd.concat(parts, ignore_index=True)
-    table = ci_table(frame, "value", ["metric", "treatment", "generation"], rng)
+    table = ci_table(frame, "value", ["metric", "treatment", "generation"])
     order = {name: k for k, name in enumerate(data.treatment_names)}
     metric_order = {m: k for k, m in enumerate(METRICS)}
     table["generation"] = table["generation"].astype("Int64")
@@ -315,14 +406,12 @@ def plotted_generations(generations: np.ndarray, switches: Sequence[int], max_po
     return np.intersect1d(generations, np.union1d(spread, near_switch))
 
 
-def fitness_curves(
-    data: ExperimentData, rng: np.random.Generator, max_points: int = MAX_CURVE_POINTS
-) -> pd.DataFrame:
-    """Per treatment and generation: mean best distance over repetitions with its bootstrap
-    CI (columns treatment, generation, n, mean, low, high). Long runs are thinned to about
+def fitness_curves(data: ExperimentData, max_points: int = MAX_CURVE_POINTS) -> pd.DataFrame:
+    """Per treatment and generation: mean best distance over repetitions with its t
+    interval (columns treatment, generation, n, mean, low, high). Long runs are thinned to about
     ``max_points`` generations (``plotted_generations``)."""
     frame = data.generations
     switches = [int(s) for s in data.treatments["switch_at"].dropna()]
     kept = plotted_generations(frame["generation"].to_numpy(), switches, max_points)
     frame = frame[frame["generation"].isin(kept)]
-    return ci_table(frame, "best_distance", ["treatment", "generation"], rng, n_resamples=CURVE_RESAMPLES)
+    return ci_table(frame, "best_distance", ["treatment", "generation"])

@@ -144,18 +144,24 @@ def power(
     max_n: Annotated[int, typer.Option("--max-n", help="most repetitions per treatment tried")] = 50,
     family: Annotated[
         int | None,
-        typer.Option("--family", help="comparisons per Bonferroni family (default: the pilot's pairs)"),
+        typer.Option("--family", help="tests per Bonferroni family (default: each comparison's family)"),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="seed of the resampling")] = 0,
+    study_n: Annotated[
+        int | None,
+        typer.Option("--study-n", help="the planned study's repetitions (default: the study preset's)"),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="seed of the simulated studies")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
     db: DbOption = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
-    """Repetitions (and generations) the paper's comparisons need, from a pilot's runs."""
+    """Repetitions (and generations) the paper's comparisons need, from a pilot's runs, at a
+    lower confidence bound of each effect; the exact-p floor and the detectable effect per n."""
     import json
 
     from softevo.analysis.power import (
         PowerSettings,
+        design_table,
         estimate_power,
         estimate_steps,
         missing,
@@ -163,8 +169,12 @@ def power(
     )
     from softevo.service.db.experiments import load_experiment, resolve_experiment
     from softevo.service.reports import engine_of
+    from softevo.service.treatments import preset_scale
 
-    settings = PowerSettings(alpha=alpha, power=target, max_n=max_n, family_size=family, seed=seed)
+    study_n = preset_scale("study").repetitions if study_n is None else study_n
+    settings = PowerSettings(
+        alpha=alpha, power=target, max_n=max_n, family_size=family, study_n=study_n, seed=seed
+    )
     settings.validate()
     engine = engine_of(db)
     with engine.connect() as conn:
@@ -174,35 +184,68 @@ def power(
         data = load_experiment(engine, experiment_id, generations=power_generations(data))
     with _steps_progress(not quiet, estimate_steps(data, settings)) as on_step:
         estimates = estimate_power(data, settings, on_step)
+    thresholds = sorted({e.alpha_bonferroni for e in estimates}, reverse=True)
+    designs = {a: design_table(a, target, ns=_design_ns(max_n)) for a in thresholds}
     if as_json:
         payload = {
             "experiment": experiment_id,
-            "settings": {"alpha": alpha, "power": target, "max_n": max_n, "seed": seed},
+            "settings": {"alpha": alpha, "power": target, "max_n": max_n, "study_n": study_n, "seed": seed},
             "comparisons": [e.to_dict() for e in estimates],
+            "designs": [row for a in thresholds for row in designs[a].to_dict("records")],
             "not_in_experiment": missing(data),
         }
         typer.echo(json.dumps(payload, indent=2))
         return
-    first = estimates[0]
     typer.echo(
-        f"pilot e{experiment_id} \u201c{data.experiment['name']}\u201d: alpha {alpha:g} / "
-        f"{first.family_size} comparisons per metric = {first.alpha_bonferroni:.3g}, target power "
-        f"{target:g}, resampled studies of its runs (smoothed bootstrap)"
+        f"pilot e{experiment_id} \u201c{data.experiment['name']}\u201d: target power {target:g}, "
+        f"alpha {alpha:g} / each comparison's family; the effect taken at the lower end of its "
+        "80% interval from the pilot (normal model), tested by Mann-Whitney U (independent seeds)"
     )
     for e in estimates:
-        reps = f"{e.repetitions} repetitions" if e.repetitions else f"more than {e.max_n} repetitions"
-        gens = (
-            f"{e.generations} of {e.pilot_generations} generations"
-            if e.generations
-            else (f"more than the pilot's {e.pilot_generations} generations")
-        )
-        typer.echo(
-            f"{e.comparison}: {reps} per treatment (power {e.power:.2f}), {gens}; pilot {e.a} vs "
-            f"{e.b} at generation {e.generation}: {e.pilot_runs_a}+{e.pilot_runs_b} runs, means "
-            f"{e.pilot_mean_a:.3g} vs {e.pilot_mean_b:.3g}, A12 {e.pilot_a12:.2f}, p {e.pilot_p:.3g}"
-        )
+        typer.echo(_estimate_line(e))
     for name in missing(data):
         typer.echo(f"{name}: not in this experiment")
+    for a in thresholds:
+        typer.echo(f"design at alpha {a:.3g}: n, exact-p floor, smallest A12 detectable at power {target:g}")
+        for row in designs[a].itertuples():
+            detectable = row.detectable_a12_mann_whitney
+            shown = "none (floor)" if detectable != detectable else f"{detectable:.2f}"
+            typer.echo(f"  n={row.n}: floor {row.floor_mann_whitney:.2g}, detectable A12 {shown}")
+
+
+def _design_ns(max_n: int) -> tuple[int, ...]:
+    from softevo.analysis.power import DESIGN_NS
+
+    return tuple(n for n in DESIGN_NS if n < max_n) + (max_n,)
+
+
+def _estimate_line(e) -> str:
+    """One comparison's estimate, a "no difference" with the smallest effect detectable."""
+    reps = f"{e.repetitions} repetitions" if e.repetitions else f"more than {e.max_n} repetitions"
+    gens = (
+        f"{e.generations} of {e.pilot_generations} generations"
+        if e.generations
+        else f"more than the pilot's {e.pilot_generations} generations"
+    )
+    detectable = (
+        "no A12 (exact-p floor)"
+        if e.detectable_a12 != e.detectable_a12
+        else (f"A12 >= {e.detectable_a12:.2f} or <= {1 - e.detectable_a12:.2f}")
+    )
+    verdict = (
+        "no effect the pilot can vouch for (its 80% interval holds none)"
+        if e.shift_low == 0
+        else f"effect at least A12 {e.a12_low:.2f} (80% interval's nearer end)"
+    )
+    return (
+        f"{e.comparison} [{e.family}, {e.family_size} tests, alpha {e.alpha_bonferroni:.3g}]: {reps} per "
+        f"treatment (power {e.power:.2f}; {e.power_at_estimate:.2f} at the pilot's point estimate), "
+        f"{gens}; {verdict}; a study of {e.study_n} per treatment: power {e.power_at_study_n:.2f}, "
+        f"detects {detectable}; the exact-p floor falls below alpha from n={e.floor_n}; pilot {e.a} "
+        f"vs {e.b} at generation {e.generation}: {e.pilot_runs_a}+{e.pilot_runs_b} runs (seeds "
+        f"{e.pilot_seeds}: the study must use others), means {e.pilot_mean_a:.3g} vs "
+        f"{e.pilot_mean_b:.3g}, A12 {e.pilot_a12:.2f}, p {e.pilot_p:.3g}"
+    )
 
 
 @contextmanager

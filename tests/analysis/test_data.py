@@ -9,6 +9,9 @@ from scipy import stats as scipy_stats
 
 from softevo.analysis.data import TRAITS
 from softevo.analysis.stats_tables import (
+    METRICS,
+    RUN_PAIRED,
+    SEED_PAIRED,
     best_distance_per_run,
     fitness_curves,
     statistics_table,
@@ -67,30 +70,36 @@ def test_load_unknown_experiment_is_a_user_error(tiny):
 def test_statistics_table_on_the_real_experiment(tiny_data):
     table = statistics_table(tiny_data)
     between = table[table["comparison"] == "between treatments"]
-    assert sorted(between["metric"]) == sorted(["best_distance", *TRAITS])
+    assert sorted(between["metric"]) == sorted(METRICS)
     assert (between["a"] == "land S3").all() and (between["b"] == "water-land S3").all()
+    assert (between["family"] == [f"water-land S3 vs its final world | {m}" for m in between["metric"]]).all()
     start_end = table[table["comparison"] == "start vs end"]
-    assert len(start_end) == 2 * len(TRAITS)
+    assert len(start_end) == 2 * (len(TRAITS) + 2)
+    assert (start_end["test"] == RUN_PAIRED).all()
     # one family of two comparisons per metric: adjusted = min(1, 2 p)
-    assert start_end["p_bonferroni"].to_numpy() == pytest.approx(np.minimum(1, 2 * start_end["p"]))
+    tested = start_end.dropna(subset=["p"])
+    assert tested["p_bonferroni"].to_numpy() == pytest.approx(np.minimum(1, 2 * tested["p"]))
     assert (table["unit"] == "run").all() and (table["generation"] == 2).all()
+    # both treatments run seeds 0 and 1: their runs are paired by seed
+    assert (between["test"] == SEED_PAIRED).all()
     final = tiny_data.final_populations()
-    per_run = final.groupby(["treatment", "run_id"])["voxel_count"].mean()  # one value per run
+    per_run = final.groupby(["treatment", "repetition"])["voxel_count"].mean()  # one value per run
     row = between[between["metric"] == "voxel_count"].iloc[0]
-    reference = scipy_stats.mannwhitneyu(per_run["land S3"], per_run["water-land S3"])
-    assert (row["U"], row["p"]) == pytest.approx((reference.statistic, reference.pvalue))
+    differences = per_run["land S3"].to_numpy() - per_run["water-land S3"].to_numpy()
+    if differences.any():
+        reference = scipy_stats.wilcoxon(differences)
+        assert (row["U"], row["p"]) == pytest.approx((reference.statistic, reference.pvalue))
     assert (row["n_a"], row["n_b"]) == (2, 2)
-    assert row["A12"] == pytest.approx(reference.statistic / 4)
-    assert row["difference"] == pytest.approx(per_run["land S3"].mean() - per_run["water-land S3"].mean())
+    assert row["difference"] == pytest.approx(differences.mean())
     assert row["difference_low"] <= row["difference"] <= row["difference_high"]
-    assert row["p_bonferroni"] == pytest.approx(row["p"])  # a family of one comparison
-    again = statistics_table(tiny_data)  # seeded: the same table again
+    assert row["family_size"] == 1 and row["p_bonferroni"] == pytest.approx(row["p"])
+    assert np.isnan(row["detectable_A12"])  # 2 pairs: the signed-rank floor is 0.5
+    again = statistics_table(tiny_data)  # the same table again
     pd.testing.assert_frame_equal(table, again)
 
 
 def test_summary_and_fitness_curves_are_over_repetitions(tiny_data):
-    rng = np.random.default_rng(0)
-    summary = summary_table(tiny_data, rng)
+    summary = summary_table(tiny_data)
     assert (summary["n"] == 2).all()
     assert (summary["low"] <= summary["mean"] + 1e-12).all()
     assert (summary["mean"] <= summary["high"] + 1e-12).all()
@@ -99,7 +108,7 @@ def test_summary_and_fitness_curves_are_over_repetitions(tiny_data):
     assert row["mean"].iloc[0] == pytest.approx(
         best.loc[best["treatment"] == "land S3", "best_distance"].mean()
     )
-    curves = fitness_curves(tiny_data, rng)
+    curves = fitness_curves(tiny_data)
     assert len(curves) == 2 * 3 and (curves["n"] == 2).all()
     generations = tiny_data.generations
     mean = generations.groupby(["treatment", "generation"])["best_distance"].mean()

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 import pytest
 from PIL import Image
 
@@ -27,19 +26,17 @@ EXPECTED_PX = {
 
 @pytest.fixture(scope="module")
 def inputs(tiny_data):
-    rng = np.random.default_rng(0)
-    return tiny_data, statistics_table(tiny_data), fitness_curves(tiny_data, rng)
+    return tiny_data, statistics_table(tiny_data), fitness_curves(tiny_data)
 
 
 def _make(name, data, tests, curves, engine, out):
-    rng = np.random.default_rng(0)
     return {
         "fitness": lambda: figures.fitness_figure(data, curves, out),
         "descriptors": lambda: figures.descriptors_figure(data, tests, out),
         "pareto": lambda: figures.pareto_figure(data, out),
         "transitions": lambda: figures.transitions_figure(data, curves, tests, out),
         "robots": lambda: figures.robots_figure(data, stored_robots(engine).phenotypes, out),
-        "start_end": lambda: figures.start_end_figure(data, tests, rng, out),
+        "start_end": lambda: figures.start_end_figure(data, tests, out),
         "exaptation": lambda: _exaptation(data, engine, out),
     }[name]()
 

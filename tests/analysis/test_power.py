@@ -1,5 +1,6 @@
-"""``softevo power``: repetitions the paper's comparisons need, on the real tiny experiment
-and on hand-built pilots whose answer is known (tests/analysis/matched.py)."""
+"""``softevo power``: repetitions the paper's comparisons need, on the real tiny experiment,
+on hand-built pilots whose answer is known (tests/analysis/matched.py), and against
+simulated studies with known effects (analysis.calibration)."""
 
 from __future__ import annotations
 
@@ -8,9 +9,17 @@ import json
 import numpy as np
 import pytest
 
-from softevo.analysis.power import needed_repetitions, simulated_power
+from softevo.analysis.calibration import power_calibration
+from softevo.analysis.power import (
+    detectable_a12,
+    exact_floor,
+    first_feasible_n,
+    needed_repetitions,
+    pilot_shift,
+    rank_test_power,
+)
 from softevo.service.db import open_database
-from softevo.service.treatments import Treatment
+from softevo.service.treatments import Treatment, paper_grid
 from tests.analysis import matched
 from tests.analysis.cli import softevo
 
@@ -44,8 +53,15 @@ def test_power_on_the_tiny_experiment(capsys, tiny):
     code, out, err = softevo(capsys, *args)
     assert code == 0, err
     lines = out.splitlines()
-    assert lines[0].startswith(f"pilot e{tiny.experiment_id}") and "alpha 0.05 / 1 comparisons" in lines[0]
-    assert any(line.startswith("water->land vs land only, S3: ") for line in lines)
+    assert lines[0].startswith(f"pilot e{tiny.experiment_id}") and "lower end of its 80% interval" in lines[0]
+    assert any(
+        line.startswith(
+            "water->land vs land only, S3 [water-land S3 vs its final world, 1 tests, alpha 0.05]"
+        )
+        for line in lines
+    )
+    assert "design at alpha 0.05: n, exact-p floor, smallest A12 detectable at power 0.8" in lines
+    assert "  n=3: floor 0.1, detectable A12 none (floor)" in lines
     assert "land fitness, S4 vs S1: not in this experiment" in lines
     code, first, err = softevo(capsys, *args, "--json")
     assert code == 0, err
@@ -54,6 +70,9 @@ def test_power_on_the_tiny_experiment(capsys, tiny):
     assert (estimate["a"], estimate["b"], estimate["generation"]) == ("water-land S3", "land S3", 2)
     assert (estimate["pilot_runs_a"], estimate["pilot_runs_b"]) == (2, 2)
     assert estimate["repetitions"] is None or 2 <= estimate["repetitions"] <= 20
+    assert estimate["pilot_seeds"] == "0..1" and estimate["study_n"] == 7
+    assert estimate["detectable_a12"] == pytest.approx(detectable_a12(7, 7, 0.05))
+    assert [d["n"] for d in payload["designs"]][:3] == [3, 4, 5]
     assert softevo(capsys, *args, "--json")[1] == first  # seeded: the same estimate again
 
 
@@ -76,8 +95,9 @@ def test_a_clear_difference_needs_the_hand_computed_runs(capsys, tmp_path):
     )
     assert "water fitness, S1 vs S5" in payload["not_in_experiment"]
     for estimate in (fitness, frequency):
-        # three pairs among S1, S4, S5: alpha 0.05 / 3 = 0.0167 -> n = 5
-        assert estimate["family_size"] == 3 and estimate["alpha_bonferroni"] == pytest.approx(0.05 / 3)
+        # three stiffness pairs among S1, S4, S5: alpha 0.05 / 3 = 0.0167 -> n = 5
+        assert estimate["family"] == "stiffness in land" and estimate["family_size"] == 3
+        assert estimate["alpha_bonferroni"] == pytest.approx(0.05 / 3) and estimate["floor_n"] == 5
         assert estimate["repetitions"] == 5 and estimate["power"] == 1.0
         assert estimate["generations"] == 2  # separated from generation 1 on (checked from 1)
         assert estimate["generation"] == 3 and estimate["pilot_generations"] == 4
@@ -95,14 +115,24 @@ def test_no_difference_never_reaches_the_power(capsys, tmp_path):
     url, experiment_id = _pilot(tmp_path, alike)
     code, out, err = softevo(capsys, "power", f"e{experiment_id}", "--db", url, "--max-n", "12", "-q")
     assert code == 0, err
-    assert "land fitness, S4 vs S1: more than 12 repetitions per treatment" in out
-    assert "more than the pilot's 4 generations" in out
+    line = next(x for x in out.splitlines() if x.startswith("land fitness, S4 vs S1"))
+    assert "more than 12 repetitions per treatment" in line
+    assert "more than the pilot's 4 generations" in line
+    # a "no difference" comes with the smallest effect the design could detect
+    assert "no effect the pilot can vouch for" in line
+    assert "a study of 7 per treatment: power 0.0" in line
+    assert f"detects A12 >= {detectable_a12(7, 7, 0.05 / 3):.2f}" in line
 
 
-def test_simulated_power_and_the_bisection_by_hand():
-    a, b = np.arange(4.0), np.arange(4.0) + 100
-    assert simulated_power(a, b, 3, 0.05, np.random.default_rng(0), 200) == 0.0
-    assert simulated_power(a, b, 4, 0.05, np.random.default_rng(0), 200) == 1.0
+def test_rank_test_power_and_the_bisection_by_hand():
+    # the exact two-sided floor: 2 / C(2n, n) for Mann-Whitney, 2 / 2^n for signed-rank
+    assert exact_floor(3) == pytest.approx(0.1) and exact_floor(7) == pytest.approx(2 / 3432)
+    assert exact_floor(7, paired=True) == pytest.approx(2 / 128)
+    assert first_feasible_n(0.005) == 6 and first_feasible_n(0.005, paired=True) == 9
+    assert rank_test_power(30.0, 3, 3, 0.05, resamples=200) == 0.0  # below the floor: never
+    assert rank_test_power(30.0, 4, 4, 0.05, resamples=200) == 1.0
+    assert rank_test_power(0.0, 7, 7, 0.05, resamples=4000) < 0.06  # the level, no effect
+    assert np.isnan(detectable_a12(7, 7, 0.005, paired=True))  # 2/128 > 0.005: nothing detectable
     calls = []
 
     def power_at(n):
@@ -112,6 +142,35 @@ def test_simulated_power_and_the_bisection_by_hand():
     assert needed_repetitions(power_at, 0.8, 50) == (7, 1.0)
     assert len(calls) <= 8
     assert needed_repetitions(lambda n: 0.5, 0.8, 50) == (None, 0.5)
+
+
+def test_the_pilot_effect_bound_is_below_the_estimate_and_zero_without_evidence():
+    d, low = pilot_shift(np.array([1.0, 2.0, 3.0]), np.array([5.5, 6.5, 7.5]))
+    assert d == pytest.approx(-4.5) and 0 < low < 4.5
+    assert pilot_shift(np.array([1.0, 2.0, 3.0]), np.array([1.5, 2.5, 3.5]))[1] == 0.0
+
+
+MARGIN = 0.05  # the estimate may exceed the true power by at most this, on average
+
+
+@pytest.mark.parametrize("a12", [0.71, 0.86, 0.96])
+def test_the_estimate_does_not_flatter_on_simulated_studies(a12):
+    # pilots of 3 + 3 runs from normal run values with a known effect, a study of 7 per
+    # treatment in a family of 10 (alpha 0.005): the true power by simulated studies
+    result = power_calibration(a12, pilot_n=3, study_n=7, alpha=0.005, pilots=150)
+    assert result["mean estimate"] <= result["true power"] + MARGIN, result
+    assert result["pilots above the true power"] <= 0.10 + 0.05, result  # 80% bound: 10% in theory
+
+
+def test_the_study_never_reuses_pilot_seeds_and_treatments_have_their_own():
+    def seeds(scale):
+        grid = paper_grid(scale)
+        return [{t.seed_of(r) for r in range(t.repetitions)} for t in grid]
+
+    pilot, study = seeds("pilot"), seeds("study")
+    assert not set().union(*pilot) & set().union(*study)
+    for grid in (pilot, study):
+        assert len(set().union(*grid)) == sum(len(s) for s in grid)  # no two treatments share one
 
 
 @pytest.mark.parametrize(

@@ -25,7 +25,7 @@ def test_report_writes_every_figure_and_table(report):
         assert (out / "figures" / f"{name}.png").stat().st_size > 0
         assert (out / "figures" / f"{name}.svg").stat().st_size > 0
     assert result.animation == out / "figures" / "best.gif"
-    assert result.statistics.read_text().startswith("comparison,metric,unit,a,b")
+    assert result.statistics.read_text().startswith("comparison,family,family_size,test,metric,unit,a,b")
     assert "best_distance" in result.summary.read_text()
 
 
@@ -43,6 +43,18 @@ def test_html_is_self_contained_and_embeds_every_figure(report):
     assert 'src="data:image/gif;base64,' in page
     for text in ("Run settings", "Summary", "Statistics", "Mann-Whitney", "land S3", "water-land S3"):
         assert text in page
+    # the statistics section names each p's family, the test used and the interval method
+    for text in (
+        "water-land S3 vs its final world | best_distance",
+        "Wilcoxon signed-rank (seed-matched runs)",
+        "Wilcoxon signed-rank (the same runs)",
+        "Student t over runs (95%)",
+        "paired t (95%)",
+        "detectable_A12",
+        "passive robots (share)",
+        "frequency, active robots (Hz)",
+    ):
+        assert text in page, text
     assert "water:0,land:2" in page  # the transition's schedule
     assert "Wall time" in page and "Evaluation: voxel edge 0.05 m" in page
 
@@ -54,7 +66,7 @@ def test_markdown_links_every_figure_and_holds_the_tables(report):
         assert f"](figures/{name}.png)" in text and f"(figures/{name}.svg)" in text
     assert "](figures/best.gif)" in text
     assert "## Run settings" in text and "## Statistics" in text
-    assert "| comparison | metric | unit |" in text
+    assert "| comparison | family | family_size | test | metric | a | b |" in text
     assert "| land S3 | land:0 | 0.1 | 4 | 3 | 4x4x4 | 2 | 2 | 0..1 | afpo | 2/2 |" in text
 
 

@@ -2,44 +2,125 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats as scipy_stats
 
+from softevo.analysis.calibration import interval_coverage
+from softevo.analysis.matching import DESCRIBED, families, family_size
 from softevo.analysis.stats_tables import (
+    MANN_WHITNEY,
+    SEED_PAIRED,
+    active_descriptors,
     adjust_families,
     ci_table,
     compare,
+    compare_paired,
     comparison_pairs,
+    design_of,
+    paired_a12,
     significance_mark,
+    welch_interval,
 )
 from softevo.service.treatments import paper_grid
 
 
-def test_ci_table_matches_scipy_bootstrap_per_group():
+def test_ci_table_is_the_t_interval_per_group():
     rng = np.random.default_rng(0)
     frame = pd.DataFrame(
-        {"treatment": ["a"] * 30 + ["b"] * 30, "value": np.r_[rng.normal(5, 1, 30), rng.normal(9, 2, 30)]}
+        {"treatment": ["a"] * 7 + ["b"] * 7, "value": np.r_[rng.normal(5, 1, 7), rng.normal(9, 2, 7)]}
     )
-    table = ci_table(frame, "value", "treatment", np.random.default_rng(1), n_resamples=20_000)
+    table = ci_table(frame, "value", "treatment")
     assert list(table["treatment"]) == ["a", "b"]
     for row in table.itertuples():
         values = frame.loc[frame["treatment"] == row.treatment, "value"].to_numpy()
-        reference = scipy_stats.bootstrap(
-            (values,), np.mean, method="percentile", n_resamples=20_000, rng=np.random.default_rng(2)
-        ).confidence_interval
-        assert row.n == 30
-        assert row.mean == pytest.approx(values.mean())
-        assert row.low == pytest.approx(reference.low, abs=0.05 * values.std())
-        assert row.high == pytest.approx(reference.high, abs=0.05 * values.std())
+        low, high = scipy_stats.t.interval(0.95, 6, loc=values.mean(), scale=scipy_stats.sem(values))
+        assert (row.n, row.mean, row.low, row.high) == pytest.approx((7, values.mean(), low, high))
 
 
 def test_ci_table_single_value_and_missing_values():
     frame = pd.DataFrame({"g": ["a", "b", "b"], "v": [2.0, np.nan, np.nan]})
-    table = ci_table(frame, "v", "g", np.random.default_rng(0)).set_index("g")
-    assert tuple(table.loc["a", ["n", "mean", "low", "high"]]) == (1, 2.0, 2.0, 2.0)
+    table = ci_table(frame, "v", "g").set_index("g")
+    assert (table.loc["a", "n"], table.loc["a", "mean"]) == (1, 2.0) and np.isnan(table.loc["a", "low"])
     assert table.loc["b", "n"] == 0 and np.isnan(table.loc["b", "mean"])
+
+
+def test_welch_interval_matches_scipy():
+    a, b = [1.1, 2.3, 2.9, 4.0, 5.2, 3.3, 2.0], [3.4, 6.1, 7.7, 8.0, 9.5, 10.2, 4.4]
+    reference = scipy_stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
+    assert welch_interval(a, b)[1:] == pytest.approx((reference.low, reference.high))
+
+
+@pytest.mark.parametrize(("distribution", "low", "high"), [("normal", 0.93, 0.97), ("uniform", 0.92, 0.97)])
+def test_the_t_interval_covers_95_percent_at_n_7_and_the_percentile_bootstrap_does_not(
+    distribution, low, high
+):
+    assert low <= interval_coverage("t", distribution, 7, 1500) <= high
+    assert interval_coverage("percentile bootstrap", distribution, 7, 400) < 0.93
+
+
+def test_the_paired_test_is_wilcoxon_on_the_differences():
+    a, b = np.array([3.0, 5.0, 2.0, 8.0, 7.0, 9.0, 4.0]), np.array([1.0, 4.5, 2.5, 5.0, 3.0, 8.0, 1.0])
+    reference = scipy_stats.wilcoxon(a - b)
+    assert compare_paired(a, b) == pytest.approx((reference.statistic, reference.pvalue))
+    assert compare_paired([1.0, 2.0], [1.0, 2.0]) == (0.0, 1.0)
+    assert paired_a12(a, b) == pytest.approx(6 / 7)
+
+
+def _grid(treatments):
+    return pd.DataFrame(
+        [{"name": t.name, "environment": t.environment, "stiffness_mpa": t.stiffness_mpa} for t in treatments]
+    )
+
+
+def test_families_on_the_paper_grid():
+    from collections import Counter
+
+    found = families(_grid(paper_grid()))
+    sizes = Counter(pair.question for pair in found)
+    assert sizes == {
+        "stiffness in land": 10,
+        "stiffness in water": 10,
+        "land-water S3 vs its final world": 1,
+        "water-land S3 vs its final world": 1,
+        DESCRIBED: 8,  # land vs water at 5 stiffnesses, each transition vs its first world, the two
+    }
+    described = {(p.a, p.b) for p in found if not p.tested}
+    assert ("land S1", "water S1") in described and ("land S3", "land-water S3") in described
+    assert ("land-water S3", "water-land S3") in described
+    assert family_size(_grid(paper_grid()), "stiffness in water") == 10
+
+
+def test_the_test_follows_the_seeds():
+    shared = pd.DataFrame({"treatment": ["x", "x", "y", "y"], "seed": [0, 1, 0, 1]})
+    own = pd.DataFrame({"treatment": ["x", "x", "y", "y"], "seed": [0, 1, 1000, 1001]})
+    assert design_of(SimpleNamespace(runs=shared), "x", "y") == SEED_PAIRED
+    assert design_of(SimpleNamespace(runs=own), "x", "y") == MANN_WHITNEY
+    # the presets give every treatment seeds of its own: Mann-Whitney between them
+    grid = paper_grid("study")
+    runs = pd.DataFrame(
+        [{"treatment": t.name, "seed": t.seed_of(r)} for t in grid for r in range(t.repetitions)]
+    )
+    assert {design_of(SimpleNamespace(runs=runs), a, b) for a, b in comparison_pairs(_grid(grid))} == {
+        MANN_WHITNEY
+    }
+
+
+def test_frequency_over_active_robots_and_passive_robots_flagged():
+    members = pd.DataFrame(
+        {
+            "run_id": [1, 1, 1, 2, 2],
+            "active_share": [0.0, 0.5, 0.2, 0.0, 0.0],
+            "frequency": [9.0, 2.0, 4.0, 1.0, 3.0],
+        }
+    )
+    derived = active_descriptors(members).set_index("run_id")
+    assert derived.loc[1, "frequency_active"] == pytest.approx(3.0)  # not 5.0 with the passive one
+    assert derived.loc[1, "passive_share"] == pytest.approx(1 / 3)
+    assert np.isnan(derived.loc[2, "frequency_active"]) and derived.loc[2, "passive_share"] == 1.0
 
 
 def test_compare_matches_scipy_on_known_samples():
@@ -71,13 +152,14 @@ def test_bonferroni_within_families_multiplies_and_caps_at_one():
             "p": [0.01, 0.02, 0.5, 0.01, 0.04],
         }
     )
-    adjust_families(table)
+    adjust_families(table, ("comparison", "metric"))
     assert table["p_bonferroni"].tolist() == pytest.approx([0.03, 0.06, 1.0, 0.01, 0.04])
+    assert table["family_size"].tolist() == [3, 3, 3, 1, 1]
     assert table["significance"].tolist() == ["*", "ns", "ns", "*", "*"]
 
 
 def test_bonferroni_leaves_missing_p_values_out_of_the_count():
-    table = pd.DataFrame({"comparison": ["x"] * 3, "metric": ["m"] * 3, "p": [0.01, np.nan, 0.2]})
+    table = pd.DataFrame({"family": ["x | m"] * 3, "p": [0.01, np.nan, 0.2]})
     adjust_families(table)
     assert table["p_bonferroni"].iloc[0] == pytest.approx(0.02)
     assert np.isnan(table["p_bonferroni"].iloc[1])
