@@ -57,6 +57,7 @@ class Services:
         self.loop: Any = None
         self._status_queue: Any = None
         self.reads = ExpensiveReads(settings.background_queue, settings.frames_cache_mb * 2**20)
+        self.report_failures: dict[int, Any] = {}  # experiment id -> its update time when it failed
 
     # -- building and closing ----------------------------------------------------------------
 

@@ -4,6 +4,7 @@ is ``test_rq_foreign_jobs.py``."""
 
 from __future__ import annotations
 
+import dataclasses
 import http.server
 import json
 import os
@@ -22,10 +23,11 @@ from rq.serializers import JSONSerializer
 from rq.webhook import Webhook
 
 from softevo.service.db import open_database
+from softevo.service.experiments import create
 from softevo.service.rq_executor import RQExecutor
 from softevo.worker.rq_worker import JOB_FUNCTION
 from tests.service import tinyrun
-from tests.service.rq_support import Processes, free_port, redis_for_test, service_env, wait_for
+from tests.service.rq_support import Processes, auth, free_port, redis_for_test, service_env, wait_for
 
 CALLED: list[str] = []  # what ``mark`` saw: a callback that ran
 
@@ -180,3 +182,49 @@ def test_a_short_token_is_refused_in_one_line(variable, tmp_path):
     assert len(lines) == 1 and variable in lines[0] and "16 characters" in lines[0], done.stderr
     assert "x" not in lines[0].split(":")[-1].split()  # the token itself is never printed
 
+
+# -- item 5: reports ---------------------------------------------------------------------------
+
+MATH_NAME = r"soft $\frac{$ robot"  # matplotlib's math text raised on this (ParseSyntaxException)
+
+
+@pytest.fixture(scope="module")
+def report_server(tmp_path_factory):
+    """``softevo serve`` (no coordinator) on a finished tiny run whose treatment name holds
+    math text: (base URL, experiment id, reports directory, processes)."""
+    tmp_path = tmp_path_factory.mktemp("report")
+    url = f"sqlite:///{tmp_path / 'report.db'}"
+    engine = open_database(url)
+    experiment_id, (run_id,) = create(engine, "dollars", [dataclasses.replace(tinyrun.TINY, name=MATH_NAME)])
+    tinyrun.run_to_end(engine, run_id)
+    engine.dispose()
+    reports = tmp_path / "reports"
+    group = Processes(
+        tmp_path, service_env(url, None, SOFTEVO_COORDINATOR="false", SOFTEVO_REPORTS=str(reports))
+    )
+    _, base = group.serve()
+    yield base, experiment_id, reports, group
+    group.stop_all()
+
+
+def test_a_dollar_in_a_treatment_name_leaves_the_report_whole(report_server):
+    base, experiment_id, _, _ = report_server
+    response = httpx.get(f"{base}/experiments/{experiment_id}/report", headers=auth(), timeout=600)
+    assert response.status_code == 200, response.text
+    assert "soft $\\frac{$ robot" in response.text  # the name as typed
+
+
+def test_a_failed_report_is_one_generic_500_not_retried(report_server, tmp_path):
+    base, _, reports, group = report_server
+    engine = open_database(group.env["SOFTEVO_DB"])
+    experiment_id, (run_id,) = create(engine, "broken", [tinyrun.TINY])
+    tinyrun.run_to_end(engine, run_id)
+    engine.dispose()
+    (reports / f"experiment-{experiment_id}" / "report.html").mkdir(parents=True)  # cannot be written
+    url = f"{base}/experiments/{experiment_id}/report"
+    answers = [httpx.get(url, headers=auth(), timeout=600) for _ in range(3)]
+    assert [a.status_code for a in answers] == [500] * 3, answers[0].text
+    detail = answers[0].json()["detail"]
+    assert {a.json()["detail"] for a in answers} == {detail}
+    assert "Error" not in detail and "experiment-" not in detail and "exists" not in detail.lower()
+    assert group.logs().count(f"report of experiment {experiment_id} failed") == 1  # written once

@@ -45,6 +45,11 @@ log = logging.getLogger("softevo.api")
 ExperimentId = Annotated[int, Path(ge=1, le=MAX_INT32, description="experiment id")]
 REPORT_FILE = "report.html"
 REPORT_TIMEOUT_S = 900
+REPORT_FAILED = (
+    "the report could not be written (the server's log says why); "
+    "it is tried again once the experiment changes"
+)
+_NEVER = object()
 
 
 def _treatments(body: ExperimentIn):
@@ -165,20 +170,25 @@ async def report(experiment_id: ExperimentId, services: ServicesDep):
     on the first request, again when runs have stored generations since (while a run is
     live, at most once per ``SOFTEVO_REPORT_INTERVAL`` seconds), and served from there. 404
     while the experiment has no stored generation; 429 with ``Retry-After`` when
-    ``SOFTEVO_BACKGROUND_QUEUE`` simulations and reports are computing or waiting already."""
+    ``SOFTEVO_BACKGROUND_QUEUE`` simulations and reports are computing or waiting already.
+    A report that failed is 500 again, without being written again, until a run of the
+    experiment changes."""
     updated, live = await run_in_threadpool(_last_update, services, experiment_id)
     out_dir = FilePath(services.settings.reports) / f"experiment-{experiment_id}"
     html = out_dir / REPORT_FILE
     if _stale(html, updated, live, services.settings.report_interval):
+        if services.report_failures.get(experiment_id, _NEVER) == updated:
+            raise HTTPException(500, REPORT_FAILED)  # failed already, nothing changed since
         try:
             written = await asyncio.wait_for(services.write_report(experiment_id, out_dir), REPORT_TIMEOUT_S)
         except TimeoutError as exc:
             raise HTTPException(504, "writing the report took too long; try again") from exc
         except UserError as exc:  # e.g. no generation stored yet
             raise HTTPException(404, f"no report for experiment {experiment_id}: {exc}") from exc
-        except Exception as exc:
+        except Exception as exc:  # the log has why; the answer says nothing of the writer's text
             log.exception("report of experiment %d failed", experiment_id)
-            raise HTTPException(500, f"the report could not be written: {exc}") from exc
+            services.report_failures[experiment_id] = updated
+            raise HTTPException(500, REPORT_FAILED) from exc
         html = FilePath(getattr(written, "html", html))
         if not html.is_file():
             raise HTTPException(500, "the report writer wrote no HTML file")
