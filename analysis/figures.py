@@ -23,8 +23,6 @@ matplotlib.use("Agg")
 # user text (treatment names) in labels, ticks and titles is shown as typed: a `$` must not
 # reach matplotlib's math-text parser (it raised on odd names and broke the report; issue 30)
 matplotlib.rcParams["text.parse_math"] = False
-# user text (treatment names) in labels, ticks and titles is shown as typed: a `$` must not
-# reach matplotlib's math-text parser (it raised on odd names and broke the report; issue 30)
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
