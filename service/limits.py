@@ -62,7 +62,13 @@ def check_scene(scene: Mapping[str, Any], settings: Settings | None = None) -> t
             f"scene body holds {voxels} voxels, more than the limit of {settings.max_voxels} "
             "(SOFTEVO_MAX_VOXELS)"
         )
-    voxels, steps = scene_cost(scene)
+    try:
+        voxels, steps = scene_cost(scene)
+    except OverflowError:  # more steps than an int64 holds (duration.cycles: 1e300)
+        raise UserError(
+            f"scene's duration needs more steps than can be counted, far more than the limit of "
+            f"{settings.max_voxel_steps:.3g} voxel-steps (SOFTEVO_MAX_VOXEL_STEPS)"
+        ) from None
     if voxels * max(steps, 0) > settings.max_voxel_steps:
         raise UserError(
             f"scene needs {voxels} voxels x {steps:,} steps = {voxels * steps:.3g} voxel-steps, "

@@ -28,9 +28,11 @@ from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.routing import Match
 
 from softevo.errors import UserError
+from softevo.service.api import docs_page
 from softevo.service.api.expensive import Busy, ExpensiveReads
 from softevo.service.api.frames import recorded_frames
 from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
+from softevo.service.api.headers import SecurityHeaders
 from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import experiments, health, individuals, phylogeny, runs
 from softevo.service.api.schemas import EXPERIMENT_TAGS
@@ -261,15 +263,19 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
         summary="Evolve soft voxel robots on land and in water: experiments, runs, lineages.",
         version="0.1.0",
         lifespan=lifespan,
+        docs_url=None,  # docs_page: vendored Swagger UI, no CDN; no ReDoc (it loads from a CDN)
+        redoc_url=None,
     )
     app.state.settings = settings
     install_error_handlers(app)
     for module in (health, experiments, runs, individuals, phylogeny):
         app.include_router(_reads_of(module.router) if read_only else module.router)
     app.include_router(dashboard_router())  # /dashboard pages and assets
+    app.include_router(docs_page.router)  # /docs
     app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
     app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)
     app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # hits wait for nothing
+    app.add_middleware(SecurityHeaders)  # nosniff, CSP and frame-ancestors on cached answers too
     if settings.token_value is None:  # loopback only: refuse DNS-rebinding names (docs/security.md)
         app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.trusted_hosts())
     return app

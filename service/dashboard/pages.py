@@ -17,6 +17,7 @@ from fastapi import APIRouter, Path, Request
 from fastapi.responses import HTMLResponse
 
 from softevo.service.api.deps import ConnectionDep
+from softevo.service.api.headers import policy
 from softevo.service.api.schemas import MAX_INT32
 from softevo.service.db import individuals as db_individuals
 from softevo.service.db import runs as db_runs
@@ -44,7 +45,13 @@ def render(request: Request, page: str, title: str, status_code: int = 200, **va
     body = template("layout.html").substitute(
         common, title=html.escape(title), content=content, page=page.removesuffix(".html")
     )
-    return HTMLResponse(body, status_code=status_code)
+    return HTMLResponse(body, status_code=status_code, headers={"Content-Security-Policy": page_policy(body)})
+
+
+def page_policy(body: str) -> str:
+    """The CSP of a dashboard page: scripts from this origin and its import map by hash;
+    ``'unsafe-eval'`` because plotly.js's full bundle builds functions at run time."""
+    return policy(body, scripts="'self' 'unsafe-eval'")
 
 
 def not_found(request: Request, message: str) -> HTMLResponse:

@@ -4,10 +4,13 @@ is ``test_rq_foreign_jobs.py``."""
 
 from __future__ import annotations
 
+import base64
 import dataclasses
+import hashlib
 import http.server
 import json
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -228,3 +231,51 @@ def test_a_failed_report_is_one_generic_500_not_retried(report_server, tmp_path)
     assert {a.json()["detail"] for a in answers} == {detail}
     assert "Error" not in detail and "experiment-" not in detail and "exists" not in detail.lower()
     assert group.logs().count(f"report of experiment {experiment_id} failed") == 1  # written once
+
+
+# -- item 7: headers and edges -----------------------------------------------------------------
+
+
+def test_html_pages_forbid_framing_and_foreign_scripts(report_server):
+    base, experiment_id, _, _ = report_server
+    pages = {
+        "dashboard": httpx.get(f"{base}/dashboard/"),
+        "docs": httpx.get(f"{base}/docs"),
+        "report": httpx.get(f"{base}/experiments/{experiment_id}/report", headers=auth(), timeout=600),
+    }
+    for name, page in pages.items():
+        assert page.status_code == 200 and page.headers["content-type"].startswith("text/html"), name
+        policy = page.headers["content-security-policy"]
+        assert "frame-ancestors 'none'" in policy and "default-src" in policy, name
+        assert page.headers["x-content-type-options"] == "nosniff", name
+        assert page.headers["x-frame-options"] == "DENY", name
+        assert "http" not in policy  # no other origin may serve scripts, styles or data
+    assert "script-src" not in pages["report"].headers["content-security-policy"]  # default 'none'
+    for path in ("/health", "/experiments", "/openapi.json"):
+        assert httpx.get(f"{base}{path}").headers["x-content-type-options"] == "nosniff"
+
+
+def test_the_api_docs_load_nothing_from_a_cdn(report_server):
+    base, _, _, _ = report_server
+    docs = httpx.get(f"{base}/docs")
+    assert "cdn." not in docs.text and "https://" not in docs.text
+    sources = re.findall(r'(?:src|href)="([^"]+)"', docs.text)
+    assert any(s.endswith("swagger-ui-bundle.js") for s in sources)
+    for source in sources:
+        assert source.startswith("/"), source
+        assert httpx.get(f"{base}{source}").status_code == 200, source
+    inline = re.findall(r"<script>(.*?)</script>", docs.text, re.DOTALL)
+    digest = base64.b64encode(hashlib.sha256(inline[0].encode()).digest()).decode()
+    assert f"'sha256-{digest}'" in docs.headers["content-security-policy"]
+    assert httpx.get(f"{base}/redoc").status_code == 404  # ReDoc would load from a CDN
+
+
+def test_an_endless_scene_is_one_line_not_a_traceback(tmp_path):
+    scene = tmp_path / "endless.json"
+    scene.write_text(json.dumps({"body": [[[1]]], "duration": {"cycles": 1e300}}))
+    done = subprocess.run(
+        [sys.executable, "-m", "softevo.service.cli", "simulate", str(scene)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert done.stderr.strip().count("\n") == 0 and "SOFTEVO_MAX_VOXEL_STEPS" in done.stderr
