@@ -74,6 +74,7 @@ from numba.extending import intrinsic
 from .system import (
     ENV_LAND,
     ENV_WATER,
+    FRICTION_VOXCAD,
     F_A1,
     F_A2,
     F_AMP,
@@ -99,6 +100,7 @@ from .system import (
     I_COM_EVERY,
     I_ENV,
     I_FREQ_FIELD,
+    I_FRICTION,
     I_N_FRAMES,
     I_RECORD,
     I_SETTLE_STEPS,
@@ -879,7 +881,9 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
       collisions' force and moment (each voxel's own mass and damping);
     - on land, a penalty floor at z = 0 with static and kinetic (Coulomb) friction: a static
       voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
-      sliding one feels mu_k times the normal force against its horizontal velocity;
+      sliding one feels mu_k times the normal force against its horizontal velocity (the
+      paper's engine, ``Params.friction``: a voxel at rest is held while the horizontal force
+      is below mu_s N; a moving one stops dead when mu_k N dt would take all its momentum);
     - semi-implicit Euler: momenta first, then position and orientation from the new momenta;
       a sliding voxel in floor contact sticks when friction would reverse it (work-energy), and
       a static one keeps no horizontal momentum.
@@ -892,6 +896,7 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
     water = p.env == ENV_WATER and drag > 0.0
     land = p.env == ENV_LAND
     mu_s, mu_k = p.mu_s, p.mu_k
+    fork_friction = p.friction == FRICTION_VOXCAD
     slide = FRICTION_EPS * p.L / p.dt
     ok = True
     speed2 = 0.0
@@ -937,7 +942,18 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
             if touch:
                 normal = VC[c + U(V_KFLOOR)] * pen
                 fz += normal - VC[c + U(V_CCOLL)] * vz
-                if static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
+                if fork_friction:  # the paper's engine (CalcFloorEffect)
+                    if vx == 0.0 and vy == 0.0:  # at rest: held while the force is below mu_s N
+                        static[v] = fx * fx + fy * fy < (mu_s * normal) ** 2
+                    else:
+                        hv = math.sqrt(vx * vx + vy * vy)
+                        static[v] = mu_k * normal * dt >= m * hv  # friction would stop it
+                        if static[v]:
+                            px, py = 0.0, 0.0
+                        else:
+                            fx = fx - mu_k * normal * vx / hv
+                            fy = fy - mu_k * normal * vy / hv
+                elif static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
                     static[v] = False
                 elif not static[v]:
                     hv = math.sqrt(vx * vx + vy * vy)
@@ -954,7 +970,7 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
         px, py, pz = fma(fx, dt, px), fma(fy, dt, py), fma(fz, dt, pz)
         if touch:
             work_ = (fx * px + fy * py) * inv_m * dt
-            if 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
+            if not fork_friction and 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
                 static[v] = True
             if static[v]:
                 px, py = 0.0, 0.0
@@ -1130,7 +1146,7 @@ def params(fp, ip):
         fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE], fp[F_MESH_DRAG],
         fp[F_CONTACT_REACH], fp[F_CONTACT_STIFF], fp[F_CONTACT_DAMP],
         ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
-        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD], ip[I_ACT_START])
+        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD], ip[I_ACT_START], ip[I_FRICTION])
 
 
 @njit(**JIT)

@@ -97,6 +97,7 @@ class ModelOptions:
     min_steps_per_cycle: int = 2000  # the step resolves an actuation cycle at least this finely
     contact: str = "voxelyze-2"  # self-contact: "voxelyze-2" or the fork's 1.5-voxel "voxcad" spheres
     actuation_lag: int = 0  # steps by which the sizes lag the clock (the fork: 1)
+    friction: str = "voxelyze-2"  # the floor's static/kinetic rule: "voxelyze-2" or "voxcad"
 
 
 OPTION_CHOICES = {
@@ -105,6 +106,7 @@ OPTION_CHOICES = {
     "distance": ("horizontal", "3d"),
     "drag": ("faces", "mesh"),
     "contact": ("voxelyze-2", "voxcad"),
+    "friction": ("voxelyze-2", "voxcad"),
 }
 # Each model's options, and its defaults for fields a scene may leave out.
 MODEL_OPTIONS = {
@@ -112,7 +114,7 @@ MODEL_OPTIONS = {
     "voxcad-land-water": ModelOptions(rotation_damping=10.0, collision_horizon=3,
                                       actuation_start="settled", actuation_clock="absolute",
                                       distance="3d", drag="mesh", min_steps_per_cycle=0,
-                                      contact="voxcad", actuation_lag=1),
+                                      contact="voxcad", actuation_lag=1, friction="voxcad"),
 }
 MODEL_DEFAULTS = {  # dt_fraction, actuation amplitude
     "voxelyze-2": {"dt_fraction": 0.5, "amplitude": 0.39},

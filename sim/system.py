@@ -31,8 +31,8 @@ F_CONTACT_REACH, F_CONTACT_STIFF, F_CONTACT_DAMP = range(15, 18)
 N_FPARAMS = 18
 # Columns of the per-robot integer parameter table ``iparams``.
 I_STEPS, I_SETTLE_STEPS, I_ENV, I_WAVE, I_RECORD, I_COLLIDE, I_COM_EVERY, I_N_FRAMES = range(8)
-I_FREQ_FIELD, I_ACT_START = 8, 9
-N_IPARAMS = 10
+I_FREQ_FIELD, I_ACT_START, I_FRICTION = 8, 9, 10
+N_IPARAMS = 11
 # Columns of the per-voxel constant table ``vconst`` (one row per voxel).
 V_MASS, V_INV_MASS, V_INV_INERTIA, V_KFLOOR, V_CCOLL, V_CGLIN, V_CGANG, V_OMEGA = range(8)
 V_WEIGHT = 8
@@ -40,6 +40,8 @@ N_VCONST = 9
 
 ENV_LAND, ENV_WATER, ENV_VOID = 0, 1, 2
 ENV_CODES = {"land": ENV_LAND, "water": ENV_WATER, "void": ENV_VOID}
+FRICTION_VOXELYZE2, FRICTION_VOXCAD = 0, 1
+FRICTION_CODES = {"voxelyze-2": FRICTION_VOXELYZE2, "voxcad": FRICTION_VOXCAD}
 WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
 # voxelyze-2: the step resolves an actuation cycle at least this finely (a model option)
 STEPS_PER_CYCLE = ModelOptions.min_steps_per_cycle
@@ -97,6 +99,7 @@ class Params(NamedTuple):
     n_frames: int  # frames recorded over the whole run
     freq_field: int  # 1: active voxels have frequencies of their own (``vconst[:, V_OMEGA]``)
     act_start: int  # the step at which actuation starts (its clock reads 0 there)
+    friction: int  # FRICTION_VOXELYZE2 or FRICTION_VOXCAD (the floor's friction rule)
 
 
 class Robot(NamedTuple):
@@ -326,6 +329,7 @@ def build_robot(scene: Scene) -> Robot:
     i[I_FREQ_FIELD] = int(freq_field)
     start = settle_steps if opts.actuation_start == "settled" else 0
     i[I_ACT_START] = start + opts.actuation_lag
+    i[I_FRICTION] = FRICTION_CODES[opts.friction]
     phase = scene.phase[tuple(idx.T)].astype(np.float64)
     if opts.actuation_clock == "absolute":
         phase = phase + vc[:, V_OMEGA] * (start * dt)

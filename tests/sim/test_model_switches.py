@@ -249,3 +249,20 @@ def test_voxcad_contact_repels_spheres_of_one_and_a_half_voxels_undamped():
     robot = system.build_robot(parse_scene({"body": [[[1]]], "model": "voxcad-land-water"}))
     assert tuple(robot.fparams[[system.F_CONTACT_REACH, system.F_CONTACT_STIFF,
                                 system.F_CONTACT_DAMP]]) == (0.75, 0.5, 0.0)
+
+
+def test_a_sliding_voxel_stops_where_coulomb_friction_says():
+    """The fork's friction rule: a voxel resting on the floor, launched at v0 along x, slides
+    (it moves, so kinetic friction acts), is slowed by mu_k m g, stops dead once mu_k N dt
+    would take all its momentum, after v0^2 / (2 mu_k g), and then stays put."""
+    rule = "voxcad"
+    v0, mu_k, g = 0.2, 0.5, 9.81
+    scene = {"body": [[[1]]], "material": {"youngs_modulus": 1e5, "damping_global": 0.0},
+             "initial_velocity": [v0, 0, 0], "initial_offset": [0, 0, -1200 * 0.05**3 * g / (2 * 1e5 * 0.05)],  # at rest on the floor
+             "duration": {"seconds": 0.1}, "model_options": {"friction": rule},
+             "record": {"every": 20}}
+    result = sim.simulate(scene)
+    want = v0 * v0 / (2 * mu_k * g)
+    assert result.displacement[0] == pytest.approx(want, rel=0.03)
+    x = result.frames["positions"][:, 0, 0]
+    assert x[-1] == x[-2]  # at rest
