@@ -32,6 +32,7 @@ SWITCHES = [
     ("3 absolute actuation clock -> since settling",
      {"model_options": {"actuation_clock": PLAIN.actuation_clock}}),
     ("3b actuation one step late -> on time", {"model_options": {"actuation_lag": PLAIN.actuation_lag}}),
+    ("3c the fork's floor friction -> Voxelyze 2's", {"model_options": {"friction": PLAIN.friction}}),
     ("4 3-D distance -> horizontal", {"model_options": {"distance": PLAIN.distance}}),
     ("5 drag on the mesh -> on voxel faces", {"model_options": {"drag": PLAIN.drag}}),
     ("6 dt 0.7, no floor -> dt 0.5, 2000 steps/cycle",
