@@ -24,6 +24,9 @@ SOFTEVO_COORDINATOR       ``serve`` also drives runs (false: API only)          
 SOFTEVO_REPORTS           directory of experiment reports                          reports
 SOFTEVO_READ_TOKEN        bearer token of the expensive reads (frames, report)     unset (open)
 SOFTEVO_BACKGROUND_QUEUE  expensive reads computing or waiting at once; more: 429   4
+SOFTEVO_BACKGROUND_PER_CLIENT  of those, started by one client address; more: 429  2
+SOFTEVO_FRAMES_TIMEOUT    seconds of one frames simulation; then 504, slot freed   300
+SOFTEVO_REPORT_TIMEOUT    seconds of writing one report; then 504, slot freed      900
 SOFTEVO_FRAMES_CACHE_MB   memory kept for recorded frames (LRU)                    128
 SOFTEVO_REPORT_INTERVAL   seconds between rebuilds of a live experiment's report   60
 SOFTEVO_MAX_BODY_BYTES    largest request body; larger: 413                        1000000
@@ -83,6 +86,9 @@ class Settings(BaseSettings):
     reports: str = "reports"
     read_token: SecretStr | None = None
     background_queue: int = Field(4, ge=1, le=1000)
+    background_per_client: int = Field(2, ge=1, le=1000)  # of background_queue, per client address
+    frames_timeout: float = Field(300.0, gt=0, le=86400)  # seconds of one frames simulation
+    report_timeout: float = Field(900.0, gt=0, le=86400)  # seconds of writing one report
     frames_cache_mb: int = Field(128, ge=0)
     report_interval: float = Field(60.0, ge=0)
     max_body_bytes: int = Field(1_000_000, ge=1024)

@@ -58,7 +58,9 @@ class Services:
         self.executor_kind = "none"
         self.loop: Any = None
         self._status_queue: Any = None
-        self.reads = ExpensiveReads(settings.background_queue, settings.frames_cache_mb * 2**20)
+        self.reads = ExpensiveReads(
+            settings.background_queue, settings.frames_cache_mb * 2**20, settings.background_per_client
+        )
         self.report_failures: dict[int, Any] = {}  # experiment id -> its update time when it failed
 
     # -- building and closing ----------------------------------------------------------------
@@ -136,22 +138,28 @@ class Services:
         if self.loop is not None:
             self.loop.request_cancel(run_id)
 
-    async def record_motion(self, task, every: int, max_frames: int) -> tuple[bytes, dict[str, str]]:
+    async def record_motion(
+        self, task, every: int, max_frames: int, client: str = ""
+    ) -> tuple[bytes, dict[str, str]]:
         """(body, headers) of ``task``'s recorded frames (``service.api.frames.recorded_frames``
         in the background process), cached by individual, world and recording settings;
         ``X-Cache`` says whether the answer was in the cache (``hit``) or computed (``miss``)."""
         key = ("frames", task.id, task.environment, task.youngs_modulus, every, max_frames)
         hit = self.reads.cached(key) is not None
-        body, headers = await self.reads.compute(key, recorded_frames, task, every, max_frames)
+        body, headers = await self.reads.compute(
+            key, recorded_frames, task, every, max_frames,
+            timeout=self.settings.frames_timeout, client=client,
+        )  # fmt: skip
         return body, {**headers, "X-Cache": "hit" if hit else "miss"}
 
-    async def write_report(self, experiment_id: int, out_dir) -> Any:
+    async def write_report(self, experiment_id: int, out_dir, client: str = "") -> Any:
         """``service.reports.write_report`` in the background process; concurrent requests
         for one experiment share one writing."""
         key = ("report", experiment_id)
         return await self.reads.compute(
-            key, write_report, self.settings.db, experiment_id, str(out_dir), cache=False
-        )
+            key, write_report, self.settings.db, experiment_id, str(out_dir),
+            cache=False, timeout=self.settings.report_timeout, client=client,
+        )  # fmt: skip
 
 
 # -- errors ------------------------------------------------------------------------------------

@@ -80,6 +80,11 @@ def require_token(
         )
 
 
+def client_of(request: Request) -> str:
+    """The client's address (per-client limits of the expensive reads)."""
+    return request.client.host if request.client else ""
+
+
 def same_site_only(request: Request) -> None:
     """403 unless the request has a JSON ``Content-Type`` or ``X-Requested-With``: a
     cross-site "simple" request (a form, a body-less ``fetch``) carries neither."""

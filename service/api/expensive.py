@@ -7,9 +7,13 @@ coordinator loop must stay responsive). ``ExpensiveReads.compute(key, function, 
   computation;
 - keeps the answers of cacheable keys in memory, least recently used dropped first, up to
   ``cache_bytes`` (``SOFTEVO_FRAMES_CACHE_MB``);
-- admits at most ``limit`` keys computing or waiting at once (``SOFTEVO_BACKGROUND_QUEUE``):
-  one more raises ``Busy`` with the seconds to wait (``Retry-After``), estimated from the
-  recent durations, instead of queueing without bound.
+- admits at most ``limit`` keys computing or waiting at once (``SOFTEVO_BACKGROUND_QUEUE``),
+  and at most ``per_client`` of them started by one client address
+  (``SOFTEVO_BACKGROUND_PER_CLIENT``): one more raises ``Busy`` with the seconds to wait
+  (``Retry-After``), estimated from the recent durations, instead of queueing without bound;
+- bounds each computation by its ``timeout``: one that runs past it raises ``TimeoutError``
+  to every request waiting for it, frees its slot at once and ends the background process
+  (it would go on simulating); reads queued behind it run again on a fresh process.
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ import math
 import multiprocessing
 import threading
 import time
-from collections import OrderedDict, deque
+from collections import Counter, OrderedDict, deque
 from collections.abc import Callable, Hashable
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from softevo.worker.evaluate import ensure_compiled, init_pool_process
@@ -41,8 +46,10 @@ class Busy(Exception):
 class ExpensiveReads:
     """See the module doc."""
 
-    def __init__(self, limit: int, cache_bytes: int) -> None:
+    def __init__(self, limit: int, cache_bytes: int, per_client: int | None = None) -> None:
         self.limit = limit
+        self.per_client = per_client or limit
+        self._clients: Counter[str] = Counter()  # keys computing or waiting, by who started them
         self.cache_bytes = cache_bytes
         self.cached_bytes = 0
         self.computed = 0  # computations started (for tests and the bench)
@@ -69,6 +76,16 @@ class ExpensiveReads:
         if self._pool is not None:
             self._pool.shutdown(wait=False, cancel_futures=True)
 
+    def _end(self, pool: ProcessPoolExecutor) -> None:
+        """End ``pool``'s process now (a computation past its time-out); the next read starts
+        a fresh one. ProcessPoolExecutor cannot cancel a running call, so its process goes."""
+        with self._mutex:
+            if self._pool is pool:
+                self._pool = None
+        for process in list((pool._processes or {}).values()):  # noqa: SLF001 - no public way before 3.14
+            process.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+
     # -- admission, sharing, caching ---------------------------------------------------------
 
     def retry_after(self) -> int:
@@ -85,29 +102,51 @@ class ExpensiveReads:
         return value
 
     async def compute(
-        self, key: Hashable, function: Callable[..., Any], *args: Any, cache: bool = True
+        self,
+        key: Hashable,
+        function: Callable[..., Any],
+        *args: Any,
+        cache: bool = True,
+        timeout: float | None = None,
+        client: str = "",
     ) -> Any:
         """``function(*args)`` in the background process (see the module doc); ``Busy`` when
-        the queue is full. ``function`` must be a module-level function (the pool pickles it
-        by name)."""
+        the queue, or ``client``'s share of it, is full; ``TimeoutError`` past ``timeout``
+        seconds. ``function`` must be a module-level function (the pool pickles it by name)."""
         if cache:
             value = self.cached(key)
             if value is not None:
                 return value
         running = self._running.get(key)
         if running is None:
-            if len(self._running) >= self.limit:
+            if len(self._running) >= self.limit or self._clients[client] >= self.per_client:
                 raise Busy(self.retry_after())
-            running = asyncio.ensure_future(self._run(key, function, args, cache))
+            running = asyncio.ensure_future(self._run(key, function, args, cache, timeout))
             self._running[key] = running
-            running.add_done_callback(lambda _: self._running.pop(key, None))
+            self._clients[client] += 1
+            running.add_done_callback(lambda _: self._release(key, client))
         return await asyncio.shield(running)
 
-    async def _run(self, key: Hashable, function, args, cache: bool) -> Any:
+    def _release(self, key: Hashable, client: str) -> None:
+        self._running.pop(key, None)
+        self._clients[client] -= 1
+        if self._clients[client] <= 0:
+            del self._clients[client]
+
+    async def _run(self, key: Hashable, function, args, cache: bool, timeout: float | None) -> Any:
         self.computed += 1
         start = time.monotonic()
-        pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
-        value = await asyncio.wrap_future(pool.submit(function, *args))
+        for attempt in range(2):
+            pool = await asyncio.to_thread(self._background)  # may compile: off the event loop
+            try:
+                value = await asyncio.wait_for(asyncio.wrap_future(pool.submit(function, *args)), timeout)
+                break
+            except TimeoutError:
+                self._end(pool)  # its slot is free once this raises; its CPU now
+                raise
+            except BrokenProcessPool:  # another read's time-out ended the process: run again
+                if attempt:
+                    raise
         self._durations.append(time.monotonic() - start)
         if cache:
             self._store(key, value)

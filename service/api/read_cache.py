@@ -6,8 +6,10 @@ ask the same few URLs many times a second, while the answers change once per gen
 A ``GET`` answered 200 is kept, keyed by path and query string, for that long (a reused
 answer carries ``X-Read-Cache: hit``); concurrent
 requests for a key that is being computed wait for that one answer instead of each querying
-the database. Any other method (a write through this server) empties the cache, so a client
-reads its own writes; a generation stored by the coordinator shows within the TTL.
+the database. Any other method that succeeds (a write through this server, status below 400)
+empties the cache, so a client reads its own writes; a refused one (401, 403, 422, ...)
+leaves it alone, so unauthenticated POSTs cannot make every poll hit the database. A
+generation stored by the coordinator shows within the TTL.
 
 Not cached: ``/health``, the expensive reads (``.../frames``, ``.../report``: their own cache
 and token, ``service.api.expensive``), answers over ``MAX_BODY`` bytes or streamed.
@@ -51,12 +53,20 @@ class ReadCache:
             await self.app(scope, receive, send)
             return
         if not self._cacheable(scope):
-            write = scope["method"] not in ("GET", "HEAD", "OPTIONS")
-            if write:
-                self._entries.clear()  # a write: nobody reads an answer from before it
-            await self.app(scope, receive, send)
-            if write:
-                self._entries.clear()  # nor one computed while it ran
+            if scope["method"] in ("GET", "HEAD", "OPTIONS"):
+                await self.app(scope, receive, send)
+                return
+            status = 500
+
+            async def watch(message: Message) -> None:
+                nonlocal status
+                if message["type"] == "http.response.start":
+                    status = message["status"]
+                await send(message)
+
+            await self.app(scope, receive, watch)
+            if status < 400:  # a write that went through: nobody reads an answer from before it
+                self._entries.clear()
             return
         key = (scope["path"], scope.get("query_string", b""))
         while True:

@@ -146,11 +146,14 @@ def test_a_huge_workspace_is_refused(served):
 def test_repeated_reads_are_answered_from_memory_until_a_write(served):
     base, _ = served
     url = f"{base}/experiments"
-    assert httpx.post(f"{base}/runs/1/cancel", headers=auth()).status_code == 409  # a write
+    small = {"name": "write", "treatments": [{"environment": "land", "stiffness_mpa": 1.0}]}
+    assert httpx.post(url, json=small, headers=auth()).status_code == 201  # a write
     first, second = httpx.get(url), httpx.get(url)
     assert "x-read-cache" not in first.headers and second.headers["x-read-cache"] == "hit"
     assert second.json() == first.json()
-    assert httpx.post(f"{base}/runs/1/cancel", headers=auth()).status_code == 409  # a write
+    assert httpx.post(f"{base}/runs/1/cancel", headers=auth()).status_code == 409  # refused
+    assert httpx.get(url).headers["x-read-cache"] == "hit"  # a refused write changed nothing
+    assert httpx.post(url, json=small, headers=auth()).status_code == 201  # a write
     assert "x-read-cache" not in httpx.get(url).headers  # the cache was emptied
     assert "x-read-cache" not in httpx.get(f"{base}/health").headers  # never cached
 

@@ -15,6 +15,8 @@ import subprocess
 import sys
 import threading
 import uuid
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import httpx
 import pytest
@@ -279,3 +281,87 @@ def test_an_endless_scene_is_one_line_not_a_traceback(tmp_path):
     )  # fmt: skip
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr[-2000:]
     assert done.stderr.strip().count("\n") == 0 and "SOFTEVO_MAX_VOXEL_STEPS" in done.stderr
+
+
+# -- item 6: the expensive reads and the read cache -------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def limits_server(tmp_path_factory):
+    """``softevo serve`` on a finished tiny run with a long read cache, two background slots,
+    one per client and a frames time-out shorter than the background process takes to start:
+    (base URL, individual ids, serve's process)."""
+    tmp_path = tmp_path_factory.mktemp("slots")
+    url = f"sqlite:///{tmp_path / 'slots.db'}"
+    engine = open_database(url)
+    run_id = tinyrun.new_run(engine)
+    tinyrun.run_to_end(engine, run_id)
+    engine.dispose()
+    env = service_env(
+        url, None, SOFTEVO_COORDINATOR="false", SOFTEVO_READ_CACHE_SECONDS="30",
+        SOFTEVO_BACKGROUND_QUEUE="2", SOFTEVO_BACKGROUND_PER_CLIENT="1", SOFTEVO_FRAMES_TIMEOUT="0.2",
+    )  # fmt: skip
+    group = Processes(tmp_path, env)
+    process, base = group.serve()
+    front = httpx.get(f"{base}/runs/{run_id}/front", params={"generation": 0}).json()
+    yield base, sorted({m["id"] for m in front["individuals"]}), process
+    group.stop_all()
+
+
+def frames_url(base: str, individual_id: int, every: int = 10) -> str:
+    """Frames of one individual; each ``every`` is a read of its own (its own slot)."""
+    return f"{base}/individuals/{individual_id}/frames?every={every}&max_frames=2000"
+
+
+def simulating_children(pid: int) -> list[int]:
+    """Background simulation processes of ``pid`` (multiprocessing's spawned children)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            stat = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            cmdline = (entry / "cmdline").read_bytes()
+        except (OSError, IndexError):
+            continue
+        if int(stat[1]) == pid and b"spawn_main" in cmdline:
+            found.append(int(entry.name))
+    return found
+
+
+def test_a_rejected_write_leaves_the_read_cache_alone(limits_server):
+    base, _, _ = limits_server
+    httpx.get(f"{base}/experiments")
+    assert httpx.get(f"{base}/experiments").headers.get("x-read-cache") == "hit"
+    refused = httpx.post(f"{base}/experiments", json=EXPERIMENT)  # no token
+    assert refused.status_code == 401
+    assert httpx.get(f"{base}/experiments").headers.get("x-read-cache") == "hit"
+    assert httpx.post(f"{base}/experiments", json={"name": "x"}, headers=auth()).status_code == 422
+    assert httpx.get(f"{base}/experiments").headers.get("x-read-cache") == "hit"
+
+
+def test_a_timed_out_simulation_frees_its_slot_and_its_process(limits_server):
+    base, ids, process = limits_server
+    first = httpx.get(frames_url(base, ids[0]), timeout=120)
+    assert first.status_code == 504, first.text
+    second = httpx.get(frames_url(base, ids[0], every=11), timeout=120)  # one slot per client: free again
+    assert second.status_code == 504, second.text
+    wait_for(lambda: not simulating_children(process.pid), 10, "the timed-out simulation to end")
+
+
+def test_one_client_cannot_take_every_slot(limits_server):
+    base, ids, _ = limits_server
+    other = httpx.Client(transport=httpx.HTTPTransport(local_address="127.0.0.2"), timeout=120)
+    barrier = threading.Barrier(3, timeout=60)
+
+    def get(client, every):
+        barrier.wait()
+        return client.get(frames_url(base, ids[0], every))
+
+    with httpx.Client(timeout=120) as mine, other, ThreadPoolExecutor(3) as pool:
+        calls = [
+            pool.submit(get, mine, 20),
+            pool.submit(get, mine, 21),
+            pool.submit(get, other, 22),
+        ]
+        mine_a, mine_b, theirs = (call.result() for call in calls)
+    assert sorted([mine_a.status_code, mine_b.status_code]) == [429, 504]  # one slot for 127.0.0.1
+    assert theirs.status_code == 504  # admitted: 127.0.0.2 has a slot of its own

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import time
 from datetime import UTC, datetime
 from pathlib import Path as FilePath
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path, Query, status
+from fastapi import APIRouter, HTTPException, Path, Query, Request, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
 
@@ -23,6 +22,7 @@ from softevo.service.api.deps import (
     ExpensiveReadAccess,
     ServicesDep,
     WriteAccess,
+    client_of,
 )
 from softevo.service.api.schemas import (
     MAX_INT32,
@@ -44,7 +44,6 @@ log = logging.getLogger("softevo.api")
 
 ExperimentId = Annotated[int, Path(ge=1, le=MAX_INT32, description="experiment id")]
 REPORT_FILE = "report.html"
-REPORT_TIMEOUT_S = 900
 REPORT_FAILED = (
     "the report could not be written (the server's log says why); "
     "it is tried again once the experiment changes"
@@ -163,7 +162,7 @@ def _stale(html: FilePath, updated: datetime | None, live: bool, interval: float
         504: {"model": ErrorOut, "description": "Writing the report took too long"},
     },
 )
-async def report(experiment_id: ExperimentId, services: ServicesDep):
+async def report(experiment_id: ExperimentId, services: ServicesDep, request: Request):
     """The experiment's self-contained HTML report (figures, statistics, settings).
 
     Written by ``service.reports.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
@@ -180,8 +179,8 @@ async def report(experiment_id: ExperimentId, services: ServicesDep):
         if services.report_failures.get(experiment_id, _NEVER) == updated:
             raise HTTPException(500, REPORT_FAILED)  # failed already, nothing changed since
         try:
-            written = await asyncio.wait_for(services.write_report(experiment_id, out_dir), REPORT_TIMEOUT_S)
-        except TimeoutError as exc:
+            written = await services.write_report(experiment_id, out_dir, client=client_of(request))
+        except TimeoutError as exc:  # SOFTEVO_REPORT_TIMEOUT; the writer has ended, its slot free
             raise HTTPException(504, "writing the report took too long; try again") from exc
         except UserError as exc:  # e.g. no generation stored yet
             raise HTTPException(404, f"no report for experiment {experiment_id}: {exc}") from exc

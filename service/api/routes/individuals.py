@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import asyncio
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, HTTPException, Path, Query
+from fastapi import APIRouter, HTTPException, Path, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
 from softevo.errors import UserError
-from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep
+from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep, client_of
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
 from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
 from softevo.service.db.individuals import individual, individual_context
@@ -22,7 +21,6 @@ from softevo.worker.tasks import Task
 router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
 
 IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32, description="individual id")]
-FRAMES_TIMEOUT_S = 300
 
 
 def _with_connection(services, function, *args):
@@ -98,6 +96,7 @@ def stored_task(services, individual_id: int, environment: str | None):
 async def frames(
     individual_id: IndividualId,
     services: ServicesDep,
+    request: Request,
     every: Annotated[int, Query(ge=10, le=1_000_000, description="record every n steps")] = 100,
     max_frames: Annotated[int, Query(ge=1, le=2000)] = 500,
     environment: Annotated[
@@ -112,10 +111,8 @@ async def frames(
     simulations and reports are computing or waiting already."""
     task = await run_in_threadpool(stored_task, services, individual_id, environment)
     try:
-        body, headers = await asyncio.wait_for(
-            services.record_motion(task, every, max_frames), FRAMES_TIMEOUT_S
-        )
-    except TimeoutError as exc:
+        body, headers = await services.record_motion(task, every, max_frames, client=client_of(request))
+    except TimeoutError as exc:  # SOFTEVO_FRAMES_TIMEOUT; the simulation has ended, its slot free
         raise HTTPException(504, "the simulation took too long") from exc
     except ValueError as exc:  # an empty body: nothing to simulate
         raise HTTPException(404, f"individual {individual_id} has no motion: {exc}") from exc
