@@ -804,7 +804,7 @@ def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs
 # ---------------------------------------------------------------- drag on the surface mesh
 @njit(**JIT)
 def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vconst, size,
-                     vert_pos, force):
+                     vert_pos, axes, force):
     """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
     surface mesh (``sim.system.surface_mesh``) moving into the fluid, -``drag`` A (v.n)^2 n,
     A its area, n its unit normal and v the velocity of the voxel whose face it covers
@@ -812,7 +812,11 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
     voxel's centre plus its corner, rotated; as in the fork, a corner sits half the voxel's
     current size out along an axis where the voxel has a neighbour on that side, and half
     the nominal size L out where that face is exposed (the fork places corners by the bonds'
-    strains, and an exposed face has none)."""
+    strains, and an exposed face has none). ``axes`` (n, 9): scratch for each voxel's
+    rotation matrix, computed once per step."""
+    for v in range(len(axes)):
+        (axes[v, 0], axes[v, 1], axes[v, 2], axes[v, 3], axes[v, 4], axes[v, 5], axes[v, 6],
+         axes[v, 7], axes[v, 8]) = rotation_matrix(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
     for k in range(len(mesh_vert)):
         ax, ay, az, count = 0.0, 0.0, 0.0, 0
         for slot in range(8):
@@ -824,10 +828,9 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
             ox = 0.5 * (size[v] if nbr[v, sx] >= 0 else L) * (1.0 if sx else -1.0)
             oy = 0.5 * (size[v] if nbr[v, 2 + sy] >= 0 else L) * (1.0 if sy else -1.0)
             oz = 0.5 * (size[v] if nbr[v, 4 + sz] >= 0 else L) * (1.0 if sz else -1.0)
-            rx, ry, rz = qrot(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3], ox, oy, oz)
-            ax += pos[v, 0] + rx
-            ay += pos[v, 1] + ry
-            az += pos[v, 2] + rz
+            ax += pos[v, 0] + dot3(axes[v, 0], axes[v, 1], axes[v, 2], ox, oy, oz)
+            ay += pos[v, 1] + dot3(axes[v, 3], axes[v, 4], axes[v, 5], ox, oy, oz)
+            az += pos[v, 2] + dot3(axes[v, 6], axes[v, 7], axes[v, 8], ox, oy, oz)
             count += 1
         vert_pos[k, 0], vert_pos[k, 1], vert_pos[k, 2] = ax / count, ay / count, az / count
     for t in range(len(mesh_face)):
@@ -837,13 +840,12 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
         wx, wy, wz = vert_pos[c, 0] - vert_pos[a, 0], vert_pos[c, 1] - vert_pos[a, 1], \
             vert_pos[c, 2] - vert_pos[a, 2]
         nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx  # 2 A n
-        twice = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if twice == 0.0:
-            continue
-        inv_m = vconst[v, V_INV_MASS]
-        vn = (lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz) * inv_m / twice
-        if vn > 0.0:
-            f = -drag * 0.5 * vn * vn  # times 2 A n / (2 A) * A: per unit of (nx, ny, nz)
+        # p.(2 A n) > 0: moving into the fluid; then the force -drag A (v.n)^2 n is
+        # -drag/2 (p.N)^2 / (m^2 |N|^2) N with N = (nx, ny, nz) = 2 A n (no square root)
+        pn = lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz
+        if pn > 0.0:
+            inv_m = vconst[v, V_INV_MASS]
+            f = -0.5 * drag * (pn * inv_m) * (pn * inv_m) / (nx * nx + ny * ny + nz * nz)
             force[v, 0] += f * nx
             force[v, 1] += f * ny
             force[v, 2] += f * nz
@@ -1042,6 +1044,7 @@ class Work(NamedTuple):
     split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
     changed: np.ndarray  # (m,) scratch of ``change_frames``
     vert_pos: np.ndarray  # (nv, 3) surface-mesh vertex positions (``mesh_drag_kernel``)
+    axes: np.ndarray  # (n, 9) each voxel's rotation matrix (``mesh_drag_kernel``; n 0 on land)
 
 
 class Contacts(NamedTuple):
@@ -1103,7 +1106,7 @@ def step(t, p, voxels, links, body, work, contacts):
     if p.mesh_drag > 0.0:
         mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face, voxels.nbr, p.L,
                          body.pos, body.quat, body.lin_mom, voxels.vconst, work.size,
-                         work.vert_pos, work.force)
+                         work.vert_pos, work.axes, work.force)
     speed2 = voxel_update(p, voxels, body, work)
     travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
     return bad, speed2, Contacts(contacts.count, travel)
@@ -1189,7 +1192,8 @@ def robot_work(n_voxels, links, n_pairs, n_surface, n_vert=0):
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.bool_), np.full((n_surface, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
-                np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)))
+                np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)),
+                np.zeros((n_voxels if n_vert else 0, 9)))
 
 
 @njit(**JIT)
