@@ -4,10 +4,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from sqlalchemy import Engine
+from sqlalchemy import Connection, Engine
 
+from softevo.errors import UserError
 from softevo.evolution.afpo import EvolutionConfig
-from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
+from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment, unfinished_work
+from softevo.service.limits import check_experiment, generation_cost
+from softevo.service.settings import Settings
 from softevo.service.treatments import Treatment, preset_grid
 from softevo.worker.tasks import encoding_of
 
@@ -18,8 +21,11 @@ def create(
     treatments: Sequence[Treatment],
     preset: str | None = None,
     scale: str | None = None,
+    settings: Settings | None = None,
 ) -> tuple[int, list[int]]:
-    """Store an experiment with one pending run per repetition; return (id, run ids)."""
+    """Store an experiment with one pending run per repetition; return (id, run ids).
+    UserError if it is over the budget (``service.limits.check_experiment``: runs per
+    request, voxel-steps per request and, with the server's unfinished runs, per server)."""
     new = [
         NewTreatment(
             t.name,
@@ -29,7 +35,20 @@ def create(
         for t in treatments
     ]
     with engine.begin() as conn:
+        check_experiment(treatments, unfinished_cost(conn), settings)
         return create_experiment(conn, name, new, preset=preset, scale=scale)
+
+
+def unfinished_cost(conn: Connection) -> float:
+    """Voxel-steps the pending and running runs still have to do (``generation_cost`` x the
+    generations each has left); settings that no longer read count nothing."""
+    total = 0.0
+    for stored, generations_left in unfinished_work(conn):
+        try:
+            total += generation_cost(Treatment.from_settings(stored)) * generations_left
+        except UserError:
+            continue
+    return total
 
 
 def create_paper(

@@ -33,6 +33,9 @@ SOFTEVO_MAX_BODY_BYTES    largest request body; larger: 413                     
 SOFTEVO_MAX_JSON_DEPTH    deepest nesting of a JSON body; deeper: 422              32
 SOFTEVO_MAX_VOXELS        voxels of a workspace or scene body, at most             8000
 SOFTEVO_MAX_VOXEL_STEPS   voxels x steps of one ``softevo simulate``, at most      2000000000
+SOFTEVO_MAX_RUNS_PER_REQUEST  runs one experiment may create, at most           1000
+SOFTEVO_MAX_REQUEST_VOXEL_STEPS  voxel-steps one experiment may ask, at most     1e16
+SOFTEVO_MAX_SERVER_VOXEL_STEPS  voxel-steps of the unfinished runs and a new one  1e17
 SOFTEVO_MAX_RESULT_BYTES  JSON of one RQ job's results; larger: rejected, re-queued 1000000
 SOFTEVO_MAX_CONCURRENT_REQUESTS  requests in the routes at once (others wait)      32
 SOFTEVO_READ_CACHE_SECONDS  a GET's answer is reused this long (0: off)            1
@@ -95,6 +98,9 @@ class Settings(BaseSettings):
     max_json_depth: int = Field(32, ge=4, le=1000)
     max_voxels: int = Field(8000, ge=1)
     max_voxel_steps: float = Field(2e9, gt=0)
+    max_runs_per_request: int = Field(1000, ge=1)
+    max_request_voxel_steps: float = Field(1e16, gt=0)  # the paper grid at paper scale: 3.3e15
+    max_server_voxel_steps: float = Field(1e17, gt=0)
     max_result_bytes: int = Field(1_000_000, ge=1024)
     max_concurrent_requests: int = Field(32, ge=1, le=40)  # below the 40 threads, 50 connections
     read_cache_seconds: float = Field(1.0, ge=0, le=60)

@@ -343,6 +343,17 @@ def build_robot(scene: Scene) -> Robot:
                  link_damp, f, i, removed)
 
 
+def scene_steps(scene: Scene) -> int:
+    """Steps the engine takes for a validated scene, settling included (``build_robot``'s own
+    count: the model's step from stiffness, density and ``dt_fraction``, capped by its
+    ``min_steps_per_cycle``); 0 for an empty body. The one step count of the project: the
+    size limits (``service.limits``) and the workers' frame budget read it. OverflowError if
+    the count exceeds an int64 (``duration.cycles: 1e300``)."""
+    if not np.any(scene.body):
+        return 0
+    return int(build_robot(scene).iparams[I_STEPS])
+
+
 def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
     """Each voxel's voxels within ``hops`` bond hops, itself left out (the paper's engine:
     CalcNearby, walking bonds only, never across a gap): rows padded with -1. One hop is

@@ -370,10 +370,9 @@ def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_F
 
 def _steps(scene: Mapping[str, Any]) -> int:
     """Steps the simulation of ``scene`` takes (the engine's own count)."""
-    from softevo.sim.scene import parse_scene
-    from softevo.sim.system import I_STEPS, build_robot
+    from softevo.sim import parse_scene, scene_steps
 
-    return max(1, int(build_robot(parse_scene(dict(scene))).iparams[I_STEPS]))
+    return max(1, scene_steps(parse_scene(dict(scene))))
 
 
 def replay(

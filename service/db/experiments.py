@@ -80,6 +80,23 @@ def create_experiment(
     return experiment_id, run_ids
 
 
+def unfinished_work(conn: Connection) -> list[tuple[dict[str, Any], int]]:
+    """(settings, generations left over its pending and running runs) of every treatment with
+    such a run: what the server has still to do (``service.experiments.unfinished_cost``)."""
+    runs, treatments = Run.__table__, Treatment.__table__
+    left = (
+        select(
+            runs.c.treatment_id,
+            func.sum(runs.c.generations - runs.c.generation - 1).label("left"),
+        )
+        .where(runs.c.status.in_([RunStatus.PENDING.value, RunStatus.RUNNING.value]))
+        .group_by(runs.c.treatment_id)
+        .subquery()
+    )
+    query = select(treatments.c.settings, left.c.left).join(left, left.c.treatment_id == treatments.c.id)
+    return [(dict(settings), max(0, int(generations))) for settings, generations in conn.execute(query)]
+
+
 def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
     now = utcnow()
     return conn.execute(

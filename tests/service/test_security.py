@@ -365,3 +365,80 @@ def test_one_client_cannot_take_every_slot(limits_server):
         mine_a, mine_b, theirs = (call.result() for call in calls)
     assert sorted([mine_a.status_code, mine_b.status_code]) == [429, 504]  # one slot for 127.0.0.1
     assert theirs.status_code == 504  # admitted: 127.0.0.2 has a slot of its own
+
+
+# -- item 2: work has a budget ------------------------------------------------------------------
+
+ONE_TREATMENT_COST = 1.19e11  # voxel-steps of the default land treatment at 0.1 MPa
+# the finding's body: 200 treatments of population 10,000, 1e6 generations, 20^3, 10,000 cycles
+HUGE = {"environment": "land", "stiffness_mpa": 10.0, "population": 10_000, "generations": 1_000_000,
+        "workspace": [20, 20, 20], "cycles": 10_000}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def budget_server(tmp_path_factory):
+    """``softevo serve`` (coordinator off) on an empty database whose server budget holds one
+    default treatment but not two: its base URL."""
+    tmp_path = tmp_path_factory.mktemp("budget")
+    url = f"sqlite:///{tmp_path / 'budget.db'}"
+    open_database(url).dispose()
+    env = service_env(url, None, SOFTEVO_COORDINATOR="false",
+                      SOFTEVO_MAX_SERVER_VOXEL_STEPS=str(1.5 * ONE_TREATMENT_COST))  # fmt: skip
+    group = Processes(tmp_path, env)
+    _, base = group.serve()
+    yield base
+    group.stop_all()
+
+
+def test_the_findings_body_is_refused_by_its_runs(budget_server):
+    treatments = [{**HUGE, "name": f"t{k}", "repetitions": 1000} for k in range(200)]
+    body = {"name": "years", "treatments": treatments}
+    refused = httpx.post(f"{budget_server}/experiments", json=body, headers=auth(), timeout=60)
+    assert refused.status_code == 422, refused.text
+    detail = refused.json()["detail"]
+    assert "200000 runs" in detail and "SOFTEVO_MAX_RUNS_PER_REQUEST" in detail, detail
+    assert all(e["name"] != "years" for e in httpx.get(f"{budget_server}/experiments").json())
+
+
+def test_an_experiment_over_the_request_budget_is_refused_with_its_cost(budget_server):
+    body = {"name": "one-huge", "treatments": [HUGE]}
+    refused = httpx.post(f"{budget_server}/experiments", json=body, headers=auth())
+    assert refused.status_code == 422, refused.text
+    detail = refused.json()["detail"]
+    # 10,000 x 1e6 generations x 8000 voxels x 20,000,000 steps (the scene's max_steps)
+    assert "1.6e+21 voxel-steps" in detail and "SOFTEVO_MAX_REQUEST_VOXEL_STEPS" in detail, detail
+
+
+def test_the_server_budget_counts_the_unfinished_runs(budget_server):
+    body = {"name": "one", "treatments": [{"environment": "land", "stiffness_mpa": 0.1}]}
+    first = httpx.post(f"{budget_server}/experiments", json=body, headers=auth())
+    assert first.status_code == 201, first.text
+    second = httpx.post(f"{budget_server}/experiments", json=body, headers=auth())
+    assert second.status_code == 422, second.text
+    assert "SOFTEVO_MAX_SERVER_VOXEL_STEPS" in second.json()["detail"]
+    (run_id,) = first.json()["runs"]
+    assert httpx.post(f"{budget_server}/runs/{run_id}/cancel", headers=auth()).status_code == 200
+    third = httpx.post(f"{budget_server}/experiments", json=body, headers=auth())
+    assert third.status_code == 201, third.text  # a cancelled run is off the books
+
+
+def test_the_cli_applies_the_same_budget(tmp_path):
+    args = ["run", "--env", "land", "--stiffness", "10", "--population", "10000", "--generations",
+            "1000000", "--workspace", "20,20,20", "--db", f"sqlite:///{tmp_path / 'cli.db'}"]  # fmt: skip
+    done = subprocess.run([sys.executable, "-m", "softevo.service.cli", *args],
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert "SOFTEVO_MAX_REQUEST_VOXEL_STEPS" in done.stderr and "voxel-steps" in done.stderr
+
+
+@pytest.mark.parametrize("preset", ["paper", "gradual"])
+@pytest.mark.parametrize("model", [None, "voxelyze-2"])
+def test_the_presets_fit_the_default_budget_at_every_scale(preset, model):
+    from softevo.service.limits import check_experiment, experiment_cost
+    from softevo.service.settings import Settings
+    from softevo.service.treatments import SCALES, preset_grid
+
+    settings = Settings.model_construct()  # the defaults, whatever the environment says
+    for scale in SCALES:
+        treatments = preset_grid(preset, scale, model=model)
+        assert check_experiment(treatments, settings=settings) == experiment_cost(treatments)

@@ -102,16 +102,22 @@ def _treatments(body: ExperimentIn):
 def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     """Create an experiment with one pending run per treatment repetition; the coordinator
     picks them up within a second. Body: ``{"name", "treatments": [...]}`` or
-    ``{"preset": "paper", "scale"}``."""
+    ``{"preset": "paper", "scale"}``. 422 (with the figure) for more runs than
+    ``SOFTEVO_MAX_RUNS_PER_REQUEST``, or more voxel-steps (population x generations x
+    repetitions x workspace voxels x steps per evaluation) than
+    ``SOFTEVO_MAX_REQUEST_VOXEL_STEPS``, or than ``SOFTEVO_MAX_SERVER_VOXEL_STEPS`` together
+    with the unfinished runs."""
     if isinstance(body, PresetIn):
         treatments = preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed,
                                  algorithm=body.algorithm, model=body.model)
         name = body.name or f"{body.preset}-{body.scale}"
         experiment_id, run_ids = create(
-            services.engine, name, treatments, preset=body.preset, scale=body.scale
+            services.engine, name, treatments, body.preset, body.scale, settings=services.settings
         )
     else:
-        experiment_id, run_ids = create(services.engine, body.name, _treatments(body))
+        experiment_id, run_ids = create(
+            services.engine, body.name, _treatments(body), settings=services.settings
+        )
     return ExperimentCreated(id=experiment_id, runs=run_ids)
 
 
