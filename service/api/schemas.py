@@ -187,7 +187,9 @@ class ExperimentOut(BaseModel):
         "finished (the first that applies)"
     )
     progress: Progress
-    runs: list[RunSummary]
+    runs_total: int = Field(description="runs of the experiment (status and progress count them all)")
+    runs: list[RunSummary] = Field(
+        description="a page of the runs in id order: runs_limit of them from the runs_offset-th")
 
 
 class Objectives(BaseModel):

@@ -140,35 +140,92 @@ def experiment_status(statuses: Sequence[str]) -> str:
     return RunStatus.PENDING.value
 
 
+RUNS_PAGE = 100  # runs listed per experiment unless asked otherwise (ExperimentOut.runs)
+
+
 def list_experiments(
-    conn: Connection, experiment_id: int | None = None, limit: int = 1000, offset: int = 0
+    conn: Connection,
+    experiment_id: int | None = None,
+    limit: int = 1000,
+    offset: int = 0,
+    runs_limit: int = RUNS_PAGE,
+    runs_offset: int = 0,
+    newest_first: bool = False,
 ) -> list[dict[str, Any]]:
-    """Experiments (schemas.ExperimentOut) with their runs and progress, oldest first."""
+    """Experiments (schemas.ExperimentOut), oldest first (or newest), each with its status,
+    progress and ``runs_total`` over all its runs and the page ``runs_offset`` ..
+    ``runs_offset + runs_limit`` of its runs (in id order): a listing's size is bounded
+    whatever the experiments hold."""
     table = Experiment.__table__
     query = select(table.c.id, table.c.name, table.c.preset, table.c.scale, table.c.created_at)
     if experiment_id is not None:
         query = query.where(table.c.id == experiment_id)
-    experiments = dict_rows(conn, query.order_by(table.c.id).limit(limit).offset(offset))
+    order = table.c.id.desc() if newest_first else table.c.id
+    experiments = dict_rows(conn, query.order_by(order).limit(limit).offset(offset))
     if not experiments:
         return []
-    runs_query = run_summary_select(id_label="id").where(
-        Treatment.__table__.c.experiment_id.in_([e["id"] for e in experiments])
-    )
+    ids = [e["id"] for e in experiments]
+    tallies = _run_tallies(conn, ids)
     runs_of: dict[int, list[dict[str, Any]]] = {}
-    for run in dict_rows(conn, runs_query):
+    for run in _run_pages(conn, ids, runs_limit, runs_offset):
         runs_of.setdefault(run["experiment_id"], []).append(run)
     for experiment in experiments:
-        runs = runs_of.get(experiment["id"], [])
-        done = sum(max(0, run["generation"] + 1) for run in runs)
-        total = sum(run["generations"] for run in runs)
-        experiment["runs"] = runs
-        experiment["status"] = experiment_status([run["status"] for run in runs])
+        tally = tallies.get(experiment["id"], {})
+        done = sum(t["done"] for t in tally.values())
+        total = sum(t["total"] for t in tally.values())
+        experiment["runs"] = runs_of.get(experiment["id"], [])
+        experiment["runs_total"] = sum(t["runs"] for t in tally.values())
+        experiment["status"] = experiment_status(list(tally))
         experiment["progress"] = {
             "generations_done": done,
             "generations_total": total,
             "fraction": done / total if total else 0.0,
         }
     return experiments
+
+
+def _run_tallies(conn: Connection, experiment_ids: list[int]) -> dict[int, dict[str, dict[str, int]]]:
+    """experiment id -> run status -> {runs, done (generations stored), total (generations)}."""
+    runs, treatments = Run.__table__, Treatment.__table__
+    query = (
+        select(
+            treatments.c.experiment_id,
+            runs.c.status,
+            func.count().label("runs"),
+            func.sum(runs.c.generation + 1).label("done"),  # generation -1: none stored yet
+            func.sum(runs.c.generations).label("total"),
+        )
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id.in_(experiment_ids))
+        .group_by(treatments.c.experiment_id, runs.c.status)
+    )
+    tallies: dict[int, dict[str, dict[str, int]]] = {}
+    for row in dict_rows(conn, query):
+        counts = {key: max(0, int(row[key] or 0)) for key in ("runs", "done", "total")}
+        tallies.setdefault(row["experiment_id"], {})[row["status"]] = counts
+    return tallies
+
+
+def _run_pages(conn: Connection, experiment_ids: list[int], limit: int, offset: int) -> list[dict[str, Any]]:
+    """Run summaries (``run_summary_select``) of the experiments, per experiment the ``limit``
+    runs from its ``offset``-th in id order: one query, a window function over experiments."""
+    if limit <= 0:
+        return []
+    runs, treatments = Run.__table__, Treatment.__table__
+    rank = func.row_number().over(partition_by=treatments.c.experiment_id, order_by=runs.c.id)
+    ranked = (
+        run_summary_select(id_label="id")
+        .add_columns(rank.label("run_rank"))
+        .where(treatments.c.experiment_id.in_(experiment_ids))
+        .subquery()
+    )
+    columns = [column for column in ranked.c if column.name != "run_rank"]
+    query = (
+        select(*columns)
+        .where(ranked.c.run_rank > offset, ranked.c.run_rank <= offset + limit)
+        .order_by(ranked.c.id)
+    )
+    return dict_rows(conn, query)
 
 
 def experiment_exists(conn: Connection, experiment_id: int) -> bool:

@@ -442,3 +442,41 @@ def test_the_presets_fit_the_default_budget_at_every_scale(preset, model):
     for scale in SCALES:
         treatments = preset_grid(preset, scale, model=model)
         assert check_experiment(treatments, settings=settings) == experiment_cost(treatments)
+
+
+@pytest.fixture(scope="module")
+def paged_server(tmp_path_factory):
+    """``softevo serve`` (coordinator off) on a database holding one experiment of 300 runs:
+    (base URL, the experiment's id, its run ids)."""
+    tmp_path = tmp_path_factory.mktemp("paged")
+    url = f"sqlite:///{tmp_path / 'paged.db'}"
+    engine = open_database(url)
+    treatment = dataclasses.replace(tinyrun.TINY, repetitions=300)
+    experiment_id, run_ids = create(engine, "many", [treatment])
+    engine.dispose()
+    group = Processes(tmp_path, service_env(url, None, SOFTEVO_COORDINATOR="false"))
+    _, base = group.serve()
+    yield base, experiment_id, run_ids
+    group.stop_all()
+
+
+def test_an_experiments_runs_are_listed_a_page_at_a_time(paged_server):
+    base, experiment_id, run_ids = paged_server
+    (listed,) = httpx.get(f"{base}/experiments").json()
+    assert listed["runs_total"] == 300 and len(listed["runs"]) == 100  # the default page
+    assert listed["progress"]["generations_total"] == 300 * tinyrun.TINY.generations  # over all runs
+    page = httpx.get(f"{base}/experiments/{experiment_id}", params={"runs_limit": 50, "runs_offset": 280})
+    page = page.json()
+    assert [run["id"] for run in page["runs"]] == run_ids[280:] and page["runs_total"] == 300
+    (counts,) = httpx.get(f"{base}/experiments", params={"runs_limit": 0}).json()
+    assert counts["runs"] == [] and counts["status"] == "pending"
+
+
+def test_a_listing_holds_a_bounded_number_of_runs(paged_server):
+    base, _, _ = paged_server
+    for params in ({"limit": 101}, {"runs_limit": 201}, {"limit": 1000, "runs_limit": 1000}):
+        assert httpx.get(f"{base}/experiments", params=params).status_code == 422, params
+    (listed,) = httpx.get(f"{base}/experiments", params={"limit": 100, "runs_limit": 200}).json()
+    assert len(listed["runs"]) == 200
+    one = httpx.get(f"{base}/experiments/{listed['id']}", params={"runs_limit": 1000}).json()
+    assert len(one["runs"]) == 300

@@ -49,6 +49,11 @@ REPORT_FAILED = (
     "it is tried again once the experiment changes"
 )
 _NEVER = object()
+# Pages: at most 100 experiments x 200 runs in one listing (about 5 MB), 1000 runs of one
+MAX_EXPERIMENTS_PAGE = 100
+MAX_LISTED_RUNS_PAGE = 200
+MAX_RUNS_PAGE = 1000
+RUNS_PAGE = db_experiments.RUNS_PAGE
 
 
 def _treatments(body: ExperimentIn):
@@ -121,20 +126,45 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     return ExperimentCreated(id=experiment_id, runs=run_ids)
 
 
+RunsLimit = Annotated[
+    int, Query(ge=0, le=MAX_RUNS_PAGE, description="runs listed (0: none, only the counts)")
+]
+ListedRunsLimit = Annotated[
+    int,
+    Query(ge=0, le=MAX_LISTED_RUNS_PAGE, description="runs listed per experiment (0: none, only the counts)"),
+]
+RunsOffset = Annotated[int, Query(ge=0, le=MAX_INT32, description="runs of each experiment skipped")]
+
+
 @router.get("", response_model=list[ExperimentOut])
 def list_experiments(
     conn: ConnectionDep,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+    limit: Annotated[int, Query(ge=1, le=MAX_EXPERIMENTS_PAGE)] = 100,
     offset: Annotated[int, Query(ge=0, le=MAX_INT32)] = 0,
+    runs_limit: ListedRunsLimit = RUNS_PAGE,
+    runs_offset: RunsOffset = 0,
+    newest_first: bool = False,
 ):
-    """Experiments, oldest first, with the status and progress of each run."""
-    return db_experiments.list_experiments(conn, limit=limit, offset=offset)
+    """Experiments, oldest first (``newest_first``: newest), each with its status, progress and
+    ``runs_total`` over all its runs and a page of its runs (``runs_limit`` from the
+    ``runs_offset``-th): at most 100 x 200 runs in one answer."""
+    return db_experiments.list_experiments(
+        conn, limit=limit, offset=offset, runs_limit=runs_limit, runs_offset=runs_offset,
+        newest_first=newest_first,
+    )  # fmt: skip
 
 
 @router.get("/{experiment_id}", response_model=ExperimentOut, responses=NOT_FOUND)
-def get_experiment(experiment_id: ExperimentId, conn: ConnectionDep):
-    """One experiment: its runs' status and progress."""
-    found = db_experiments.list_experiments(conn, experiment_id=experiment_id)
+def get_experiment(
+    experiment_id: ExperimentId,
+    conn: ConnectionDep,
+    runs_limit: RunsLimit = RUNS_PAGE,
+    runs_offset: RunsOffset = 0,
+):
+    """One experiment: its status and progress, ``runs_total`` and a page of its runs."""
+    found = db_experiments.list_experiments(
+        conn, experiment_id=experiment_id, runs_limit=runs_limit, runs_offset=runs_offset
+    )
     if not found:
         raise HTTPException(404, f"no experiment {experiment_id}")
     return found[0]

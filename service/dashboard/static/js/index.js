@@ -1,8 +1,11 @@
-// Experiments page: every experiment with its runs, polled while any run is live.
+// Experiments page: the newest experiments with a page of their runs each, polled while any
+// is live. Each poll asks a bounded page (EXPERIMENTS x RUNS runs at most), not the database.
 import { LIVE, badge, el, errorLine, fill, fmt, getJSON, page, poll, progressBar, root, showHealth, table } from "./api.js";
 
 const LIVE_POLL_MS = 2000;
 const IDLE_POLL_MS = 15000;
+const EXPERIMENTS = 20; // newest experiments shown
+const RUNS = 50; // runs shown per experiment (the counts and progress cover them all)
 
 function runRow(run) {
   return [
@@ -37,13 +40,16 @@ function experimentPanel(experiment) {
       experiment.runs.map(runRow),
       [2, 3, 5, 6],
     ),
+    experiment.runs_total > experiment.runs.length
+      ? el("p", { class: "muted" }, `the first ${experiment.runs.length} of ${experiment.runs_total} runs`)
+      : null,
   );
 }
 
 async function refresh() {
   let experiments;
   try {
-    experiments = await getJSON("/experiments?limit=1000");
+    experiments = await getJSON(`/experiments?limit=${EXPERIMENTS}&runs_limit=${RUNS}&newest_first=true`);
   } catch (error) {
     fill("experiments", errorLine(error));
     return IDLE_POLL_MS;
@@ -51,9 +57,9 @@ async function refresh() {
   if (experiments.length === 0) {
     fill("experiments", el("p", { class: "muted" }, "No experiments yet: start one with `softevo run` or POST /experiments."));
   } else {
-    fill("experiments", experiments.slice().reverse().map(experimentPanel));
+    fill("experiments", experiments.map(experimentPanel));
   }
-  const live = experiments.some((e) => e.runs.some((r) => LIVE.has(r.status)));
+  const live = experiments.some((e) => LIVE.has(e.status));
   return live ? LIVE_POLL_MS : IDLE_POLL_MS;
 }
 
