@@ -273,13 +273,28 @@ class Coordinator:
         results = self.executor.evaluate(tasks)
         seconds = time.perf_counter() - start
         share = seconds / max(1, len(tasks))
+        live = self._live([run for run, _ in asked])
         going_on, offset = [], 0
         for run, run_tasks in asked:
             run_results = results[offset : offset + len(run_tasks)]
             offset += len(run_tasks)
+            if run.run_id not in live:  # cancelled while in flight: its generation is dropped
+                continue
             if self._guard(run, self._finish, run, run_results, share * len(run_tasks)):
                 going_on.append(run)
         return [run for run in going_on if not run.done]
+
+    def _live(self, runs: list[ActiveRun]) -> set[int]:
+        """Ids of ``runs`` still pending or running: one cancelled while its generation was
+        in flight has that generation dropped. A database out of reach counts them all live
+        (``_finish`` then says what the database did)."""
+        ids = [run.run_id for run in runs]
+        try:
+            return set(unfinished_runs(self.engine, ids)) if ids else set()
+        except Exception as exc:
+            if not database_unavailable(exc):
+                raise
+            return set(ids)
 
     def _finish(self, run: ActiveRun, results: list[dict], seconds: float) -> bool:
         record = tell(run, results, seconds)

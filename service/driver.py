@@ -187,8 +187,13 @@ class CoordinatorLoop:
         self.locks.release([run.run_id for run in self.active])
 
     def request_cancel(self, run_id: int) -> None:
-        """Keep ``run_id`` cancelled even if a generation in flight commits after the cancel."""
+        """Keep ``run_id`` cancelled even if a generation in flight commits after the cancel,
+        and have the executor drop its evaluations in flight where it can
+        (``LocalExecutor.drop_runs``)."""
         self.cancelled.add(run_id)
+        drop = getattr(self.executor, "drop_runs", None)
+        if drop is not None:
+            drop([run_id])
 
     # -- the loop ----------------------------------------------------------------------------
 

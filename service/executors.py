@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+import threading
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
@@ -21,6 +22,8 @@ from softevo.worker.evaluate import ensure_compiled, evaluate_batch, init_pool_p
 from softevo.worker.tasks import failed
 
 Task = dict[str, Any]
+CANCELLED = "run cancelled: evaluation dropped"
+DROP_POLL_SECONDS = 0.25  # how often an evaluation in flight looks for cancelled runs
 
 
 class Executor(Protocol):
@@ -66,7 +69,10 @@ class LocalExecutor:
     """A process pool over ``workers`` processes (default: all cores).
 
     Processes start with the ``spawn`` method (no fork of a process holding numba threads or
-    database connections) and warm the simulator once each.
+    database connections) and warm the simulator once each. ``drop_runs`` drops a cancelled
+    run's tasks from the evaluation in flight: pool jobs not started are cancelled, and when
+    one is already running the pool's processes are ended and the other runs' jobs run again
+    on a new pool.
     """
 
     def __init__(
@@ -78,6 +84,8 @@ class LocalExecutor:
         self.genomes_per_task = genomes_per_task
         self.job = job or evaluate_batch  # a module-level function (the pool pickles it by name)
         self._pool = self._new_pool()
+        self._dropped: set[int] = set()  # cancelled runs (drop_runs), from any thread
+        self._drop_lock = threading.Lock()
 
     def _new_pool(self) -> ProcessPoolExecutor:
 
@@ -87,20 +95,71 @@ class LocalExecutor:
             initializer=init_pool_process,
         )
 
+    def drop_runs(self, run_ids: Iterable[int]) -> None:
+        """Drop the tasks of ``run_ids`` (cancelled runs) now and from every later call: their
+        results read as failed evaluations (``CANCELLED``), which the coordinator does not
+        store. Thread-safe: the API's cancel calls it while ``evaluate`` waits."""
+        with self._drop_lock:
+            self._dropped.update(int(run_id) for run_id in run_ids)
+
     def evaluate(self, tasks: list[Task]) -> list[Task]:
         """Results in order. A process that dies (a crash inside compiled code) breaks the
         pool: it is restarted and the unfinished genomes are evaluated one per job, so the
-        genome that kills a process again is recorded as failed, not retried forever."""
+        genome that kills a process again is recorded as failed, not retried forever. Jobs
+        wholly of dropped runs (``drop_runs``) end at once, while they wait or run."""
         parts = chunks(tasks, self.workers, self.genomes_per_task)
-        jobs = [self._pool.submit(self.job, part) for part in parts]
-        results: list[Task] = []
-        for part, job in zip(parts, jobs, strict=True):
-            try:
-                results.extend(job.result())
-            except BrokenProcessPool:
-                self._restart()
-                results.extend(self._one_by_one(part))
-        return results
+        results: list[list[Task] | None] = [None] * len(parts)
+        jobs = {index: self._pool.submit(self.job, part) for index, part in enumerate(parts)}
+        while jobs:
+            wait(list(jobs.values()), timeout=DROP_POLL_SECONDS, return_when=FIRST_COMPLETED)
+            jobs = self._drop(parts, jobs, results)
+            for index, job in list(jobs.items()):
+                if not job.done():
+                    continue
+                del jobs[index]
+                try:
+                    results[index] = job.result()
+                except BrokenProcessPool:
+                    self._restart()
+                    results[index] = self._one_by_one(parts[index])
+        return [result for part in results for result in part or []]
+
+    def _drop(
+        self, parts: list[list[Task]], jobs: dict[int, Future], results: list[list[Task] | None]
+    ) -> dict[int, Future]:
+        """The jobs still to wait for, once those wholly of dropped runs are answered
+        ``CANCELLED``: cancelled if they wait, else every pool process is ended and the
+        other unfinished jobs are submitted again to a new pool."""
+        with self._drop_lock:
+            dropped = set(self._dropped)
+        doomed = [i for i in jobs if dropped and all(task.get("run_id") in dropped for task in parts[i])]
+        if not doomed:
+            return jobs
+        running = False
+        for index in doomed:
+            results[index] = [failed(task, CANCELLED).to_json() for task in parts[index]]
+            running |= not jobs.pop(index).cancel()
+        if not running:
+            return jobs
+        self._end_processes()
+        again = {}
+        for index, job in jobs.items():
+            if job.done() and not job.cancelled() and job.exception() is None:
+                results[index] = job.result()
+            else:  # broken by the ending, or not run yet: again on the new pool
+                again[index] = self._pool.submit(self.job, parts[index])
+        return again
+
+    def _end_processes(self) -> None:
+        """End every pool process now (one runs a dropped job) and start a new pool.
+        ``ProcessPoolExecutor`` has no public way to end its processes before Python 3.14."""
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        for process in processes:
+            process.terminate()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.join(10)
+        self._pool = self._new_pool()
 
     def _one_by_one(self, tasks: list[Task]) -> list[Task]:
 

@@ -480,3 +480,45 @@ def test_a_listing_holds_a_bounded_number_of_runs(paged_server):
     assert len(listed["runs"]) == 200
     one = httpx.get(f"{base}/experiments/{listed['id']}", params={"runs_limit": 1000}).json()
     assert len(one["runs"]) == 300
+
+
+# -- item 2: cancel stops the generation in flight --------------------------------------------
+
+SLOW = {"environment": "land", "stiffness_mpa": 1.0, "population": 8, "generations": 2,
+        "workspace": [6, 6, 6], "cycles": 2000}  # fmt: skip  # a generation: a minute on one core
+
+
+def busy_seconds(pid: int) -> float:
+    """CPU seconds (user + system) of process ``pid`` so far; 0 once it has ended."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_cancel_ends_the_evaluations_in_flight(tmp_path):
+    url = f"sqlite:///{tmp_path / 'cancel.db'}"
+    open_database(url).dispose()
+    env = service_env(url, None, SOFTEVO_WORKERS="1", SOFTEVO_GENOMES_PER_JOB="1")
+    group = Processes(tmp_path, env)
+    try:
+        process, base = group.serve()
+        body = {"name": "slow", "treatments": [SLOW]}
+        created = httpx.post(f"{base}/experiments", json=body, headers=auth())
+        (run_id,) = created.json()["runs"]
+        evaluators: list[int] = []
+
+        def evaluating() -> bool:  # the pool process has simulated for a second
+            evaluators[:] = simulating_children(process.pid)
+            return any(busy_seconds(pid) > 1.0 for pid in evaluators)
+
+        wait_for(evaluating, 120, "the run's first evaluation to run")
+        cancelled = httpx.post(f"{base}/runs/{run_id}/cancel", headers=auth())
+        assert cancelled.status_code == 200, cancelled.text
+        wait_for(lambda: not any(Path(f"/proc/{pid}").exists() for pid in evaluators), 15,
+                 "the evaluator process to end")  # fmt: skip
+        run = httpx.get(f"{base}/runs/{run_id}").json()
+        assert run["status"] == "cancelled" and run["generation"] == -1, run  # nothing stored
+    finally:
+        group.stop_all()
