@@ -218,9 +218,11 @@ def _print_status(engine, run_ids: list[int]) -> None:
 
     from softevo.service.db.status import run_summaries
 
-    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "best", box=box.SIMPLE)
+    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best", box=box.SIMPLE_HEAD,
+                  show_edge=False, collapse_padding=True, caption="best: of the last generation; per world: of any generation in it")  # fmt: skip
+    table.add_column("per world", no_wrap=True)
     for r in run_summaries(engine, run_ids):
-        best = "-" if r["best_distance"] is None else f"{r['best_distance']:.3f}"
+        per_world = "\n".join(f"{world} {best:.3f}" for world, best in r["best_by_world"].items())
         table.add_row(
             str(r["run_id"]),
             f"e{r['experiment_id']}",
@@ -229,7 +231,9 @@ def _print_status(engine, run_ids: list[int]) -> None:
             str(r["seed"]),
             r["status"],
             f"{r['generation'] + 1}/{r['generations']}",
-            best,
+            r["environment"] or "-",
+            _fmt(r["best_distance"]),
+            per_world or "-",
         )
     Console().print(table)
 
@@ -238,7 +242,8 @@ def status(
     reference: Annotated[str | None, typer.Argument(metavar="[RUN_OR_EXPERIMENT]")] = None,
     db: DbOption = None,
 ) -> None:
-    """Show runs: status, generation, best distance."""
+    """Show runs: status, generation, world and best distance of the last generation, and
+    the best distance reached in each world."""
     from softevo.service.db import open_database
     from softevo.service.db.runs import resolve_runs
 

@@ -167,7 +167,14 @@ class RunSummary(BaseModel):
     status: RunStatusName
     generation: int = Field(description="last generation stored (-1: none yet)")
     generations: int
-    best_distance: float | None = Field(description="best distance ever reached, voxel lengths")
+    environment: str | None = Field(description="world of the last generation stored (None: none yet)")
+    best_distance: float | None = Field(
+        description="best distance of the last generation stored, voxel lengths (None: none yet)"
+    )
+    best_by_world: dict[str, float] = Field(
+        description="per world the run was evaluated in (first met first): the best distance of "
+        "any generation in it, voxel lengths"
+    )
 
 
 class Progress(BaseModel):

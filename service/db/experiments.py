@@ -30,7 +30,7 @@ from softevo.service.db.models import (
 )
 from softevo.service.db.rows import dict_rows
 from softevo.service.db.runs import parse_reference
-from softevo.service.db.status import run_summary_select
+from softevo.service.db.status import run_summary_select, with_best_by_world
 from softevo.service.treatments import Treatment as Settings
 
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
@@ -225,7 +225,7 @@ def _run_pages(conn: Connection, experiment_ids: list[int], limit: int, offset: 
         .where(ranked.c.run_rank > offset, ranked.c.run_rank <= offset + limit)
         .order_by(ranked.c.id)
     )
-    return dict_rows(conn, query)
+    return with_best_by_world(conn, dict_rows(conn, query))
 
 
 def experiment_exists(conn: Connection, experiment_id: int) -> bool:

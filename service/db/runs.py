@@ -14,7 +14,7 @@ from sqlalchemy import Connection, Table, func, select, update
 from softevo.errors import UserError
 from softevo.service.db.models import Evaluation, Experiment, Run, RunStatus, Treatment, utcnow
 from softevo.service.db.rows import dict_rows
-from softevo.service.db.status import run_summary_select
+from softevo.service.db.status import run_summary_select, with_best_by_world
 
 ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
 
@@ -61,7 +61,7 @@ def list_runs(
         query = query.where(Treatment.__table__.c.experiment_id == experiment_id)
     if status is not None:
         query = query.where(Run.__table__.c.status == status)
-    return dict_rows(conn, query.limit(limit).offset(offset))
+    return with_best_by_world(conn, dict_rows(conn, query.limit(limit).offset(offset)))
 
 
 def run_detail(conn: Connection, run_id: int) -> dict[str, Any] | None:

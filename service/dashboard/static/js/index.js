@@ -7,6 +7,12 @@ const IDLE_POLL_MS = 15000;
 const EXPERIMENTS = 20; // newest experiments shown
 const RUNS = 50; // runs shown per experiment (the counts and progress cover them all)
 
+/** "land 5.21 · water 0.651": the best distance reached in each world, in the order met. */
+function bestPerWorld(worlds) {
+  const entries = Object.entries(worlds ?? {});
+  return entries.length === 0 ? "–" : entries.map(([world, best]) => `${world} ${fmt(best)}`).join(" · ");
+}
+
 function runRow(run) {
   return [
     el("a", { href: page(`runs/${run.id}`) }, `run ${run.id}`),
@@ -15,7 +21,9 @@ function runRow(run) {
     run.seed,
     badge(run.status),
     `${run.generation + 1}/${run.generations}`,
+    run.environment ?? "–",
     fmt(run.best_distance),
+    bestPerWorld(run.best_by_world),
     run.best_distance === null ? "" : el("a", { href: page(`runs/${run.id}`) }, "fitness · front"),
   ];
 }
@@ -36,9 +44,9 @@ function experimentPanel(experiment) {
       el("a", { href: `${root}/experiments/${experiment.id}/report`, class: "muted" }, "report"),
     ),
     table(
-      ["run", "treatment", "rep", "seed", "status", "generation", "best distance", ""],
+      ["run", "treatment", "rep", "seed", "status", "generation", "world", "best (last gen)", "best per world", ""],
       experiment.runs.map(runRow),
-      [2, 3, 5, 6],
+      [2, 3, 5, 7],
     ),
     experiment.runs_total > experiment.runs.length
       ? el("p", { class: "muted" }, `the first ${experiment.runs.length} of ${experiment.runs_total} runs`)
