@@ -218,8 +218,9 @@ def _print_status(engine, run_ids: list[int]) -> None:
 
     from softevo.service.db.status import run_summaries
 
-    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best", box=box.SIMPLE_HEAD,
-                  show_edge=False, collapse_padding=True, caption="best: of the last generation; per world: of any generation in it")  # fmt: skip
+    caption = "best: of the last generation; per world: of any generation in it"
+    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best",
+                  box=box.SIMPLE_HEAD, show_edge=False, collapse_padding=True, caption=caption)  # fmt: skip
     table.add_column("per world", no_wrap=True)
     for r in run_summaries(engine, run_ids):
         per_world = "\n".join(f"{world} {best:.3f}" for world, best in r["best_by_world"].items())

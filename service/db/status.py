@@ -66,7 +66,9 @@ def best_by_world(conn: Connection, run_ids: Sequence[int]) -> dict[int, dict[st
     return worlds
 
 
-def with_best_by_world(conn: Connection, rows: list[dict[str, Any]], id_key: str = "id") -> list[dict[str, Any]]:
+def with_best_by_world(
+    conn: Connection, rows: list[dict[str, Any]], id_key: str = "id"
+) -> list[dict[str, Any]]:
     """``rows`` (of ``run_summary_select``), each with ``best_by_world`` added."""
     worlds = best_by_world(conn, [row[id_key] for row in rows]) if rows else {}
     for row in rows:
