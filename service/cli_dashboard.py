@@ -32,6 +32,14 @@ def _check_database_exists(url: str) -> None:
         raise UserError(f"no database at {database}: run `softevo run ... --db {url}` first, or pass --db")
 
 
+def check_database(url: str) -> None:
+    """UserError (one line) unless the database at ``url`` opens: checked before the server
+    starts, whose startup would otherwise fail with a traceback."""
+    from softevo.service.db import open_database
+
+    open_database(url).dispose()
+
+
 def dashboard(
     db: Annotated[
         str | None, typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB or sqlite:///softevo.db)")
@@ -54,6 +62,7 @@ def dashboard(
     settings = _settings(db=db, host=host, port=port, coordinator=False)
     settings.check_safe()
     _check_database_exists(settings.db)
+    check_database(settings.db)
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(name)s %(message)s")
     print(
         f"softevo dashboard on http://{settings.host}:{settings.port}/dashboard/ (Ctrl+C to stop)", flush=True

@@ -13,8 +13,8 @@ import os
 from pathlib import Path
 
 from sqlalchemy import Engine, create_engine, event, text
-from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ArgumentError
+from sqlalchemy.engine import URL, make_url
+from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError
 
 from softevo.errors import UserError
 from softevo.service.db.migrate import upgrade
@@ -55,12 +55,23 @@ def _sqlite_pragmas(dbapi_connection, _record) -> None:
 
 
 def make_engine(url: str | None = None) -> Engine:
-    """Build an engine for ``url`` (see ``database_url``); no schema changes."""
+    """Build an engine for ``url`` (see ``database_url``); no schema changes. An unknown
+    dialect or a driver that is not installed is a UserError."""
     resolved = database_url(url)
     try:
         parsed = make_url(resolved)
     except ArgumentError as exc:
         raise UserError(f"not a database URL: {resolved!r}") from exc
+    try:
+        return _engine_for(parsed)
+    except (NoSuchModuleError, ImportError) as exc:
+        raise UserError(
+            f"database {shown(parsed)}: no driver for {parsed.drivername!r} ({one_line(exc)}); "
+            "softevo works with sqlite:///FILE and postgresql+psycopg://..."
+        ) from exc
+
+
+def _engine_for(parsed: URL) -> Engine:
     if parsed.get_backend_name() == "sqlite":
         _check_sqlite_path(parsed.database)
         engine = create_engine(parsed, pool_size=POOL_SIZE, max_overflow=MAX_OVERFLOW)
@@ -70,10 +81,27 @@ def make_engine(url: str | None = None) -> Engine:
 
 
 def open_database(url: str | None = None) -> Engine:
-    """Engine for ``url`` with the schema upgraded to the newest migration."""
+    """Engine for ``url`` with the schema upgraded to the newest migration. A database that
+    cannot be reached or read (no server, a refused login, a file that is not a database) is
+    a UserError of one line, naming the URL without its password."""
     engine = make_engine(url)
-    upgrade(engine)
+    try:
+        upgrade(engine)
+    except DBAPIError as exc:
+        engine.dispose()
+        raise UserError(f"cannot open database {shown(engine.url)}: {one_line(exc.orig or exc)}") from exc
     return engine
+
+
+def shown(url: URL) -> str:
+    """``url`` as text, its password hidden."""
+    return url.render_as_string(hide_password=True)
+
+
+def one_line(exc: BaseException) -> str:
+    """The first line of ``exc``'s message (drivers add hints on further lines)."""
+    lines = str(exc).strip().splitlines()
+    return lines[0].strip() if lines else type(exc).__name__
 
 
 def database_reachable(engine: Engine) -> bool:
