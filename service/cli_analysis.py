@@ -68,7 +68,7 @@ def show(
     if fps < 1:
         raise UserError(f"--fps must be >= 1 (got {fps})")
     movie_writer(out, fps)  # a bad --out fails before the simulation
-    motion = stored_motion(individual_record(open_database(db), individual), environment)
+    motion = stored_motion(individual_record(open_database(db, create=False), individual), environment)
     with _frame_progress(not quiet) as on_frame:
         animate(motion, out, fps=fps, on_frame=on_frame)
     stored = "-" if motion.stored_distance is None else f"{motion.stored_distance:.4g}"
@@ -89,7 +89,7 @@ def export_vxa(
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")
     with _warning_lines():
-        document = record_vxa(individual_record(open_database(db), individual), environment)
+        document = record_vxa(individual_record(open_database(db, create=False), individual), environment)
     try:
         out.write_text(document, encoding="iso-8859-1")
     except OSError as exc:

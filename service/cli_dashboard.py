@@ -8,36 +8,18 @@ Replays are simulated again on demand in one background process.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from softevo.errors import UserError
 
-
-def _check_database_exists(url: str) -> None:
-    """A missing SQLite file is a mistake here (the dashboard would show a new empty one)."""
-    from sqlalchemy.engine import make_url
-    from sqlalchemy.exc import ArgumentError
-
-    try:
-        parsed = make_url(url)
-    except ArgumentError as exc:
-        raise UserError(f"not a database URL: {url!r}") from exc
-    database = parsed.database
-    if parsed.get_backend_name() != "sqlite" or not database or database == ":memory:":
-        return
-    if not Path(database).is_file():
-        raise UserError(f"no database at {database}: run `softevo run ... --db {url}` first, or pass --db")
-
-
-def check_database(url: str) -> None:
-    """UserError (one line) unless the database at ``url`` opens: checked before the server
-    starts, whose startup would otherwise fail with a traceback."""
+def check_database(url: str, create: bool = True) -> None:
+    """UserError (one line) unless the database at ``url`` opens (and, unless ``create``,
+    exists): checked before the server starts, whose startup would otherwise fail with a
+    traceback. The dashboard does not create one (it would show a new empty one)."""
     from softevo.service.db import open_database
 
-    open_database(url).dispose()
+    open_database(url, create=create).dispose()
 
 
 def dashboard(
@@ -61,8 +43,7 @@ def dashboard(
 
     settings = _settings(db=db, host=host, port=port, coordinator=False)
     settings.check_safe()
-    _check_database_exists(settings.db)
-    check_database(settings.db)
+    check_database(settings.db, create=False)
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(name)s %(message)s")
     print(
         f"softevo dashboard on http://{settings.host}:{settings.port}/dashboard/ (Ctrl+C to stop)", flush=True

@@ -75,7 +75,7 @@ def phylogeny(
         raise UserError("give --json or --csv, not both")
     if generation is not None and generation < 0:
         raise UserError(f"--generation must be >= 0 (got {generation})")
-    engine = open_database(db)
+    engine = open_database(db, create=False)
     rows = []
     with engine.connect() as conn:
         run_id = one_run(conn, reference)
@@ -124,7 +124,7 @@ def exaptation(
     from softevo.service.db import open_database
     from softevo.service.db.exaptation import exaptation as summary_of
 
-    engine = open_database(db)
+    engine = open_database(db, create=False)
     with engine.connect() as conn:
         summary = summary_of(conn, one_run(conn, reference))
     if as_json:

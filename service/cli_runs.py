@@ -248,7 +248,7 @@ def status(
     from softevo.service.db import open_database
     from softevo.service.db.runs import resolve_runs
 
-    engine = open_database(db)
+    engine = open_database(db, create=False)
     with engine.connect() as conn:
         run_ids = resolve_runs(conn, reference)
     if not run_ids:
@@ -271,7 +271,7 @@ def resume(
     from softevo.service.db import open_database
     from softevo.service.db.runs import reopen_runs, resolve_runs
 
-    engine = open_database(db)
+    engine = open_database(db, create=False)
     with engine.begin() as conn:
         run_ids = resolve_runs(conn, reference)
         if reference is not None:
@@ -290,7 +290,7 @@ def export(
     from softevo.service.db.export import export_runs
     from softevo.service.db.runs import resolve_runs
 
-    engine = open_database(db)
+    engine = open_database(db, create=False)
     with engine.connect() as conn:
         run_ids = resolve_runs(conn, reference)
     for path in export_runs(engine, run_ids, out, fmt):
@@ -306,7 +306,7 @@ def lineage(
     from softevo.service.db import open_database
     from softevo.service.db.status import lineage_records
 
-    records = lineage_records(open_database(db), individual)
+    records = lineage_records(open_database(db, create=False), individual)
     if as_json:
         typer.echo(json.dumps(records, indent=2))
         return

@@ -24,14 +24,14 @@ from softevo.service.db.individuals import individual_record, stored_genomes
 
 
 def engine_of(source: str | Engine | Connection | Any | None) -> Engine:
-    """An engine from a URL (None: the default database), an Engine, a Connection or an ORM
-    Session."""
+    """An engine from a URL (None: the default database; one that does not exist is a
+    UserError, not a new database), an Engine, a Connection or an ORM Session."""
     if isinstance(source, Engine):
         return source
     if isinstance(source, Connection):
         return source.engine
     if source is None or isinstance(source, str):
-        return open_database(source)
+        return open_database(source, create=False)
     if hasattr(source, "get_bind"):
         return source.get_bind()
     raise TypeError(f"expected a database URL, Engine, Connection or Session, got {source!r}")

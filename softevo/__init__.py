@@ -98,7 +98,7 @@ def load_experiment(db: str | None = None, experiment: str = "latest"):
     from softevo.service.db.experiments import load_experiment as load
     from softevo.service.db.experiments import resolve_experiment
 
-    engine = open_database(db)
+    engine = open_database(db, create=False)
     try:
         with engine.connect() as conn:
             experiment_id = resolve_experiment(conn, str(experiment))

@@ -45,6 +45,22 @@ def _check_sqlite_path(database: str | None) -> None:
         raise UserError(f"database {database!r} cannot be written: {exc.strerror}") from exc
 
 
+def check_exists(url: str | None = None) -> None:
+    """UserError ``no database at PATH`` unless ``url`` (see ``database_url``) is a SQLite
+    file that exists, or not a SQLite file at all (a server says for itself)."""
+    resolved = database_url(url)
+    try:
+        parsed = make_url(resolved)
+    except ArgumentError as exc:
+        raise UserError(f"not a database URL: {resolved!r}") from exc
+    database = parsed.database
+    if parsed.get_backend_name() != "sqlite" or not database or database == ":memory:":
+        return
+    if database.startswith("file:") or Path(database).expanduser().is_file():
+        return
+    raise UserError(f"no database at {database} (give --db URL or set SOFTEVO_DB)")
+
+
 def _sqlite_pragmas(dbapi_connection, _record) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
@@ -80,10 +96,13 @@ def _engine_for(parsed: URL) -> Engine:
     return create_engine(parsed, pool_pre_ping=True, pool_size=POOL_SIZE, max_overflow=MAX_OVERFLOW)
 
 
-def open_database(url: str | None = None) -> Engine:
+def open_database(url: str | None = None, *, create: bool = True) -> Engine:
     """Engine for ``url`` with the schema upgraded to the newest migration. A database that
     cannot be reached or read (no server, a refused login, a file that is not a database) is
-    a UserError of one line, naming the URL without its password."""
+    a UserError of one line, naming the URL without its password. With ``create=False`` (the
+    read-only commands) a SQLite file that does not exist is a UserError, not a new database."""
+    if not create:
+        check_exists(url)
     engine = make_engine(url)
     try:
         upgrade(engine)

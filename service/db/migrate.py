@@ -17,6 +17,8 @@ from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
 from sqlalchemy import Engine, text
 
 MIGRATION_LOCK = 0x50F8  # PostgreSQL advisory lock key held while the schema is upgraded
@@ -58,6 +60,17 @@ def one_at_a_time(engine: Engine) -> Iterator[None]:
 
 
 def upgrade(engine: Engine, revision: str = "head") -> None:
-    """Upgrade the schema of ``engine``'s database to ``revision``, one process at a time."""
+    """Upgrade the schema of ``engine``'s database to ``revision``, one process at a time.
+    A database already at the newest revision is left alone, without the lock (no
+    ``<file>.migrate.lock`` beside a SQLite file only read)."""
+    config = alembic_config(engine)
+    if revision == "head" and _at_head(engine, config):
+        return
     with one_at_a_time(engine):
-        command.upgrade(alembic_config(engine), revision)
+        command.upgrade(config, revision)
+
+
+def _at_head(engine: Engine, config: Config) -> bool:
+    heads = set(ScriptDirectory.from_config(config).get_heads())
+    with engine.connect() as conn:
+        return set(MigrationContext.configure(conn).get_current_heads()) == heads

@@ -55,3 +55,50 @@ def test_a_wrong_password_is_one_line(capsys):
     code, _, err = softevo(capsys, "status", "--db", wrong)
     assert code == 2 and err.count("\n") == 1 and "password authentication failed" in err
     assert "not-the-password" not in err
+
+
+READ_ONLY = [
+    ["status"],
+    ["status", "latest"],
+    ["resume"],
+    ["export", "latest", "--out", "OUT"],
+    ["lineage", "1"],
+    ["phylogeny", "1"],
+    ["exaptation", "1"],
+    ["show", "1", "--out", "OUT.gif"],
+    ["export-vxa", "1", "--out", "OUT.vxa"],
+    ["report", "latest", "--out", "OUT"],
+    ["power", "latest"],
+    ["dashboard", "--port", "1"],
+]
+
+
+@pytest.mark.parametrize("command", READ_ONLY, ids=lambda command: "-".join(command[:2]))
+def test_read_only_commands_never_create_a_database(capsys, tmp_path, command):
+    missing = tmp_path / "mistyped.db"
+    command = [part.replace("OUT", str(tmp_path / "out")) for part in command]
+    code, _, err = softevo(capsys, *command, "--db", f"sqlite:///{missing}")
+    assert code == 2 and err == f"error: no database at {missing} (give --db URL or set SOFTEVO_DB)\n"
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_reading_a_database_leaves_no_lock_beside_it(capsys, tmp_path):
+    from softevo.service.db import open_database
+
+    path = tmp_path / "softevo.db"
+    open_database(f"sqlite:///{path}").dispose()
+    (tmp_path / "softevo.db.migrate.lock").unlink()
+    code, out, _ = softevo(capsys, "status", "--db", f"sqlite:///{path}")
+    assert code == 0 and "no runs yet" in out
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(("-wal", "-shm"))) == [
+        "softevo.db"
+    ]
+
+
+def test_load_experiment_does_not_create_a_database(tmp_path):
+    import softevo
+    from softevo.errors import UserError
+
+    with pytest.raises(UserError, match="no database at"):
+        softevo.load_experiment(f"sqlite:///{tmp_path / 'none.db'}")
+    assert sorted(tmp_path.iterdir()) == []
