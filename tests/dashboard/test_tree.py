@@ -79,6 +79,12 @@ def test_tree_of_a_gradual_transition(tree_server, open_page):
     land, water = shares(image)
     assert land > 0.0005 and water > 0.0005, (land, water)
     assert "switch" in page.locator("#tree-facts").inner_text()
+    legend = page.evaluate(
+        "[...document.getElementById('tree-legend').childNodes]"
+        ".map((n) => n.nodeName === 'SPAN' ? 'swatch' : n.textContent)"
+    )
+    assert legend == [part for world in sorted(worlds) for part in ("swatch", world)], legend
+    assert "[object" not in page.locator("#tree-legend").inner_text()
     node = next(n for n in drawn["nodes"] if n["surviving"] and n["id"] in final)
     box = canvas.bounding_box()
     page.mouse.move(box["x"] + node["x"], box["y"] + node["y"])

@@ -52,7 +52,7 @@ export function el(tag, attributes = {}, ...children) {
 
 /** Replace the children of the element with id `id`. */
 export function fill(id, ...children) {
-  document.getElementById(id).replaceChildren(...children.flat());
+  document.getElementById(id).replaceChildren(...children.flat(Infinity));
 }
 
 /** A number with `digits` significant decimals, "–" for null. */
