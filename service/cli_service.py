@@ -70,7 +70,17 @@ def worker(
         int | None,
         typer.Option("--heartbeat-ttl", help="seconds; default $SOFTEVO_HEARTBEAT_TTL or 30"),
     ] = None,
-    burst: Annotated[bool, typer.Option("--burst", help="quit when the queue is empty")] = False,
+    burst: Annotated[
+        bool, typer.Option("--burst", help="quit once the queue is drained (empty, nothing running)")
+    ] = False,
+    idle: Annotated[
+        int | None,
+        typer.Option("--idle", help="with --burst: seconds drained before quitting; default 5"),
+    ] = None,
+    connect_timeout: Annotated[
+        float | None,
+        typer.Option("--connect-timeout", help="seconds to wait for Redis at the start; default 5"),
+    ] = None,
     engine: Annotated[
         str | None, typer.Option("--engine", help="numba or warp; default $SOFTEVO_ENGINE or numba")
     ] = None,
@@ -98,6 +108,9 @@ def worker(
         raise UserError("softevo worker needs a Redis URL: set SOFTEVO_REDIS_URL or --redis-url")
     if threads < 1:
         raise UserError(f"--threads must be >= 1 (got {threads})")
+    if (idle is not None and idle < 1) or (connect_timeout is not None and connect_timeout <= 0):
+        raise UserError(f"--idle must be >= 1 and --connect-timeout > 0 (got {idle}, {connect_timeout})")
+    waits = {"idle": idle, "connect_timeout": connect_timeout}
     run_worker(
         settings.redis_url,
         queue=settings.queue,
@@ -105,6 +118,7 @@ def worker(
         threads=threads,
         heartbeat_ttl=settings.heartbeat_ttl,
         burst=burst,
+        **{key: value for key, value in waits.items() if value is not None},
     )
 
 

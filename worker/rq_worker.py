@@ -15,8 +15,15 @@
   default: run one worker per core.
 - A companion process (``worker.heartbeat``) keeps the running job marked alive, so that a
   worker killed mid-job has its job re-dispatched within ``heartbeat_ttl`` seconds.
-- Redis going away: the worker waits and reconnects (under a fresh RQ worker name, since
-  its old registration may still be there).
+- Redis unreachable at the start: the worker tries for ``connect_timeout`` seconds, then
+  stops with one line (``softevo worker`` exits with status 2). Redis going away later: the
+  worker waits and reconnects (under a fresh RQ worker name, since its old registration may
+  still be there).
+- Burst (``--burst``): the worker drains its queue and quits once the queue has stayed
+  empty, with no job of it running anywhere, for ``idle`` seconds: a coordinator puts the
+  next generation's jobs in the queue after the last job of a generation ends, so the
+  queue is briefly empty between generations and a worker that quit then would leave the
+  run without it.
 - Versions: the coordinator stamps each job with its softevo version (job meta
   ``VERSION_KEY``). A worker of another version puts the job back at the front of the queue
   for a worker of the right one, says so in one line and stops (``softevo worker`` exits
@@ -33,11 +40,14 @@ import socket
 import subprocess
 import sys
 import time
+from urllib.parse import urlsplit, urlunsplit
 
 from redis import Redis
 from redis.exceptions import RedisError
 from rq.exceptions import DeserializationError, StopRequested
 from rq.job import Job
+from rq.queue import Queue
+from rq.registry import StartedJobRegistry
 from rq.serializers import JSONSerializer
 from rq.utils import import_attribute, now
 from rq.worker import SimpleWorker, WorkerStatus
@@ -50,6 +60,8 @@ log = logging.getLogger("softevo.worker")
 VERSION_KEY = "softevo_version"  # job meta: the softevo version of the coordinator that made it
 JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"  # the one function a worker runs
 SHOWN = 200  # characters of a refused job's sender-chosen strings that go to the log
+CONNECT_TIMEOUT = 5.0  # seconds a starting worker tries to reach Redis (--connect-timeout)
+BURST_IDLE = 5  # seconds a burst worker's queue stays empty, nothing running, before it quits
 
 
 class RefusedJob(Exception):
@@ -243,6 +255,50 @@ def _stop_was_asked(worker: SimpleWorker) -> bool:
     return bool(worker._stop_requested or worker._shutdown_requested_date)
 
 
+def redacted(redis_url: str) -> str:
+    """``redis_url`` with its password (if any) shown as ``***``."""
+    parts = urlsplit(redis_url)
+    if parts.password is None:
+        return redis_url
+    host = parts.netloc.rsplit("@", 1)[1]
+    user = parts.username or ""
+    return urlunsplit(parts._replace(netloc=f"{user}:***@{host}"))
+
+
+def wait_for_redis(redis_url: str, seconds: float = CONNECT_TIMEOUT) -> None:
+    """Return once Redis at ``redis_url`` answers a PING; a UserError (one line) if it has
+    not within ``seconds``, or if the URL is not a Redis URL."""
+    deadline, delay = time.monotonic() + seconds, 0.2
+    while True:
+        try:
+            timeout = max(0.5, min(5.0, seconds))
+            connection = Redis.from_url(redis_url, socket_connect_timeout=timeout, socket_timeout=timeout)
+        except ValueError as exc:
+            raise UserError(f"not a Redis URL: {redacted(redis_url)} ({exc})") from None
+        try:
+            connection.ping()
+            return
+        except RedisError as exc:
+            if time.monotonic() + delay > deadline:
+                raise UserError(
+                    f"cannot reach Redis at {redacted(redis_url)} after {seconds:g} s ({exc}); "
+                    "is it running? (--connect-timeout to wait longer)"
+                ) from None
+        finally:
+            connection.close()
+        time.sleep(delay)
+        delay = min(1.0, delay * 2)
+
+
+def drained(connection: Redis, queue: str) -> bool:
+    """Whether ``queue`` holds no job and none of its jobs is running on any worker (so no
+    coordinator waits on a result that would make it queue more)."""
+    rq_queue = Queue(queue, connection=connection, serializer=JSONSerializer, job_class=EvaluationJob)
+    if rq_queue.count:
+        return False
+    return StartedJobRegistry(queue=rq_queue, job_class=EvaluationJob).count == 0
+
+
 def run_worker(
     redis_url: str,
     queue: str = "softevo",
@@ -251,36 +307,44 @@ def run_worker(
     heartbeat_ttl: int = 30,
     burst: bool = False,
     logging_level: str = "INFO",
+    connect_timeout: float = CONNECT_TIMEOUT,
+    idle: int = BURST_IDLE,
 ) -> None:
     """Warm the simulator, then take jobs from ``queue`` until stopped (SIGINT/SIGTERM: the
-    running job finishes first) or, with ``burst``, until the queue is empty."""
+    running job finishes first) or, with ``burst``, until the queue is drained: empty, with
+    none of its jobs running, for ``idle`` seconds. A UserError if Redis does not answer
+    within ``connect_timeout`` seconds of the start."""
     logging.basicConfig(level=logging_level, format="%(asctime)s %(name)s %(message)s")
+    wait_for_redis(redis_url, connect_timeout)
     seconds = warm(threads)
     log.info("simulator ready in %.1f s (%d numba thread(s))", seconds, threads)
     heartbeat = start_heartbeat(redis_url, queue, heartbeat_ttl)
-    base, attempt, delay = name or default_name(), 0, 1.0
+    base = worker_name = name or default_name()
+    restarts, delay = 0, 1.0
     try:
         while True:
-            worker_name = base if attempt == 0 else f"{base}-{attempt}"
-            attempt += 1
             worker = None
             try:
+                connection = Redis.from_url(
+                    redis_url, socket_timeout=max(20, heartbeat_ttl) + 30, socket_keepalive=True
+                )
                 worker = EvaluationWorker(
                     [queue],
                     name=worker_name,
-                    connection=Redis.from_url(
-                        redis_url, socket_timeout=max(20, heartbeat_ttl) + 30, socket_keepalive=True
-                    ),
+                    connection=connection,
                     serializer=JSONSerializer,
                     job_class=EvaluationJob,
                     worker_ttl=max(20, heartbeat_ttl),
                 )
                 _announce(heartbeat, worker_name)
-                worker.work(burst=burst, logging_level=logging_level)
+                worker.work(logging_level=logging_level, max_idle_time=max(1, idle) if burst else None)
                 if worker.refused:
                     raise UserError(worker.refused)
-                if burst:
-                    return
+                if burst and not _stop_was_asked(worker):
+                    if drained(connection, queue):
+                        log.info("queue %s drained: no job queued or running for %d s; quitting", queue, idle)
+                        return
+                    continue  # idle here while another worker's job runs: more may follow
             except RedisError as exc:
                 log.warning("redis unreachable (%s); retrying in %.0f s", exc, delay)
             if worker is not None and _stop_was_asked(worker):
@@ -288,6 +352,8 @@ def run_worker(
             log.warning("worker loop ended (Redis restarted?); starting again")
             time.sleep(delay)
             delay = min(5.0, delay * 2)
+            restarts += 1
+            worker_name = f"{base}-{restarts}"  # the old registration may still be there
     except (StopRequested, KeyboardInterrupt):
         return
     finally:
