@@ -9,6 +9,7 @@ fits as is. Nothing here touches processes, queues or databases.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from softevo.evolution.afpo import Evolution, EvolutionConfig
@@ -37,6 +38,37 @@ def best_distance(algo: Evolution) -> float:
     """Largest distance among the current survivors (0 if none)."""
     distances = [ind.objectives["distance"] for ind in algo.population if ind.evaluated]
     return float(max(distances, default=0.0))
+
+
+def generation_summary(algo: Evolution) -> dict[str, Any]:
+    """One row of a run's history, after a completed generation: its number and world, the
+    survivors' best and mean distance, how many survived and how many of those failed."""
+    distances = [ind.objectives["distance"] for ind in algo.population if ind.evaluated]
+    return {
+        "generation": algo.generation,
+        "environment": algo.environment,
+        "best_distance": float(max(distances, default=0.0)),
+        "mean_distance": float(sum(distances) / len(distances)) if distances else 0.0,
+        "survivors": len(algo.population),
+        "failed": sum(ind.failed for ind in algo.population),
+    }
+
+
+@dataclass(frozen=True, repr=False)
+class LocalRun:
+    """A finished local run: the algorithm at its end (``evolution.population``: the
+    survivors with their objectives) and ``history``, one ``generation_summary`` row per
+    generation."""
+
+    evolution: Evolution
+    history: list[dict[str, Any]]
+
+    def __repr__(self) -> str:
+        last = self.history[-1] if self.history else {}
+        return (
+            f"LocalRun(generations={len(self.history)}, environment={last.get('environment')!r}, "
+            f"best_distance={last.get('best_distance', 0.0):.4g}, survivors={last.get('survivors', 0)})"
+        )
 
 
 def run(

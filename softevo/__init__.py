@@ -10,7 +10,7 @@ For notebooks and scripts, five functions cover the common uses::
     import softevo
     result = softevo.simulate(scene)                 # a scene dict (docs/contracts.md) -> Result
     softevo.describe(body)                           # shape descriptors of a voxel array
-    algo = softevo.evolve("water", 0.1, generations=10)   # a local run in memory
+    local = softevo.evolve("water", 0.1, generations=10)  # in memory: .evolution, .history
     data = softevo.load_experiment("sqlite:///softevo.db", "latest")   # DataFrames
     scene = softevo.import_vxa("robot.vxa")          # a VoxCAD / evosoro file -> scene dict
 
@@ -67,26 +67,48 @@ def evolve(
     workspace: tuple[int, int, int] = (5, 5, 5),
     cycles: int = 4,
     seed: int = 0,
+    switch_at: int | None = None,
     progress: bool = False,
 ):
-    """A local run in memory (no database): AFPO over CPPN robots in ``environment``
-    ("land" or "water") at ``stiffness_mpa``; returns the ``Evolution`` (its ``population``
-    holds the survivors with their objectives). For stored, resumable runs use
-    ``softevo run`` or the service."""
-    from softevo import sim
-    from softevo.evolution.afpo import EvolutionConfig
-    from softevo.evolution.genotype import EncodingConfig
-    from softevo.evolution.runner import run
+    """A local run in memory (no database) of the treatment ``softevo run`` would store:
+    AFPO over CPPN robots in ``environment`` (``land``, ``water``, or an abrupt transition
+    ``land-water`` / ``water-land`` at ``switch_at``, default half-way) at ``stiffness_mpa``,
+    for ``generations`` generations (0 .. generations - 1). The settings are checked as the
+    CLI checks them (``service.treatments.Treatment``, ``service.limits.check_workspace``):
+    a ``softevo.errors.UserError`` says what is wrong. Returns an
+    ``evolution.runner.LocalRun``: ``.evolution`` (its ``population`` holds the survivors
+    with their objectives) and ``.history`` (one row per generation: world, best and mean
+    distance, survivors, failed). For stored, resumable runs use ``softevo run``."""
+    import dataclasses
 
-    config = EvolutionConfig(
-        population_size=population,
-        seed=seed,
-        environment=environment,
-        youngs_modulus=float(stiffness_mpa) * 1e6,
+    from softevo import sim
+    from softevo.evolution.runner import LocalRun, generation_summary, run
+    from softevo.service.experiments import evolution_config
+    from softevo.service.limits import check_workspace
+    from softevo.service.treatments import Treatment
+
+    treatment = Treatment(
+        environment,
+        stiffness_mpa,
+        population=population,
+        generations=generations,
+        workspace=tuple(workspace),
         cycles=cycles,
-        encoding=EncodingConfig(workspace=tuple(workspace)),
+        seed=seed,
+        switch_at=switch_at,
     )
-    return run(config, sim.simulate_many, generations, progress=progress)
+    check_workspace(treatment.workspace)
+    config = dataclasses.replace(evolution_config(treatment, seed), descriptors=True)
+    history: list[dict[str, Any]] = []
+    algo = run(
+        config,
+        sim.simulate_many,
+        generations - 1,
+        schedule=treatment.schedule(),
+        on_generation=lambda done: history.append(generation_summary(done)),
+        progress=progress,
+    )
+    return LocalRun(algo, history)
 
 
 def load_experiment(db: str | None = None, experiment: str = "latest"):

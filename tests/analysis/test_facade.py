@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
+import pytest
 
 import softevo
 from softevo import sim
+from softevo.errors import UserError
 from softevo.evolution.descriptors import describe
 
 
@@ -26,9 +30,37 @@ def test_simulate_and_describe_are_the_layers_functions():
     assert softevo.describe(body, 2.0) == describe(body, 2.0)
 
 
-def test_evolve_runs_in_memory():
-    algo = softevo.evolve("water", 0.1, population=4, generations=1, workspace=(3, 3, 3), cycles=1)
+def test_evolve_runs_in_memory_and_keeps_its_history():
+    local = softevo.evolve("water", 0.1, population=4, generations=2, workspace=(3, 3, 3), cycles=1)
+    algo = local.evolution
     assert algo.generation == 1 and len(algo.population) == 4
     assert all(ind.evaluated for ind in algo.population)
-    again = softevo.evolve("water", 0.1, population=4, generations=1, workspace=(3, 3, 3), cycles=1)
-    assert [i.objectives for i in again.population] == [i.objectives for i in algo.population]
+    assert [row["generation"] for row in local.history] == [0, 1]
+    assert local.history[-1]["best_distance"] == max(i.objectives["distance"] for i in algo.population)
+    again = softevo.evolve("water", 0.1, population=4, generations=2, workspace=(3, 3, 3), cycles=1)
+    assert [i.objectives for i in again.evolution.population] == [i.objectives for i in algo.population]
+    assert again.history == local.history
+    assert len(repr(local)) < 200 and "generations=2" in repr(local)
+
+
+def test_evolve_runs_an_abrupt_transition():
+    local = softevo.evolve(
+        "water-land", 0.1, population=4, generations=3, workspace=(3, 3, 3), cycles=1, switch_at=1
+    )
+    assert [row["environment"] for row in local.history] == ["water", "land", "land"]
+    assert all(row["failed"] < row["survivors"] for row in local.history)  # was: every one failed
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ({"environment": "moon"}, "unknown environment 'moon'"),
+        ({"stiffness_mpa": 100}, "stiffness must be within 0.001..10.0 MPa (got 100)"),
+        ({"population": 1}, "population must be an integer >= 2"),
+        ({"workspace": (30, 30, 30)}, "SOFTEVO_MAX_VOXELS"),
+        ({"environment": "land", "switch_at": 2}, "--switch-at needs a transition environment"),
+    ],
+)
+def test_evolve_checks_its_settings_as_the_cli_does(arguments, message):
+    with pytest.raises(UserError, match=re.escape(message)):
+        softevo.evolve(**{"environment": "water", "generations": 4, **arguments})
