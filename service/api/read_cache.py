@@ -11,8 +11,9 @@ empties the cache, so a client reads its own writes; a refused one (401, 403, 42
 leaves it alone, so unauthenticated POSTs cannot make every poll hit the database. A
 generation stored by the coordinator shows within the TTL.
 
-Not cached: ``/health``, the expensive reads (``.../frames``, ``.../report``: their own cache
-and token, ``service.api.expensive``), answers over ``MAX_BODY`` bytes or streamed.
+Not cached: ``/health``, the expensive reads (``.../frames``, ``.../report``,
+``.../analysis``: their own cache and token, ``service.api.expensive``), the downloads
+(``.../export``: streamed), answers over ``MAX_BODY`` bytes or streamed.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 MAX_BODY = 2_000_000  # bytes of one cached answer, at most
 MAX_ENTRIES = 2000
-EXCLUDED_SUFFIXES = ("/frames", "/report")
+EXCLUDED_SUFFIXES = ("/frames", "/report", "/analysis", "/export")
 EXCLUDED_PATHS = ("/health",)
 
 

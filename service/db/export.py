@@ -2,15 +2,19 @@
 
 ``individuals`` has one row per evaluation (an individual re-evaluated at an environment
 switch appears twice). CSV by default; Parquet needs ``pyarrow``.
+
+``table_chunks(conn, table, run_ids)`` reads one table a bounded number of rows at a time,
+with its final columns and types: ``export_runs`` (``softevo export``) writes whole files
+from it, ``service.db.export_stream`` streams it over REST, so both give the same rows.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import pandas as pd
-from sqlalchemy import Connection, Engine, Select, select
+from sqlalchemy import Boolean, Connection, Engine, Float, Integer, Select, select
 
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.errors import UserError
@@ -38,6 +42,8 @@ RUN_COLUMNS = [
     "status",
 ]
 POPULATION_COLUMNS = ["run_id", "generation", "individual_id", "front_rank"]
+TABLES = ("runs", "individuals", "populations")
+CHUNK_ROWS = 20_000  # rows read, converted and written at a time
 
 
 def _read(conn: Connection, query) -> pd.DataFrame:
@@ -95,21 +101,59 @@ def evaluation_rows(where) -> Select:
 
 def individuals_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per evaluation, ordered by run, generation and individual."""
-    query = evaluation_rows(Evaluation.__table__.c.run_id.in_(list(run_ids)))
-    frame = _read(conn, query)
-    frame["parent_id"] = frame["parent_id"].astype("Int64")
-    return frame[INDIVIDUAL_COLUMNS]
+    return pd.concat(table_chunks(conn, "individuals", run_ids), ignore_index=True)
 
 
 def populations_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """Population membership with front rank (0 = non-dominated) per generation."""
+    return pd.concat(table_chunks(conn, "populations", run_ids), ignore_index=True)
+
+
+def _population_rows(run_ids: Sequence[int]) -> Select:
     members = PopulationMember.__table__
-    query = (
+    return (
         select(*[members.c[name] for name in POPULATION_COLUMNS])
         .where(members.c.run_id.in_(list(run_ids)))
         .order_by(members.c.run_id, members.c.generation, members.c.front_rank, members.c.individual_id)
     )
-    return _read(conn, query)
+
+
+def table_chunks(
+    conn: Connection, table: str, run_ids: Sequence[int], chunk_rows: int = CHUNK_ROWS
+) -> Iterator[pd.DataFrame]:
+    """Export table ``table`` (``TABLES``) of ``run_ids`` as frames of at most
+    ``chunk_rows`` rows (``runs``: one frame), at least one (perhaps empty), each with the
+    table's columns and the same types (nullable pandas types from the SQL columns)."""
+    if table == "runs":
+        yield runs_frame(conn, run_ids)
+        return
+    if table == "individuals":
+        query, columns = evaluation_rows(Evaluation.__table__.c.run_id.in_(list(run_ids))), INDIVIDUAL_COLUMNS
+    elif table == "populations":
+        query, columns = _population_rows(run_ids), POPULATION_COLUMNS
+    else:
+        raise UserError(f"unknown table {table!r}; choose {', '.join(TABLES)}")
+    types = {column.name: _dtype(column.type) for column in query.selected_columns}
+    result = conn.execution_options(stream_results=True, yield_per=chunk_rows).execute(query)
+    keys = list(result.keys())
+    empty = True
+    for rows in result.partitions():
+        empty = False
+        yield pd.DataFrame(rows, columns=keys).astype(types)[columns]
+    if empty:
+        yield pd.DataFrame(columns=keys).astype(types)[columns]
+
+
+def _dtype(sql_type) -> str:
+    """The pandas type of a column of SQL type ``sql_type``: nullable, so that a chunk with
+    only missing values has the type of the others."""
+    if isinstance(sql_type, Boolean):
+        return "boolean"
+    if isinstance(sql_type, Integer):
+        return "Int64"
+    if isinstance(sql_type, Float):
+        return "float64"
+    return "string"
 
 
 def export_runs(engine: Engine, run_ids: Sequence[int], out_dir: str | Path, fmt: str = "csv") -> list[Path]:
@@ -117,7 +161,7 @@ def export_runs(engine: Engine, run_ids: Sequence[int], out_dir: str | Path, fmt
     if fmt not in FORMATS:
         raise UserError(f"unknown format {fmt!r}; choose csv or parquet")
     if fmt == "parquet":
-        _require_pyarrow()
+        require_pyarrow()
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -143,7 +187,8 @@ def _write(frame: pd.DataFrame, path: Path, fmt: str) -> Path:
     return path
 
 
-def _require_pyarrow() -> None:
+def require_pyarrow() -> None:
+    """UserError (how to install it) unless pyarrow, the Parquet writer, is installed."""
     try:
         import pyarrow  # noqa: F401  (a probe: is the optional Parquet writer installed?)
     except ImportError as exc:

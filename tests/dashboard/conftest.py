@@ -197,3 +197,29 @@ def open_page(browser):
         context.close()
         assert recorded.outside(origin) == [], "requests outside the server"
         assert recorded.errors == [], "JavaScript errors"
+
+
+@dataclass(frozen=True)
+class ComparedDatabase:
+    url: str
+    experiment_id: int  # tests.dashboard.compared: 4 treatments x 3 runs
+    empty_id: int  # an experiment without runs
+
+
+@pytest.fixture(scope="session")
+def compared_db(tmp_path_factory) -> ComparedDatabase:
+    """SQLite with the experiment of ``tests.dashboard.compared`` (written directly)."""
+    from softevo.service.db import open_database
+    from tests.dashboard import compared
+
+    path = tmp_path_factory.mktemp("compared") / "compared.db"
+    engine = open_database(f"sqlite:///{path}")
+    experiment_id = compared.build(engine)
+    engine.dispose()
+    return ComparedDatabase(f"sqlite:///{path}", experiment_id, experiment_id + 1)
+
+
+@pytest.fixture(scope="session")
+def compared_url(compared_db, start_server) -> str:
+    """Base URL of ``softevo dashboard`` on the compared experiment."""
+    return start_server("dashboard", compared_db.url)
