@@ -111,11 +111,14 @@ def evolve(
     return LocalRun(algo, history)
 
 
-def load_experiment(db: str | None = None, experiment: str = "latest"):
+def load_experiment(db: str | None = None, experiment: str = "latest", generations=None):
     """A stored experiment as pandas DataFrames (``softevo.analysis.data.ExperimentData``:
     treatments, runs, generations, populations, evaluations). ``db``: a SQLAlchemy URL
     (default ``$SOFTEVO_DB`` or ``sqlite:///softevo.db``); ``experiment``: ``latest``, ``e2``,
-    ``2`` or a name."""
+    ``2`` or a name. By default every population and every evaluation (the rows of
+    ``softevo export``); ``generations`` (a list) reads less, for experiments too large to
+    read whole: the populations at those generations, at 0, at each run's last and at those
+    the analyses use, and only their members' evaluations."""
     from softevo.service.db import open_database
     from softevo.service.db.experiments import load_experiment as load
     from softevo.service.db.experiments import resolve_experiment
@@ -124,6 +127,8 @@ def load_experiment(db: str | None = None, experiment: str = "latest"):
     try:
         with engine.connect() as conn:
             experiment_id = resolve_experiment(conn, str(experiment))
-        return load(engine, experiment_id)
+        if generations is None:
+            return load(engine, experiment_id, everything=True)
+        return load(engine, experiment_id, generations=generations)
     finally:
         engine.dispose()

@@ -259,11 +259,15 @@ def experiment_updated_at(conn: Connection, experiment_id: int):
 # -- the analyses' input ----------------------------------------------------------------------
 
 
-def load_experiment(engine: Engine, experiment_id: int, generations: Iterable[int] = ()) -> ExperimentData:
+def load_experiment(
+    engine: Engine, experiment_id: int, generations: Iterable[int] = (), everything: bool = False
+) -> ExperimentData:
     """Read experiment ``experiment_id`` (UserError if it does not exist or has no runs); see
     ``analysis.data`` for the frames. The populations are read at generation 0, at each
     run's last stored generation, at every generation the analyses compare or show
-    (``analysis.matching.analysis_generations``) and at ``generations``."""
+    (``analysis.matching.analysis_generations``) and at ``generations``, with every
+    evaluation of their members; ``everything``: every population and every evaluation (the
+    rows ``softevo export`` writes)."""
     with engine.connect() as conn:
         experiment = _experiment_row(conn, experiment_id)
         treatments = _treatments_frame(conn, experiment_id)
@@ -271,7 +275,9 @@ def load_experiment(engine: Engine, experiment_id: int, generations: Iterable[in
         if not run_ids:
             raise UserError(f"experiment e{experiment_id} has no runs")
         runs = _with_last_generation(conn, runs_frame(conn, run_ids))
-        wanted = sorted({*analysis_generations(treatments, runs), *(int(g) for g in generations)})
+        wanted = None
+        if not everything:
+            wanted = sorted({*analysis_generations(treatments, runs), *(int(g) for g in generations)})
         summaries = _generations_frame(conn, run_ids)
         members = _end_members(conn, run_ids, wanted)
         evaluations = _member_evaluations(conn, run_ids, wanted)
@@ -330,17 +336,19 @@ def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
     return runs.merge(last, on="run_id", how="left")
 
 
-def _end_member_filter(run_ids: list[int], wanted: list[int]):
+def _end_member_filter(run_ids: list[int], wanted: list[int] | None):
     """WHERE clause: population rows of ``run_ids`` at a ``wanted`` generation or the run's
-    last one."""
+    last one (every generation when ``wanted`` is None)."""
     members, runs = PopulationMember.__table__, Run.__table__
+    if wanted is None:
+        return members.c.run_id.in_(run_ids)
     return and_(
         members.c.run_id.in_(run_ids),
         or_(members.c.generation.in_(wanted), members.c.generation == runs.c.generation),
     )
 
 
-def _end_members(conn: Connection, run_ids: list[int], wanted: list[int]) -> pd.DataFrame:
+def _end_members(conn: Connection, run_ids: list[int], wanted: list[int] | None) -> pd.DataFrame:
     """Population rows (run_id, generation, individual_id, front_rank) at the ``wanted``
     generations and the last stored generation of each run."""
     members, runs = PopulationMember.__table__, Run.__table__
@@ -354,17 +362,21 @@ def _end_members(conn: Connection, run_ids: list[int], wanted: list[int]) -> pd.
     return pd.DataFrame(result.fetchall(), columns=columns)
 
 
-def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int]) -> pd.DataFrame:
-    """Every evaluation of the individuals in ``_end_members``, with the export's
-    individuals columns (``INDIVIDUAL_COLUMNS``)."""
+def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int] | None) -> pd.DataFrame:
+    """Every evaluation of the individuals in ``_end_members`` (of every individual of the
+    runs when ``wanted`` is None), with the export's individuals columns
+    (``INDIVIDUAL_COLUMNS``)."""
     evaluations = Evaluation.__table__
     members, runs = PopulationMember.__table__, Run.__table__
-    wanted = (
-        select(members.c.individual_id)
-        .join(runs, members.c.run_id == runs.c.id)
-        .where(_end_member_filter(run_ids, wanted))
-    )
-    result = conn.execute(evaluation_rows(evaluations.c.individual_id.in_(wanted)))
+    if wanted is None:
+        where = evaluations.c.run_id.in_(run_ids)
+    else:
+        where = evaluations.c.individual_id.in_(
+            select(members.c.individual_id)
+            .join(runs, members.c.run_id == runs.c.id)
+            .where(_end_member_filter(run_ids, wanted))
+        )
+    result = conn.execute(evaluation_rows(where))
     frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))
     frame["parent_id"] = frame["parent_id"].astype("Int64")
     return frame[INDIVIDUAL_COLUMNS]

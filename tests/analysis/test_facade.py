@@ -22,6 +22,24 @@ def test_load_experiment_is_the_stored_experiment(tiny, tiny_data):
     assert latest.experiment["id"] == tiny.experiment_id
 
 
+def test_load_experiment_reads_every_row_softevo_export_writes(tiny):
+    from softevo.service.db.export import individuals_frame, populations_frame
+
+    data = softevo.load_experiment(tiny.url, f"e{tiny.experiment_id}")
+    with tiny.engine.connect() as conn:
+        populations = populations_frame(conn, tiny.run_ids)
+        evaluations = individuals_frame(conn, tiny.run_ids)
+    key = ["run_id", "generation", "individual_id"]
+    assert len(data.populations) == len(populations)  # was: generation 0 and the last only
+    assert sorted(map(tuple, data.populations[key].to_numpy().tolist())) == sorted(
+        map(tuple, populations[key].to_numpy().tolist())
+    )
+    assert len(data.evaluations) == len(evaluations)  # was: only the kept members' evaluations
+    assert data.populations["distance"].notna().all()  # each member with its traits
+    part = softevo.load_experiment(tiny.url, f"e{tiny.experiment_id}", generations=[1])
+    assert 1 in set(part.populations["generation"]) and len(part.evaluations) < len(data.evaluations)
+
+
 def test_simulate_and_describe_are_the_layers_functions():
     body = np.array([[[2]], [[1]], [[2]]])
     scene = {"body": body.tolist(), "duration": {"cycles": 1}}
