@@ -13,8 +13,9 @@
 
 EXPERIMENT is an id (``3``, ``e3``, ``exp-3``), ``latest`` or a name (the newest of that
 name); INDIVIDUAL is an individual's database id (as ``softevo lineage`` and the exports
-show). ``show`` and ``export-vxa`` use the environment of the individual's latest evaluation
-unless ``--environment`` is given.
+show), or a run (``latest``, ``r5``, a name: ``service.db.runs.resolve_individual``) for its
+best individual in its last world. ``show`` and ``export-vxa`` use the environment of the
+individual's latest evaluation unless ``--environment`` is given.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.service.cli_runs import DbOption
+from softevo.service.cli_runs import INDIVIDUAL_HELP, DbOption, one_individual
 
 EnvironmentOption = Annotated[
     str | None,
@@ -53,7 +54,7 @@ def report(
 
 
 def show(
-    individual: Annotated[int, typer.Argument(metavar="INDIVIDUAL")],
+    individual: Annotated[str, typer.Argument(metavar="INDIVIDUAL", help=INDIVIDUAL_HELP)],
     out: Annotated[Path, typer.Option("--out", help="FILE.gif or FILE.mp4")],
     environment: EnvironmentOption = None,
     fps: Annotated[int, typer.Option("--fps", help="playback frames per second")] = 20,
@@ -62,13 +63,12 @@ def show(
 ) -> None:
     """Animate a stored individual's evaluated motion (re-simulated, frames recorded)."""
     from softevo.analysis.motion import animate, movie_writer, stored_motion
-    from softevo.service.db import open_database
     from softevo.service.db.individuals import individual_record
 
     if fps < 1:
         raise UserError(f"--fps must be >= 1 (got {fps})")
     movie_writer(out, fps)  # a bad --out fails before the simulation
-    motion = stored_motion(individual_record(open_database(db, create=False), individual), environment)
+    motion = stored_motion(individual_record(*one_individual(db, individual)), environment)
     with _frame_progress(not quiet) as on_frame:
         animate(motion, out, fps=fps, on_frame=on_frame)
     stored = "-" if motion.stored_distance is None else f"{motion.stored_distance:.4g}"
@@ -76,20 +76,19 @@ def show(
 
 
 def export_vxa(
-    individual: Annotated[int, typer.Argument(metavar="INDIVIDUAL")],
+    individual: Annotated[str, typer.Argument(metavar="INDIVIDUAL", help=INDIVIDUAL_HELP)],
     out: Annotated[Path, typer.Option("--out", help="FILE.vxa")],
     environment: EnvironmentOption = None,
     db: DbOption = None,
 ) -> None:
     """Write a stored individual as a VoxCAD .vxa file."""
     from softevo.analysis.vxa import record_vxa
-    from softevo.service.db import open_database
     from softevo.service.db.individuals import individual_record
 
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")
     with _warning_lines():
-        document = record_vxa(individual_record(open_database(db, create=False), individual), environment)
+        document = record_vxa(individual_record(*one_individual(db, individual)), environment)
     try:
         out.write_text(document, encoding="iso-8859-1")
     except OSError as exc:

@@ -10,7 +10,9 @@
   generation each first changed (``service.db.exaptation.exaptation``; the JSON is that of
   ``GET /runs/{id}/exaptation`` without paging).
 
-RUN is a run id (``5``, ``r5``, ``run-5``). ``docs/sql.md`` gives the same as SQL.
+RUN is a run id (``5``, ``r5``, ``run-5``), or ``latest``, ``e2`` or an experiment's name
+for an experiment of one run (``service.db.runs.resolve_run``). ``docs/sql.md`` gives the
+same as SQL.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.service.cli_runs import DbOption
+from softevo.service.cli_runs import RUN_HELP, DbOption
 
 PAGE = 10_000
 PHYLOGENY_COLUMNS = (
@@ -46,19 +48,8 @@ TRAIT_HEADERS = {
 }
 
 
-def one_run(conn, reference: str) -> int:
-    """The run id ``reference`` names; UserError unless it names exactly one run."""
-    from softevo.service.db.runs import parse_reference, resolve_runs
-
-    kind, _ = parse_reference(reference)
-    run_ids = resolve_runs(conn, reference)
-    if kind != "run" or len(run_ids) != 1:
-        raise UserError(f"{reference!r} is not one run; give a run id such as r5")
-    return run_ids[0]
-
-
 def phylogeny(
-    reference: Annotated[str, typer.Argument(metavar="RUN", help="run id: 5, r5")],
+    reference: Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)],
     generation: Annotated[
         int | None, typer.Option("--generation", help="the tree as it stood at this generation")
     ] = None,
@@ -70,6 +61,7 @@ def phylogeny(
     environment and objectives at birth."""
     from softevo.service.db import open_database
     from softevo.service.db.run_tree import run_phylogeny
+    from softevo.service.db.runs import resolve_run
 
     if as_json and as_csv:
         raise UserError("give --json or --csv, not both")
@@ -78,7 +70,7 @@ def phylogeny(
     engine = open_database(db, create=False)
     rows = []
     with engine.connect() as conn:
-        run_id = one_run(conn, reference)
+        run_id = resolve_run(conn, reference)
         total, offset = None, 0
         while total is None or offset < total:
             total, page = run_phylogeny(conn, run_id, generation, limit=PAGE, offset=offset)
@@ -115,7 +107,7 @@ def _phylogeny_table(run_id: int, rows: list[dict]) -> None:
 
 
 def exaptation(
-    reference: Annotated[str, typer.Argument(metavar="RUN", help="run id: 5, r5")],
+    reference: Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)],
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
     db: DbOption = None,
 ) -> None:
@@ -123,10 +115,11 @@ def exaptation(
     to the end, and the traits of each surviving line at the founder, the switch and the end."""
     from softevo.service.db import open_database
     from softevo.service.db.exaptation import exaptation as summary_of
+    from softevo.service.db.runs import resolve_run
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:
-        summary = summary_of(conn, one_run(conn, reference))
+        summary = summary_of(conn, resolve_run(conn, reference))
     if as_json:
         typer.echo(json.dumps(summary, indent=1))
         return

@@ -1,9 +1,11 @@
-"""``softevo run | experiment | status | resume | export | lineage`` (SPEC.md section 7).
+"""``softevo run | experiment | status | resume | export | lineage | best`` (SPEC.md section 7).
 
 Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
 ``sqlite:///softevo.db``) and a local process pool. Runs and experiments are named by
 ``RUN_OR_EXPERIMENT``: ``5``, ``r5`` or ``run-5`` for run 5; ``e2`` or ``exp-2`` for
-experiment 2; ``latest`` for the newest experiment; or an experiment's name.
+experiment 2; ``latest`` for the newest experiment; or an experiment's name. A command on
+one run (``best``) takes an experiment of one run too; INDIVIDUAL (``lineage``) is an
+individual id or a run, for its best individual (``service.db.runs``: the one resolver).
 
 Each command imports what it uses inside its function: ``softevo --help`` and every other
 command start without loading SQLAlchemy, pandas, numba or rich.
@@ -29,6 +31,8 @@ WorkersOption = Annotated[
     typer.Option("--workers", help="evaluation processes (default: all cores; 0: inline)"),
 ]
 QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
+RUN_HELP = "5, r5, run-5; or latest, e2, a name: an experiment of one run"
+INDIVIDUAL_HELP = "an individual id (12), or a run (latest, r5, a name) for its best in its last world"
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
 MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
 
@@ -102,8 +106,11 @@ def run(
     env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
     stiffness: Annotated[
         float | None,
-        typer.Option("--stiffness", help="Young's modulus, MPa (0.001-10); with --evolve-stiffness "
-                     "optional (default 0.1, unused by the physics)"),
+        typer.Option(
+            "--stiffness",
+            help="Young's modulus, MPa (0.001-10); with --evolve-stiffness "
+            "optional (default 0.1, unused by the physics)",
+        ),
     ] = None,
     population: Annotated[int, typer.Option("--population")] = Treatment.population,
     generations: Annotated[int, typer.Option("--generations")] = Treatment.generations,
@@ -179,8 +186,10 @@ def run(
 def experiment(
     preset: Annotated[
         str,
-        typer.Argument(help="paper: the paper's grid (SPEC.md section 5); gradual: its two "
-                       "transitions, abrupt and gradual"),
+        typer.Argument(
+            help="paper: the paper's grid (SPEC.md section 5); gradual: its two "
+            "transitions, abrupt and gradual"
+        ),
     ],
     scale: Annotated[str, typer.Option("--scale", help=" | ".join(SCALES))] = "tiny",
     repetitions: Annotated[int | None, typer.Option("--repetitions")] = None,
@@ -297,16 +306,26 @@ def export(
         typer.echo(str(path))
 
 
+def one_individual(db: str | None, reference: str):
+    """(engine, individual id) of the database ``db`` and the individual ``reference`` names
+    (``service.db.runs.resolve_individual``)."""
+    from softevo.service.db import open_database
+    from softevo.service.db.runs import resolve_individual
+
+    engine = open_database(db, create=False)
+    with engine.connect() as conn:
+        return engine, resolve_individual(conn, reference)
+
+
 def lineage(
-    individual: Annotated[int, typer.Argument(metavar="INDIVIDUAL")],
+    individual: Annotated[str, typer.Argument(metavar="INDIVIDUAL", help=INDIVIDUAL_HELP)],
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
     db: DbOption = None,
 ) -> None:
     """An individual's ancestors, newest first, to its root newcomer."""
-    from softevo.service.db import open_database
     from softevo.service.db.status import lineage_records
 
-    records = lineage_records(open_database(db, create=False), individual)
+    records = lineage_records(*one_individual(db, individual))
     if as_json:
         typer.echo(json.dumps(records, indent=2))
         return
@@ -328,11 +347,48 @@ def lineage(
     Console().print(table)
 
 
+def best(
+    reference: Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)],
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    db: DbOption = None,
+) -> None:
+    """A run's best individual in each world it visited (greatest distance), in the order
+    the run met them; the same as GET /runs/{id}/best."""
+    from softevo.service.db import open_database
+    from softevo.service.db.runs import best_per_world, resolve_run
+
+    engine = open_database(db, create=False)
+    with engine.connect() as conn:
+        run_id = resolve_run(conn, reference)
+        rows = best_per_world(conn, run_id)
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2))
+        return
+    if not rows:
+        typer.echo(f"run {run_id} has no evaluated individual yet")
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table("world", "individual", "generation", "distance", "active share", "voxels",
+                  title=f"run {run_id}: best per world")  # fmt: skip
+    for r in rows:
+        table.add_row(
+            r["environment"],
+            str(r["individual_id"]),
+            str(r["generation"]),
+            _fmt(r["distance"]),
+            _fmt(r["active_share"]),
+            str(r["voxel_count"]),
+        )
+    Console().print(table)
+
+
 def _fmt(value: float | None) -> str:
     return "-" if value is None else f"{value:.3f}"
 
 
 def register(app: typer.Typer) -> None:
     """Add this module's commands to ``app``."""
-    for command in (run, experiment, status, resume, export, lineage):
+    for command in (run, experiment, status, resume, export, lineage, best):
         app.command(name=command.__name__)(command)

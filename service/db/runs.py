@@ -1,7 +1,8 @@
-"""Runs: summaries and details for the API, one run with its treatment (``run_row``), the
-runs a CLI reference names, the active ones, and ``set_run_status``, the one way a run's
-status changes (besides the generation commit in ``service.db.generations.
-record_generation``, which keeps a cancelled run cancelled).
+"""Runs: summaries and details for the API, one run with its treatment (``run_row``), its
+best individual per world (``best_per_world``), what a CLI reference names (the one
+resolver: ``resolve_runs``, ``resolve_run``, ``resolve_individual``), the active ones, and
+``set_run_status``, the one way a run's status changes (besides the generation commit in
+``service.db.generations.record_generation``, which keeps a cancelled run cancelled).
 """
 
 from __future__ import annotations
@@ -94,8 +95,9 @@ def run_detail(conn: Connection, run_id: int) -> dict[str, Any] | None:
     return row
 
 
-def best_of_run(conn: Connection, run_id: int) -> dict[str, Any] | None:
-    """The evaluation with the greatest distance in the run (first stored on a tie)."""
+def best_of_run(conn: Connection, run_id: int, environment: str | None = None) -> dict[str, Any] | None:
+    """The evaluation with the greatest distance in the run (in ``environment`` if given;
+    first stored on a tie)."""
     evaluations = Evaluation.__table__
     query = (
         select(
@@ -110,8 +112,23 @@ def best_of_run(conn: Connection, run_id: int) -> dict[str, Any] | None:
         .order_by(evaluations.c.distance.desc(), evaluations.c.id)
         .limit(1)
     )
+    if environment is not None:
+        query = query.where(evaluations.c.environment == environment)
     rows = dict_rows(conn, query)
     return rows[0] if rows else None
+
+
+def best_per_world(conn: Connection, run_id: int) -> list[dict[str, Any]]:
+    """The run's best evaluation (``best_of_run``) in each world it was evaluated in, the
+    worlds in the order the run first met them (its last world last)."""
+    evaluations = Evaluation.__table__
+    worlds = conn.execute(
+        select(evaluations.c.environment)
+        .where(evaluations.c.run_id == run_id)
+        .group_by(evaluations.c.environment)
+        .order_by(func.min(evaluations.c.generation), func.min(evaluations.c.id))
+    ).scalars()
+    return [best_of_run(conn, run_id, world) for world in list(worlds)]
 
 
 def run_status(conn: Connection, run_id: int) -> str | None:
@@ -173,6 +190,31 @@ def resolve_runs(conn: Connection, reference: str | None) -> list[int]:
     if not ids and reference is not None:
         raise UserError(f"no run or experiment {reference!r}")
     return ids
+
+
+def resolve_run(conn: Connection, reference: str) -> int:
+    """The one run ``reference`` names (``resolve_runs``): a run (``5``, ``r5``, ``run-5``)
+    or an experiment of one run (``latest``, ``e2``, a name; ``softevo run`` makes those);
+    UserError if it names none or several."""
+    run_ids = resolve_runs(conn, reference)
+    if len(run_ids) != 1:
+        shown = ", ".join(f"r{i}" for i in run_ids[:5]) + (", ..." if len(run_ids) > 5 else "")
+        raise UserError(f"{reference!r} names {len(run_ids)} runs ({shown}); give one, e.g. r{run_ids[0]}")
+    return run_ids[0]
+
+
+def resolve_individual(conn: Connection, reference: str) -> int:
+    """The individual ``reference`` names: an individual id (``12``), or any other reference
+    to one run (``resolve_run``: ``latest``, ``r5``, ``e2``, a name) for its best individual
+    in its last world (``best_per_world``); UserError if there is none."""
+    text = reference.strip()
+    if text.isdigit():
+        return int(text)
+    run_id = resolve_run(conn, text)
+    best = best_per_world(conn, run_id)
+    if not best:
+        raise UserError(f"run {run_id} ({reference!r}) has no evaluated individual yet")
+    return int(best[-1]["individual_id"])
 
 
 def parse_reference(reference: str | None) -> tuple[str, int | None]:

@@ -140,9 +140,9 @@ def test_phylogeny_cli_and_rest_list_the_same_tree(served, capsys):
 def test_user_mistakes_are_one_line(served, capsys):
     engine, url, run_id, base = served
     with pytest.raises(SystemExit) as exit_info:
-        main(["exaptation", "e1", "--db", url])
+        main(["exaptation", "e99", "--db", url])  # e1 is an experiment of one run: its run
     assert exit_info.value.code == 2
-    assert "not one run" in capsys.readouterr().err
+    assert "no run or experiment 'e99'" in capsys.readouterr().err
     assert httpx.get(f"{base}/runs/999/exaptation").status_code == 404
     static = tinyrun.new_run(
         engine, Treatment("land", 1.0, population=2, generations=1, workspace=(3, 3, 3), cycles=1)

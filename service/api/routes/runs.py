@@ -1,4 +1,5 @@
-"""/runs: list (filters), one run, cancel, per-generation statistics, Pareto front."""
+"""/runs: list (filters), one run, cancel, per-generation statistics, Pareto front, the best
+individual per world."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from softevo.service.api.deps import (
 )
 from softevo.service.api.schemas import (
     MAX_INT32,
+    BestOut,
     ErrorOut,
     FrontOut,
     GenerationOut,
@@ -108,3 +110,13 @@ def front(
         which = "any generation" if generation is None else f"generation {generation}"
         raise HTTPException(404, f"run {run_id} has not stored {which} yet")
     return found
+
+
+@router.get("/{run_id}/best", response_model=list[BestOut], responses=NOT_FOUND)
+def best(run_id: RunId, conn: ConnectionDep):
+    """The run's best evaluation (greatest distance) in each world it was evaluated in, in
+    the order the run met them (its last world last; a land -> water run has two); empty
+    before any evaluation. The same as ``softevo best RUN``."""
+    if db_runs.run_status(conn, run_id) is None:
+        raise HTTPException(404, f"no run {run_id}")
+    return db_runs.best_per_world(conn, run_id)
