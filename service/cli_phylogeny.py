@@ -61,7 +61,7 @@ def phylogeny(
     environment and objectives at birth."""
     from softevo.service.db import open_database
     from softevo.service.db.run_tree import run_phylogeny
-    from softevo.service.db.runs import resolve_run
+    from softevo.service.db.runs import resolve_run, run_row
 
     if as_json and as_csv:
         raise UserError("give --json or --csv, not both")
@@ -71,6 +71,10 @@ def phylogeny(
     rows = []
     with engine.connect() as conn:
         run_id = resolve_run(conn, reference)
+        last = run_row(conn, run_id)["generation"]
+        if generation is not None and generation > last:
+            stored = "no generation yet" if last < 0 else f"generations 0..{last}"
+            raise UserError(f"--generation {generation} is past run {run_id}'s last: it has stored {stored}")
         total, offset = None, 0
         while total is None or offset < total:
             total, page = run_phylogeny(conn, run_id, generation, limit=PAGE, offset=offset)

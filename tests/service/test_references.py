@@ -52,6 +52,9 @@ def test_every_command_takes_latest_and_names(capsys, tmp_path):
         code, out, err = softevo(capsys, "phylogeny", reference, "--json", "--db", db)
         assert code == 0, (reference, err)
         assert {row["id"] for row in json.loads(out)} >= {land_best}
+    code, out, err = softevo(capsys, "phylogeny", "latest", "--generation", "99", "--db", db)
+    assert code == 2 and err.count("\n") == 1, err  # was: the whole tree
+    assert "--generation 99 is past run 1's last: it has stored generations 0..3" in err
     code, out, err = softevo(capsys, "exaptation", "latest", "--json", "--db", db)
     assert code == 0 and json.loads(out)["run_id"] == 1, err
 
