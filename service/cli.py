@@ -30,9 +30,30 @@ def _user_error_types() -> tuple[type[BaseException], ...]:
     return (UserError, SceneError, EngineUnavailable)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from softevo import __version__
+
+        typer.echo(f"softevo {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _group() -> None:
+def _group(
+    version: bool = typer.Option(
+        False, "--version", is_eager=True, callback=_print_version, help="print the version and exit"
+    ),
+) -> None:
     """Evolve soft voxel robots on land and in water."""
+
+
+def usage_error_line(message: str) -> str:
+    """``error: <message>`` of a click usage message ("Missing option '--env'."), read as
+    softevo's own (``error: no run 5``): lower-case first word, no closing full stop."""
+    text = " ".join(str(message).split())
+    if text[:1].isupper() and not text[1:2].isupper():
+        text = text[0].lower() + text[1:]
+    return f"error: {text.removesuffix('.')}"
 
 
 def _register() -> None:
@@ -65,9 +86,11 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:
         # usage errors (unknown option, missing argument) from typer's bundled click
         if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
-            print(f"error: {exc.format_message()}", file=sys.stderr)
+            if exc.format_message().strip():  # empty: no arguments, the help is shown
+                print(usage_error_line(exc.format_message()), file=sys.stderr)
             sys.exit(2)
         raise
+
 
 if __name__ == "__main__":
     main()

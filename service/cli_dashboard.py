@@ -22,6 +22,23 @@ def check_database(url: str, create: bool = True) -> None:
     open_database(url, create=create).dispose()
 
 
+def check_port(host: str, port: int) -> None:
+    """UserError (one line) unless ``host:port`` can be listened on: checked before the
+    server starts, which would otherwise log ``ERROR: ... address already in use`` and stop."""
+    import socket
+
+    from softevo.errors import UserError
+
+    try:
+        family, kind, _, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn binds
+            probe.bind(address)
+    except (OSError, OverflowError) as exc:
+        reason = getattr(exc, "strerror", None) or exc
+        raise UserError(f"cannot listen on {host}:{port}: {reason} (--host, --port)") from None
+
+
 def dashboard(
     db: Annotated[
         str | None, typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB or sqlite:///softevo.db)")
@@ -44,6 +61,7 @@ def dashboard(
     settings = _settings(db=db, host=host, port=port, coordinator=False)
     settings.check_safe()
     check_database(settings.db, create=False)
+    check_port(settings.host, settings.port)
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(name)s %(message)s")
     print(
         f"softevo dashboard on http://{settings.host}:{settings.port}/dashboard/ (Ctrl+C to stop)", flush=True

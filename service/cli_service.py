@@ -50,13 +50,14 @@ def serve(
     import uvicorn
 
     from softevo.service.api.app import create_app
-    from softevo.service.cli_dashboard import check_database
+    from softevo.service.cli_dashboard import check_database, check_port
 
     settings = _settings(
         host=host, port=port, db=db, redis_url=redis_url, coordinator=False if no_coordinator else None
     )
     settings.check_safe()
     check_database(settings.db)
+    check_port(settings.host, settings.port)
     logging.basicConfig(level=log_level.upper(), format="%(asctime)s %(name)s %(message)s")
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level=log_level)
 
