@@ -145,6 +145,10 @@ def run(
     body_rule: Annotated[
         str, typer.Option("--body-rule", help="any | evosoro (>= 30% full, >= 10% active)")
     ] = Treatment.body_rule,
+    name: Annotated[
+        str | None,
+        typer.Option("--name", help="the experiment's name (default: the treatment's, e.g. 'land S=1MPa')"),
+    ] = None,
     db: DbOption = None,
     workers: WorkersOption = None,
     quiet: QuietOption = False,
@@ -178,7 +182,9 @@ def run(
         body_rule=body_rule,
     )
     engine = open_database(db)
-    experiment_id, run_ids = create(engine, "run", [treatment])
+    if name is not None and not name.strip():
+        raise UserError("--name must not be empty")
+    experiment_id, run_ids = create(engine, name or treatment.name, [treatment])
     typer.echo(f"experiment {experiment_id} (e{experiment_id}): run {run_ids[0]}", err=True)
     _execute(engine, run_ids, workers, quiet, treatment.genomes_per_task)
 

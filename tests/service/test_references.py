@@ -21,10 +21,10 @@ TINY = ["--population", "3", "--generations", "4", "--workspace", "3,3,3", "--cy
 NAME = "ref-test"
 
 
-def make_runs(capsys, db: str) -> None:
+def make_runs(capsys, db: str, *extra: str) -> None:
     code, _, err = softevo(
         capsys, "run", "--env", "water-land", "--stiffness", "0.1", "--switch-at", "2", *TINY,
-        "--workers", "0", "--quiet", "--db", db,
+        "--workers", "0", "--quiet", "--db", db, *extra,
     )  # fmt: skip
     assert code == 0, err
 
@@ -48,7 +48,9 @@ def test_every_command_takes_latest_and_names(capsys, tmp_path):
     assert {r["environment"]: r["distance"] for r in rows} == pytest.approx(best)
     land_best = rows[-1]["individual_id"]
 
-    for reference in ("latest", "r1", "1", "run-1", "e1"):
+    experiment = pd.read_csv(tmp_path / "out" / "runs.csv")["experiment"].tolist()
+    assert experiment == ["water-land S=0.1MPa"]  # the treatment's name (was: "run")
+    for reference in ("latest", "r1", "1", "run-1", "e1", "water-land S=0.1MPa"):
         code, out, err = softevo(capsys, "phylogeny", reference, "--json", "--db", db)
         assert code == 0, (reference, err)
         assert {row["id"] for row in json.loads(out)} >= {land_best}
@@ -74,7 +76,8 @@ def test_every_command_takes_latest_and_names(capsys, tmp_path):
 
 def test_a_reference_to_several_runs_or_none_is_one_line(capsys, tmp_path):
     db = f"sqlite:///{tmp_path / 'refs.db'}"
-    make_runs(capsys, db)
+    make_runs(capsys, db, "--name", "mine")
+    assert softevo(capsys, "best", "mine", "--db", db)[0] == 0
     engine = open_database(db)
     create(engine, NAME, [Treatment("land", 0.1, population=3, generations=2, repetitions=2)])
     engine.dispose()
