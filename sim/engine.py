@@ -52,6 +52,18 @@ class Result:
     frames: dict | None = None  # {"t": (f,), "positions": (f, n, 3)} when recorded
     removed_voxels: int = 0  # voxels dropped as not face-connected to the largest component
 
+    def __repr__(self) -> str:
+        """The scalars and the arrays' sizes, not their contents (a trajectory is thousands
+        of numbers)."""
+        frames = None if self.frames is None else len(self.frames.get("t", ()))
+        samples = len(self.com_trajectory.get("t", ()))
+        return (
+            f"Result(distance={self.distance:.6g}, stable={self.stable}, reason={self.reason!r}, "
+            f"steps={self.steps}, dt={self.dt:.3g}, simulated_seconds={self.simulated_seconds:.4g}, "
+            f"voxels={len(self.voxels)}, removed_voxels={self.removed_voxels}, "
+            f"com_trajectory=<{samples} samples>, frames={'None' if frames is None else f'<{frames}>'})"
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON types only (lists, floats, ints, bools, None)."""
         out = {

@@ -40,7 +40,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -197,7 +197,7 @@ class Result:
     active_share: float = 0.0
     frequency: float | None = None
     descriptors: dict[str, Any] | None = None
-    phenotype: dict[str, Any] | None = None
+    phenotype: dict[str, Any] | None = field(default=None, repr=False)  # body arrays: not in repr
     seconds: float = 0.0
 
     @property
