@@ -21,6 +21,7 @@ import base64
 import html
 import math
 import tempfile
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -81,6 +82,25 @@ METHODS = (
     "share; both frequencies are shown. A transition run's values after the switch are "
     "measured in its second environment."
 )
+
+
+class ReportWarning(UserWarning):
+    """What a report's reader must know about its statistics (``softevo report`` prints it
+    as a ``warning:`` line; the report says it too)."""
+
+
+def sample_size_warning(data: ExperimentData) -> str | None:
+    """Why the intervals and tests of ``data`` mean nothing for some treatments (fewer than
+    2 runs: an interval of one value, p = 1), or None."""
+    runs = data.runs.groupby("treatment", sort=False)["run_id"].nunique()
+    single = [str(name) for name, count in runs.items() if count < 2]
+    if not single:
+        return None
+    return (
+        f"{len(single)} of {len(runs)} treatment(s) have a single run ({', '.join(single)}): "
+        "their intervals are degenerate and their tests (p = 1) say nothing; run 2 or more "
+        "repetitions per treatment"
+    )
 
 
 # ---- document model: blocks rendered to Markdown and to HTML ----------------------------------
@@ -346,6 +366,9 @@ def write_report(
     if data.generations.empty:
         raise UserError(f"experiment e{data.experiment['id']} has no stored generation yet")
     out = _output_dir(out_dir)
+    note = sample_size_warning(data)
+    if note is not None:
+        warnings.warn(note, ReportWarning, stacklevel=2)
     figures_dir = out / "figures"
     animation = animation and robots is not None
     with _steps(9 if animation else 8, progress) as step:
@@ -473,6 +496,9 @@ def build_document(
     doc.paragraph(timing_text(data))
     if evaluation is not None:
         doc.paragraph(evaluation)
+    note = sample_size_warning(data)
+    if note is not None:
+        doc.paragraph(f"Warning: {note}.")
     doc.heading("Summary")
     doc.paragraph(
         f"Mean over repetitions with its {INTERVAL} interval, at each generation the "
@@ -492,6 +518,8 @@ def build_document(
     if exaptation is not None and not exaptation.empty:
         exaptation_block(doc, exaptation)
     doc.heading("Statistics")
+    if note is not None:
+        doc.paragraph(f"Warning: {note}.")
     doc.paragraph(METHODS)
     doc.table(_statistics_display(stats))
     return doc

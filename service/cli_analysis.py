@@ -46,9 +46,11 @@ def report(
 ) -> None:
     """Write an experiment's report: report.html (self-contained), report.md, figures, CSVs."""
     # the report pulls in matplotlib and the analyses: load them only for this command
+    from softevo.analysis.report import ReportWarning
     from softevo.service.reports import write_report
 
-    result = write_report(db, experiment, out, animation=animation, progress=not quiet)
+    with _warning_lines(ReportWarning):
+        result = write_report(db, experiment, out, animation=animation, progress=not quiet)
     typer.echo(str(result.html))
     typer.echo(str(result.markdown))
 
@@ -118,17 +120,20 @@ def import_vxa(
 
 
 @contextmanager
-def _warning_lines():
-    """Print each ``VxaWarning`` raised inside as one ``warning:`` line on stderr."""
+def _warning_lines(*categories: type[Warning]):
+    """Print each warning of ``categories`` (default ``VxaWarning``) raised inside as one
+    ``warning:`` line on stderr."""
     import warnings
 
     from softevo.analysis.vxa import VxaWarning
 
+    categories = categories or (VxaWarning,)
     with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", VxaWarning)
+        for category in categories:
+            warnings.simplefilter("always", category)
         yield
     for warning in caught:
-        if issubclass(warning.category, VxaWarning):
+        if issubclass(warning.category, categories):
             typer.echo(f"warning: {warning.message}", err=True)
         else:
             warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)

@@ -122,3 +122,20 @@ def test_the_analysis_report_needs_only_the_data(tiny_data, tmp_path):
     assert [f.name for f in result.figures] == [name for name in FIGURES if name not in needing_more]
     assert result.animation is None
     assert "Evaluation: voxel edge" not in result.html.read_text(encoding="utf-8")
+
+
+def test_a_report_of_single_runs_warns_that_its_statistics_say_nothing(capsys, tiny, tmp_path):
+    url = f"sqlite:///{tmp_path / 'one.db'}"
+    code, _, err = softevo(capsys, "run", "--env", "water", "--stiffness", "0.1", "--population", "3",
+                           "--generations", "2", "--workspace", "3,3,3", "--cycles", "1", "--workers", "0",
+                           "-q", "--db", url)  # fmt: skip
+    assert code == 0, err
+    out = tmp_path / "r"
+    code, _, err = softevo(capsys, "report", "latest", "--out", str(out), "--db", url, "--no-animation", "-q")
+    assert code == 0, err
+    warning = [line for line in err.splitlines() if line.startswith("warning: ")]
+    assert len(warning) == 1 and "1 of 1 treatment(s) have a single run (water S=0.1MPa)" in warning[0]
+    assert "(p = 1) say nothing" in (out / "report.md").read_text()  # was: degenerate CIs, no word
+    code, _, err = softevo(capsys, "report", f"e{tiny.experiment_id}", "--out", str(tmp_path / "two"),
+                           "--db", tiny.url, "--no-animation", "-q")  # fmt: skip
+    assert code == 0 and "warning" not in err  # 2 repetitions: no warning
