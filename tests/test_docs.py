@@ -1,0 +1,79 @@
+"""The docs say what the code does (issue 28, item 7): every `softevo` command line in the
+README and docs/ names a command and options that exist, and the README describes
+docs/results at the scale and model its own README says made it."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+import typer
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+
+
+def softevo_lines(path: Path) -> list[str]:
+    """The `softevo ...` lines inside the file's fenced blocks (continuations joined)."""
+    lines, inside, pending = [], False, ""
+    for raw in path.read_text(encoding="utf-8").splitlines():
+        if raw.startswith("```"):
+            inside = not inside
+            continue
+        if not inside:
+            continue
+        text = pending + raw.strip()
+        if text.endswith("\\"):
+            pending = text[:-1] + " "
+            continue
+        pending = ""
+        if text.startswith("softevo "):
+            lines.append(text)
+    return lines
+
+
+def click_app():
+    from softevo.service.cli import _register, app
+
+    _register()
+    return typer.main.get_command(app)
+
+
+CASES = [(path, line) for path in DOCS for line in softevo_lines(path)]
+
+
+def test_the_docs_hold_softevo_commands():
+    assert len(CASES) >= 10
+
+
+@pytest.mark.parametrize("path,line", CASES, ids=[f"{p.name}:{i}" for i, (p, _) in enumerate(CASES)])
+def test_every_documented_command_and_option_exists(path, line):
+    group = click_app()
+    text = re.split(r" #| > | && |; | & ", line)[0]
+    name = text.split()[1]
+    if name.startswith("-"):
+        assert name in {"--version", "--help"}, f"{path.name}: {line}"
+        return
+    for alternative in name.split("|"):  # a synopsis: `softevo run|experiment ...`
+        command = group.commands.get(alternative)
+        assert command is not None, f"{path.name}: no command {alternative!r} in {line!r}"
+        known = {opt for param in command.params for opt in (*param.opts, *param.secondary_opts)}
+        for option in re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", text):
+            assert option in known | {"--help"}, f"{path.name}: {alternative} has no option {option!r} ({line!r})"
+
+
+def test_the_readme_names_the_scale_and_model_of_docs_results():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    sentence = next(line for line in readme.splitlines() if "run of the paper's grid" in line)
+    results = (ROOT / "docs" / "results" / "README.md").read_text(encoding="utf-8")
+    command = next(line for line in softevo_lines(ROOT / "docs" / "results" / "README.md") if " experiment " in line)
+    scale = re.search(r"--scale (\w+)", command).group(1)
+    assert f"`{scale}`" in sentence
+    model = re.search(r"--model ([\w-]+)", command)
+    if model is not None:
+        name = {"voxelyze-2": "Voxelyze 2", "voxcad-land-water": "paper's engine"}[model.group(1)]
+        assert name in readme[readme.index(sentence) : readme.index(sentence) + 300]
+    runs = (ROOT / "docs" / "results" / "export" / "runs.csv").read_text(encoding="utf-8").splitlines()
+    assert runs[1].split(",")[1] == f"paper-{scale}"
+    assert "9030777" in results
