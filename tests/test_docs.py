@@ -60,14 +60,16 @@ def test_every_documented_command_and_option_exists(path, line):
         assert command is not None, f"{path.name}: no command {alternative!r} in {line!r}"
         known = {opt for param in command.params for opt in (*param.opts, *param.secondary_opts)}
         for option in re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", text):
-            assert option in known | {"--help"}, f"{path.name}: {alternative} has no option {option!r} ({line!r})"
+            message = f"{path.name}: {alternative} has no option {option!r} ({line!r})"
+            assert option in known | {"--help"}, message
 
 
 def test_the_readme_names_the_scale_and_model_of_docs_results():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     sentence = next(line for line in readme.splitlines() if "run of the paper's grid" in line)
     results = (ROOT / "docs" / "results" / "README.md").read_text(encoding="utf-8")
-    command = next(line for line in softevo_lines(ROOT / "docs" / "results" / "README.md") if " experiment " in line)
+    documented = softevo_lines(ROOT / "docs" / "results" / "README.md")
+    command = next(line for line in documented if " experiment " in line)
     scale = re.search(r"--scale (\w+)", command).group(1)
     assert f"`{scale}`" in sentence
     model = re.search(r"--model ([\w-]+)", command)
