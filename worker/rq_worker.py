@@ -291,12 +291,12 @@ def wait_for_redis(redis_url: str, seconds: float = CONNECT_TIMEOUT) -> None:
 
 
 def drained(connection: Redis, queue: str) -> bool:
-    """Whether ``queue`` holds no job and none of its jobs is running on any worker (so no
-    coordinator waits on a result that would make it queue more)."""
+    """Whether ``queue`` holds no job and none of its jobs is running on any live worker (so
+    no coordinator waits on a result that would make it queue more)."""
     rq_queue = Queue(queue, connection=connection, serializer=JSONSerializer, job_class=EvaluationJob)
-    if rq_queue.count:
-        return False
-    return StartedJobRegistry(queue=rq_queue, job_class=EvaluationJob).count == 0
+    running = StartedJobRegistry(queue=rq_queue, job_class=EvaluationJob)
+    running.cleanup()  # a dead worker's job goes back to the queue (or fails), as RQ would
+    return rq_queue.count == 0 and running.count == 0
 
 
 def run_worker(

@@ -68,6 +68,9 @@ def test_the_queue_is_not_drained_while_one_of_its_jobs_runs(redis_url):
     connection.zadd(registry.key, {"run1-gen0-batch0-0123456789:execution": time.time() + 600})
     assert not drained(connection, queue)  # its result will make the coordinator queue more
     connection.delete(registry.key)
+    connection.zadd(registry.key, {"run1-gen0-batch1-0123456789:execution": time.time() - 60})
+    assert drained(connection, queue)  # a dead worker's entry, expired: cleaned up, not waited on
+    connection.delete(registry.key)
 
 
 def test_an_unreachable_redis_is_one_line_and_exit_2_after_a_bounded_wait():
