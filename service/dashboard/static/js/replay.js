@@ -1,17 +1,21 @@
-// 3D replay of recorded motion with three.js (vendored): one instanced cube per voxel, placed
-// at its recorded centre (interpolated between frames). Active voxels red, passive cyan, as in
-// the paper; an active voxel's brightness is its actuation at that moment,
+// 3D replay of recorded motion with three.js (vendored): one connected surface mesh, as VoxCAD
+// draws it: each lattice corner on the surface is one vertex, the mean of the corners of the
+// voxels that share it (mesh.js, as sim/mesh.py), placed from the recorded centres
+// (interpolated between frames); two triangles per exposed face. Active voxels' faces red,
+// passive cyan, as in the paper; an active voxel's brightness is its actuation at that moment,
 // sin(2 pi f (t - t_settle) + phase), so the phase pattern shows as a travelling shade.
 // Units: metres and seconds, z up, the floor (on land) at z = 0.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { meshVertices, neighbours, voxelAxes } from "./mesh.js";
 
 const ACTIVE = new THREE.Color("#e8322b");
 const PASSIVE = new THREE.Color("#27c6d9");
 const BACKGROUND = { land: "#eef2f6", water: "#d6e9f6" };
-const CUBE_FILL = 0.9; // cube side / voxel size: the gap shows the lattice
 const MIN_BRIGHTNESS = 0.25; // of an active voxel fully contracted
-const MIN_SIZE = 0.1; // smallest voxel size / rest size, as sim/kernels.py's MIN_SIZE
+// light baked into the faces by their normal (unlit: cheap on CPU-rendered WebGL), as if lit
+// from above, front and right: shade of a face facing +x, -x, +y, -y, +z, -z
+const SHADES = [0.62, 0.3, 0.26, 0.45, 1.0, 0.18];
 const GRID_CELLS = 30; // floor grid, in voxel lengths (at least; more for a large robot)
 const GRID_SEGMENT = 5; // cells per drawn segment of a grid line
 const MAX_STEP_S = 0.1; // wall time a single tick may advance (after a hidden tab)
@@ -25,21 +29,6 @@ export function actuation(waveform, angle) {
     return u < 0.2 ? Math.cos((Math.PI * u) / 0.2) : -Math.cos((Math.PI * (u - 0.2)) / 0.8);
   }
   return Math.sin(angle);
-}
-
-/** A cube of side `side` (m) whose faces carry a fixed shade (linear RGB factors) per
- * direction, as if lit from above, front and right: cheap on CPU-rendered WebGL. */
-function shadedBox(side) {
-  const geometry = new THREE.BoxGeometry(side, side, side);
-  const normals = geometry.getAttribute("normal");
-  const shades = new Float32Array(normals.count * 3);
-  for (let i = 0; i < normals.count; i++) {
-    const [x, y, z] = [normals.getX(i), normals.getY(i), normals.getZ(i)];
-    const shade = z > 0.5 ? 1.0 : z < -0.5 ? 0.18 : x > 0.5 ? 0.62 : x < -0.5 ? 0.3 : y < -0.5 ? 0.45 : 0.26;
-    shades.fill(shade, 3 * i, 3 * i + 3);
-  }
-  geometry.setAttribute("color", new THREE.BufferAttribute(shades, 3));
-  return geometry;
 }
 
 /** A square grid of `cells` x `cells` cells of side `spacing` in the x-y plane, centred on
@@ -62,18 +51,16 @@ function gridSegments(cells, spacing) {
   return geometry;
 }
 
-/** Indices of the voxels with at least one free face (the others cannot be seen). */
-function surfaceVoxels(motion) {
-  const key = (i, j, k) => `${i},${j},${k}`;
-  const present = new Set();
-  for (let v = 0; v < motion.voxelCount; v++) present.add(key(...motion.lattice.subarray(3 * v, 3 * v + 3)));
-  const steps = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]];
-  const shown = [];
-  for (let v = 0; v < motion.voxelCount; v++) {
-    const [i, j, k] = motion.lattice.subarray(3 * v, 3 * v + 3);
-    if (steps.some(([di, dj, dk]) => !present.has(key(i + di, j + dj, k + dk)))) shown.push(v);
-  }
-  return Int32Array.from(shown);
+/** Shade of the triangle whose vertices are out[at..at+9): SHADES blended by the squares of
+ * its unit normal's components (they sum to 1). */
+function shadeOf(out, at) {
+  const ux = out[at + 3] - out[at], uy = out[at + 4] - out[at + 1], uz = out[at + 5] - out[at + 2];
+  const wx = out[at + 6] - out[at], wy = out[at + 7] - out[at + 1], wz = out[at + 8] - out[at + 2];
+  const n = [uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx];
+  const square = n[0] * n[0] + n[1] * n[1] + n[2] * n[2] || 1;
+  let shade = 0;
+  for (let axis = 0; axis < 3; axis++) shade += ((n[axis] * n[axis]) / square) * SHADES[2 * axis + (n[axis] > 0 ? 0 : 1)];
+  return shade;
 }
 
 /** Phase (radians) of each recorded voxel, matched by lattice index; 0 where unknown. */
@@ -135,7 +122,6 @@ export class Replay {
     this.settle = body ? body.settle_seconds : 0;
     this.omega = body ? 2 * Math.PI * body.frequency : 0;
     this.waveform = body ? body.waveform : "sine";
-    this.amplitude = body ? body.amplitude : 0;
     // play the evaluated motion: from the end of settling (if any) to the end, in a loop
     this.loopStart = Math.min(Math.max(this.start, this.settle), this.end);
     this.time = this.loopStart;
@@ -183,7 +169,7 @@ export class Replay {
 
     this.grid = this._floor(environment, centre);
     scene.add(this.grid);
-    this.mesh = this._voxels();
+    this.mesh = this._surface();
     scene.add(this.mesh);
     Object.assign(this, { renderer, scene, camera, controls, container });
     this._place();
@@ -206,20 +192,22 @@ export class Replay {
     return grid;
   }
 
-  /** One cube instance per surface voxel (instance n shows voxel this.shown[n]). */
-  _voxels() {
-    this.shown = surfaceVoxels(this.motion);
-    const side = CUBE_FILL * this.voxelSize;
-    // unlit, light baked into the faces: cheap enough for 60 fps on software WebGL
-    const material = new THREE.MeshBasicMaterial({ vertexColors: true });
-    const mesh = new THREE.InstancedMesh(shadedBox(side), material, this.shown.length);
-    mesh.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
-    this.shown.forEach((v, n) => {
-      mesh.setMatrixAt(n, new THREE.Matrix4());
-      mesh.setColorAt(n, this.motion.material[v] === 2 ? ACTIVE : PASSIVE);
-    });
-    mesh.instanceColor.setUsage(THREE.DynamicDrawUsage);
-    mesh.frustumCulled = false; // the instances move away from the geometry's bounds
+  /** The surface mesh: three vertices of its own per triangle (meshFace), so that each
+   * triangle keeps its voxel's colour; positions and colours are rewritten every frame. */
+  _surface() {
+    const { meshFace, meshVert, lattice, voxelCount } = this.motion;
+    this.triangleCount = meshFace.length / 4;
+    this.nbr = neighbours(lattice, voxelCount);
+    this.axes = new Float32Array(9 * voxelCount);
+    this.vertices = new Float32Array((meshVert.length / 8) * 3);
+    this.shade = new Float32Array(this.triangleCount);
+    const geometry = new THREE.BufferGeometry();
+    for (const name of ["position", "color"]) {
+      const attribute = new THREE.BufferAttribute(new Float32Array(9 * this.triangleCount), 3);
+      geometry.setAttribute(name, attribute.setUsage(THREE.DynamicDrawUsage));
+    }
+    const mesh = new THREE.Mesh(geometry, new THREE.MeshBasicMaterial({ vertexColors: true }));
+    mesh.frustumCulled = false; // the robot moves away from the geometry's first bounds
     return mesh;
   }
 
@@ -247,10 +235,10 @@ export class Replay {
     return k;
   }
 
-  /** Interpolated positions of every voxel at this.time into this.current (V*3, m), and the
-   * surface voxels' instances moved there. */
+  /** Interpolated positions of every voxel at this.time into this.current (V*3, m), the
+   * mesh's vertices there (this.vertices, M*3), its triangles and their shades. */
   _place() {
-    const { positions, voxelCount, t } = this.motion;
+    const { positions, voxelCount, t, meshFace, meshVert } = this.motion;
     const k = this._frameAt(this.time);
     const next = Math.min(k + 1, t.length - 1);
     const alpha = next > k ? Math.min(1, Math.max(0, (this.time - t[k]) / (t[next] - t[k]))) : 0;
@@ -259,35 +247,42 @@ export class Replay {
     for (let i = 0; i < voxelCount * 3; i++) {
       this.current[i] = positions[a + i] + alpha * (positions[b + i] - positions[a + i]);
     }
-    const matrices = this.mesh.instanceMatrix.array;
-    for (let n = 0; n < this.shown.length; n++) {
-      const p = 3 * this.shown[n];
-      matrices[16 * n + 12] = this.current[p];
-      matrices[16 * n + 13] = this.current[p + 1];
-      matrices[16 * n + 14] = this.current[p + 2];
+    voxelAxes(this.current, this.nbr, this.voxelSize, voxelCount, this.axes);
+    meshVertices(meshVert, this.current, this.axes, this.vertices);
+    const drawn = this.mesh.geometry.getAttribute("position");
+    const out = drawn.array, vertices = this.vertices;
+    for (let n = 0; n < this.triangleCount; n++) {
+      for (let corner = 0; corner < 3; corner++) {
+        const from = 3 * meshFace[4 * n + corner], to = 9 * n + 3 * corner;
+        out[to] = vertices[from]; out[to + 1] = vertices[from + 1]; out[to + 2] = vertices[from + 2];
+      }
+      this.shade[n] = shadeOf(out, 9 * n);
     }
-    this.mesh.instanceMatrix.needsUpdate = true;
+    drawn.needsUpdate = true;
   }
 
-  /** Active voxels: brightness and size from their actuation now (the size the simulator
-   * gives them, L (1 + amplitude * signal)); passive voxels keep colour and size. */
+  /** Triangle colours: the voxel's material, active voxels' brightness from their actuation
+   * now, times the triangle's shade. */
   _actuate() {
-    const colours = this.mesh.instanceColor.array;
-    const matrices = this.mesh.instanceMatrix.array;
+    const { meshFace, material } = this.motion;
+    const colours = this.mesh.geometry.getAttribute("color");
     const actuated = this.time >= this.settle && this.omega > 0;
     const angle = this.omega * (this.time - this.settle);
-    for (let n = 0; n < this.shown.length; n++) {
-      const v = this.shown[n];
-      if (this.motion.material[v] !== 2) continue;
-      const signal = actuated ? actuation(this.waveform, angle + this.phase[v]) : 0;
-      const brightness = MIN_BRIGHTNESS + ((1 - MIN_BRIGHTNESS) * (signal + 1)) / 2;
-      colours[3 * n] = ACTIVE.r * brightness;
-      colours[3 * n + 1] = ACTIVE.g * brightness;
-      colours[3 * n + 2] = ACTIVE.b * brightness;
-      const size = Math.max(MIN_SIZE, 1 + this.amplitude * signal);
-      matrices[16 * n] = matrices[16 * n + 5] = matrices[16 * n + 10] = size;
+    for (let n = 0; n < this.triangleCount; n++) {
+      const v = meshFace[4 * n + 3];
+      let brightness = this.shade[n], base = PASSIVE;
+      if (material[v] === 2) {
+        const signal = actuated ? actuation(this.waveform, angle + this.phase[v]) : 0;
+        brightness *= MIN_BRIGHTNESS + ((1 - MIN_BRIGHTNESS) * (signal + 1)) / 2;
+        base = ACTIVE;
+      }
+      for (let corner = 0; corner < 3; corner++) {
+        colours.array[9 * n + 3 * corner] = base.r * brightness;
+        colours.array[9 * n + 3 * corner + 1] = base.g * brightness;
+        colours.array[9 * n + 3 * corner + 2] = base.b * brightness;
+      }
     }
-    this.mesh.instanceColor.needsUpdate = true;
+    colours.needsUpdate = true;
   }
 
   /** Mean of the current voxel centres in x and y (z = 0), metres. */
