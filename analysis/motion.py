@@ -5,9 +5,10 @@
 second); ``stored_motion`` does it for a stored record (same genome, encoding, stiffness,
 cycles and environment as its evaluation; the simulator is deterministic) and
 ``record_motion`` for a stored individual's id.
-``animate`` draws the frames as cubes at the voxels' positions (the voxels' surface faces
-only; active red, passive cyan), the centre of mass's path, and the floor on land, and
-writes a GIF (Pillow) or an MP4 (ffmpeg, when it is installed).
+``animate`` draws each frame's deformed surface mesh (``sim.mesh``, as the dashboard's replay
+and VoxCAD: one vertex per shared lattice corner, one quadrilateral per exposed face, coloured
+by its voxel: active red, passive cyan), the centre of mass's path, and the floor on land,
+and writes a GIF (Pillow) or an MP4 (ffmpeg, when it is installed).
 """
 
 from __future__ import annotations
@@ -27,27 +28,13 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from softevo.analysis.render import ACTIVE_COLOR, EDGE_COLOR, PASSIVE_COLOR, VIEW  # noqa: E402
 from softevo.errors import UserError  # noqa: E402
+from softevo.sim.mesh import deformed_mesh, lattice_mesh  # noqa: E402
 
 FORMATS = (".gif", ".mp4")
 PLAYBACK_FPS = 20
 MAX_FRAMES = 240
 SIZE_INCHES = 6.0
 ANIMATION_DPI = 80
-
-# unit-cube faces: (axis, sign) and their four corners as offsets from the centre, in voxels
-_DIRECTIONS = [(axis, sign) for axis in range(3) for sign in (1, -1)]
-
-
-def _face_corners(axis: int, sign: int) -> np.ndarray:
-    b, c = (axis + 1) % 3, (axis + 2) % 3
-    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * 0.5
-    corners = np.zeros((4, 3))
-    corners[:, axis] = 0.5 * sign
-    corners[:, b], corners[:, c] = square[:, 0], square[:, 1]
-    return corners
-
-
-_CORNERS = np.stack([_face_corners(a, s) for a, s in _DIRECTIONS])  # (6, 4, 3)
 
 
 @dataclass(frozen=True)
@@ -104,45 +91,30 @@ def stored_motion(record: dict, environment: str | None = None) -> Motion:
     return task_motion(task, label, stored_distance(record, task.environment))
 
 
-def lattice_links(voxels: np.ndarray) -> np.ndarray:
-    """Pairs (i, j), shape (k, 2), of face-adjacent voxels of the rest lattice."""
-    index = {tuple(v): k for k, v in enumerate(voxels)}
-    links = []
-    for k, v in enumerate(voxels):
-        for axis in range(3):
-            neighbour = list(v)
-            neighbour[axis] += 1
-            j = index.get(tuple(neighbour))
-            if j is not None:
-                links.append((k, j))
-    return np.array(links, dtype=int).reshape(-1, 2)
+def face_quads(mesh_face: np.ndarray) -> np.ndarray:
+    """The exposed faces of a surface mesh (``sim.mesh``: two consecutive triangles per
+    face, sharing a diagonal) as quadrilaterals: (q, 4) vertex indices, counter-clockwise
+    from outside, each triangle pair's second vertex off the diagonal put between the
+    diagonal's ends."""
+    quads = []
+    for first, second in zip(mesh_face[0::2, :3], mesh_face[1::2, :3], strict=True):
+        (extra,) = set(second.tolist()) - set(first.tolist())
+        for k in range(3):  # the diagonal is the edge of ``first`` that ``second`` also has
+            a, b = first[k], first[(k + 1) % 3]
+            if a in second and b in second:
+                quads.append([a, extra, b, first[(k + 2) % 3]])
+                break
+    return np.array(quads, dtype=int).reshape(-1, 4)
 
 
-def voxel_sizes(positions: np.ndarray, links: np.ndarray, rest_size: float) -> np.ndarray:
-    """Drawn edge of each voxel in one frame: the mean length of its lattice links (its
-    neighbours' centre distances), ``rest_size`` for a voxel without neighbours. (n,)."""
-    n = len(positions)
-    if len(links) == 0:
-        return np.full(n, rest_size)
-    lengths = np.linalg.norm(positions[links[:, 0]] - positions[links[:, 1]], axis=1)
-    total = np.bincount(links.ravel(), np.repeat(lengths, 2), minlength=n)
-    count = np.bincount(links.ravel(), minlength=n)
-    return np.where(count > 0, total / np.maximum(count, 1), rest_size)
-
-
-def surface_faces(voxels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Faces of the voxel lattice with no neighbour behind them: (voxel index, direction
-    index into ``_DIRECTIONS``), each shape (m,)."""
-    occupied = {tuple(v) for v in voxels}
-    owners, directions = [], []
-    for k, v in enumerate(voxels):
-        for d, (axis, sign) in enumerate(_DIRECTIONS):
-            neighbour = list(v)
-            neighbour[axis] += sign
-            if tuple(neighbour) not in occupied:
-                owners.append(k)
-                directions.append(d)
-    return np.array(owners, dtype=int), np.array(directions, dtype=int)
+def face_directions(quads: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """Direction of each quad's outward normal in the rest mesh ``rest`` (nv, 3): 2 axis +
+    (1 if it points to minus), i.e. +x, -x, +y, -y, +z, -z as ``_SHADE``."""
+    a, b, c = rest[quads[:, 0]], rest[quads[:, 1]], rest[quads[:, 2]]
+    normal = np.cross(b - a, c - a)
+    axis = np.abs(normal).argmax(axis=1)
+    negative = normal[np.arange(len(normal)), axis] < 0
+    return 2 * axis + negative
 
 
 def frame_indices(t: np.ndarray, fps: int = PLAYBACK_FPS, max_frames: int = MAX_FRAMES):
@@ -196,10 +168,11 @@ def animate(
     out = Path(out)
     writer = movie_writer(out, fps)
     indices, speed = frame_indices(motion.t, fps, max_frames)
-    owners, directions = surface_faces(motion.voxels)
-    links = lattice_links(motion.voxels)
-    corners = _CORNERS[directions]  # (m, 4, 3), in voxel edges
-    colors = _shaded_colors(motion.materials[owners], directions)
+    nbr, mesh_vert, mesh_face = lattice_mesh(motion.voxels)
+    quads = face_quads(mesh_face)
+    rest = deformed_mesh((motion.voxels + 0.5) * motion.voxel_size, nbr, mesh_vert, motion.voxel_size)
+    directions = face_directions(quads, rest)
+    colors = _shaded_colors(motion.materials[mesh_face[0::2, 3]], directions)
     fig = plt.figure(figsize=(SIZE_INCHES, SIZE_INCHES), dpi=ANIMATION_DPI)
     ax = fig.add_subplot(projection="3d")
     low, high = _limits(motion)
@@ -220,9 +193,8 @@ def animate(
 
     def draw(k: int):
         f = indices[k]
-        positions = motion.positions[f]
-        sizes = voxel_sizes(positions, links, motion.voxel_size)
-        body.set_verts(positions[owners][:, None, :] + corners * sizes[owners][:, None, None])
+        vertices = deformed_mesh(motion.positions[f], nbr, mesh_vert, motion.voxel_size)
+        body.set_verts(vertices[quads])
         trace.set_data_3d(com[: f + 1, 0], com[: f + 1, 1], com[: f + 1, 2])
         pace = "" if speed == 1.0 else f"  (\u00d7{speed:.1f} speed)"
         title.set_text(f"{motion.label}\nt = {motion.t[f]:.2f} s{pace}")

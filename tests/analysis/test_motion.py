@@ -12,13 +12,13 @@ from softevo.analysis.motion import (
     ANIMATION_DPI,
     SIZE_INCHES,
     animate,
+    face_directions,
+    face_quads,
     frame_indices,
-    lattice_links,
     stored_motion,
-    surface_faces,
-    voxel_sizes,
 )
 from softevo.service.db.individuals import individual_record
+from softevo.sim.mesh import deformed_mesh, lattice_mesh
 from tests.analysis.cli import softevo
 
 
@@ -61,14 +61,23 @@ def test_frame_indices_play_in_real_time_or_thin_evenly():
     assert speed == pytest.approx(4.1) and len(indices) == 10 and indices[-1] == len(t) - 1
 
 
-def test_surface_faces_and_sizes_of_two_voxels():
+def test_the_animation_draws_the_surface_mesh_as_quads_of_two_voxels():
     voxels = np.array([[0, 0, 0], [1, 0, 0]])
-    owners, directions = surface_faces(voxels)
-    assert len(owners) == 10  # 12 faces, 2 of them shared
-    assert lattice_links(voxels).tolist() == [[0, 1]]
-    positions = np.array([[0.0, 0, 0], [0.07, 0, 0]])
-    assert voxel_sizes(positions, lattice_links(voxels), 0.05) == pytest.approx([0.07, 0.07])
-    assert voxel_sizes(positions[:1], np.zeros((0, 2), int), 0.05) == pytest.approx([0.05])
+    nbr, mesh_vert, mesh_face = lattice_mesh(voxels)
+    quads = face_quads(mesh_face)
+    assert len(quads) == 10  # 12 faces, 2 of them shared
+    rest = deformed_mesh((voxels + 0.5) * 0.05, nbr, mesh_vert, 0.05)
+    assert len(rest) == 12  # the shared face's 4 corners are one vertex each
+    directions = face_directions(quads, rest)
+    assert np.bincount(directions).tolist() == [1, 1, 2, 2, 2, 2]  # +x, -x, +y, -y, +z, -z
+    for quad, direction in zip(quads, directions, strict=True):
+        corners = rest[quad]
+        axis, sign = direction // 2, -1 if direction % 2 else 1
+        assert np.ptp(corners[:, axis]) == 0  # planar, across its axis
+        assert len({tuple(np.round(c / 0.05, 6)) for c in corners}) == 4
+        normal = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+        assert sign * normal[axis] > 0  # counter-clockwise from outside
+        assert np.cross(corners[3] - corners[2], corners[0] - corners[2])[axis] * sign > 0
 
 
 def test_show_command_writes_a_gif(capsys, tiny, best, tmp_path):
