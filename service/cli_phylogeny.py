@@ -150,15 +150,18 @@ def _exaptation_tables(s: dict) -> None:
     for f in s["founder_lines"]:
         founders.add_row(str(f["founder_id"]), str(f["lines"]), str(f["front_lines"]))
     console.print(founders)
-    title = "surviving lines: founder -> switch -> end (first changed at generation)"
-    lines = Table("founder", "final", "root", *TRAIT_HEADERS.values(), title=title)
+    # a row per line and trait, so that the table fits 80 columns
+    title = "surviving lines: each trait at the founder, the switch and the end"
+    lines = Table("founder > final", "root", "trait", "founder", "switch", "end", "changed", title=title)
     for line in s["lines"]:
-        cells = []
-        for trait in TRAIT_HEADERS:
+        for k, (trait, header) in enumerate(TRAIT_HEADERS.items()):
             t = line["traits"][trait]
-            changed = "-" if t["first_changed"] is None else f"g{t['first_changed']}"
-            cells.append(f"{_cell(t['founder'])} > {_cell(t['switch'])} > {_cell(t['end'])} ({changed})")
-        lines.add_row(str(line["founder_id"]), str(line["individual_id"]), str(line["root_id"]), *cells)
+            ids = ("", "")
+            if k == 0:
+                ids = (f"{line['founder_id']} > {line['individual_id']}", str(line["root_id"]))
+            changed = "-" if t["first_changed"] is None else f"gen {t['first_changed']}"
+            values = (_cell(t["founder"]), _cell(t["switch"]), _cell(t["end"]), changed)
+            lines.add_row(*ids, header, *values, end_section=k == len(TRAIT_HEADERS) - 1)
     console.print(lines)
 
 

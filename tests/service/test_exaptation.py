@@ -117,6 +117,28 @@ def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
     assert f"with lines to the end: {summary['founders_surviving']}" in text_out
 
 
+def test_the_exaptation_tables_fit_80_columns(served, capsys, monkeypatch):
+    """Every line of the text output within 80 columns, and every trait of every surviving
+    line on one row, its three values whole."""
+    from softevo.service.cli_phylogeny import TRAIT_HEADERS
+
+    def cell(value) -> str:  # as the table writes a value
+        return "-" if value is None else f"{value:.3g}" if isinstance(value, float) else str(value)
+
+    engine, url, run_id, base = served
+    summary = json.loads(cli(capsys, "exaptation", str(run_id), "--json", "--db", url))
+    monkeypatch.setenv("COLUMNS", "80")
+    text_out = cli(capsys, "exaptation", str(run_id), "--db", url)
+    assert max(len(row) for row in text_out.splitlines()) <= 80
+    rows = [row.replace("\u2502", " ").split() for row in text_out.splitlines()]
+    assert summary["lines"], "the tiny run keeps no line: nothing to check"
+    for line in summary["lines"]:
+        for trait, header in TRAIT_HEADERS.items():
+            t = line["traits"][trait]
+            cells = [header, cell(t["founder"]), cell(t["switch"]), cell(t["end"])]
+            assert any(row[-5:-1] == cells or row[-6:-2] == cells for row in rows), (header, text_out)
+
+
 def test_phylogeny_cli_and_rest_list_the_same_tree(served, capsys):
     engine, url, run_id, base = served
     rows = list(csv.DictReader(io.StringIO(cli(capsys, "phylogeny", f"r{run_id}", "--csv", "--db", url))))
