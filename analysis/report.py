@@ -265,8 +265,8 @@ def timing_text(data: ExperimentData) -> str:
     return (
         f"Wall time from the experiment's creation to its last stored generation: "
         f"{_duration(wall)} ({len(data.runs)} runs, {len(data.generations)} generations, "
-        f"{evaluations:,} simulated evaluations; {_duration(seconds)} of evaluation time as the "
-        "coordinator measured it, all workers together)."
+        f"{evaluations:,} simulated evaluations; {_duration(seconds)} of evaluation time, the "
+        "evaluations' own simulation times summed over all workers, queue waits left out)."
     )
 
 

@@ -20,7 +20,8 @@ seed, so the same evaluations in the same order) in phases of ``--seconds`` each
 Printed: per loaded phase and endpoint, requests, requests per second, p50 and p99 latency
 (ms), errors (status >= 400 or no answer; 5xx counted apart); and the experiment's
 evaluations per second (sum of evaluations / sum of ``evaluation_seconds`` of the
-generations it stored in the phase) against the unloaded phases around it. Bounded: every
+generations it stored in the phase: the evaluations' own simulation times, so it shows the
+CPU the server takes from the workers, not queue waits) against the unloaded phases around it. Bounded: every
 phase ends after ``--seconds`` (the run is cancelled there) or ``--max-requests``; the
 default takes about 4 minutes, ``--quick`` about one. The clients run on the same machine as
 the server and its workers (loopback only): on a small machine they take CPU from both, so

@@ -20,7 +20,6 @@ there in that same generation.
 
 from __future__ import annotations
 
-import time
 import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -217,6 +216,13 @@ def _member_rows(run: ActiveRun) -> list[dict[str, Any]]:
     ]
 
 
+def evaluation_seconds(results: list[dict[str, Any]]) -> float:
+    """A generation's evaluation time, seconds: the sum of its results' own ``seconds``
+    (each the worker's simulation time, a batch's shared among its tasks), so that the time
+    tasks waited in a queue or travelled to a worker is not counted."""
+    return float(sum(result.get("seconds") or 0.0 for result in results))
+
+
 def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
     population = run.algorithm.population
     distances = [ind.objectives["distance"] for ind in population]
@@ -269,10 +275,7 @@ class Coordinator:
             if tasks is not None:
                 asked.append((run, tasks))
         tasks = [task for _, run_tasks in asked for task in run_tasks]
-        start = time.perf_counter()
         results = self.executor.evaluate(tasks)
-        seconds = time.perf_counter() - start
-        share = seconds / max(1, len(tasks))
         live = self._live([run for run, _ in asked])
         going_on, offset = [], 0
         for run, run_tasks in asked:
@@ -280,7 +283,7 @@ class Coordinator:
             offset += len(run_tasks)
             if run.run_id not in live:  # cancelled while in flight: its generation is dropped
                 continue
-            if self._guard(run, self._finish, run, run_results, share * len(run_tasks)):
+            if self._guard(run, self._finish, run, run_results, evaluation_seconds(run_results)):
                 going_on.append(run)
         return [run for run in going_on if not run.done]
 

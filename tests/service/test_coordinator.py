@@ -154,14 +154,63 @@ def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
     run_id = tinyrun.new_run(engine)
     with engine.begin() as conn:
         set_run_status(conn, run_id, RunStatus.CANCELLED)
-        record_generation(conn, GenerationRecord(
-            run_id=run_id, generation=1, individuals=[], evaluations=[], members=[],
-            summary={"environment": "land", "evaluations": 0, "best_distance": 0.0,
-                     "mean_distance": 0.0, "front_size": 0}, state={"generation": 1},
-            finished=False))
+        record_generation(
+            conn,
+            GenerationRecord(
+                run_id=run_id,
+                generation=1,
+                individuals=[],
+                evaluations=[],
+                members=[],
+                summary={
+                    "environment": "land",
+                    "evaluations": 0,
+                    "best_distance": 0.0,
+                    "mean_distance": 0.0,
+                    "front_size": 0,
+                },
+                state={"generation": 1},
+                finished=False,
+            ),
+        )
     with engine.connect() as conn:
-        row = conn.execute(text("SELECT status, generation FROM runs WHERE id = :id"),
-                           {"id": run_id}).one()
+        row = conn.execute(text("SELECT status, generation FROM runs WHERE id = :id"), {"id": run_id}).one()
     assert row.status == RunStatus.CANCELLED.value
     assert row.generation == 1
     engine.dispose()
+
+
+class QueuedExecutor(InlineExecutor):
+    """Inline, after ``wait`` seconds in a 'queue' per batch."""
+
+    wait = 0.3
+
+    def evaluate(self, tasks):
+        import time
+
+        time.sleep(self.wait)
+        return super().evaluate(tasks)
+
+
+def test_evaluation_seconds_are_the_evaluations_own_not_the_queue_wait(engine):
+    run_id = tinyrun.new_run(engine)
+    tinyrun.run_to_end(engine, run_id, QueuedExecutor())
+    with engine.connect() as conn:
+        generations = conn.execute(
+            text("SELECT generation, evaluations, evaluation_seconds FROM generations WHERE run_id = :r"),
+            {"r": run_id},
+        ).all()
+        own = dict(
+            conn.execute(
+                text(
+                    "SELECT generation, SUM(seconds) FROM evaluations WHERE run_id = :r "
+                    "AND seconds IS NOT NULL GROUP BY generation"
+                ),
+                {"r": run_id},
+            ).all()
+        )
+    assert len(generations) == 5
+    for generation, _, seconds in generations:
+        assert seconds == pytest.approx(own.get(generation, 0.0))  # the workers' own times
+        assert seconds < QueuedExecutor.wait  # the tiny robots simulate in milliseconds
+    assert sum(seconds for *_, seconds in generations) > 0
