@@ -71,7 +71,7 @@ class GenerationReport:
     generations: int
     best_distance: float
     evaluations: int
-    evaluation_seconds: float
+    evaluation_seconds: float  # the evaluations' own simulation time (``evaluation_seconds``)
     finished: bool
 
 

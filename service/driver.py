@@ -283,7 +283,7 @@ class CoordinatorLoop:
 
     def _on_generation(self, report: GenerationReport) -> None:
         log.info(
-            "run %d generation %d/%d stored (best %.3f, %d evaluations in %.1f s)",
+            "run %d generation %d/%d stored (best %.3f, %d evaluations, %.1f s of simulation)",
             report.run_id,
             report.generation + 1,
             report.generations,
