@@ -6,6 +6,8 @@ replay of an individual's evaluated motion.
 coordinator) serve the same pages:
 
     /dashboard/                          experiments and their runs, live status
+    /dashboard/experiments/{id}          treatments side by side: fitness, fronts, descriptors,
+                                         statistics, downloads, every run
     /dashboard/runs/{id}                 fitness curves, Pareto front by generation
     /dashboard/runs/{id}/tree            the phylogeny as a tree over generations (``tree``)
     /dashboard/individuals/{id}          genome, objectives, descriptors, lineage, 3D replay

@@ -19,6 +19,7 @@ from fastapi.responses import HTMLResponse
 from softevo.service.api.deps import ConnectionDep
 from softevo.service.api.headers import policy
 from softevo.service.api.schemas import MAX_INT32
+from softevo.service.db import experiments as db_experiments
 from softevo.service.db import individuals as db_individuals
 from softevo.service.db import runs as db_runs
 
@@ -26,6 +27,7 @@ TEMPLATES = FilePath(__file__).parent / "templates"
 
 router = APIRouter()
 
+ExperimentId = Annotated[int, Path(ge=1, le=MAX_INT32)]
 RunId = Annotated[int, Path(ge=1, le=MAX_INT32)]
 IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32)]
 
@@ -62,6 +64,15 @@ def not_found(request: Request, message: str) -> HTMLResponse:
 def index(request: Request) -> HTMLResponse:
     """Experiments and their runs, with live status."""
     return render(request, "index.html", "Experiments")
+
+
+@router.get("/experiments/{experiment_id}", response_class=HTMLResponse)
+def experiment_page(request: Request, experiment_id: ExperimentId, conn: ConnectionDep) -> HTMLResponse:
+    """An experiment's treatments side by side: fitness curves, aggregated Pareto fronts,
+    descriptors, the statistics table, downloads and every run."""
+    if not db_experiments.experiment_exists(conn, experiment_id):
+        return not_found(request, f"There is no experiment {experiment_id}.")
+    return render(request, "experiment.html", f"Experiment {experiment_id}", experiment_id=experiment_id)
 
 
 @router.get("/runs/{run_id}", response_class=HTMLResponse)

@@ -36,11 +36,12 @@ function experimentPanel(experiment) {
     el(
       "h2",
       {},
-      `${experiment.name}`,
+      el("a", { href: page(`experiments/${experiment.id}`), class: "experiment-link" }, experiment.name),
       el("span", { class: "muted" }, `experiment ${experiment.id}`),
       badge(experiment.status),
       progressBar(progress.fraction),
       el("span", { class: "muted" }, `${progress.generations_done}/${progress.generations_total} generations`),
+      el("a", { href: page(`experiments/${experiment.id}`), class: "muted" }, "compare treatments"),
       el("a", { href: `${root}/experiments/${experiment.id}/report`, class: "muted" }, "report"),
     ),
     table(

@@ -1,11 +1,10 @@
 // Run page: fitness curves over generations and the Pareto front of a chosen generation.
 // Plotly is the global from /dashboard/static/vendor/plotly.min.js (the plotly package's copy).
 import { LIVE, badge, el, errorLine, fill, fmt, getJSON, page, poll, showHealth, table } from "./api.js";
+import { FONT, LEGEND_TOP, MARGIN, PLOT_CONFIG } from "./plots.js";
 
 const runId = Number(document.getElementById("run").dataset.run);
 const POLL_MS = 2000;
-const PLOT_CONFIG = { displaylogo: false, responsive: true };
-const FONT = { family: "system-ui, sans-serif", size: 12, color: "#1d2430" };
 const ENVIRONMENT_FILL = { land: "rgba(196, 160, 100, 0.13)", water: "rgba(60, 140, 220, 0.12)" };
 
 const state = { run: null, generation: -2, fronts: new Map(), shown: null };
@@ -71,10 +70,10 @@ function drawFitness(generations) {
       line: { color: "#1f6feb", width: 2, dash: "dot" } },
   ];
   const layout = {
-    font: FONT, margin: { l: 60, r: 20, t: 10, b: 45 }, hovermode: "x unified",
+    font: FONT, margin: MARGIN, hovermode: "x unified",
     xaxis: { title: { text: "generation" }, dtick: generations.length <= 20 ? 1 : undefined, zeroline: false },
     yaxis: { title: { text: "distance (voxel lengths)" }, rangemode: "tozero" },
-    legend: { orientation: "h", x: 1, xanchor: "right", y: 1.02, yanchor: "bottom" },
+    legend: LEGEND_TOP,
     ...environmentBands(generations),
   };
   if (generations.length === 0) layout.annotations = [{ text: "no generation stored yet", showarrow: false, xref: "paper", yref: "paper", x: 0.5, y: 0.5 }];
