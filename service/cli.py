@@ -57,6 +57,13 @@ def usage_error_line(message: str) -> str:
 
 
 def _register() -> None:
+    """Add every command group to ``app``, once per process.
+
+    ``main`` may be called many times in one process (the tests do); adding the commands again
+    each time would grow typer's command list, and its lookup time with it, without end.
+    """
+    if app.registered_commands or app.registered_groups:
+        return
     from softevo.service import (
         cli_analysis,
         cli_dashboard,
