@@ -238,13 +238,21 @@ def settings_table(data: ExperimentData) -> pd.DataFrame:
             "population": t["population"],
             "generations": t["generations"],
             "workspace": t["workspace"],
-            "cycles": t["cycles"],
+            "cycles": [_cycles_text(c, cap) for c, cap in
+                       zip(t["cycles"], t.get("max_seconds", [None] * len(t)), strict=True)],
             "repetitions": t["repetitions"],
             "seeds": seeds,
             "algorithm": t["algorithm"],
             "runs finished": [f"{finished.get(n, 0)}/{total.get(n, 0)}" for n in t["name"]],
         }
     )
+
+
+def _cycles_text(cycles: int, max_seconds: float | None) -> str:
+    """E.g. ``8``, or ``8 (<= 4.5 s)`` for cycles capped in seconds."""
+    if max_seconds is None or pd.isna(max_seconds):
+        return f"{int(cycles)}"
+    return f"{int(cycles)} (<= {float(max_seconds):g} s)"
 
 
 def _as_utc(value) -> datetime | None:
@@ -444,7 +452,8 @@ def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
         f"{m.friction_kinetic:g} kinetic, actuation {parsed.actuation.waveform} of linear strain "
         f"amplitude {parsed.actuation.amplitude:g} at one evolved frequency in "
         f"{low_high[0]:g}-{low_high[1]:g} Hz with evolved per-voxel phases; each evaluation runs "
-        f"the treatment's number of cycles after settling ({settle['land']:g} s on land, "
+        f"the treatment's number of cycles (at most its seconds, where capped) after settling "
+        f"({settle['land']:g} s on land, "
         f"{settle['water']:g} s in water). Objectives: distance (max), active share (min), voxel "
         f"count (min), {selection}."
     )

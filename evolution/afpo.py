@@ -69,7 +69,8 @@ MODES = ("afpo", "pareto")
 class EvolutionConfig:
     """Everything that defines a run's algorithm and its evaluation scenes.
 
-    youngs_modulus: Pa; cycles: actuation cycles per evaluation; environment: the starting
+    youngs_modulus: Pa; cycles: actuation cycles per evaluation, and max_seconds, when given,
+    the most seconds an evaluation lasts (``genotype.duration_of``); environment: the starting
     world ("land", "water"); model: the physics model of the scenes (``sim.scene.MODELS``);
     descriptors: compute shape descriptors at each tell.
     """
@@ -84,6 +85,7 @@ class EvolutionConfig:
     objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
     descriptors: bool = True
     model: str = DEFAULT_MODEL
+    max_seconds: float | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -109,6 +111,7 @@ class EvolutionConfig:
             "objectives": [[o.name, o.direction] for o in self.objectives],
             "descriptors": self.descriptors,
             "model": self.model,
+            **({"max_seconds": self.max_seconds} if self.max_seconds is not None else {}),
         }
 
     @classmethod
@@ -186,7 +189,7 @@ class Evolution:
         """The simulator scene that evaluates ``ind`` in the current environment."""
         phenotype = ind.phenotype(self.config.encoding)
         return phenotype.to_scene(self.environment, self.config.youngs_modulus, self.config.cycles,
-                                  model=self.config.model, **extra)
+                                  model=self.config.model, max_seconds=self.config.max_seconds, **extra)
 
     @property
     def generation_complete(self) -> bool:

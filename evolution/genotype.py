@@ -221,9 +221,13 @@ class Phenotype:
         amplitude: float | None = None,
         settle_seconds: float | None = None,
         model: str = DEFAULT_MODEL,
+        max_seconds: float | None = None,
         **extra: Any,
     ) -> dict[str, Any]:
         """A simulator scene (SPEC.md section 1 schema), plain JSON types.
+
+        The evaluation lasts ``cycles`` cycles, capped at ``max_seconds`` seconds when given
+        (``duration_of``).
 
         ``model`` is the physics model (``sim.scene.MODELS``); the scene names it unless it is
         the default, so scenes of the default model are as they always were. ``amplitude``
@@ -253,7 +257,7 @@ class Phenotype:
             "body": self.body.astype(int).tolist(),
             "phase": self.phase.tolist(),
             "actuation": {"frequency": float(self.frequency), "amplitude": amplitude},
-            "duration": {"cycles": int(cycles)},
+            "duration": duration_of(int(cycles), max_seconds),
             "settle_seconds": float(settle_seconds),
         }
         if self.stiffness is not None:
@@ -264,6 +268,17 @@ class Phenotype:
             scene["model"] = model
         scene.update(extra)
         return scene
+
+
+def duration_of(cycles: float, max_seconds: float | None = None, share: float = 1.0) -> dict[str, Any]:
+    """The scene duration of ``share`` of an evaluation of ``cycles`` cycles capped at
+    ``max_seconds`` seconds (None: no cap): ``{"cycles": n}`` or ``{"cycles": n,
+    "max_seconds": s}`` (``sim.scene``), both scaled by ``share``. A whole evaluation
+    (share 1) keeps an integer count of cycles."""
+    duration: dict[str, Any] = {"cycles": int(cycles) if share == 1.0 else float(cycles) * share}
+    if max_seconds is not None:
+        duration["max_seconds"] = float(max_seconds) * share
+    return duration
 
 
 def _map_linear(value: np.ndarray | float, bounds: tuple[float, float]) -> np.ndarray | float:

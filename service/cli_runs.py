@@ -120,6 +120,11 @@ def run(
     cycles: Annotated[
         int, typer.Option("--cycles", help="actuation cycles per evaluation")
     ] = Treatment.cycles,
+    max_seconds: Annotated[
+        float | None,
+        typer.Option("--max-seconds", help="the most seconds an evaluation lasts (default: its cycles "
+                     "alone; the paper's scripts: 4.5)"),
+    ] = Treatment.max_seconds,
     seed: Annotated[int, typer.Option("--seed")] = 0,
     switch_at: Annotated[
         int | None, typer.Option("--switch-at", help="first generation in the second environment")
@@ -170,6 +175,7 @@ def run(
         generations=generations,
         workspace=_parse_workspace(workspace),
         cycles=cycles,
+        max_seconds=max_seconds,
         seed=seed,
         switch_at=switch_at,
         switch_over=switch_over,

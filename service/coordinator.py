@@ -134,6 +134,7 @@ def ask(run: ActiveRun) -> list[dict[str, Any]]:
             run_id=run.run_id,  # for job ids and worker logs; evaluate_batch ignores it
             generation=generation,
             model=run.treatment.model,
+            max_seconds=run.treatment.max_seconds,
         ).to_json()
         for ind in asked
     ]

@@ -82,4 +82,5 @@ def evolution_config(treatment: Treatment, seed: int):
         encoding=encoding_of(treatment.to_settings()),
         descriptors=False,
         model=treatment.model,
+        max_seconds=treatment.max_seconds,
     )

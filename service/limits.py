@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from softevo.service.treatments import Treatment
 
 PROBE_FREQUENCY_HZ = 1.0  # the lowest frequency of the linear mapping (EncodingConfig.frequency_range)
+SLOWEST_FREQUENCY_HZ = 1e-9  # a probe for mappings without a lowest frequency: the cap decides
 
 
 def _settings(settings: Settings | None) -> Settings:
@@ -48,18 +49,23 @@ def evaluation_steps(treatment: Treatment) -> int:
     ``dt_fraction`` and ``min_steps_per_cycle``), cycles and settling, at its highest stiffness
     (the top of ``stiffness_range_mpa`` when evolved: a stiffer robot takes a shorter step) and
     the linear mapping's lowest frequency (``PROBE_FREQUENCY_HZ``: a slower robot runs longer;
-    the evosoro mapping can go lower, and such an evaluation stops at the scene's
-    ``max_steps``, which caps the count too). The step does not depend on the body's size."""
+    the evosoro mapping can go lower: with the treatment's ``max_seconds`` the probe runs at
+    ``SLOWEST_FREQUENCY_HZ`` and the cap bounds it, without one such an evaluation stops at the
+    scene's ``max_steps``, which caps the count too). The step does not depend on the body's
+    size."""
     import numpy as np
 
     from softevo.evolution.genotype import Phenotype
     from softevo.sim import parse_scene, scene_steps
 
     stiffness = treatment.stiffness_range_mpa[1] if treatment.evolve_stiffness else treatment.stiffness_mpa
-    probe = Phenotype(np.full((1, 1, 1), 2, np.int8), np.zeros((1, 1, 1)), PROBE_FREQUENCY_HZ)
+    slowest = treatment.control_mapping != "linear" and treatment.max_seconds is not None
+    frequency = SLOWEST_FREQUENCY_HZ if slowest else PROBE_FREQUENCY_HZ
+    probe = Phenotype(np.full((1, 1, 1), 2, np.int8), np.zeros((1, 1, 1)), frequency)
     steps = 0
     for world in treatment.environment.split("-"):
-        scene = parse_scene(probe.to_scene(world, stiffness * 1e6, treatment.cycles, model=treatment.model))
+        scene = parse_scene(probe.to_scene(world, stiffness * 1e6, treatment.cycles, model=treatment.model,
+                                           max_seconds=treatment.max_seconds))
         try:
             world_steps = scene_steps(scene)
         except OverflowError:  # more than an int64: the engine refuses it at max_steps

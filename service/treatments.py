@@ -27,6 +27,12 @@ workspace full or 10% active are drawn or mutated again). Plain treatments defau
 quick start keep their meaning (settings stored before these fields existed read so too);
 the paper presets use the paper's four (``PAPER_CHOICES``).
 
+An evaluation lasts ``cycles`` actuation cycles (the paper's text, footnote 3) and, with
+``max_seconds``, never more than that many seconds after settling. The presets cap it at the
+scripts' fixed time (``PAPER_MAX_SECONDS``, 4.5 s; the tiny scale at 1 s): under the evosoro
+mapping a robot can actuate at 0.01 Hz, and its cycles alone would last minutes
+(docs/analysis.md). Plain treatments have no cap, as they always had.
+
 Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
 Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,
 0.001..10 MPa; the treatment's ``stiffness_mpa`` is then unused by the physics), and
@@ -54,6 +60,9 @@ PAPER_CHOICES = {  # what the paper presets run (SPEC.md section 3; evolution.ge
     "control_mapping": "evosoro",
     "body_rule": "evosoro",
 }
+# The scripts' evaluation time: SIM_TIME 5 s less INIT_TIME 0.5 s of settling
+# (examples/land_continuous.py:54-55, swimming_complex.py:54-55 of skriegman/evosoro).
+PAPER_MAX_SECONDS = 4.5
 STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 
@@ -81,6 +90,7 @@ class Treatment:
     model: str = DEFAULT_MODEL
     control_mapping: str = "linear"
     body_rule: str = "any"
+    max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -102,6 +112,10 @@ class Treatment:
         _positive("population", self.population, minimum=2)
         _positive("generations", self.generations)
         _positive("cycles", self.cycles)
+        cap = self.max_seconds
+        if cap is not None and (isinstance(cap, bool) or not isinstance(cap, int | float)
+                                or not math.isfinite(cap) or cap <= 0):
+            raise UserError(f"max_seconds must be a number of seconds > 0 (got {cap!r})")
         _positive("repetitions", self.repetitions)
         _positive("genomes_per_task", self.genomes_per_task)
         if len(self.workspace) != 3 or any(int(n) < 1 for n in self.workspace):
@@ -228,6 +242,7 @@ class Scale:
     repetitions: int
     switch_over: int = 0  # the gradual preset's span (generations of compound worlds)
     first_seed: int = 0  # each treatment's first seed past its block's start
+    max_seconds: float = PAPER_MAX_SECONDS  # the cap on an evaluation's seconds
 
 
 # tiny: the whole grid in minutes on 2 cores (CI); pilot: 3 repetitions of a short run, for
@@ -237,7 +252,7 @@ class Scale:
 # paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
 PILOT = Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2)
 PRESET_SCALES: dict[str, Scale] = {
-    "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2),
+    "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
     "pilot": PILOT,
     "study": dataclasses.replace(PILOT, repetitions=7, first_seed=PILOT.repetitions),
     "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
@@ -270,6 +285,7 @@ def paper_grid(
         "population": sizes.population,
         "workspace": sizes.workspace,
         "cycles": sizes.cycles,
+        "max_seconds": sizes.max_seconds,
         "repetitions": reps,
         "seed": seed,
         **_paper_choices(choices),
@@ -323,6 +339,7 @@ def gradual_grid(
         "population": sizes.population,
         "workspace": sizes.workspace,
         "cycles": sizes.cycles,
+        "max_seconds": sizes.max_seconds,
         "repetitions": sizes.repetitions if repetitions is None else repetitions,
         "seed": seed,
         "generations": sizes.transition_generations,

@@ -21,6 +21,11 @@ robot's mean frequency over its active voxels (those of ``body`` as given: secon
 mean f); with no active voxel the scalar ``actuation.frequency`` counts them. How the engine
 combines two materials at a link: ``sim.kernels``' docstring.
 
+The duration is ``{"cycles": n}``, ``{"seconds": s}`` or ``{"cycles": n, "max_seconds": s}``:
+n cycles, but never more than s seconds (settling not counted), as the paper's text (cycles)
+and its scripts (a fixed time) meet; a robot of very low frequency then runs s seconds, not
+n / f.
+
 The physics model (optional, top level): ``"model"`` is ``"voxelyze-2"`` (the default: the
 model validated against Voxelyze 2.0, analytic solutions and conservation laws) or
 ``"voxcad-land-water"`` (the paper's own engine, the VoxCAD land/water fork in evosoro: what
@@ -374,8 +379,11 @@ def parse_scene(data: Any) -> Scene:
         fv.append(_voxel_index(item["voxel"], f"forces[{i}].voxel", body))
         ff.append(_vector3(item["force"], f"forces[{i}].force"))
 
-    duration = _section(data.get("duration", {"cycles": DEFAULT_CYCLES}), "duration", {"cycles", "seconds"})
-    if len(duration) != 1:
+    duration = _section(data.get("duration", {"cycles": DEFAULT_CYCLES}), "duration",
+                        {"cycles", "seconds", "max_seconds"})
+    if "max_seconds" in duration and "cycles" not in duration:
+        raise SceneError("duration.max_seconds: caps duration.cycles; give cycles with it")
+    if len(duration.keys() - {"max_seconds"}) != 1:
         raise SceneError("duration: give exactly one of {'cycles': n} or {'seconds': s}")
     if "cycles" in duration:
         cycles = _number(duration["cycles"], "duration.cycles", low=0)
@@ -385,6 +393,9 @@ def parse_scene(data: Any) -> Scene:
         if frequency <= 0 and cycles > 0:
             raise SceneError("duration.cycles: needs actuation.frequency > 0 (or give seconds)")
         seconds = cycles / frequency if cycles > 0 else 0.0
+        if "max_seconds" in duration:
+            seconds = min(seconds, _number(duration["max_seconds"], "duration.max_seconds", low=0,
+                                           low_open=True))
     else:
         seconds = _number(duration["seconds"], "duration.seconds", low=0)
 

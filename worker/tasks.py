@@ -13,6 +13,7 @@
        "environment": "land" | "water" | "land>water@0.250" (a compound world),
        "youngs_modulus": float,        # Pa
        "cycles": int,
+       "max_seconds": float,           # optional: the cap on an evaluation's seconds; absent: none
        "workspace": [x, y, z],
        "encoding": {...},              # optional EncodingConfig.to_dict(); wins over workspace
        "model": "voxcad-land-water"}   # optional sim.scene model; absent: "voxelyze-2"
@@ -84,6 +85,7 @@ class Task:
     run_id: int | None = None
     generation: int | None = None
     model: str = "voxelyze-2"  # sim.scene.MODELS: the physics of the task's scenes
+    max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
 
     @classmethod
     def from_genome(
@@ -97,9 +99,11 @@ class Task:
         run_id: int | None = None,
         generation: int | None = None,
         model: str = "voxelyze-2",
+        max_seconds: float | None = None,
     ) -> Task:
         """A task of ``genome`` (a ``Genotype`` or its ``to_dict()``) expressed with
-        ``encoding`` (an ``EncodingConfig`` or its ``to_dict()``), simulated in ``model``."""
+        ``encoding`` (an ``EncodingConfig`` or its ``to_dict()``), simulated in ``model`` for
+        ``cycles`` cycles, at most ``max_seconds`` seconds when given."""
         genome = genome if isinstance(genome, dict) else genome.to_dict()
         encoding = encoding if isinstance(encoding, dict) else encoding.to_dict()
         return cls(
@@ -113,6 +117,7 @@ class Task:
             run_id=run_id,
             generation=generation,
             model=model,
+            max_seconds=None if max_seconds is None else float(max_seconds),
         )
 
     @classmethod
@@ -125,9 +130,9 @@ class Task:
         youngs_modulus: float,
     ) -> Task:
         """The task of a stored individual: its genome (``Genotype.to_dict()`` JSON), its
-        treatment's settings (``Treatment.to_settings()``; encoding, cycles and model, absent
-        in settings stored before it existed: ``voxelyze-2``) and the environment and Young's
-        modulus (Pa) of the evaluation to reproduce."""
+        treatment's settings (``Treatment.to_settings()``; encoding, cycles, model and the cap
+        on seconds, absent in settings stored before they existed: ``voxelyze-2``, no cap) and
+        the environment and Young's modulus (Pa) of the evaluation to reproduce."""
         return cls.from_genome(
             genome,
             environment,
@@ -136,6 +141,7 @@ class Task:
             encoding_of(settings),
             id=int(individual_id),
             model=str(settings.get("model", "voxelyze-2")),
+            max_seconds=settings.get("max_seconds"),
         )
 
     def encoding_config(self):
@@ -164,6 +170,8 @@ class Task:
             out["encoding"] = self.encoding
         if self.model != "voxelyze-2":
             out["model"] = self.model
+        if self.max_seconds is not None:
+            out["max_seconds"] = self.max_seconds
         return out
 
     @classmethod
@@ -182,6 +190,7 @@ class Task:
             run_id=data.get("run_id"),
             generation=data.get("generation"),
             model=data.get("model", "voxelyze-2"),
+            max_seconds=data.get("max_seconds"),
         )
 
 
@@ -308,10 +317,11 @@ def scene_of(task: Task, **extra: Any):
 def scenes_of(task: Task, **extra: Any):
     """(phenotype, [scene, ...]): one scene per part of the task's world
     (``evolution.worlds.parts``), simulated one after the other, each from rest; a part's
-    scene runs its share of the task's cycles. A pure world gives the one scene of
+    scene runs its share of the task's cycles (and of its cap on seconds). A pure world gives
+    the one scene of
     ``scene_of``. ValueError ("empty body") for a genome without voxels."""
     from softevo.evolution import worlds
-    from softevo.evolution.genotype import Genotype, develop
+    from softevo.evolution.genotype import Genotype, develop, duration_of
 
     phenotype = develop(Genotype.from_dict(task.genome), task.encoding_config())
     if phenotype.voxel_count == 0:
@@ -319,9 +329,10 @@ def scenes_of(task: Task, **extra: Any):
     parts = worlds.parts(task.environment)
     scenes = []
     for world, share in parts:
-        scene = phenotype.to_scene(world, task.youngs_modulus, task.cycles, model=task.model, **extra)
+        scene = phenotype.to_scene(world, task.youngs_modulus, task.cycles, model=task.model,
+                                   max_seconds=task.max_seconds, **extra)
         if len(parts) > 1:
-            scene["duration"] = {"cycles": float(task.cycles) * share}
+            scene["duration"] = duration_of(task.cycles, task.max_seconds, share)
         scenes.append(scene)
     return phenotype, scenes
 

@@ -63,6 +63,10 @@ class TreatmentIn(Strict):
         list(Treatment.workspace), min_length=3, max_length=3, description="voxels along x, y, z"
     )
     cycles: int = Field(Treatment.cycles, ge=1, le=10_000, description="actuation cycles per evaluation")
+    max_seconds: float | None = Field(
+        Treatment.max_seconds, gt=0, le=3600, allow_inf_nan=False,
+        description="the most seconds an evaluation lasts, settling not counted (null: its cycles "
+        "alone; the paper's scripts: 4.5)")
     repetitions: int = Field(1, ge=1, le=1000)
     seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
     algorithm: Algorithm = Field(

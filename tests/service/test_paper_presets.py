@@ -4,6 +4,8 @@ coordinator off) choose others; the model travels from the treatment to every sc
 
 from __future__ import annotations
 
+import dataclasses
+
 import httpx
 import numpy as np
 import pytest
@@ -12,8 +14,9 @@ from softevo.errors import UserError
 from softevo.evolution.genotype import random_viable_genotype
 from softevo.service.db import open_database
 from softevo.service.experiments import evolution_config
-from softevo.service.treatments import PAPER_CHOICES, Treatment, preset_grid
-from softevo.worker.tasks import Task, scene_of
+from softevo.service.limits import evaluation_steps
+from softevo.service.treatments import PAPER_CHOICES, PAPER_MAX_SECONDS, Treatment, preset_grid
+from softevo.worker.tasks import Task, scene_of, scenes_of
 from tests.analysis.cli import softevo
 from tests.service.rq_support import Processes, auth, service_env
 
@@ -72,6 +75,41 @@ def test_cli_experiment_takes_algorithm_and_model(capsys, tmp_path):
     assert code == 2 and "unknown model" in err
 
 
+@pytest.mark.parametrize(("scale", "cap"), [("tiny", 1.0), ("pilot", PAPER_MAX_SECONDS),
+                                           ("paper", PAPER_MAX_SECONDS)])
+def test_paper_presets_cap_every_evaluation_at_the_scripts_time(scale, cap):
+    """The scripts stop an evaluation at SIM_TIME 5 s (INIT_TIME 0.5 s of it settling); the
+    presets cap their cycles there, the cap reaching every scene (split over a compound
+    world's parts) and the cost bound, and settings stored before it read as uncapped."""
+    grid = preset_grid("paper", scale) + preset_grid("gradual", scale)
+    assert {t.max_seconds for t in grid} == {cap}
+    treatment = grid[5]  # water S1
+    assert evolution_config(treatment, seed=0).max_seconds == cap
+    genome = random_viable_genotype(np.random.default_rng(4), evolution_config(treatment, 0).encoding)
+    task = Task.from_stored(7, genome.to_dict(), treatment.to_settings(), "water", 1e3)
+    assert Task.from_json(task.to_json()) == task and task.to_json()["max_seconds"] == cap
+    _, scene = scene_of(task)
+    assert scene["duration"] == {"cycles": treatment.cycles, "max_seconds": cap}
+    _, parts = scenes_of(dataclasses.replace(task, environment="land>water@0.250"))
+    assert [p["duration"]["max_seconds"] for p in parts] == pytest.approx([0.75 * cap, 0.25 * cap])
+    old = {k: v for k, v in treatment.to_settings().items() if k != "max_seconds"}
+    assert Task.from_stored(7, genome.to_dict(), old, "water", 1e3).max_seconds is None
+    # the evosoro mapping has no lowest frequency: uncapped, only max_steps bounds the cost
+    uncapped = dataclasses.replace(treatment, max_seconds=None)
+    assert evaluation_steps(treatment) < evaluation_steps(uncapped)
+    assert Treatment("land", 0.1).max_seconds is None
+    for bad in (0, -1.0, float("inf"), "4.5", True):
+        with pytest.raises(UserError, match="max_seconds"):
+            Treatment("land", 0.1, max_seconds=bad)
+
+
+def test_cli_run_takes_max_seconds(capsys, tmp_path):
+    db = f"sqlite:///{tmp_path / 'x.db'}"
+    code, _, err = softevo(capsys, "run", "--env", "land", "--stiffness", "1", "--max-seconds", "0",
+                           "--db", db)
+    assert code == 2 and err.startswith("error: max_seconds must be") and err.count("\n") == 1
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("presets")
@@ -97,16 +135,19 @@ def test_rest_presets_and_treatments_take_algorithm_and_model(server):
     created = httpx.post(f"{server}/experiments", json=body, headers=auth())
     settings = settings_of(server, created.json()["runs"][0])
     assert (settings["algorithm"], settings["model"]) == ("afpo", "voxelyze-2")
-    treatment = {"environment": "land", "stiffness_mpa": 0.1, "model": "voxcad-land-water"}
+    treatment = {"environment": "land", "stiffness_mpa": 0.1, "model": "voxcad-land-water",
+                 "max_seconds": 2.5}
     created = httpx.post(f"{server}/experiments", json={"name": "t", "treatments": [treatment]},
                          headers=auth())
     settings = settings_of(server, created.json()["runs"][0])
     assert (settings["algorithm"], settings["model"]) == ("afpo", "voxcad-land-water")
+    assert settings["max_seconds"] == 2.5
 
 
 @pytest.mark.parametrize("body", [
     {"name": "t", "treatments": [{"environment": "land", "stiffness_mpa": 0.1, "model": "voxelyze-3"}]},
     {"name": "t", "treatments": [{"environment": "land", "stiffness_mpa": 0.1, "body_rule": "all"}]},
+    {"name": "t", "treatments": [{"environment": "land", "stiffness_mpa": 0.1, "max_seconds": 0}]},
     {"preset": "paper", "model": "bullet"},
     {"preset": "paper", "algorithm": "nsga2"},
 ])

@@ -99,6 +99,11 @@ def test_gravity_defaults_per_world(kind, gravity):
         ("max_steps", 0, "max_steps"),
         ("duration", {"cycles": 2, "seconds": 1.0}, "duration"),
         ("duration.cycles", -1, "duration.cycles"),
+        ("duration", {"seconds": 1.0, "max_seconds": 0.5}, "duration.max_seconds"),
+        ("duration", {"max_seconds": 0.5}, "duration.max_seconds"),
+        ("duration.max_seconds", 0.0, "duration.max_seconds"),
+        ("duration.max_seconds", -1.0, "duration.max_seconds"),
+        ("duration.max_seconds", "4.5", "duration.max_seconds"),
     ],
 )
 def test_malformed_scene_names_the_field(path, value, field):
@@ -133,3 +138,14 @@ def test_scene_error_is_a_value_error():
 
 def test_notes_are_allowed():
     assert parse_scene(GOOD | {"notes": "from the reference set"}).body.sum() == 6
+
+
+def test_max_seconds_caps_the_cycles():
+    """2 cycles at 3 Hz last 2/3 s: a cap above that changes nothing, one below it wins; at
+    0.01 Hz the cycles alone would last 200 s."""
+    assert parse_scene(_with("duration.max_seconds", 1.0)).duration_seconds == pytest.approx(2 / 3)
+    assert parse_scene(_with("duration.max_seconds", 0.25)).duration_seconds == pytest.approx(0.25)
+    slow = _with("actuation.frequency", 0.01)
+    assert parse_scene(slow).duration_seconds == pytest.approx(200.0)
+    slow["duration"]["max_seconds"] = 4.5
+    assert parse_scene(slow).duration_seconds == pytest.approx(4.5)

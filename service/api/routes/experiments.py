@@ -70,6 +70,7 @@ def _treatments(body: ExperimentIn):
             generations=t.generations,
             workspace=tuple(t.workspace),
             cycles=t.cycles,
+            max_seconds=t.max_seconds,
             repetitions=t.repetitions,
             seed=t.seed,
             algorithm=t.algorithm,

@@ -18,7 +18,7 @@ function facts(run) {
     ["population", s.population],
     ["generations", s.generations],
     ["workspace", (s.workspace || []).join("×")],
-    ["cycles", s.cycles],
+    ["cycles", s.max_seconds == null ? s.cycles : `${s.cycles} (≤ ${s.max_seconds} s)`],
     ["seed", run.seed],
     ["algorithm", s.algorithm],
   ];
