@@ -6,10 +6,46 @@ PostgreSQL, Chromium, ffmpeg, the Voxelyze reference data). CI installs and star
 """
 
 import os
+import re
 
 import pytest
 
 IN_CI = os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
+
+
+def _own_servers_per_worker() -> None:
+    """Under ``pytest -n N`` (pytest-xdist) each worker process gets a Redis database and a
+    PostgreSQL database of its own on the shared servers, so that one worker's wipe never
+    meets another's data: worker k uses Redis database (d - k) mod 16 of
+    ``$SOFTEVO_TEST_REDIS_URL``'s d, and ``<name>_gw<k>`` beside ``$SOFTEVO_TEST_POSTGRES``'s
+    database (created here when missing). Worker 0, and a run without -n, use them as given."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    index = int(worker[2:]) if re.fullmatch(r"gw\d+", worker) else 0
+    if index == 0:
+        return
+    redis_url = os.environ.get("SOFTEVO_TEST_REDIS_URL")
+    if redis_url:
+        match = re.fullmatch(r"(redis://[^/]+)(?:/(\d+))?", redis_url)
+        if match:
+            database = (int(match.group(2) or 0) - index) % 16
+            os.environ["SOFTEVO_TEST_REDIS_URL"] = f"{match.group(1)}/{database}"
+    postgres_url = os.environ.get("SOFTEVO_TEST_POSTGRES")
+    if postgres_url:
+        from sqlalchemy import create_engine, text
+        from sqlalchemy.engine import make_url
+
+        url = make_url(postgres_url)
+        own = f"{url.database}_gw{index}"
+        server = create_engine(url.set(database="postgres"), isolation_level="AUTOCOMMIT")
+        with server.connect() as conn:
+            exists = conn.execute(text("SELECT 1 FROM pg_database WHERE datname = :name"), {"name": own})
+            if exists.first() is None:
+                conn.execute(text(f'CREATE DATABASE "{own}"'))
+        server.dispose()
+        os.environ["SOFTEVO_TEST_POSTGRES"] = url.set(database=own).render_as_string(hide_password=False)
+
+
+_own_servers_per_worker()
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -1,20 +1,53 @@
-"""The report on the paper's grid at the tiny scale, made by the CLI end to end (slow)."""
+"""The paper's grid at the tiny scale, run once by the CLI end to end (slow): every run
+finishes, the export holds them, the transitions visit both worlds, and the report shows every
+figure and treatment."""
 
 from __future__ import annotations
 
+import contextlib
+import io
+
+import pandas as pd
 import pytest
 
 from softevo.analysis.figures import FIGURES
+from softevo.service.cli import main
 from tests.analysis.cli import softevo
 
 
+@pytest.fixture(scope="module")
+def paper_tiny(tmp_path_factory) -> str:
+    """The database of ``softevo experiment paper --scale tiny`` on 2 worker processes."""
+    db = f"sqlite:///{tmp_path_factory.mktemp('paper-tiny') / 'paper.db'}"
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        try:
+            main(["experiment", "paper", "--scale", "tiny", "--workers", "2", "--db", db, "--quiet"])
+            code = 0
+        except SystemExit as exc:
+            code = exc.code or 0
+    assert code == 0, err.getvalue()
+    return db
+
+
 @pytest.mark.slow
-def test_report_on_the_tiny_paper_grid(capsys, tmp_path):
-    db = f"sqlite:///{tmp_path / 'paper.db'}"
-    code, _, err = softevo(capsys, "experiment", "paper", "--scale", "tiny", "--db", db, "--quiet")
+def test_every_run_of_the_tiny_paper_grid_is_stored(capsys, tmp_path, paper_tiny):
+    code, _, err = softevo(capsys, "export", "latest", "--out", str(tmp_path / "out"), "--db", paper_tiny)
     assert code == 0, err
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv")
+    assert len(runs) == 12 and set(runs["status"]) == {"finished"}
+    assert sorted(runs["stiffness_pa"].unique()) == [1e3, 1e4, 1e5, 1e6, 1e7]
+    individuals = pd.read_csv(tmp_path / "out" / "individuals.csv")
+    switching = runs[runs["environment_schedule"].str.contains(",")]["run_id"]
+    assert len(switching) == 2
+    for run_id in switching:
+        assert set(individuals[individuals["run_id"] == run_id]["environment"]) == {"land", "water"}
+
+
+@pytest.mark.slow
+def test_report_on_the_tiny_paper_grid(capsys, tmp_path, paper_tiny):
     out = tmp_path / "report"
-    code, _, err = softevo(capsys, "report", "paper-tiny", "--out", str(out), "--db", db, "--quiet")
+    code, _, err = softevo(capsys, "report", "paper-tiny", "--out", str(out), "--db", paper_tiny, "--quiet")
     assert code == 0, err
     page = (out / "report.html").read_text(encoding="utf-8")
     for name in FIGURES:

@@ -72,24 +72,6 @@ def test_run_status_lineage_export_end_to_end(capsys, tmp_path):
     assert softevo(capsys, "status", "r42", "--db", db)[0] == 2
 
 
-@pytest.mark.slow
-def test_tiny_paper_grid_end_to_end(capsys, tmp_path):
-    db = f"sqlite:///{tmp_path / 'grid.db'}"
-    code, out, err = softevo(
-        capsys, "experiment", "paper", "--scale", "tiny", "--workers", "2", "-q", "--db", db
-    )
-    assert code == 0, err
-    code, _, _ = softevo(capsys, "export", "latest", "--out", str(tmp_path / "out"), "--db", db)
-    runs = pd.read_csv(tmp_path / "out" / "runs.csv")
-    assert len(runs) == 12 and set(runs["status"]) == {"finished"}
-    assert sorted(runs["stiffness_pa"].unique()) == [1e3, 1e4, 1e5, 1e6, 1e7]
-    individuals = pd.read_csv(tmp_path / "out" / "individuals.csv")
-    switching = runs[runs["environment_schedule"].str.contains(",")]["run_id"]
-    assert len(switching) == 2
-    for run_id in switching:
-        assert set(individuals[individuals["run_id"] == run_id]["environment"]) == {"land", "water"}
-
-
 def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
     from softevo.service.db import open_database
     from softevo.service.db.models import RunStatus
