@@ -246,15 +246,17 @@ class Scale:
 
 
 # tiny: the whole grid in minutes on 2 cores (CI); pilot: 3 repetitions of a short run, for
-# ``softevo power`` (9 minutes on 2 cores); study: the pilot's runs with the repetitions that
-# ``softevo power`` asked of it for the stiffness comparisons (docs/results; about 25 minutes
-# on 2 cores); small: about an hour on 2 cores;
+# ``softevo power`` (7 minutes on 2 cores on the paper's model, capped at 4.5 s); study: the
+# pilot's sizes with the repetitions that ``softevo power`` asked of that pilot (18: the most
+# any comparison it could power needed; docs/analysis.md), on seeds past the pilot's
+# (docs/results); small: about an hour on 2 cores;
 # paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
 PILOT = Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2)
+STUDY_REPETITIONS = 18
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
     "pilot": PILOT,
-    "study": dataclasses.replace(PILOT, repetitions=7, first_seed=PILOT.repetitions),
+    "study": dataclasses.replace(PILOT, repetitions=STUDY_REPETITIONS, first_seed=PILOT.repetitions),
     "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
     "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15, switch_over=1000),
 }

@@ -19,7 +19,7 @@ from softevo.analysis.power import (
     rank_test_power,
 )
 from softevo.service.db import open_database
-from softevo.service.treatments import Treatment, paper_grid
+from softevo.service.treatments import STUDY_REPETITIONS, Treatment, paper_grid
 from tests.analysis import matched
 from tests.analysis.cli import softevo
 
@@ -70,8 +70,9 @@ def test_power_on_the_tiny_experiment(capsys, tiny):
     assert (estimate["a"], estimate["b"], estimate["generation"]) == ("water-land S3", "land S3", 2)
     assert (estimate["pilot_runs_a"], estimate["pilot_runs_b"]) == (2, 2)
     assert estimate["repetitions"] is None or 2 <= estimate["repetitions"] <= 20
-    assert estimate["pilot_seeds"] == "0..1" and estimate["study_n"] == 7
-    assert estimate["detectable_a12"] == pytest.approx(detectable_a12(7, 7, 0.05))
+    n = STUDY_REPETITIONS  # the study preset's, the default
+    assert estimate["pilot_seeds"] == "0..1" and estimate["study_n"] == n
+    assert estimate["detectable_a12"] == pytest.approx(detectable_a12(n, n, 0.05))
     assert [d["n"] for d in payload["designs"]][:3] == [3, 4, 5]
     assert softevo(capsys, *args, "--json")[1] == first  # seeded: the same estimate again
 
@@ -120,8 +121,9 @@ def test_no_difference_never_reaches_the_power(capsys, tmp_path):
     assert "more than the pilot's 4 generations" in line
     # a "no difference" comes with the smallest effect the design could detect
     assert "no effect the pilot can vouch for" in line
-    assert "a study of 7 per treatment: power 0.0" in line
-    assert f"detects A12 >= {detectable_a12(7, 7, 0.05 / 3):.2f}" in line
+    n = STUDY_REPETITIONS
+    assert f"a study of {n} per treatment: power 0.0" in line
+    assert f"detects A12 >= {detectable_a12(n, n, 0.05 / 3):.2f}" in line
 
 
 def test_rank_test_power_and_the_bisection_by_hand():
