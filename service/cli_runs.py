@@ -212,22 +212,37 @@ def experiment(
     model: Annotated[
         str | None, typer.Option("--model", help=f"{MODEL_HELP} (default voxcad-land-water)")
     ] = None,
+    treatments: Annotated[
+        str | None,
+        typer.Option("--treatments", help="only these treatments, comma-separated, e.g. "
+                     "'land S3,water S3' (their seeds as in the whole preset)"),
+    ] = None,
+    name: Annotated[
+        str | None, typer.Option("--name", help="the experiment's name (default PRESET-SCALE)")
+    ] = None,
     db: DbOption = None,
     workers: WorkersOption = None,
     quiet: QuietOption = False,
 ) -> None:
-    """Run a preset experiment: every treatment and repetition, with the paper's algorithm
-    (plain Pareto), model (voxcad-land-water) and encoding unless --algorithm / --model."""
+    """Run a preset experiment: every treatment and repetition (or those of --treatments),
+    with the paper's algorithm (plain Pareto), model (voxcad-land-water) and encoding unless
+    --algorithm / --model."""
     from softevo.service.db import open_database
     from softevo.service.experiments import create_paper
-    from softevo.service.treatments import preset_grid
+    from softevo.service.treatments import preset_grid, select_treatments
 
     if repetitions is not None and repetitions < 1:
         raise UserError(f"--repetitions must be >= 1 (got {repetitions})")
     choices = {"algorithm": algorithm, "model": model}
-    preset_grid(preset, scale, **choices)  # validates everything before touching the database
+    only = None if treatments is None else treatments.split(",")
+    grid = preset_grid(preset, scale, **choices)  # validates everything before touching the database
+    if only is not None:
+        select_treatments(grid, only)
+    if name is not None and not name.strip():
+        raise UserError("--name must not be empty")
     engine = open_database(db)
-    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed, preset=preset, **choices)
+    experiment_id, run_ids = create_paper(engine, scale, repetitions, seed, preset=preset, only=only,
+                                          name=name, **choices)
     typer.echo(f"experiment {experiment_id} (e{experiment_id}): runs {run_ids[0]}..{run_ids[-1]}", err=True)
     _execute(engine, run_ids, workers, quiet)
 

@@ -11,7 +11,7 @@ from softevo.evolution.afpo import EvolutionConfig
 from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment, unfinished_work
 from softevo.service.limits import check_experiment, generation_cost
 from softevo.service.settings import Settings
-from softevo.service.treatments import Treatment, preset_grid
+from softevo.service.treatments import Treatment, preset_grid, select_treatments
 from softevo.worker.tasks import encoding_of
 
 
@@ -57,13 +57,19 @@ def create_paper(
     repetitions: int | None = None,
     seed: int = 0,
     preset: str = "paper",
+    only: Sequence[str] | None = None,
+    name: str | None = None,
     **choices: str | None,
 ) -> tuple[int, list[int]]:
     """A preset's treatments (``service.treatments.PRESETS``; default the paper's grid,
-    SPEC.md section 5) at ``scale`` as a new experiment; ``choices`` (e.g. ``algorithm``,
+    SPEC.md section 5) at ``scale`` as a new experiment named ``name`` (default
+    ``<preset>-<scale>``); ``only``: just the treatments of these names, with the seeds they
+    have in the whole preset (``select_treatments``); ``choices`` (e.g. ``algorithm``,
     ``model``; None: the paper's) as ``preset_grid`` takes them."""
     treatments = preset_grid(preset, scale, repetitions=repetitions, seed=seed, **choices)
-    return create(engine, f"{preset}-{scale}", treatments, preset=preset, scale=scale)
+    if only is not None:
+        treatments = select_treatments(treatments, only)
+    return create(engine, name or f"{preset}-{scale}", treatments, preset=preset, scale=scale)
 
 
 def evolution_config(treatment: Treatment, seed: int):

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -363,6 +364,19 @@ def _paper_choices(overrides: dict[str, str | None]) -> dict[str, str]:
 
 
 PRESETS = {"paper": paper_grid, "gradual": gradual_grid}
+
+
+def select_treatments(treatments: list[Treatment], names: Sequence[str]) -> list[Treatment]:
+    """The treatments named in ``names``, in the preset's order and with their seeds in it
+    (a subset's runs are the whole preset's runs of those treatments); UserError for a name
+    the preset does not hold, or none at all."""
+    wanted = [n.strip() for n in names if n.strip()]
+    known = [t.name for t in treatments]
+    unknown = [n for n in wanted if n not in known]
+    if unknown or not wanted:
+        raise UserError(f"no treatment {', '.join(map(repr, unknown)) or 'named'} in this preset; "
+                        f"it has {', '.join(known)}")
+    return [t for t in treatments if t.name in wanted]
 
 
 def preset_grid(

@@ -25,7 +25,7 @@ from softevo.analysis.stats_tables import (
     significance_mark,
     welch_interval,
 )
-from softevo.service.treatments import paper_grid
+from softevo.service.treatments import paper_grid, preset_scale
 
 
 def test_ci_table_is_the_t_interval_per_group():
@@ -60,6 +60,12 @@ def test_the_t_interval_covers_95_percent_at_n_7_and_the_percentile_bootstrap_do
 ):
     assert low <= interval_coverage("t", distribution, 7, 1500) <= high
     assert interval_coverage("percentile bootstrap", distribution, 7, 400) < 0.93
+
+
+@pytest.mark.parametrize("distribution", ["normal", "uniform"])
+def test_the_t_interval_covers_95_percent_at_the_study_scale(distribution):
+    n = preset_scale("study").repetitions  # the n docs/results publishes
+    assert 0.93 <= interval_coverage("t", distribution, n, 1500) <= 0.97
 
 
 def test_the_paired_test_is_wilcoxon_on_the_differences():

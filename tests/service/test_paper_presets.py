@@ -154,3 +154,23 @@ def test_rest_presets_and_treatments_take_algorithm_and_model(server):
 def test_rest_rejects_unknown_models_and_algorithms_with_422(server, body):
     answer = httpx.post(f"{server}/experiments", json=body, headers=auth())
     assert answer.status_code == 422, answer.text
+
+
+def test_an_experiment_of_some_of_a_presets_treatments_keeps_their_seeds(capsys, tmp_path):
+    from softevo.service.db.experiments import load_experiment
+
+    db = f"sqlite:///{tmp_path / 'x.db'}"
+    picked = ["water S3", "land-water S3"]
+    code, _, err = softevo(capsys, "experiment", "paper", "--scale", "tiny", "--algorithm", "afpo",
+                           "--treatments", ",".join(picked), "--name", "afpo-variant", "--db", db,
+                           "--workers", "0", "--quiet")
+    assert code == 0, err
+    engine = open_database(db)
+    data = load_experiment(engine, 1)
+    engine.dispose()
+    assert data.experiment["name"] == "afpo-variant" and list(data.treatments["name"]) == picked
+    whole = {t.name: t for t in preset_grid("paper", "tiny", algorithm="afpo")}
+    assert list(data.treatments["seed"]) == [whole[n].seed for n in picked]
+    assert set(data.treatments["algorithm"]) == {"afpo"}
+    code, _, err = softevo(capsys, "experiment", "paper", "--treatments", "land S9", "--db", db)
+    assert code == 2 and err.startswith("error: no treatment 'land S9' in this preset; it has land S1")
