@@ -78,4 +78,9 @@ def test_the_readme_names_the_scale_and_model_of_docs_results():
         assert name in readme[readme.index(sentence) : readme.index(sentence) + 300]
     runs = (ROOT / "docs" / "results" / "export" / "runs.csv").read_text(encoding="utf-8").splitlines()
     assert runs[1].split(",")[1] == f"paper-{scale}"
-    assert "9030777" in results
+    # the export is the preset as it stands: every treatment with the scale's repetitions
+    from softevo.service.treatments import preset_grid
+
+    grid = preset_grid("paper", scale)
+    assert len(runs) - 1 == sum(t.repetitions for t in grid)
+    assert f"{grid[0].repetitions} repetitions" in results
