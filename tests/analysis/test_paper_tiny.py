@@ -11,8 +11,7 @@ import pandas as pd
 import pytest
 
 from softevo.analysis.figures import FIGURES
-from softevo.service.cli import main
-from tests.analysis.cli import softevo
+from tests.analysis.cli import exit_code, softevo
 
 
 @pytest.fixture(scope="module")
@@ -21,11 +20,7 @@ def paper_tiny(tmp_path_factory) -> str:
     db = f"sqlite:///{tmp_path_factory.mktemp('paper-tiny') / 'paper.db'}"
     err = io.StringIO()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        try:
-            main(["experiment", "paper", "--scale", "tiny", "--workers", "2", "--db", db, "--quiet"])
-            code = 0
-        except SystemExit as exc:
-            code = exc.code or 0
+        code = exit_code("experiment", "paper", "--scale", "tiny", "--workers", "2", "--db", db, "--quiet")
     assert code == 0, err.getvalue()
     return db
 

@@ -1,44 +1,44 @@
 """Seed-matched AFPO vs Pareto per treatment: best distance at generation 9, one value per run,
-Wilcoxon signed-rank (exact), A12.
+the report's paired test (``analysis.stats_tables.compare_paired``: Wilcoxon signed-rank),
+its paired A12 and Bonferroni over the treatments compared.
 
-Usage: python docs/results/afpo/compare.py STUDY.db AFPO.db  (the SQLite files of
+Usage: python docs/results/afpo/compare.py STUDY_DB_URL AFPO_DB_URL  (SQLAlchemy URLs of
 ``softevo experiment paper --scale study`` and of its AFPO variant, docs/results/README.md)
 """
 
-import sqlite3
 import sys
 
-import numpy as np
-from scipy import stats
+import pandas as pd
+
+from softevo import load_experiment
+from softevo.analysis.stats_tables import compare_paired, paired_a12
+from softevo.evolution.stats import bonferroni
 
 TREATMENTS = ("land S3", "water S3", "land-water S3", "water-land S3")
+GENERATION = 9
 
 
-def values(db: str) -> dict[str, dict[int, float]]:
-    """{treatment: {seed: best distance at generation 9}}."""
-    query = """select t.name, r.seed, g.best_distance from generations g
-               join runs r on r.id = g.run_id join treatments t on t.id = r.treatment_id
-               where g.generation = 9"""
-    out: dict[str, dict[int, float]] = {}
-    with sqlite3.connect(db) as conn:
-        for name, seed, best in conn.execute(query):
-            out.setdefault(name, {})[seed] = best
-    return out
+def best_by_seed(db: str) -> pd.DataFrame:
+    """Best distance at ``GENERATION``, one row per run: treatment, seed, best_distance."""
+    data = load_experiment(db, generations=[GENERATION])
+    values = data.run_values(GENERATION).merge(data.runs[["run_id", "seed"]], on="run_id")
+    return values[["treatment", "seed", "best_distance"]]
 
 
 def main() -> None:
-    pareto, afpo = values(sys.argv[1]), values(sys.argv[2])
-    print("| treatment | AFPO mean | Pareto mean | n pairs | Wilcoxon p | Bonferroni (4) "
-          "| A12 (AFPO vs Pareto) |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    pareto, afpo = best_by_seed(sys.argv[1]), best_by_seed(sys.argv[2])
+    pairs = afpo.merge(pareto, on=["treatment", "seed"], suffixes=("_afpo", "_pareto"))
+    rows = []
     for name in TREATMENTS:
-        seeds = sorted(set(pareto[name]) & set(afpo[name]))
-        x = np.array([afpo[name][s] for s in seeds])
-        y = np.array([pareto[name][s] for s in seeds])
-        p = stats.wilcoxon(x, y, method="exact").pvalue
-        a12 = (x[:, None] > y[None, :]).mean() + 0.5 * (x[:, None] == y[None, :]).mean()
-        print(f"| {name} | {x.mean():.3g} | {y.mean():.3g} | {len(seeds)} | {p:.2g} | "
-              f"{min(1.0, 4 * p):.2g} | {a12:.2f} |")
+        pair = pairs[pairs["treatment"] == name]
+        x, y = pair["best_distance_afpo"].to_numpy(), pair["best_distance_pareto"].to_numpy()
+        rows.append((name, x.mean(), y.mean(), len(pair), compare_paired(x, y)[1], paired_a12(x, y)))
+    corrected = bonferroni([row[4] for row in rows])
+    print("| treatment | AFPO mean | Pareto mean | n pairs | Wilcoxon p | p_B "
+          "| A12 (AFPO vs Pareto, paired) |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for (name, a, b, n, p, a12), p_b in zip(rows, corrected, strict=True):
+        print(f"| {name} | {a:.3g} | {b:.3g} | {n} | {p:.2g} | {p_b:.2g} | {a12:.2f} |")
 
 
 if __name__ == "__main__":
