@@ -83,10 +83,10 @@ def worker(
         typer.Option("--connect-timeout", help="seconds to wait for Redis at the start; default 5"),
     ] = None,
     engine: Annotated[
-        str | None, typer.Option("--engine", help="numba or warp; default $SOFTEVO_ENGINE or numba")
+        str | None, typer.Option("--engine", help="numba, warp or sleep; default $SOFTEVO_ENGINE or numba")
     ] = None,
     device: Annotated[
-        str | None, typer.Option("--device", help="Warp device (cuda:0, cpu); default $SOFTEVO_DEVICE")
+        str | None, typer.Option("--device", help="Warp device (cuda:0, cpu), or the sleep engine's x<factor>; default $SOFTEVO_DEVICE")
     ] = None,
 ) -> None:
     """Evaluate genomes for a coordinator: an RQ worker on the Redis of $SOFTEVO_REDIS_URL.

@@ -165,12 +165,18 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine
 
     ``threads`` caps numba's threads for this call (default: all cores numba was given).
     Results come back in the order of ``scenes``. ``engine="warp"`` runs the batch on the
-    Warp engine instead (``sim.warp_engine``; ``device`` e.g. "cuda:0" or "cpu").
+    Warp engine instead (``sim.warp_engine``; ``device`` e.g. "cuda:0" or "cpu");
+    ``engine="sleep"`` only sleeps for the batch's modelled cost (``sim.sleep_engine``;
+    ``device`` its speed-up, e.g. "x100").
     """
     if check_engine(engine) == "warp":
         from . import warp_engine
 
         return warp_engine.simulate_many(scenes, device=device)
+    if engine == "sleep":
+        from . import sleep_engine
+
+        return sleep_engine.simulate_many(scenes, device=device)
     parsed, robots, results, runnable = prepare(scenes)
     if runnable:
         # longest robots first, so the parallel tasks finish together

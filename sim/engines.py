@@ -1,5 +1,6 @@
-"""Which engine runs a batch: the numba one (default, CPU) or the Warp one (GPU, or Warp's CPU
-device), and the one error an unusable engine raises.
+"""Which engine runs a batch: the numba one (default, CPU), the Warp one (GPU, or Warp's CPU
+device) or the sleep one (no physics, only the time: ``sim.sleep_engine``, for benches of
+the system around the simulator), and the one error an unusable engine raises.
 
 Both engines take the same scenes and return the same ``Result`` (``sim.engine``); the Warp
 engine lives in ``sim.warp_engine`` and imports Warp only when it is asked for.
@@ -7,7 +8,7 @@ engine lives in ``sim.warp_engine`` and imports Warp only when it is asked for.
 
 from __future__ import annotations
 
-ENGINES = ("numba", "warp")
+ENGINES = ("numba", "warp", "sleep")
 PRECISIONS = ("float64", "float32")
 
 
