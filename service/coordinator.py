@@ -1,10 +1,15 @@
 """The coordinator: ask -> dispatch -> tell -> persist, one transaction per generation.
 
-Many runs advance together: each round asks every active run for its next generation,
-sends all their tasks to the executor in one call, then tells each run its results and
-commits that run's generation (individuals, evaluations, population, summary and the
-algorithm's JSON state, RNG included) in one transaction, before the next round dispatches
-anything. A coordinator killed at any point resumes from the last committed generation and
+Many runs advance together. With an executor that keeps several generations in flight
+(``submit`` / ``wait``: the RQ executor), each run goes at its own pace (``advance``): as soon
+as one run's generation has all its results, it is told them, committed and its next
+generation dispatched, while the other runs' jobs keep the workers busy; no run waits
+for another's slowest evaluation. With the others (in-process, process pool) each round asks
+every active run for its next generation, sends all their tasks in one call, then tells each
+run its results (``round``). Either way each run's generation (individuals, evaluations,
+population, summary and the algorithm's JSON state, RNG included) is committed in one
+transaction before that run's next generation is dispatched, and a run's results do not
+depend on the order in which runs finish. A coordinator killed at any point resumes from the last committed generation and
 reaches exactly the results of an uninterrupted run: the state it restarts from is the
 state the uninterrupted run had, and evaluations are deterministic.
 
@@ -259,14 +264,62 @@ class Coordinator:
         self.executor = executor
         self.on_generation = on_generation
 
+        self.in_flight: dict[int, tuple[ActiveRun, Any]] = {}  # run id -> (run, executor ticket)
+
+    @property
+    def pipelined(self) -> bool:
+        """Whether the executor keeps generations in flight (``submit`` / ``wait``)."""
+        return hasattr(self.executor, "submit") and hasattr(self.executor, "wait")
+
     def run(self, run_ids: Sequence[int], max_rounds: int | None = None) -> None:
         """Advance the unfinished runs among ``run_ids`` until all are done (or cancelled,
-        or failed), or for at most ``max_rounds`` generations."""
+        or failed), or for at most ``max_rounds`` more generations each."""
         runs = [load_run(self.engine, run_id) for run_id in unfinished_runs(self.engine, run_ids)]
+        if self.pipelined:
+            limit = {run.run_id: run.next_generation + (max_rounds or run.generations) for run in runs}
+            while runs:
+                runs = [run for run in self.advance(self._still_active(runs))
+                        if run.run_id in self.in_flight or run.next_generation < limit[run.run_id]]
+            return
         rounds = 0
         while runs and (max_rounds is None or rounds < max_rounds):
             runs = self.round(self._still_active(runs))
             rounds += 1
+
+    def advance(self, runs: list[ActiveRun], timeout: float | None = None) -> list[ActiveRun]:
+        """Dispatch the next generation of every run of ``runs`` not in flight, wait (at most
+        ``timeout`` seconds; None: until one is done) for generations to finish, tell and
+        commit those; return the runs that go on (those still in flight among them). Runs
+        left out of ``runs`` are forgotten (``forget``)."""
+        self.forget(set(self.in_flight) - {run.run_id for run in runs})
+        going_on = []
+        for run in runs:
+            if run.run_id not in self.in_flight:
+                tasks = self._guard(run, ask, run)
+                if tasks is None:  # failed: marked so by _guard
+                    continue
+                self.in_flight[run.run_id] = (run, self.executor.submit(tasks))
+            going_on.append(run)
+        tickets = [ticket for _, ticket in self.in_flight.values()]
+        done = {id(ticket) for ticket in self.executor.wait(tickets, timeout)}
+        finished = [run for run in going_on if id(self.in_flight[run.run_id][1]) in done]
+        live = self._live(finished)
+        for run in finished:
+            _, ticket = self.in_flight.pop(run.run_id)
+            if run.run_id not in live:  # cancelled while in flight: its generation is dropped
+                going_on.remove(run)
+                continue
+            results = ticket.results
+            if not self._guard(run, self._finish, run, results, evaluation_seconds(results)) or run.done:
+                going_on.remove(run)
+        return going_on
+
+    def forget(self, run_ids) -> None:
+        """Stop waiting for these runs' generations in flight (cancelled, lost, reloaded):
+        their jobs may still run; a run loaded again asks the same generation, whose jobs
+        have the same ids, and takes their results."""
+        for run_id in list(run_ids):
+            self.in_flight.pop(run_id, None)
 
     def round(self, runs: list[ActiveRun]) -> list[ActiveRun]:
         """One generation of every run; returns the runs that go on."""

@@ -219,12 +219,16 @@ class CoordinatorLoop:
 
     def step(self) -> bool:
         """Claim new runs, drop finished, cancelled or lost ones, advance the rest one
-        generation. Returns whether any run was advanced."""
+        generation (with an executor that keeps generations in flight: those whose
+        generation ends within ``poll_seconds``). Returns whether any run is being driven."""
         self._claim()
         if not self.active:
             return False
         before = {run.run_id for run in self.active}
-        self.active = self.coordinator.round(self.active)
+        if self.coordinator.pipelined:  # each run at its own pace; new runs join within a poll
+            self.active = self.coordinator.advance(self.active, timeout=self.poll_seconds)
+        else:
+            self.active = self.coordinator.round(self.active)
         self.locks.release(before - {run.run_id for run in self.active})
         return True
 

@@ -35,6 +35,7 @@ import threading
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 from redis import Redis
@@ -62,12 +63,27 @@ WAITING = {
 }
 MAX_BAD_RESULTS = 3  # resubmits of a batch whose job "finished" without usable results
 MAX_RESULT_BYTES = 1_000_000  # JSON of one job's results, at most (SOFTEVO_MAX_RESULT_BYTES)
+GATHER_SECONDS = 0.02  # once a result arrived, how long a poll waits for the ones close behind
 
 log = logging.getLogger(__name__)
 
 
 class ExecutorStopped(RuntimeError):
     """Raised by ``evaluate`` when the executor is asked to stop while it waits."""
+
+
+@dataclass
+class Ticket:
+    """One ``submit``'s tasks, their results as they come (None: not yet) and the jobs still
+    waiting for theirs."""
+
+    tasks: list[Task]
+    results: list[Task | None]
+    waiting: dict[str, Batch] = field(default_factory=dict)
+
+    @property
+    def done(self) -> bool:
+        return not self.waiting
 
 
 @dataclass
@@ -160,6 +176,8 @@ class RQExecutor:
         self.max_result_bytes = max_result_bytes
         self.stop = stop or threading.Event()
         self._last_maintenance = 0.0
+        self._last_sweep = 0.0
+        self._cursors: dict[str, str] = {}  # job id -> last result-stream entry read
 
     # -- the Executor interface -------------------------------------------------------------
 
@@ -173,28 +191,49 @@ class RQExecutor:
 
     def evaluate(self, tasks: list[Task]) -> list[Task]:
         """Results of ``tasks`` in order; blocks until every batch has its results."""
-        if not tasks:
-            return []
-        results: list[Task | None] = [None] * len(tasks)
-        waiting = {
-            b.job_id: b for b in plan_batches(tasks, self.workers, self.genomes_per_job, self.across_runs)
-        }
-        self._retrying(lambda: self._submit(waiting.values(), replace_failed=True))
-        cursors: dict[str, str] = {}
-        while waiting:
+        ticket = self.submit(tasks)
+        while not ticket.done:
+            self.wait([ticket])
+        return ticket.results  # type: ignore[return-value]
+
+    # -- many generations in flight (service.coordinator.Coordinator.advance) ----------------
+
+    def submit(self, tasks: list[Task]) -> Ticket:
+        """Enqueue ``tasks`` (one run's generation) and return at once; ``wait`` fills the
+        ticket's results. Tickets of several runs are in flight together, so that workers
+        take another run's jobs while one run waits for its slowest evaluation."""
+        ticket = Ticket(list(tasks), [None] * len(tasks))
+        batches = plan_batches(tasks, self.workers, self.genomes_per_job, self.across_runs) if tasks else []
+        ticket.waiting = {b.job_id: b for b in batches}
+        self._retrying(lambda: self._submit(batches, replace_failed=True))
+        return ticket
+
+    def wait(self, tickets: Iterable[Ticket], timeout: float | None = None) -> list[Ticket]:
+        """Wait until one of ``tickets`` has all its results, or ``timeout`` seconds (None:
+        as long as it takes); return the tickets that are done."""
+        tickets = list(tickets)
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            done = [ticket for ticket in tickets if ticket.done]
+            if done or not tickets:
+                return done
             if self.stop.is_set():
                 raise ExecutorStopped("executor stopped while waiting for results")
-            settled = self._retrying(lambda: self._poll(waiting, cursors))
+            owner = {job_id: t for t in tickets for job_id in t.waiting}
+            waiting = {job_id: batch for t in tickets for job_id, batch in t.waiting.items()}
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            settled = self._retrying(partial(self._poll, waiting, self._cursors, left))
             for batch, outcome in settled or []:
-                del waiting[batch.job_id]
-                cursors.pop(batch.job_id, None)
+                ticket = owner[batch.job_id]
+                del ticket.waiting[batch.job_id]
+                self._cursors.pop(batch.job_id, None)
                 if isinstance(outcome, list):
                     for position, result in zip(batch.positions, outcome, strict=True):
-                        results[position] = result
+                        ticket.results[position] = result
                 else:
-                    for part in outcome.values():
-                        waiting[part.job_id] = part
-        return results  # type: ignore[return-value]
+                    ticket.waiting.update(outcome)
+            if deadline is not None and time.monotonic() >= deadline:
+                return [ticket for ticket in tickets if ticket.done]
 
     def close(self) -> None:
         """Close the Redis connections."""
@@ -273,15 +312,26 @@ class RQExecutor:
             raw = pipe.execute()
         return [None if value is None else value.decode() for value in raw]
 
-    def _wait_for_results(self, waiting: dict[str, Batch], cursors: dict[str, str]) -> None:
-        """Block (up to 0.5 s) until some job of ``waiting`` writes a result."""
+    def _wait_for_results(
+        self, waiting: dict[str, Batch], cursors: dict[str, str], timeout: float | None = None
+    ) -> set[str]:
+        """Block (up to 0.5 s, or ``timeout``) until some job of ``waiting`` writes a result;
+        return the ids of the jobs that wrote one. Once something arrived it waits
+        ``GATHER_SECONDS`` more, so that one poll settles the jobs ending about together."""
+        block = 500 if timeout is None else max(1, min(500, int(timeout * 1000)))
         streams = {Result.get_key(job_id): cursors.get(job_id, "0-0") for job_id in waiting}
-        response = self.connection.xread(streams, block=500) or []
+        response = self.connection.xread(streams, block=block) or []
+        if response:
+            time.sleep(GATHER_SECONDS)
+            response = self.connection.xread(streams, block=None) or response
         by_key = {Result.get_key(job_id): job_id for job_id in waiting}
+        wrote = set()
         for key, entries in response:
             key = key.decode() if isinstance(key, bytes) else key
             last = entries[-1][0]
             cursors[by_key[key]] = last.decode() if isinstance(last, bytes) else last
+            wrote.add(by_key[key])
+        return wrote
 
     def _maintain(self) -> None:
         """Re-queue jobs of dead workers now rather than at RQ's 10-minute maintenance."""
@@ -292,13 +342,20 @@ class RQExecutor:
         StartedJobRegistry(queue=self.queue, job_class=EvaluationJob).cleanup()
 
     def _poll(
-        self, waiting: dict[str, Batch], cursors: dict[str, str]
+        self, waiting: dict[str, Batch], cursors: dict[str, str], timeout: float | None = None
     ) -> list[tuple[Batch, list[Task] | dict[str, Batch]]]:
         """Wait a little, then settle what finished: (batch, results) for a finished batch,
-        (batch, {id: part}) for a batch replaced by one-genome parts."""
+        (batch, {id: part}) for a batch replaced by one-genome parts. The jobs that wrote a
+        result are looked at on every poll; every job, for those that failed, were lost or
+        were stopped, once per ``maintenance_seconds``."""
         self._maintain()
-        self._wait_for_results(waiting, cursors)
-        batches = list(waiting.values())
+        wrote = self._wait_for_results(waiting, cursors, timeout)
+        now = time.monotonic()
+        if now - self._last_sweep >= self.maintenance_seconds:
+            self._last_sweep = now
+            batches = list(waiting.values())
+        else:
+            batches = [waiting[job_id] for job_id in wrote]
         statuses = self._statuses([b.job_id for b in batches])
         settled: list[tuple[Batch, list[Task] | dict[str, Batch]]] = []
         lost = []

@@ -35,7 +35,8 @@ def speed_up(device: str | None) -> float:
     except ValueError:
         factor = float("nan")
     if not factor > 0 or factor == float("inf"):
-        raise EngineUnavailable(f"device: the sleep engine takes a speed-up x<factor> > 0, e.g. x100 (got {device!r})")
+        raise EngineUnavailable(
+            f"device: the sleep engine takes a speed-up x<factor> > 0, e.g. x100 (got {device!r})")
     return factor
 
 

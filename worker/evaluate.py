@@ -61,8 +61,10 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
     same order.
 
     All robots of the batch run in one ``sim.simulate_many`` call (``threads``: numba threads
-    for it; None keeps the process's setting).
+    for it; None keeps the process's setting). On the sleep engine the results carry no shape
+    descriptors: its workers stand in for the cluster's in benches and spend no CPU.
     """
+    describe = engine_options().get("engine") != "sleep"
     results: list[Result | None] = [None] * len(tasks)
     runnable: list[tuple[int, Task, Any, list[dict]]] = []
     for k, data in enumerate(tasks):
@@ -82,7 +84,7 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
         for k, task, phenotype, scenes in runnable:
             parts, offset = outcomes[offset : offset + len(scenes)], offset + len(scenes)
             try:
-                results[k] = Result.of(task, phenotype, compound_outcome(parts), seconds)
+                results[k] = Result.of(task, phenotype, compound_outcome(parts), seconds, describe)
             except Exception as exc:
                 results[k] = failed(task, f"{type(exc).__name__}: {exc}")
     return [result.to_json() for result in results]  # type: ignore[union-attr]

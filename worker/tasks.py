@@ -221,9 +221,11 @@ class Result:
         return cls(**{key: data[key] for key in cls.__dataclass_fields__ if key in data})
 
     @classmethod
-    def of(cls, task: Task, phenotype, outcome: Any, seconds: float) -> Result:
+    def of(cls, task: Task, phenotype, outcome: Any, seconds: float, describe: bool = True) -> Result:
         """The result of ``task`` from the simulator's ``outcome`` (a ``sim.Result`` or an
-        exception), scored by ``evolution.individual.score``."""
+        exception), scored by ``evolution.individual.score``; ``describe=False`` leaves the
+        shape descriptors out (None: the sleep engine's workers, which measure the system
+        around the simulator, not the robots)."""
         from softevo.evolution.individual import score
 
         if isinstance(outcome, BaseException):
@@ -235,7 +237,7 @@ class Result:
             evaluation.distance,
             evaluation.stable,
             evaluation.error,
-            **_phenotype_fields(phenotype),
+            **_phenotype_fields(phenotype, describe),
             seconds=seconds,
         )
 
@@ -268,14 +270,14 @@ def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> Resul
     return Result(task_id, FAILED_DISTANCE, False, reason, **_phenotype_fields(phenotype))
 
 
-def _phenotype_fields(phenotype) -> dict[str, Any]:
+def _phenotype_fields(phenotype, describe: bool = True) -> dict[str, Any]:
     if phenotype is None:
         return {}
     return {
         "voxel_count": int(phenotype.voxel_count),
         "active_share": float(phenotype.active_share),
         "frequency": float(phenotype.frequency),
-        "descriptors": _descriptors(phenotype),
+        "descriptors": _descriptors(phenotype) if describe else None,
         "phenotype": plain(phenotype.summary()),
     }
 
