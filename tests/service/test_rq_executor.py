@@ -166,3 +166,54 @@ def test_a_worker_of_another_version_refuses_the_job_and_leaves_it_queued(redis_
     assert f"this worker runs softevo {__version__}" in error_lines[0]
     assert rq_queue.job_ids == [job.id]  # back in the queue, untouched
     assert Job.fetch(job.id, connection=connection, serializer=JSONSerializer).get_status() == "queued"
+
+
+def test_tickets_in_flight_return_each_runs_results_as_they_end(redis_url, queue):
+    """``submit`` returns at once; ``wait`` hands back the tickets whose jobs all ended, each
+    with its results in order, equal to ``evaluate``'s."""
+    first, second = tasks(3, run_id=21, seed=8), tasks(2, run_id=22, seed=9)
+    executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2)
+    try:
+        tickets = [executor.submit(first), executor.submit(second)]
+        assert not any(ticket.done for ticket in tickets)
+        done = []
+        while len(done) < 2:
+            done += executor.wait([t for t in tickets if t not in done], timeout=30)
+        assert executor.wait([executor.submit([])]) != []  # nothing to evaluate: done at once
+        again = executor.evaluate(first)
+    finally:
+        executor.close()
+    assert [r["id"] for r in tickets[0].results] == [0, 1, 2]
+    assert tickets[0].results == again  # the same jobs: their stored results
+
+
+def test_runs_driven_at_their_own_pace_store_what_rounds_store(redis_url, queue, tmp_path):
+    """The coordinator on the RQ executor advances each run as its generation ends
+    (``Coordinator.advance``); two runs of different stiffness store exactly what the same
+    runs store when driven in lockstep rounds in-process."""
+    from softevo.service.coordinator import Coordinator
+    from softevo.service.db import open_database
+    from softevo.service.experiments import create
+    from softevo.service.treatments import Treatment
+    from tests.service import tinyrun
+
+    treatments = [
+        Treatment("land", 1.0, population=4, generations=3, workspace=(3, 3, 3), cycles=1, seed=5),
+        Treatment("water", 0.01, population=4, generations=3, workspace=(3, 3, 3), cycles=1, seed=6),
+    ]
+    snapshots = []
+    for name, make in (("rounds", lambda: InlineExecutor()),
+                       ("per-run", lambda: RQExecutor(redis_url, queue=queue, genomes_per_job=2))):
+        engine = open_database(f"sqlite:///{tmp_path / name}.db")
+        _, run_ids = create(engine, "test", treatments)
+        executor = make()
+        coordinator = Coordinator(engine, executor)
+        assert coordinator.pipelined == (name == "per-run")
+        try:
+            coordinator.run(run_ids)
+        finally:
+            executor.close()
+        snapshots.append([tinyrun.snapshot(engine, run_id) for run_id in run_ids])
+        engine.dispose()
+    assert snapshots[0] == snapshots[1]
+    assert all(snap["run"][:2] == ("finished", 2) for snap in snapshots[1])
