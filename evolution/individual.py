@@ -82,6 +82,9 @@ class Individual:
     error: str | None = None
     evaluated_generation: int | None = None
     mutations: list[str] = field(default_factory=list)
+    # the last phenotype developed, with the genome and encoding it came from (``phenotype``)
+    _developed: tuple[Any, EncodingConfig, Phenotype] | None = field(
+        default=None, init=False, repr=False, compare=False)
 
     @property
     def evaluated(self) -> bool:
@@ -93,7 +96,14 @@ class Individual:
         return self.evaluated and (not self.stable or self.error is not None)
 
     def phenotype(self, encoding: EncodingConfig) -> Phenotype:
-        return develop(self.genome, encoding)
+        """The genome developed in ``encoding``; developed once while genome and encoding
+        stay the same (selection, twin lookup and storage each ask for it)."""
+        cached = self._developed
+        if cached is not None and cached[0] is self.genome and cached[1] == encoding:
+            return cached[2]
+        phenotype = develop(self.genome, encoding)
+        self._developed = (self.genome, encoding, phenotype)
+        return phenotype
 
     def clear_evaluation(self) -> None:
         self.objectives = self.descriptors = self.environment = None

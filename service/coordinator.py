@@ -268,8 +268,11 @@ class Coordinator:
 
     @property
     def pipelined(self) -> bool:
-        """Whether the executor keeps generations in flight (``submit`` / ``wait``)."""
-        return hasattr(self.executor, "submit") and hasattr(self.executor, "wait")
+        """Whether runs go at their own pace: the executor keeps generations in flight
+        (``submit`` / ``wait``) and does not batch a round's genomes across runs (GPU
+        workers want the whole round in a few large jobs: ``across_runs``)."""
+        in_flight = hasattr(self.executor, "submit") and hasattr(self.executor, "wait")
+        return in_flight and not getattr(self.executor, "across_runs", False)
 
     def run(self, run_ids: Sequence[int], max_rounds: int | None = None) -> None:
         """Advance the unfinished runs among ``run_ids`` until all are done (or cancelled,
