@@ -9,9 +9,10 @@ every active run for its next generation, sends all their tasks in one call, the
 run its results (``round``). Either way each run's generation (individuals, evaluations,
 population, summary and the algorithm's JSON state, RNG included) is committed in one
 transaction before that run's next generation is dispatched, and a run's results do not
-depend on the order in which runs finish. A coordinator killed at any point resumes from the last committed generation and
-reaches exactly the results of an uninterrupted run: the state it restarts from is the
-state the uninterrupted run had, and evaluations are deterministic.
+depend on the order in which runs finish. A coordinator killed at any point resumes from
+the last committed generation and reaches exactly the results of an uninterrupted run: the
+state it restarts from is the state the uninterrupted run had, and evaluations are
+deterministic.
 
 Each generation's stats count the simulations (``evaluations``) and the evaluations that
 needed none (``reused``: a living twin's in the same world; ``empty_bodies``); survivors are
