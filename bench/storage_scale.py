@@ -251,7 +251,10 @@ class Synthesised:
             "distance": individual["distance"],
             "active_share": individual["active_share"],
             "voxel_count": individual["voxel_count"],
-            **{name: descriptors.get(name) for name in ("frequency", "symmetry", "branching", "shape_entropy")},
+            **{
+                name: descriptors.get(name)
+                for name in ("frequency", "symmetry", "branching", "shape_entropy")
+            },
             "descriptors": individual["descriptors"],
             "stable": True,
             "error": None,
@@ -321,9 +324,15 @@ def store_index(engine: Engine, full: int, others: list[dict], treatments: list[
                 insert_ignore(
                     conn,
                     Generation.__table__,
-                    [{"run_id": run["id"], **r, "stats": r.pop("extra")} for r in earlier[start : start + 5000]],
+                    [
+                        {"run_id": run["id"], **r, "stats": r.pop("extra")}
+                        for r in earlier[start : start + 5000]
+                    ],
                 )
-            summary = {**last.pop("extra"), **{k: v for k, v in last.items() if k not in ("generation", "created_at")}}
+            summary = {
+                **last.pop("extra"),
+                **{k: v for k, v in last.items() if k not in ("generation", "created_at")},
+            }
             record_generation(
                 conn,
                 GenerationRecord(run["id"], last["generation"], summary=summary, state=state, finished=True),
@@ -333,7 +342,11 @@ def store_index(engine: Engine, full: int, others: list[dict], treatments: list[
 def _summary_of(stored: dict[str, Any]) -> dict[str, Any]:
     """A stored generation summary as the columns to insert again (``stats`` as ``extra``)."""
     keys = ("generation", "evaluations", "best_distance", "mean_distance", "front_size", "evaluation_seconds")
-    return {**{k: stored[k] for k in keys}, "created_at": stored["created_at"], "extra": dict(stored["stats"])}
+    return {
+        **{k: stored[k] for k in keys},
+        "created_at": stored["created_at"],
+        "extra": dict(stored["stats"]),
+    }
 
 
 # -- 2. sizes --------------------------------------------------------------------------------
@@ -375,7 +388,10 @@ def database_bytes(conn: Connection) -> int:
     """The whole database's bytes (SQLite: pages in use; PostgreSQL: ``pg_database_size``)."""
     if conn.dialect.name == "postgresql":
         return int(conn.execute(text("SELECT pg_database_size(current_database())")).scalar())
-    pages = conn.execute(text("PRAGMA page_count")).scalar() - conn.execute(text("PRAGMA freelist_count")).scalar()
+    pages = (
+        conn.execute(text("PRAGMA page_count")).scalar()
+        - conn.execute(text("PRAGMA freelist_count")).scalar()
+    )
     return int(pages * conn.execute(text("PRAGMA page_size")).scalar())
 
 
@@ -415,7 +431,9 @@ def timed(function: Callable[[], Any], repeats: int) -> tuple[float, Any]:
     return statistics.median(seconds), result
 
 
-def queries(engine: Engine, store: dict[str, Any], repeats: int, folder: Path) -> list[tuple[str, float, str]]:
+def queries(
+    engine: Engine, store: dict[str, Any], repeats: int, folder: Path
+) -> list[tuple[str, float, str]]:
     """(name, median seconds, what came back) of each researcher's query."""
     run_id, experiment_id = store["run_id"], store["experiment_id"]
     with engine.connect() as conn:
@@ -423,14 +441,19 @@ def queries(engine: Engine, store: dict[str, Any], repeats: int, folder: Path) -
         best = local_to_db_ids(conn, run_id, [last["stats"]["best_local_id"]])[last["stats"]["best_local_id"]]
     checks = {
         "lineage of the final best": (lambda: ancestors(engine, best), lambda r: f"{len(r)} ancestors"),
-        "run tree, all pages (softevo phylogeny)": (lambda: _all_pages(engine, run_id), lambda r: f"{r} nodes"),
+        "run tree, all pages (softevo phylogeny)": (
+            lambda: _all_pages(engine, run_id),
+            lambda r: f"{r} nodes",
+        ),
         "run tree sample (dashboard)": (
             lambda: _on(engine, lambda conn: tree_sample(conn, run_id)),
             lambda r: f"{len(r['nodes'])} nodes",
         ),
         "exaptation": (
             lambda: _on(engine, lambda conn: exaptation(conn, run_id)),
-            lambda r: f"{r['founders_surviving']} of {r['founders']} founders survive, {r['lines_total']} lines",
+            lambda r: (
+                f"{r['founders_surviving']} of {r['founders']} founders survive, {r['lines_total']} lines"
+            ),
         ),
         "export CSV of the run": (
             lambda: export_runs(engine, [run_id], folder / "export"),
@@ -532,7 +555,9 @@ def print_compression(saved: dict[str, dict[str, float]]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--db", help="database URL (default: a new SQLite file in a temporary folder)")
-    parser.add_argument("--generations", type=int, default=PAPER_LONGEST, help="generations of the longest runs")
+    parser.add_argument(
+        "--generations", type=int, default=PAPER_LONGEST, help="generations of the longest runs"
+    )
     parser.add_argument("--population", type=int, default=30)
     parser.add_argument("--evolved", type=int, default=300, help="generations through the real algorithm")
     parser.add_argument("--repeats", type=int, default=3, help="timings per query (the median is shown)")
