@@ -199,9 +199,13 @@ def plan(
         gpus=gpus,
         dispatch="rounds" if gpus else dispatch,
         treatments=lines,
-        cost={**cost.to_dict(), **({"gpu_rate": gpu_rate, "gpu_rate_source": GPU_RATE_SOURCE} if gpus else {})},
+        cost={**cost.to_dict(), **_gpu_rate(gpu_rate, gpus)},
         assumptions=_assumptions(gpus is not None, coordinator_seconds),
     )
+
+
+def _gpu_rate(rate: float, gpus: int | None) -> dict[str, Any]:
+    return {"gpu_rate": rate, "gpu_rate_source": GPU_RATE_SOURCE} if gpus else {}
 
 
 def check_devices(cores: int | None, gpus: int | None) -> None:
@@ -304,7 +308,8 @@ def stretches(treatment: Treatment) -> list[Stretch]:
 def sample_costs(treatment: Treatment, cost: CostModel, samples: int, seed: int) -> dict[str, Costs]:
     """Costs of ``samples`` random viable genomes in each world of ``treatment``'s stretches."""
     genomes = sample_genomes(encoding_of(treatment.to_settings()), samples, seed)
-    return {world: _costs(treatment, genomes, world, cost) for world in {s.world for s in stretches(treatment)}}
+    visited = {stretch.world for stretch in stretches(treatment)}
+    return {world: _costs(treatment, genomes, world, cost) for world in visited}
 
 
 @functools.lru_cache(maxsize=16)
@@ -375,9 +380,9 @@ def _treatment_plan(treatment: Treatment, counts: Counts, costs: dict[str, Costs
         work += n * float(costs[stretch.world].voxel_steps.mean())
     evaluations = counts.exact_total if counts.exact_total is not None else simulated * runs
     scale = evaluations / simulated if simulated else 0.0  # runs (or the exact count's ratio)
+    per_generation = BYTES_PER_GENERATION + treatment.population * BYTES_PER_MEMBER
     per_run_bytes = (born * BYTES_PER_INDIVIDUAL + stored * BYTES_PER_EVALUATION
-                     + treatment.generations * (BYTES_PER_GENERATION + treatment.population * BYTES_PER_MEMBER)
-                     + treatment.population * BYTES_PER_STATE_MEMBER)
+                     + treatment.generations * per_generation + treatment.population * BYTES_PER_STATE_MEMBER)
     return TreatmentPlan(
         name=treatment.name,
         runs=runs,
@@ -429,7 +434,7 @@ def _timeline(treatments, counts, jobs_of) -> tuple[list[tuple[int, float]], lis
     return rounds, runs
 
 
-def _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng) -> tuple[float, float]:
+def _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng) -> tuple:
     def size_of(t: Treatment, n: int) -> int:  # plan_batches / executors.chunks
         return max(1, min(t.genomes_per_task, math.ceil(n / cores)))
 
@@ -446,7 +451,8 @@ def _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_second
             draws = rng.choice(by_treatment[id(treatment)][stretch.world].seconds, size=n)
             size = size_of(treatment, n) if n else 1
             jobs = np.add.reduceat(draws, np.arange(0, n, size)) if n else np.zeros(0)
-            generations.append(Generation(jobs * weight, weight * _coordinator(treatment, coordinator_seconds)))
+            told = weight * _coordinator(treatment, coordinator_seconds)
+            generations.append(Generation(jobs * weight, told))
         simulated_runs.append(generations)
     return simulate(simulated_runs, cores, dispatch)
 

@@ -35,7 +35,9 @@ class Generation:
     coordinator_seconds: float = 0.0
 
 
-def simulate(runs: Sequence[Sequence[Generation]], workers: int, policy: str = "rounds") -> tuple[float, float]:
+def simulate(
+    runs: Sequence[Sequence[Generation]], workers: int, policy: str = "rounds"
+) -> tuple[float, float]:
     """(makespan, busy worker-seconds) of ``runs`` on ``workers`` workers under ``policy``."""
     if policy not in POLICIES:
         raise ValueError(f"unknown dispatch policy {policy!r}; choose {' or '.join(POLICIES)}")
