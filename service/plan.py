@@ -11,14 +11,15 @@
 - Seconds per evaluation: ``SAMPLE_GENOMES`` random viable genomes of the treatment's
   encoding (seeded), their scenes built by ``worker.tasks.scenes_of`` in each world the
   treatment visits (a gradual span at its middle share), at its stiffness, cycles, model and
-  cap on seconds, costed by ``sim.cost.CostModel``: a distribution, not only a mean. Random
-  genomes stand for evolved ones (bodies that grow or shrink over a run change the cost).
+  cap on seconds, costed by ``sim.cost.CostModel`` plus the worker's own work per evaluation
+  (``WORKER_SECONDS_PER_EVALUATION``): a distribution, not only a mean. Random genomes stand
+  for evolved ones (bodies that grow or shrink over a run change the cost).
 - Wall time: ``service.plan_dispatch`` simulates dispatch on the workers, each generation
   split into jobs as ``service.rq_executor.plan_batches`` splits it, job seconds drawn from
-  the distribution, under ``DISPATCH`` (``"rounds"`` or ``"per-run"``), plus the coordinator's
-  ``COORDINATOR_SECONDS`` per run-generation. Long stretches of like generations are
-  simulated on at most ``MAX_SIMULATED`` generations (and ``EVENT_BUDGET`` jobs in all) whose
-  seconds are scaled up to the stretch's length.
+  the distribution plus ``JOB_SECONDS`` each, under ``DISPATCH`` (``"rounds"`` or
+  ``"per-run"``), plus the coordinator's ``COORDINATOR_SECONDS`` per run-generation. Long
+  stretches of like generations are simulated on at most ``MAX_SIMULATED`` generations (and
+  ``EVENT_BUDGET`` jobs in all) whose seconds are scaled up to the stretch's length.
 - GPUs: a round's genomes (all runs) are split evenly over the GPUs; a GPU steps its batch in
   lock-step, ``total voxels x the longest robot's steps / GPU_VOXEL_STEPS_PER_SECOND`` (an
   estimate, not measured); rounds wait for the slowest GPU.
@@ -53,11 +54,17 @@ EXACT_BUDGET = 4_000  # individual-generations driven whole (sum of population x
 PROBE_BREEDS = 3  # bred generations a probe drives before (and after) a switch
 MAX_SIMULATED = 50  # generations of a stretch the dispatch simulation simulates
 EVENT_BUDGET = 150_000  # jobs the dispatch simulation simulates in all
-# One coordinator's ask + tell + one SQLite transaction per run-generation, population 30:
-# 69-314 ms measured loaded (docs/benchmarks.md "Coordinator and storage"); the low end, in
-# proportion to the population.
-COORDINATOR_SECONDS = 0.069
+# Measured here (2 shared cores, loaded), beside the simulation that ``CostModel`` costs:
+# - the coordinator's ask + tell + SQLite transaction of one run-generation: 0.21 s at
+#   population 30 (7^3, paper encoding; docs/benchmarks.md: 69-314 ms), 0.019 s at
+#   population 6; taken in proportion to the population;
+# - a worker's own work per evaluation (developing the genome, descriptors, the result):
+#   22 ms an evaluation of a 5^3 paper-encoding robot against the cost model's 7 ms;
+# - a local-executor job's round trip: a 1-genome job 36 ms against 22 ms inline.
+COORDINATOR_SECONDS = 0.2
 COORDINATOR_POPULATION = 30
+WORKER_SECONDS_PER_EVALUATION = 0.015
+JOB_SECONDS = 0.012
 # An H200's rate in the Warp engine: ESTIMATE, NOT MEASURED (the Warp design review's
 # 1.5-2.2e9 voxel-steps/s, docs/gpu.md "Cost model"); replace it once bench/gpu_throughput.py
 # has run on one.
@@ -224,7 +231,8 @@ def _assumptions(gpu: bool, coordinator_seconds: float) -> list[str]:
         f"seconds per evaluation from {SAMPLE_GENOMES} random viable genomes per treatment; evolved "
         "bodies may cost more or less",
         f"coordinator {coordinator_seconds * 1000:.0f} ms per run-generation at population "
-        f"{COORDINATOR_POPULATION} (docs/benchmarks.md), one generation at a time",
+        f"{COORDINATOR_POPULATION}, one generation at a time; {WORKER_SECONDS_PER_EVALUATION * 1000:.0f} ms "
+        f"of a worker's own per evaluation, {JOB_SECONDS * 1000:.0f} ms per job (measured here)",
         "database bytes measured on SQLite for short runs; genomes grow over long runs",
     ]
     if gpu:
@@ -332,7 +340,7 @@ def _costs(treatment: Treatment, genomes: list, world: str, cost: CostModel) -> 
             continue
         parsed = [parse_scene(scene) for scene in scenes]
         counted = [voxel_steps(scene) for scene in parsed]
-        seconds.append(sum(cost.scene_seconds(scene) for scene in parsed))
+        seconds.append(sum(cost.scene_seconds(scene) for scene in parsed) + WORKER_SECONDS_PER_EVALUATION)
         voxels.append(max(v for v, _ in counted))
         steps.append(sum(s for _, s in counted))
     if not seconds:
@@ -450,7 +458,7 @@ def _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_second
             n = int(round(count.simulated[stretch.kind]))
             draws = rng.choice(by_treatment[id(treatment)][stretch.world].seconds, size=n)
             size = size_of(treatment, n) if n else 1
-            jobs = np.add.reduceat(draws, np.arange(0, n, size)) if n else np.zeros(0)
+            jobs = np.add.reduceat(draws, np.arange(0, n, size)) + JOB_SECONDS if n else np.zeros(0)
             told = weight * _coordinator(treatment, coordinator_seconds)
             generations.append(Generation(jobs * weight, told))
         simulated_runs.append(generations)
