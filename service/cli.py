@@ -2,7 +2,8 @@
 
 Each command group lives in its own module and registers itself on the shared Typer app:
 ``service.cli_sim`` (simulate), ``service.cli_evolution`` (describe) and ``service.cli_runs``
-(run, experiment, status, resume, export, lineage, ...). A user's mistake (bad arguments,
+(run, experiment, status, resume, export, lineage, ...) and ``service.cli_plan``
+(plan). A user's mistake (bad arguments,
 a malformed scene, a database that cannot be written) is reported as one line on stderr with
 exit status 2, never as a traceback.
 """
@@ -69,12 +70,14 @@ def _register() -> None:
         cli_dashboard,
         cli_evolution,
         cli_phylogeny,
+        cli_plan,
         cli_runs,
         cli_service,
         cli_sim,
     )
 
-    for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard, cli_phylogeny):
+    for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard, cli_phylogeny,
+                   cli_plan):
         module.register(app)
 
 

@@ -132,6 +132,30 @@ ExperimentRequest = Annotated[
 ]
 
 
+
+class Devices(Strict):
+    """What a plan runs on: ``cores`` CPU workers or ``gpus`` GPUs (exactly one)."""
+
+    cores: int | None = Field(None, ge=1, le=100_000, description="CPU workers, one core each")
+    gpus: int | None = Field(None, ge=1, le=10_000, description="GPUs (their rate: an estimate)")
+
+
+class PlanExperimentIn(ExperimentIn, Devices):
+    """An experiment of explicit treatments to plan, and the devices."""
+
+    name: Name = "plan"
+
+
+class PlanPresetIn(PresetIn, Devices):
+    """A preset experiment to plan, and the devices."""
+
+
+PlanRequest = Annotated[
+    Annotated[PlanExperimentIn, Tag("treatments")] | Annotated[PlanPresetIn, Tag("preset")],
+    Discriminator(_experiment_kind),
+]
+
+
 # -- responses -----------------------------------------------------------------------------
 
 

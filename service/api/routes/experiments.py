@@ -113,18 +113,23 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     repetitions x workspace voxels x steps per evaluation) than
     ``SOFTEVO_MAX_REQUEST_VOXEL_STEPS``, or than ``SOFTEVO_MAX_SERVER_VOXEL_STEPS`` together
     with the unfinished runs."""
+    treatments = request_treatments(body)
     if isinstance(body, PresetIn):
-        treatments = preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed,
-                                 algorithm=body.algorithm, model=body.model)
         name = body.name or f"{body.preset}-{body.scale}"
         experiment_id, run_ids = create(
             services.engine, name, treatments, body.preset, body.scale, settings=services.settings
         )
     else:
-        experiment_id, run_ids = create(
-            services.engine, body.name, _treatments(body), settings=services.settings
-        )
+        experiment_id, run_ids = create(services.engine, body.name, treatments, settings=services.settings)
     return ExperimentCreated(id=experiment_id, runs=run_ids)
+
+
+def request_treatments(body: ExperimentIn | PresetIn) -> list[Treatment]:
+    """The treatments an experiment body asks for: a preset's grid, or its own treatments."""
+    if isinstance(body, PresetIn):
+        return preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed,
+                           algorithm=body.algorithm, model=body.model)
+    return _treatments(body)
 
 
 RunsLimit = Annotated[

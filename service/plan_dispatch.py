@@ -1,0 +1,109 @@
+"""A small discrete-event simulation of how runs' generations are dispatched to workers.
+
+Each run is a list of generations; a generation is a set of jobs (seconds each, on one
+worker) and the coordinator's seconds for it (tell, store, ask: one coordinator, one
+generation at a time). ``W`` workers take jobs first in, first out. Two policies:
+
+- ``"rounds"`` (``service.coordinator.Coordinator.round``): every active run's generation is
+  dispatched together; the next round starts when the whole round is done and the
+  coordinator has told and stored every run of it.
+- ``"per-run"``: a run's next generation is dispatched as soon as its own generation is done
+  and the coordinator has told and stored it, whatever the other runs do.
+
+``simulate(runs, workers, policy)`` returns (makespan seconds, busy worker-seconds).
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+POLICIES = ("rounds", "per-run")
+_RELEASE, _FINISH = 0, 1
+
+
+@dataclass(frozen=True)
+class Generation:
+    """One generation of one run: ``jobs`` (seconds of each job on one worker) and the
+    coordinator's ``coordinator_seconds`` once its jobs are done."""
+
+    jobs: np.ndarray
+    coordinator_seconds: float = 0.0
+
+
+def simulate(
+    runs: Sequence[Sequence[Generation]], workers: int, policy: str = "rounds"
+) -> tuple[float, float]:
+    """(makespan, busy worker-seconds) of ``runs`` on ``workers`` workers under ``policy``."""
+    if policy not in POLICIES:
+        raise ValueError(f"unknown dispatch policy {policy!r}; choose {' or '.join(POLICIES)}")
+    return _Dispatch(runs, workers, policy == "rounds").run()
+
+
+class _Dispatch:
+    def __init__(self, runs: Sequence[Sequence[Generation]], workers: int, rounds: bool) -> None:
+        self.runs, self.idle, self.rounds = runs, int(workers), rounds
+        self.events: list[tuple[float, int, int, int]] = []
+        self.ready: deque[tuple[int, float]] = deque()
+        self.position = [0] * len(runs)  # the generation each run is at
+        self.remaining = [0] * len(runs)  # its jobs not finished
+        self.waiting: set[int] = set()  # runs of the round not done (rounds)
+        self.coordinator_free = self.now = self.end = self.busy = 0.0
+        self.sequence = 0
+
+    def run(self) -> tuple[float, float]:
+        live = [r for r, generations in enumerate(self.runs) if generations]
+        self.waiting = set(live)
+        for r in live:
+            self._push(0.0, _RELEASE, r)
+        while True:
+            while self.idle and self.ready:
+                r, seconds = self.ready.popleft()
+                self.idle -= 1
+                self.busy += seconds
+                self._push(self.now + seconds, _FINISH, r)
+            if not self.events:
+                return max(self.end, self.now), self.busy
+            self.now, _, kind, r = heapq.heappop(self.events)
+            if kind == _RELEASE:
+                self._release(r)
+            else:
+                self.idle += 1
+                self.remaining[r] -= 1
+                if self.remaining[r] == 0:
+                    self._done(r)
+
+    def _push(self, time: float, kind: int, r: int) -> None:
+        self.sequence += 1
+        heapq.heappush(self.events, (time, self.sequence, kind, r))
+
+    def _release(self, r: int) -> None:
+        jobs = self.runs[r][self.position[r]].jobs
+        self.remaining[r] = len(jobs)
+        self.ready.extend((r, float(seconds)) for seconds in jobs)
+        if not len(jobs):  # nothing to simulate: done at once
+            self._done(r)
+
+    def _done(self, r: int) -> None:
+        if not self.rounds:
+            self._told([r], self.runs[r][self.position[r]].coordinator_seconds)
+            return
+        self.waiting.discard(r)
+        if self.waiting:
+            return
+        told = [s for s, generations in enumerate(self.runs) if self.position[s] < len(generations)]
+        self._told(told, sum(self.runs[s][self.position[s]].coordinator_seconds for s in told))
+
+    def _told(self, told: list[int], seconds: float) -> None:
+        """The coordinator tells and stores ``told``'s generations, then releases the next."""
+        self.coordinator_free = max(self.now, self.coordinator_free) + seconds
+        self.end = max(self.end, self.coordinator_free)
+        for r in told:
+            self.position[r] += 1
+            if self.position[r] < len(self.runs[r]):
+                self.waiting.add(r)
+                self._push(self.coordinator_free, _RELEASE, r)

@@ -1,0 +1,133 @@
+"""``service.plan``, ``softevo plan`` and ``POST /plan`` against real runs and a real server."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import httpx
+import pytest
+from sqlalchemy import func, select
+
+from softevo.service.db import open_database
+from softevo.service.db.models import Generation
+from softevo.service.plan import plan
+from softevo.service.treatments import Treatment, paper_grid
+from tests.analysis.cli import softevo
+from tests.service.rq_support import Processes, service_env
+from tests.service.tinyrun import TINY, new_run, run_to_end
+
+PLAN_KEYS = {"wall_seconds", "core_hours", "gpu_hours", "database_bytes", "utilisation",
+             "evaluations", "voxel_steps"}
+GRADUAL = dataclasses.replace(TINY, name="gradual", switch_at=2, switch_over=2, generations=6, seed=5)
+
+
+@pytest.fixture(scope="module")
+def real_runs(tmp_path_factory):
+    """Two tiny runs stored on SQLite (an abrupt and a gradual transition): their simulated
+    evaluations and the file's growth."""
+    path = tmp_path_factory.mktemp("plan") / "runs.db"
+    open_database(f"sqlite:///{path}").dispose()  # the empty, migrated file
+    before = os.path.getsize(path)
+    engine = open_database(f"sqlite:///{path}")
+    for treatment in (TINY, GRADUAL):
+        run_to_end(engine, new_run(engine, treatment))
+    with engine.connect() as conn:
+        simulated = conn.execute(select(func.sum(Generation.evaluations))).scalar_one()
+    engine.dispose()
+    return simulated, os.path.getsize(path) - before
+
+
+def test_evaluations_equal_a_real_runs(real_runs):
+    simulated, _ = real_runs
+    assert plan([TINY, GRADUAL], cores=1).evaluations == simulated
+
+
+def test_database_bytes_within_30_percent_of_a_real_runs(real_runs):
+    _, growth = real_runs
+    predicted = plan([TINY, GRADUAL], cores=1).database_bytes
+    assert abs(predicted - growth) <= 0.3 * growth, (predicted, growth)
+
+
+def test_more_cores_less_wall_time():
+    grid = paper_grid("tiny")
+    one, four = plan(grid, cores=1), plan(grid, cores=4)
+    assert four.wall_seconds < one.wall_seconds
+    assert 0 < four.utilisation <= one.utilisation <= 1
+    assert four.core_hours == pytest.approx(four.wall_seconds * 4 / 3600)
+
+
+def test_per_run_dispatch_uses_workers_at_least_as_well_as_rounds():
+    mixed = [Treatment("land", s, population=6, generations=20, workspace=(4, 4, 4), cycles=2,
+                       max_seconds=1.0, repetitions=2, seed=k * 10) for k, s in enumerate((0.01, 1.0, 10.0))]
+    rounds = plan(mixed, cores=4, dispatch="rounds")
+    per_run = plan(mixed, cores=4, dispatch="per-run")
+    assert per_run.utilisation >= rounds.utilisation
+    assert per_run.wall_seconds <= rounds.wall_seconds
+
+
+def test_gpus_give_gpu_hours():
+    result = plan(paper_grid("tiny"), gpus=2)
+    assert result.gpu_hours == pytest.approx(result.wall_seconds * 2 / 3600)
+    assert result.core_hours == 0 and 0 < result.utilisation <= 1
+    assert "estimate, not measured" in result.cost["gpu_rate_source"]
+
+
+def test_cli_json_has_the_keys(capsys):
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", "--cores", "2", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert PLAN_KEYS <= set(data) and data["cores"] == 2 and data["runs"] == 12
+
+
+def test_cli_reads_a_spec_file(capsys, tmp_path):
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"name": "x", "treatments": [{"environment": "water", "stiffness_mpa": 1.0,
+                                                              "population": 4, "generations": 3}]}))
+    code, out, err = softevo(capsys, "plan", str(spec), "--cores", "1")
+    assert code == 0, err
+    assert "wall" in out and "core-hours" in out and "GB" in out
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("paper", "--cores", "2", "--gpus", "1"),
+        ("paper",),
+        ("paper", "--cores", "0"),
+        ("nonsense", "--cores", "2"),
+        ("paper", "--scale", "huge", "--cores", "2"),
+    ],
+)
+def test_cli_errors_are_one_line_exit_2(capsys, args):
+    code, out, err = softevo(capsys, "plan", *args)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+
+
+def test_cli_bad_spec_file_is_one_line(capsys, tmp_path):
+    for text in ("{not json", json.dumps({"name": "x", "treatments": [{"environment": "moon"}]})):
+        spec = tmp_path / "bad.json"
+        spec.write_text(text)
+        code, _, err = softevo(capsys, "plan", str(spec), "--cores", "2")
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.slow
+def test_rest_plan_200_and_422(tmp_path):
+    group = Processes(tmp_path, service_env(f"sqlite:///{tmp_path / 'api.db'}", None, SOFTEVO_WORKERS="1"))
+    try:
+        _, base = group.serve()
+        ok = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2}, timeout=120)
+        assert ok.status_code == 200, ok.text
+        assert PLAN_KEYS <= set(ok.json()) and ok.json()["evaluations"] > 0
+        for bad in ({"preset": "paper", "scale": "tiny"},
+                    {"preset": "paper", "cores": 2, "gpus": 1},
+                    {"preset": "paper", "cores": 0},
+                    {"treatments": [{"environment": "moon", "stiffness_mpa": 1}], "cores": 2}):
+            answer = httpx.post(f"{base}/plan", json=bad, timeout=60)
+            assert answer.status_code == 422, (bad, answer.text)
+            assert answer.json()["detail"]
+    finally:
+        group.stop_all()
