@@ -48,7 +48,7 @@ from softevo.sim.cost import MEASURED, CostModel, voxel_steps
 from softevo.sim.scene import parse_scene
 from softevo.worker.tasks import Task, encoding_of, scenes_of
 
-DISPATCH = "rounds"  # the coordinator's policy today; "per-run" once it dispatches run by run
+DISPATCH = "per-run"  # the coordinator on the RQ executor (service.coordinator.Coordinator.advance)
 SAMPLE_GENOMES = 48  # random genomes costed per treatment
 EXACT_BUDGET = 4_000  # individual-generations driven whole (sum of population x generations)
 PROBE_BREEDS = 3  # bred generations a probe drives before (and after) a switch
