@@ -16,7 +16,7 @@ from fastapi.concurrency import run_in_threadpool
 from softevo.errors import UserError
 from softevo.service.api.deps import COMMON
 from softevo.service.api.routes.experiments import request_treatments
-from softevo.service.api.schemas import PlanRequest
+from softevo.service.api.schemas import ErrorOut, PlanRequest
 from softevo.service.plan import check_devices, plan
 
 router = APIRouter(prefix="/plan", tags=["plan"], responses=COMMON)
@@ -39,7 +39,14 @@ def bounded(treatments: list) -> list:
     return treatments
 
 
-@router.post("", response_model=dict[str, Any])
+@router.post(
+    "",
+    response_model=dict[str, Any],
+    responses={
+        400: {"model": ErrorOut, "description": "The body is not JSON"},
+        413: {"model": ErrorOut, "description": "The body is larger than SOFTEVO_MAX_BODY_BYTES"},
+    },
+)
 async def plan_experiment(body: PlanRequest) -> dict[str, Any]:
     """The plan of an experiment body (as ``POST /experiments`` takes it) on ``cores`` CPU
     workers or ``gpus`` GPUs: ``wall_seconds, core_hours, gpu_hours, database_bytes,
