@@ -85,6 +85,19 @@ def test_run_page_draws_fitness_and_front(dashboard_url, tiny_db, open_page):
     assert not page.locator("#front-latest").is_checked()
 
 
+def test_experiments_page_shows_the_plan_of_its_form(dashboard_url, open_page):
+    page = open_page(dashboard_url).page
+    page.goto(f"{dashboard_url}/dashboard/")
+    page.wait_for_selector("#plan table.kv", timeout=PLOT_MS)  # the form's default: paper, tiny
+    text = page.locator("#plan").inner_text()
+    for shown in ("wall time", "hours", "core-hours", "database", "GB", "utilisation"):
+        assert shown in text
+    page.locator("#plan-cores").fill("4")
+    page.click("#plan-form button")
+    page.wait_for_selector("#plan table.kv", timeout=PLOT_MS)
+    assert "runs" in page.locator("#plan").inner_text()
+
+
 def test_clicking_a_front_point_opens_the_individual(dashboard_url, tiny_db, open_page):
     page = open_page(dashboard_url).page
     page.goto(f"{dashboard_url}/dashboard/runs/{tiny_db.run_id}")

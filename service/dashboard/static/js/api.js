@@ -29,6 +29,18 @@ export async function getJSON(path) {
   return (await request(path)).json();
 }
 
+/** JSON answer of POST `path` with the JSON `body` (a read that stores nothing, e.g. /plan). */
+export async function postJSON(path, body) {
+  const response = await fetch(`${root}${path}`, {
+    method: "POST",
+    headers: { Accept: "application/json", "Content-Type": "application/json" },
+    body: JSON.stringify(body),
+  });
+  const answer = await response.json().catch(() => ({}));
+  if (!response.ok) throw new ApiError(`POST ${path}: ${answer.detail || response.status}`);
+  return answer;
+}
+
 /** Bytes of GET `path` as an ArrayBuffer (binary endpoints such as frames). */
 export async function getBinary(path) {
   return (await request(path)).arrayBuffer();

@@ -1,6 +1,8 @@
 // Experiments page: the newest experiments with a page of their runs each, polled while any
 // is live. Each poll asks a bounded page (EXPERIMENTS x RUNS runs at most), not the database.
-import { LIVE, badge, el, errorLine, fill, fmt, getJSON, page, poll, progressBar, root, showHealth, table } from "./api.js";
+import {
+  LIVE, badge, el, errorLine, fill, fmt, getJSON, keyValues, page, poll, postJSON, progressBar, root, showHealth, table,
+} from "./api.js";
 
 const LIVE_POLL_MS = 2000;
 const IDLE_POLL_MS = 15000;
@@ -72,5 +74,42 @@ async function refresh() {
   return live ? LIVE_POLL_MS : IDLE_POLL_MS;
 }
 
+/** The plan of what the form holds (POST /plan): wall time, core-hours, database, utilisation. */
+async function showPlan(event) {
+  event?.preventDefault();
+  const body = {
+    preset: document.getElementById("plan-preset").value,
+    scale: document.getElementById("plan-scale").value,
+    cores: Number(document.getElementById("plan-cores").value),
+  };
+  fill("plan", el("p", { class: "muted" }, "Planning…"));
+  try {
+    const plan = await postJSON("/plan", body);
+    fill("plan", keyValues([
+      ["wall time", `${fmt(plan.wall_hours)} hours`],
+      ["core-hours", fmt(plan.core_hours)],
+      ["database", `${fmt(plan.database_bytes / 1e9)} GB`],
+      ["utilisation", `${Math.round(plan.utilisation * 100)}%`],
+      ["evaluations", plan.evaluations.toLocaleString()],
+      ["runs", String(plan.runs)],
+    ]));
+  } catch (error) {
+    fill("plan", errorLine(error));
+  }
+}
+
+/** The form's cores start at the live worker count (2 without one). */
+async function setUpPlan() {
+  try {
+    const health = await getJSON("/health");
+    if (health.workers > 0) document.getElementById("plan-cores").value = health.workers;
+  } catch {
+    /* the default stays */
+  }
+  document.getElementById("plan-form").addEventListener("submit", showPlan);
+  showPlan();
+}
+
 showHealth();
+setUpPlan();
 poll(refresh);
