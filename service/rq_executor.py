@@ -355,7 +355,7 @@ class RQExecutor:
             self._last_sweep = now
             batches = list(waiting.values())
         else:
-            batches = [waiting[job_id] for job_id in wrote]
+            batches = [batch for job_id, batch in waiting.items() if job_id in wrote]  # in order
         statuses = self._statuses([b.job_id for b in batches])
         settled: list[tuple[Batch, list[Task] | dict[str, Batch]]] = []
         lost = []

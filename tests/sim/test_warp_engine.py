@@ -272,7 +272,8 @@ def test_cli_simulates_on_warp_and_refuses_a_missing_device(warp_device, tmp_pat
         softevo_here(capsys, "simulate", str(path), "--engine", "gpu"), "engine: must be one of numba, warp"
     )
     assert_user_error(
-        softevo_here(capsys, "simulate", str(path), "--device", "cpu"), "--device: only the warp engine"
+        softevo_here(capsys, "simulate", str(path), "--device", "cpu"),
+        "--device: only the warp and sleep engines",
     )
 
 
