@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from coordinator_overhead import InstantExecutor  # bench/: the instant results of the other benches
 from sqlalchemy import Connection, Engine, func, select, text
 
 from softevo.evolution.selection import non_dominated_sort
@@ -72,27 +73,6 @@ ROW_KINDS = {  # table -> what one row is
     "generations": "generation summary",
     "runs": "run (algorithm state)",
 }
-
-
-class InstantResults:
-    """Results without simulation: distance from the genome's id (deterministic), the
-    descriptors the workers would send."""
-
-    workers = 1
-
-    def evaluate(self, tasks: list[dict]) -> list[dict]:
-        return [
-            {
-                "id": task["id"],
-                "distance": (task["id"] * 0.618) % 1.0,
-                "stable": True,
-                "error": None,
-                "descriptors": {"symmetry": 0.5, "branching": 0.1, "shape_entropy": 1.0, "frequency": 2.0},
-                "phenotype": None,
-                "seconds": 0.0,
-            }
-            for task in tasks
-        ]
 
 
 # -- 1. the store --------------------------------------------------------------------------
@@ -135,7 +115,7 @@ def store_full_run(engine: Engine, run_id: int, args) -> dict[str, Any]:
     """Every generation of run ``run_id``: ``--evolved`` real ones, then synthesised ones.
     Returns the algorithm state stored after the last real generation."""
     run = load_run(engine, run_id)
-    executor = InstantResults()
+    executor = InstantExecutor()
     newcomers: list[dict[str, Any]] = []
     record = None
     while not run.done and run.next_generation < args.evolved:
