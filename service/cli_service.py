@@ -83,15 +83,15 @@ def worker(
         typer.Option("--connect-timeout", help="seconds to wait for Redis at the start; default 5"),
     ] = None,
     engine: Annotated[
-        str | None, typer.Option("--engine", help="numba, warp or sleep; default $SOFTEVO_ENGINE or numba")
+        str | None, typer.Option("--engine", help="numba, cuda or sleep; default $SOFTEVO_ENGINE or numba")
     ] = None,
     device: Annotated[
-        str | None, typer.Option("--device", help="Warp device (cuda:0, cpu), or the sleep engine's x<factor>; default $SOFTEVO_DEVICE")
+        str | None, typer.Option("--device", help="CUDA device (cuda:0, cuda:1, ...), or the sleep engine's x<factor>; default $SOFTEVO_DEVICE")
     ] = None,
 ) -> None:
     """Evaluate genomes for a coordinator: an RQ worker on the Redis of $SOFTEVO_REDIS_URL.
 
-    Needs only the Redis URL (no database). Run one per core; with ``--engine warp --device
+    Needs only the Redis URL (no database). Run one per core; with ``--engine cuda --device
     cuda:0``, one per GPU, fed large jobs (docs/cluster.md, "GPU workers").
     """
     import os

@@ -88,11 +88,11 @@ def simulate(
         typer.Option("--record", metavar="OUT.npz", help="Write frames (t, positions, voxels)."),
     ] = None,
     engine: Annotated[
-        str, typer.Option("--engine", help="numba (CPU, default), warp (docs/gpu.md) or sleep (no physics, its time only: docs/cluster.md).")
+        str, typer.Option("--engine", help="numba (CPU, default), cuda (NVIDIA GPUs: docs/gpu.md) or sleep (no physics, its time only: docs/cluster.md).")
     ] = "numba",
     device: Annotated[
         str | None,
-        typer.Option("--device", help="Warp device: cuda:0 (default), cpu, ... (--engine warp); the sleep engine's speed-up x<factor>."),
+        typer.Option("--device", help="CUDA device: cuda:0 (default), cuda:1, ... (--engine cuda); the sleep engine's speed-up x<factor>."),
     ] = None,
 ) -> None:
     """Simulate one scene and print its result."""
@@ -104,8 +104,8 @@ def simulate(
     if record is not None and "record" not in scene_dict:
         scene_dict = {**scene_dict, "record": {"every": default_record_every(scene_dict)}}
     started = time.perf_counter()
-    if device is not None and engine not in ("warp", "sleep"):
-        raise UserError("--device: only the warp and sleep engines take a device (add --engine warp)")
+    if device is not None and engine not in ("cuda", "sleep"):
+        raise UserError("--device: only the cuda and sleep engines take a device (add --engine cuda)")
     result = sim.simulate(scene_dict, engine=engine, device=device)
     wall = time.perf_counter() - started
     n_frames = _write_record(record, result) if record is not None else 0

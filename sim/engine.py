@@ -164,15 +164,15 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine
     """Simulate many robots in one compiled call, one robot per parallel task.
 
     ``threads`` caps numba's threads for this call (default: all cores numba was given).
-    Results come back in the order of ``scenes``. ``engine="warp"`` runs the batch on the
-    Warp engine instead (``sim.warp_engine``; ``device`` e.g. "cuda:0" or "cpu");
+    Results come back in the order of ``scenes``. ``engine="cuda"`` runs the batch on the
+    GPU engine instead (``sim.cuda_engine``; ``device`` e.g. "cuda:0");
     ``engine="sleep"`` only sleeps for the batch's modelled cost (``sim.sleep_engine``;
     ``device`` its speed-up, e.g. "x100").
     """
-    if check_engine(engine) == "warp":
-        from . import warp_engine
+    if check_engine(engine) == "cuda":
+        from . import cuda_engine
 
-        return warp_engine.simulate_many(scenes, device=device)
+        return cuda_engine.simulate_many(scenes, device=device)
     if engine == "sleep":
         from . import sleep_engine
 

@@ -1,20 +1,21 @@
-"""Which engine runs a batch: the numba one (default, CPU), the Warp one (GPU, or Warp's CPU
-device) or the sleep one (no physics, only the time: ``sim.sleep_engine``, for benches of
-the system around the simulator), and the one error an unusable engine raises.
+"""Which engine runs a batch: the numba one (default, CPU), the cuda one (NVIDIA GPUs through
+numba-cuda, or its simulator) or the sleep one (no physics, only the time:
+``sim.sleep_engine``, for benches of the system around the simulator), and the one error an
+unusable engine raises.
 
-Both engines take the same scenes and return the same ``Result`` (``sim.engine``); the Warp
-engine lives in ``sim.warp_engine`` and imports Warp only when it is asked for.
+The engines take the same scenes and return the same ``Result`` (``sim.engine``); the cuda
+engine lives in ``sim.cuda_engine`` and imports numba-cuda only when it is asked for.
 """
 
 from __future__ import annotations
 
-ENGINES = ("numba", "warp", "sleep")
+ENGINES = ("numba", "cuda", "sleep")
 PRECISIONS = ("float64", "float32")
 
 
 class EngineUnavailable(RuntimeError):
-    """The engine asked for cannot run here: an unknown engine name, Warp not installed, or
-    no such device. The message is one line meant for a person (the CLI prints it, exit 2)."""
+    """The engine asked for cannot run here: an unknown engine name, numba-cuda not
+    installed, or no such device. The message is one line meant for a person (the CLI prints it, exit 2)."""
 
 
 def check_engine(engine: str) -> str:

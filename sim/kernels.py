@@ -71,10 +71,11 @@ from numba import njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from . import physics
+from .physics import MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine reports MAX_STRAIN)
 from .system import (
     ENV_LAND,
     ENV_WATER,
-    FRICTION_VOXCAD,
     F_A1,
     F_A2,
     F_AMP,
@@ -88,13 +89,14 @@ from .system import (
     F_DT,
     F_GRAVITY,
     F_L,
-    F_MUK,
     F_MESH_DRAG,
+    F_MUK,
     F_MUS,
     F_OMEGA,
     F_SETTLE,
     FLAG_ACTIVE,
     FLAG_FIXED,
+    FRICTION_VOXCAD,
     I_ACT_START,
     I_COLLIDE,
     I_COM_EVERY,
@@ -155,142 +157,19 @@ def fma(typingctx, a, b, c):
 
 
 STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
-MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
-POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
-SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2
 # Self-collision candidates are unbonded surface pairs within the largest contact distance plus
 # this margin (in voxel lengths); the list is rebuilt once surface voxels have moved half of it.
 COLLIDE_MARGIN = 0.2
 FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
-MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
 
-
-# ---------------------------------------------------------------- quaternion helpers
-@njit(**INLINE)
-def dot3(ax, ay, az, bx, by, bz):
-    """a . b with fused multiply-adds."""
-    return fma(ax, bx, fma(ay, by, az * bz))
-
-
-@njit(**INLINE)
-def qmul(aw, ax, ay, az, bw, bx, by, bz):
-    """Hamilton product a * b."""
-    return (
-        fma(aw, bw, -fma(ax, bx, fma(ay, by, az * bz))),
-        fma(aw, bx, fma(ax, bw, fma(ay, bz, -(az * by)))),
-        fma(aw, by, fma(ay, bw, fma(az, bx, -(ax * bz)))),
-        fma(aw, bz, fma(ax, by, fma(az, bw, -(ay * bx)))),
-    )
-
-
-@njit(**INLINE)
-def qrot(w, x, y, z, vx, vy, vz):
-    """Rotate vector v by the unit quaternion (w, x, y, z)."""
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    return (
-        vx + w * tx + (y * tz - z * ty),
-        vy + w * ty + (z * tx - x * tz),
-        vz + w * tz + (x * ty - y * tx),
-    )
-
-
-# f(u) = 2 acos(1 - u) / sqrt(1 - (1 - u)^2) over u in [0, 1]: a unit quaternion's rotation
-# vector is f(1 - |w|) times its vector part. Degree-16 polynomial from a Chebyshev fit to the
-# exact function (relative error < 5e-14 everywhere; its nearest singularity is u = 2), so
-# rotation vectors need no division, no libm call and no branch, and the link loop vectorizes.
-ANGLE_OVER_SIN = (
-    2.000000000000085,
-    0.666666666619135,
-    0.26666667113455084,
-    0.11428554822756917,
-    0.05079689174055483,
-    0.023049764284205198,
-    0.010952681225704275,
-    0.0033813071236987804,
-    0.008445614662157971,
-    -0.015982869178300427,
-    0.03578579361845359,
-    -0.053358252114567725,
-    0.05957216182258554,
-    -0.0468218000572629,
-    0.025036407949616243,
-    -0.008136146214563936,
-    0.0012522127460549246,
-)
-
-
-@njit(**INLINE)
-def angle_over_sin(u):
-    """``ANGLE_OVER_SIN`` at u, by Estrin's scheme (short dependency chains)."""
-    c = ANGLE_OVER_SIN
-    u2 = u * u
-    u4 = u2 * u2
-    u8 = u4 * u4
-    lo = fma(u4, fma(u2, fma(c[7], u, c[6]), fma(c[5], u, c[4])),
-             fma(u2, fma(c[3], u, c[2]), fma(c[1], u, c[0])))
-    hi = fma(u4, fma(u2, fma(c[15], u, c[14]), fma(c[13], u, c[12])),
-             fma(u2, fma(c[11], u, c[10]), fma(c[9], u, c[8])))
-    return fma(u8, fma(u8, c[16], hi), lo)
-
-
-@njit(**INLINE)
-def rotvec(w, x, y, z):
-    """Rotation vector (axis * angle) of a unit quaternion; q and -q give the same one."""
-    f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
-    return f * x, f * y, f * z
-
-
-@njit(**INLINE)
-def qmul_x0(aw, ay, az, bw, bx, by, bz):
-    """``qmul`` of a = (aw, 0, ay, az) and b, without the products with a's zero."""
-    return (
-        fma(aw, bw, -fma(ay, by, az * bz)),
-        fma(aw, bx, fma(ay, bz, -(az * by))),
-        fma(aw, by, fma(ay, bw, az * bx)),
-        fma(aw, bz, fma(az, bw, -(ay * bx))),
-    )
-
-
-@njit(**INLINE)
-def rotvec_x0(w, y, z):
-    """The y and z parts of ``rotvec`` of the unit quaternion (w, 0, y, z) (its x part is 0)."""
-    f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
-    return f * y, f * z
-
-
-@njit(**INLINE)
-def quat_from_rotvec(px, py, pz):
-    """Unit quaternion of the rotation vector p (series when the angle is small)."""
-    a2 = 0.25 * dot3(px, py, pz, px, py, pz)  # (half angle)^2
-    if a2 < 1e-2:
-        c = fma(-a2, fma(-a2, 1.0 / 24.0, 0.5), 1.0)
-        f = 0.5 * fma(-a2, fma(-a2, 1.0 / 120.0, 1.0 / 6.0), 1.0)
-    else:
-        h = math.sqrt(a2)
-        c = math.cos(h)
-        f = math.sin(h) / (2.0 * h)
-    return c, f * px, f * py, f * pz
-
-
-# ---------------------------------------------------------------- actuation
-@njit(**INLINE)
-def waveform(kind, angle):
-    """Periodic actuation signal in [-1, 1] of phase angle (radians).
-
-    0 sine; 1 square (smoothed: tanh(8 sin)/tanh(8), so steps are resolvable by the lattice);
-    2 impulse: fast contraction over the first 20% of the cycle, slow release over the rest.
-    """
-    if kind == 0:
-        return math.sin(angle)
-    if kind == 1:
-        return math.tanh(8.0 * math.sin(angle)) / math.tanh(8.0)
-    u = angle / (2.0 * math.pi)
-    u = u - math.floor(u)
-    if u < 0.2:
-        return math.cos(math.pi * u / 0.2)
-    return -math.cos(math.pi * (u - 0.2) / 0.8)
+# The physics, compiled for this target (``sim.physics``): inlined into the loops below.
+_phys = physics.compiled(njit(inline="always", fastmath=FASTMATH, error_model="numpy"), fma)
+dot3, qmul, qrot, rotvec = _phys.dot3, _phys.qmul, _phys.qrot, _phys.rotvec
+quat_from_rotvec, rotation_matrix, waveform = _phys.quat_from_rotvec, _phys.rotation_matrix, _phys.waveform
+actuated_size, link_geometry_of, small_frame_of = _phys.actuated_size, _phys.link_geometry, _phys.small_frame
+large_frame_of, damped, link_loads = _phys.large_frame, _phys.damped, _phys.link_loads
+link_diverged, contact_push, facet_drag = _phys.link_diverged, _phys.contact_push, _phys.facet_drag
+mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
 
 
 @njit(**JIT)
@@ -309,7 +188,7 @@ def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, vconst, size):
         for v in range(len(size)):
             if flags[v] & FLAG_ACTIVE:
                 w = waveform(wave, vconst[v, V_OMEGA] * t + phase[v])
-                size[v] = max(L * (1.0 + amp * w), MIN_SIZE * L)
+                size[v] = actuated_size(L, amp, w)
             else:
                 size[v] = L
         return
@@ -321,57 +200,12 @@ def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, vconst, size):
                 w = s_wt * cos_phase[v] + c_wt * sin_phase[v]
             else:
                 w = waveform(wave, wt + phase[v])
-            size[v] = max(L * (1.0 + amp * w), MIN_SIZE * L)
+            size[v] = actuated_size(L, amp, w)
         else:
             size[v] = L
 
 
 # ---------------------------------------------------------------- links
-@njit(**INLINE)
-def rotation_matrix(w, x, y, z):
-    """Rows of the rotation matrix of the unit quaternion (w, x, y, z): world = R local."""
-    return (
-        fma(-2.0, fma(y, y, z * z), 1.0), 2.0 * fma(x, y, -(w * z)), 2.0 * fma(x, z, w * y),
-        2.0 * fma(x, y, w * z), fma(-2.0, fma(x, x, z * z), 1.0), 2.0 * fma(y, z, -(w * x)),
-        2.0 * fma(x, z, -(w * y)), 2.0 * fma(y, z, w * x), fma(-2.0, fma(x, x, y * y), 1.0),
-    )
-
-
-@njit(**INLINE)
-def to_link(axis, x, y, z):
-    """Proper rotation taking the world axis ``axis`` (0 x, 1 y, 2 z) onto +x, as selects
-    (links of mixed axes share one vector loop)."""
-    return (x if axis == 0 else (y if axis == 1 else z),
-            y if axis != 1 else -x,
-            z if axis != 2 else -x)
-
-
-@njit(**INLINE)
-def beam(ex, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3):
-    """3-D frame element (Euler-Bernoulli) in the link frame: the force on the negative end
-    (the positive end gets its opposite) and the moments on both ends."""
-    fay = b1 * ey - b2 * (e1z + e2z)
-    faz = b1 * ez + b2 * (e1y + e2y)
-    max_ = a2 * (e2x - e1x)
-    may = -b2 * ez - b3 * (2.0 * e1y + e2y)
-    maz = b2 * ey - b3 * (2.0 * e1z + e2z)
-    mby = -b2 * ez - b3 * (e1y + 2.0 * e2y)
-    mbz = b2 * ey - b3 * (e1z + 2.0 * e2z)
-    return a1 * ex, fay, faz, max_, may, maz, -max_, mby, mbz
-
-
-@njit(**INLINE)
-def from_link_matrix(axis, R):
-    """R (rows) times the inverse axis permutation: world axes from link axes, as selects."""
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
-    return (r00 if axis == 0 else (r01 if axis == 1 else r02),
-            -r00 if axis == 1 else r01, -r00 if axis == 2 else r02,
-            r10 if axis == 0 else (r11 if axis == 1 else r12),
-            -r10 if axis == 1 else r11, -r10 if axis == 2 else r12,
-            r20 if axis == 0 else (r21 if axis == 1 else r22),
-            -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
-
-
 # One flat buffer per robot holds everything the link loops read and write, in tiles of
 # LINK_TILE places: tile t holds LINK_ROWS rows of LINK_TILE values, row k of the link at
 # place j of the tile at offset (t LINK_ROWS + k) LINK_TILE + j (``place`` and ``at``). Rows are
@@ -423,20 +257,12 @@ def link_buffer_size(m):
 
 @njit(**INLINE)
 def link_geometry(B, J):
-    """Link J's inputs from the buffer: the rotation matrix R (rows) of its negative voxel, its
-    axis, the centre offset (rx, ry, rz) and relative rotation (ow, ox, oy, oz) of its two
-    voxels in the link frame (that voxel's frame turned so that the link's axis is +x), and
-    its rest length."""
-    qw, qx, qy, qz = B[at(0, J)], B[at(1, J)], B[at(2, J)], B[at(3, J)]
-    R = rotation_matrix(qw, qx, qy, qz)
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    """Link J's geometry (``physics.link_geometry``) from its inputs in the buffer, with its
+    axis and rest length: R, axis, the centre offset, the relative rotation, rest."""
     ax = B[at(ROW_AXIS, J)]
-    wx, wy, wz = B[at(8, J)], B[at(9, J)], B[at(10, J)]
-    rx, ry, rz = to_link(ax, dot3(r00, r10, r20, wx, wy, wz), dot3(r01, r11, r21, wx, wy, wz),
-                         dot3(r02, r12, r22, wx, wy, wz))
-    ow, ox, oy, oz = qmul(qw, -qx, -qy, -qz, B[at(4, J)], B[at(5, J)], B[at(6, J)],
-                          B[at(7, J)])
-    ox, oy, oz = to_link(ax, ox, oy, oz)
+    R, rx, ry, rz, ow, ox, oy, oz = link_geometry_of(
+        B[at(0, J)], B[at(1, J)], B[at(2, J)], B[at(3, J)], B[at(4, J)], B[at(5, J)],
+        B[at(6, J)], B[at(7, J)], B[at(8, J)], B[at(9, J)], B[at(10, J)], ax)
     return R, ax, rx, ry, rz, ow, ox, oy, oz, B[at(11, J)]
 
 
@@ -444,88 +270,47 @@ def link_geometry(B, J):
 def beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
     """Damp link J's deformation (elongation d, end rotations t1 = (0, t1y, t1z) and t2) by g
     times its change since the previous step, keep it as the new previous one, and write the
-    beam's forces and moments, turned to world axes by W (world from the beam's frame), to
-    the output rows. Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or
-    NaN), else 0."""
+    beam's forces and moments in world axes (``physics.link_loads``) to the output rows.
+    Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or NaN), else 0."""
     S = ROW_STATE
-    ex = fma(g, dx - B[at(S, J)], dx)
-    ey = fma(g, dy - B[at(S + 1, J)], dy)
-    ez = fma(g, dz - B[at(S + 2, J)], dz)
-    e1y = fma(g, t1y - B[at(S + 4, J)], t1y)
-    e1z = fma(g, t1z - B[at(S + 5, J)], t1z)
-    e2x = fma(g, t2x - B[at(S + 6, J)], t2x)
-    e2y = fma(g, t2y - B[at(S + 7, J)], t2y)
-    e2z = fma(g, t2z - B[at(S + 8, J)], t2z)
+    ex = damped(g, dx, B[at(S, J)])
+    ey = damped(g, dy, B[at(S + 1, J)])
+    ez = damped(g, dz, B[at(S + 2, J)])
+    e1y = damped(g, t1y, B[at(S + 4, J)])
+    e1z = damped(g, t1z, B[at(S + 5, J)])
+    e2x = damped(g, t2x, B[at(S + 6, J)])
+    e2y = damped(g, t2y, B[at(S + 7, J)])
+    e2z = damped(g, t2z, B[at(S + 8, J)])
     B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)] = dx, dy, dz
     B[at(S + 4, J)], B[at(S + 5, J)] = t1y, t1z
     B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = t2x, t2y, t2z
-    # E A_current strain: area and rest length both scale with the voxel size
-    s = B[at(ROW_STIFF, J)]  # E_link / E_ref
-    fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
-        ex * rest * (1.0 / p.L), ey, ez, 0.0, e1y, e1z, e2x, e2y, e2z, p.a1 * s, p.a2 * s,
-        p.b1 * s, p.b2 * s, p.b3 * s)
-    w00, w01, w02, w10, w11, w12, w20, w21, w22 = W
     O = ROW_OUT
-    B[at(O, J)] = dot3(w00, w01, w02, fax, fay, faz)
-    B[at(O + 1, J)] = dot3(w10, w11, w12, fax, fay, faz)
-    B[at(O + 2, J)] = dot3(w20, w21, w22, fax, fay, faz)
-    B[at(O + 3, J)] = dot3(w00, w01, w02, max_, may, maz)
-    B[at(O + 4, J)] = dot3(w10, w11, w12, max_, may, maz)
-    B[at(O + 5, J)] = dot3(w20, w21, w22, max_, may, maz)
-    B[at(O + 6, J)] = dot3(w00, w01, w02, mbx, mby, mbz)
-    B[at(O + 7, J)] = dot3(w10, w11, w12, mbx, mby, mbz)
-    B[at(O + 8, J)] = dot3(w20, w21, w22, mbx, mby, mbz)
-    return 0 if abs(dx) <= MAX_STRAIN * rest else 1  # NaN counts as diverged
+    (B[at(O, J)], B[at(O + 1, J)], B[at(O + 2, J)], B[at(O + 3, J)], B[at(O + 4, J)],
+     B[at(O + 5, J)], B[at(O + 6, J)], B[at(O + 7, J)], B[at(O + 8, J)]) = link_loads(
+        W, B[at(ROW_STIFF, J)], rest, p.L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y,
+        e1z, e2x, e2y, e2z)
+    return link_diverged(dx, rest)
 
 
 @njit(**INLINE)
 def small_frame(p, B, J, g):
-    """Link J in its negative voxel's frame: the offset off the axis is shear, the first end
-    does not turn and the second turns by the voxels' relative rotation. Returns the
-    divergence flag and whether the bend or the extension has outgrown the frame."""
+    """Link J in its negative voxel's frame (``physics.small_frame``). Returns the divergence
+    flag and whether the bend or the extension has outgrown the frame."""
     R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
-    t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
-    bad = beam_out(p, B, J, g, rest, from_link_matrix(ax, R), rx - rest, ry, rz, 0.0, 0.0,
-                   t2x, t2y, t2z)
-    leave = abs(ry) + abs(rz) > SMALL_TURN * rx or abs(rx - rest) > SMALL_EXTEND * rest
+    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame_of(
+        R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+    bad = beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
     return bad, leave
 
 
 @njit(**INLINE)
 def large_frame(p, B, J, g):
-    """Link J in the frame of its centre line, which c = k (|r| + rx, 0, rz, -ry) with
-    k = 1 / sqrt(2 |r| (|r| + rx)) turns onto +x (half-angle identity; a half turn about z
-    when r points back): no shear, the bend shows in both end rotations. Returns the
-    divergence flag and whether the link is back within the small-angle frame's bounds
-    (which are tighter by HYSTERESIS than those it left)."""
+    """Link J in the frame of its centre line (``physics.large_frame``). Returns the
+    divergence flag and whether the link is back within the small-angle frame's bounds."""
     R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
-    length = math.sqrt(rx * rx + ry * ry + rz * rz)
-    h = length + rx
-    back = h > 1e-4 * length
-    cw = h if back else 0.0
-    cy = rz if back else 0.0
-    cz = -ry if back else 1.0
-    k = 1.0 / math.sqrt(2.0 * length * h) if back else 1.0
-    # products with the unnormalised c run while k is computed
-    pw, px, py, pz = qmul_x0(cw, cy, cz, ow, ox, oy, oz)
-    cw, cy, cz = cw * k, cy * k, cz * k
-    t1y, t1z = rotvec_x0(cw, cy, cz)  # c has no x part, so t1 has none
-    t2x, t2y, t2z = rotvec(pw * k, px * k, py * k, pz * k)
-    # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(ax, R)
-    c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
-    c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
-    c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
-    c22 = 1.0 - 2.0 * cy * cy
-    W = (dot3(m00, m01, m02, c00, -c01, -c02), dot3(m00, m01, m02, c01, c11, c12),
-         dot3(m00, m01, m02, c02, c12, c22),
-         dot3(m10, m11, m12, c00, -c01, -c02), dot3(m10, m11, m12, c01, c11, c12),
-         dot3(m10, m11, m12, c02, c12, c22),
-         dot3(m20, m21, m22, c00, -c01, -c02), dot3(m20, m21, m22, c01, c11, c12),
-         dot3(m20, m21, m22, c02, c12, c22))
-    bad = beam_out(p, B, J, g, rest, W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z)
-    enter = (abs(ry) + abs(rz) < (SMALL_TURN / HYSTERESIS) * rx
-             and abs(rx - rest) < (SMALL_EXTEND / HYSTERESIS) * rest)
+    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, enter = large_frame_of(
+        R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+    bad = beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
     return bad, enter
 
 
@@ -737,28 +522,20 @@ def collision_forces(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5,
     coefficients. The paper's engine: 0.75, 0.5, 0 (``Params.contact_*``)."""
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
-        ki, kj = vconst[i, V_KFLOOR], vconst[j, V_KFLOOR]
-        k = stiff * (ki if ki == kj else 2.0 * ki * kj / (ki + kj))
-        c = damp * (0.5 * (vconst[i, V_CCOLL] + vconst[j, V_CCOLL]))
         inv_mi, inv_mj = vconst[i, V_INV_MASS], vconst[j, V_INV_MASS]
-        dx = pos[j, 0] - pos[i, 0]
-        dy = pos[j, 1] - pos[i, 1]
-        dz = pos[j, 2] - pos[i, 2]
-        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        overlap = reach * (size[i] + size[j]) - dist
-        if overlap <= 0.0 or dist == 0.0:
-            continue
-        nx, ny, nz = dx / dist, dy / dist, dz / dist
-        vn = ((lin_mom[j, 0] * inv_mj - lin_mom[i, 0] * inv_mi) * nx
-              + (lin_mom[j, 1] * inv_mj - lin_mom[i, 1] * inv_mi) * ny
-              + (lin_mom[j, 2] * inv_mj - lin_mom[i, 2] * inv_mi) * nz)
-        f = max(k * overlap - c * vn, 0.0)
-        force[j, 0] += f * nx
-        force[j, 1] += f * ny
-        force[j, 2] += f * nz
-        force[i, 0] -= f * nx
-        force[i, 1] -= f * ny
-        force[i, 2] -= f * nz
+        fx, fy, fz = contact_push(
+            pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
+            lin_mom[j, 0] * inv_mj - lin_mom[i, 0] * inv_mi,
+            lin_mom[j, 1] * inv_mj - lin_mom[i, 1] * inv_mi,
+            lin_mom[j, 2] * inv_mj - lin_mom[i, 2] * inv_mi, size[i], size[j],
+            vconst[i, V_KFLOOR], vconst[j, V_KFLOOR], vconst[i, V_CCOLL], vconst[j, V_CCOLL],
+            reach, stiff, damp)
+        force[j, 0] += fx
+        force[j, 1] += fy
+        force[j, 2] += fz
+        force[i, 0] -= fx
+        force[i, 1] -= fy
+        force[i, 2] -= fz
 
 
 @njit(**JIT)
@@ -824,10 +601,8 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
             if code < 0:
                 break
             v, c = code >> 3, code & 7
-            sx, sy, sz = (c >> 2) & 1, (c >> 1) & 1, c & 1  # 1: the corner's + side
-            ox = 0.5 * (size[v] if nbr[v, sx] >= 0 else L) * (1.0 if sx else -1.0)
-            oy = 0.5 * (size[v] if nbr[v, 2 + sy] >= 0 else L) * (1.0 if sy else -1.0)
-            oz = 0.5 * (size[v] if nbr[v, 4 + sz] >= 0 else L) * (1.0 if sz else -1.0)
+            ox, oy, oz = mesh_corner(c, size[v], L, nbr[v, (c >> 2) & 1] >= 0,
+                                     nbr[v, 2 + ((c >> 1) & 1)] >= 0, nbr[v, 4 + (c & 1)] >= 0)
             ax += pos[v, 0] + dot3(axes[v, 0], axes[v, 1], axes[v, 2], ox, oy, oz)
             ay += pos[v, 1] + dot3(axes[v, 3], axes[v, 4], axes[v, 5], ox, oy, oz)
             az += pos[v, 2] + dot3(axes[v, 6], axes[v, 7], axes[v, 8], ox, oy, oz)
@@ -840,39 +615,14 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
         wx, wy, wz = vert_pos[c, 0] - vert_pos[a, 0], vert_pos[c, 1] - vert_pos[a, 1], \
             vert_pos[c, 2] - vert_pos[a, 2]
         nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx  # 2 A n
-        # p.(2 A n) > 0: moving into the fluid; then the force -drag A (v.n)^2 n is
-        # -drag/2 (p.N)^2 / (m^2 |N|^2) N with N = (nx, ny, nz) = 2 A n (no square root)
-        pn = lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz
-        if pn > 0.0:
-            inv_m = vconst[v, V_INV_MASS]
-            f = -0.5 * drag * (pn * inv_m) * (pn * inv_m) / (nx * nx + ny * ny + nz * nz)
-            force[v, 0] += f * nx
-            force[v, 1] += f * ny
-            force[v, 2] += f * nz
+        fx, fy, fz = facet_drag(drag, lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz,
+                                vconst[v, V_INV_MASS], nx, ny, nz)
+        force[v, 0] += fx
+        force[v, 1] += fy
+        force[v, 2] += fz
 
 
 # ---------------------------------------------------------------- voxels
-@njit(**INLINE)
-def add_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz, area):
-    """The force (fx, fy, fz) plus the quadratic drag -0.5 rho C_d s^2 v_n^2 n (``drag`` =
-    0.5 rho C_d) of each exposed face moving outward (v_n > 0); ``exposed`` has bit f set when
-    face f (ordered as ``nbr``) has no neighbour."""
-    for a in range(3):
-        ex, ey, ez = qrot(qw, qx, qy, qz, 1.0 if a == 0 else 0.0, 1.0 if a == 1 else 0.0,
-                          1.0 if a == 2 else 0.0)
-        for side in range(2):
-            if not (exposed >> (2 * a + side)) & 1:
-                continue
-            sgn = 1.0 if side == 1 else -1.0
-            vn = sgn * (vx * ex + vy * ey + vz * ez)
-            if vn > 0.0:
-                f = -drag * area * vn * vn * sgn
-                fx += f * ex
-                fy += f * ey
-                fz += f * ez
-    return fx, fy, fz
-
-
 @njit(**JIT)
 def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, size, force,
                  moment, static, contact):
@@ -900,6 +650,7 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
     mu_s, mu_k = p.mu_s, p.mu_k
     fork_friction = p.friction == FRICTION_VOXCAD
     slide = FRICTION_EPS * p.L / p.dt
+    world = (dt, g, drag, water, land, mu_s, mu_k, fork_friction, slide)
     ok = True
     speed2 = 0.0
     # flat views with unsigned offsets (no negative-index wrap-around to test per access)
@@ -913,88 +664,29 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
             LM[a + X] = LM[a + Y] = LM[a + Z] = 0.0
             AM[a + X] = AM[a + Y] = AM[a + Z] = 0.0
             continue
-        m, inv_m, inv_i = VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)]
-        c_lin, c_ang = VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)]
-        px, py, pz = LM[a + X], LM[a + Y], LM[a + Z]
-        lx, ly, lz = AM[a + X], AM[a + Y], AM[a + Z]
-        x, y, z = P[a + X], P[a + Y], P[a + Z]
-        qw, qx, qy, qz = Q[q + X], Q[q + Y], Q[q + Z], Q[q + W]
-        vx, vy, vz = px * inv_m, py * inv_m, pz * inv_m
-
-        # world forces
-        fx = fma(-c_lin, vx, F[a + X] + E[a + X])
-        fy = fma(-c_lin, vy, F[a + Y] + E[a + Y])
-        fz = fma(-c_lin, vz, F[a + Z] + E[a + Z]) - m * g
-        w_ang = c_ang * inv_i
-        mx = fma(-w_ang, lx, M[a + X])
-        my = fma(-w_ang, ly, M[a + Y])
-        mz = fma(-w_ang, lz, M[a + Z])
+        exposed = 0
         if water:
-            exposed = 0
             for f in range(6):
                 exposed |= (1 if nbr[v, f] < 0 else 0) << f
-            fx, fy, fz = add_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz,
-                                  size[v] * size[v])
-
-        # floor contact and friction
-        touch = False
-        if land:
-            pen = 0.5 * size[v] - z
-            touch = pen >= 0.0
-            if touch:
-                normal = VC[c + U(V_KFLOOR)] * pen
-                fz += normal - VC[c + U(V_CCOLL)] * vz
-                if fork_friction:  # the paper's engine (CalcFloorEffect)
-                    if vx == 0.0 and vy == 0.0:  # at rest: held while the force is below mu_s N
-                        static[v] = fx * fx + fy * fy < (mu_s * normal) ** 2
-                    else:
-                        hv = math.sqrt(vx * vx + vy * vy)
-                        static[v] = mu_k * normal * dt >= m * hv  # friction would stop it
-                        if static[v]:
-                            px, py = 0.0, 0.0
-                        else:
-                            fx = fx - mu_k * normal * vx / hv
-                            fy = fy - mu_k * normal * vy / hv
-                elif static[v] and fx * fx + fy * fy > (mu_s * normal) ** 2:
-                    static[v] = False
-                elif not static[v]:
-                    hv = math.sqrt(vx * vx + vy * vy)
-                    if hv > slide:
-                        fx = fx - mu_k * normal * vx / hv
-                        fy = fy - mu_k * normal * vy / hv
-            else:
-                static[v] = False
+        (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, fx, fy, fz, mx, my, mz, still, touch,
+         v2, sane) = voxel_update_of(
+            world, (VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)],
+                    VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)], VC[c + U(V_KFLOOR)],
+                    VC[c + U(V_CCOLL)]), exposed, size[v],
+            F[a + X] + E[a + X], F[a + Y] + E[a + Y], F[a + Z] + E[a + Z],
+            M[a + X], M[a + Y], M[a + Z], P[a + X], P[a + Y], P[a + Z],
+            Q[q + X], Q[q + Y], Q[q + Z], Q[q + W], LM[a + X], LM[a + Y], LM[a + Z],
+            AM[a + X], AM[a + Y], AM[a + Z], static[v])
+        static[v] = still
         contact[v] = touch
         F[a + X], F[a + Y], F[a + Z] = fx, fy, fz
         M[a + X], M[a + Y], M[a + Z] = mx, my, mz
-
-        # semi-implicit Euler
-        px, py, pz = fma(fx, dt, px), fma(fy, dt, py), fma(fz, dt, pz)
-        if touch:
-            work_ = (fx * px + fy * py) * inv_m * dt
-            if not fork_friction and 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
-                static[v] = True
-            if static[v]:
-                px, py = 0.0, 0.0
         LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
-        step_m = inv_m * dt
-        x = fma(px, step_m, x)
-        y = fma(py, step_m, y)
-        z = fma(pz, step_m, z)
         P[a + X], P[a + Y], P[a + Z] = x, y, z
-        speed2 = max(speed2, dot3(px, py, pz, px, py, pz) * (inv_m * inv_m))
-
-        lx, ly, lz = fma(mx, dt, lx), fma(my, dt, ly), fma(mz, dt, lz)
         AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
-        step_i = inv_i * dt
-        dw, dx, dy, dz = quat_from_rotvec(lx * step_i, ly * step_i, lz * step_i)
-        qw, qx, qy, qz = qmul(dw, dx, dy, dz, qw, qx, qy, qz)
-        norm = 1.0 / math.sqrt(fma(qw, qw, dot3(qx, qy, qz, qx, qy, qz)))
-        qw = qw * norm
-        Q[q + X], Q[q + Y], Q[q + Z], Q[q + W] = qw, qx * norm, qy * norm, qz * norm
-        if not (abs(x) < POSITION_BOUND and abs(y) < POSITION_BOUND and abs(z) < POSITION_BOUND
-                and abs(qw) <= 1.0 + 1e-9):
-            ok = False
+        Q[q + X], Q[q + Y], Q[q + Z], Q[q + W] = qw, qx, qy, qz
+        speed2 = max(speed2, v2)
+        ok = ok and sane
     return speed2 if ok else -1.0
 
 
@@ -1097,9 +789,9 @@ def voxel_update(p, voxels, body, work):
 @njit(**INLINE)
 def step(t, p, voxels, links, body, work, contacts):
     """One step of ``p.dt`` of one robot, its body state updated in place; t is the time
-    since actuation started (negative before it starts: ``Params.act_start``). Returns how many links diverged, the
-    largest squared voxel speed after the step (-1: a voxel left the sane range) and the
-    updated ``Contacts``."""
+    since actuation started (negative before it starts: ``Params.act_start``). Returns how
+    many links diverged, the largest squared voxel speed after the step (-1: a voxel left
+    the sane range) and the updated ``Contacts``."""
     actuate(t, p, voxels, work)
     bad = link_forces(p, links, body, work)
     contacts = collide(p, voxels, body, work, contacts)

@@ -12,6 +12,12 @@ import pytest
 
 IN_CI = os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
 
+# The cuda engine's tests run on numba-cuda's simulator unless a GPU is asked for
+# (``SOFTEVO_CUDA_TEST_DEVICE``, tests/sim/test_cuda_engine.py); numba-cuda reads this once,
+# at its import, so it is set before any test module imports it.
+if "SOFTEVO_CUDA_TEST_DEVICE" not in os.environ:
+    os.environ.setdefault("NUMBA_ENABLE_CUDASIM", "1")
+
 
 def _own_servers_per_worker() -> None:
     """Under ``pytest -n N`` (pytest-xdist) each worker process gets a Redis database and a

@@ -121,10 +121,12 @@ def test_one_import_name_is_installed():
     assert {f"softevo.{package}" for package in ALLOWED} <= set(config["packages"])
 
 
-GPU_ONLY = {"warp"}  # third-party packages that only softevo.sim may import (the Warp engine)
+GPU_ONLY = "numba.cuda"  # the GPU target, which only softevo.sim may import (the cuda engine)
 
 
 @pytest.mark.parametrize(("package", "path"), MODULES, ids=[str(p.relative_to(ROOT)) for _, p in MODULES])
-def test_only_sim_imports_warp(package, path):
-    reached = {module.split(".")[0] for module, _ in imports(path, package)} & GPU_ONLY
+def test_only_sim_imports_numba_cuda(package, path):
+    reached = {module for module, names in imports(path, package)
+               if module == GPU_ONLY or module.startswith(GPU_ONLY + ".")
+               or (module == "numba" and "cuda" in names)}
     assert package == "sim" or not reached, f"{package} imports {sorted(reached)}: only sim may"

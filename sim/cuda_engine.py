@@ -1,0 +1,291 @@
+"""The GPU engine: ``simulate_many`` on an NVIDIA GPU through numba-cuda, the same scenes and
+the same ``Result`` as ``sim.engine``.
+
+Scenes go through the one scene -> arrays path (``prepare``, ``pack``); the packed batch is
+copied to the device once and ``sim.cuda_kernels`` steps it, one thread block per robot, up
+to ``chunk`` steps per launch; between launches the host only asks which robots still run.
+A robot whose state fits in a block's shared memory runs there, a larger one on the global
+arrays (the same kernel source, built for each). Every model and option of the CPU engine
+is supported (the physics is the same code, ``sim.physics``).
+
+Precision: float64 (float32 is refused until it has passed the accuracy tests on a GPU).
+numba-cuda is imported on first use only. ``NUMBA_ENABLE_CUDASIM=1`` (set before anything
+imports ``numba.cuda``) runs the same kernels on numba-cuda's simulator, in Python, on any
+machine: slow, for small robots. Without numba-cuda, or without the device asked for,
+``EngineUnavailable`` says so in one line.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from .engine import Result, _result, prepare
+from .engines import PRECISIONS, EngineUnavailable
+from .kernels import COLLIDE_MARGIN
+from .scene import Scene
+from .system import F_L, I_N_FRAMES, I_STEPS, pack
+
+DEFAULT_DEVICE = "cuda:0"
+CHUNK_STEPS = 5000  # steps per launch on a GPU (a 7^3 robot: a few milliseconds)
+THREADS = {"gpu": 256, "simulator": 4}  # threads per block (SOFTEVO_CUDA_THREADS overrides)
+SHARED_DEFAULT = 48 * 1024  # bytes of shared memory a block may use without opting in
+SIMULATOR_SWITCH_SECONDS = 5e-5  # the GIL's switch interval while the simulator runs (5x faster)
+
+
+def cuda_module():
+    """numba-cuda's ``cuda`` module; ``EngineUnavailable`` if numba-cuda is missing."""
+    try:
+        import numba.cuda as cuda
+        from numba.cuda import config  # noqa: F401 (numba-cuda, not numba's old built-in target)
+    except ImportError:
+        raise EngineUnavailable(
+            "the cuda engine needs the numba-cuda package: pip install 'softevo[gpu]'") from None
+    return cuda
+
+
+def simulator() -> bool:
+    """Whether numba-cuda runs on its simulator in this process (NUMBA_ENABLE_CUDASIM=1)."""
+    cuda_module()
+    from numba.cuda import config
+
+    return bool(config.ENABLE_CUDASIM)
+
+
+def device_of(name: str | None):
+    """The CUDA device called ``name`` ("cuda:N", default ``DEFAULT_DEVICE``), selected for this
+    thread; ``EngineUnavailable`` naming what there is if it does not exist here."""
+    cuda = cuda_module()
+    name = name or DEFAULT_DEVICE
+    if not name.startswith("cuda:") or not name[5:].isdigit():
+        raise EngineUnavailable(f"device: the cuda engine takes cuda:N (got {name!r})")
+    number = int(name[5:])
+    try:
+        available = cuda.is_available()
+        count = len(cuda.gpus) if available else 0
+    except Exception:  # a driver that fails to load is as good as none
+        available, count = False, 0
+    if not available:
+        raise EngineUnavailable(
+            "device: no CUDA GPU here (numba-cuda finds no driver or device); set "
+            "NUMBA_ENABLE_CUDASIM=1 to run the cuda engine on numba-cuda's simulator")
+    if number >= count:
+        raise EngineUnavailable(
+            f"device: no CUDA device {name!r} here; there are: "
+            + ", ".join(f"cuda:{k}" for k in range(count)))
+    return cuda.select_device(number)
+
+
+def simulate_many(scenes: list[dict | Scene], device: str | None = None,
+                  precision: str = "float64", chunk: int | None = None) -> list[Result]:
+    """Simulate many robots in one batch on a CUDA device; results in the order of
+    ``scenes``. ``chunk``: steps per launch (default ``CHUNK_STEPS``; the simulator runs a
+    batch in one launch)."""
+    if precision not in PRECISIONS:
+        raise EngineUnavailable(f"precision: must be one of {', '.join(PRECISIONS)} (got {precision!r})")
+    if precision != "float64":
+        raise EngineUnavailable(
+            "precision: the cuda engine runs float64 only (float32 has not yet passed the "
+            "accuracy tests on a GPU)")
+    dev = device_of(device)
+    parsed, robots, results, runnable = prepare(scenes)
+    if runnable:
+        out = run_batch([robots[k] for k in runnable], dev, precision, chunk)
+        for r, k in enumerate(runnable):
+            results[k] = _result(parsed[k], robots[k], 0, *out.robot(r))
+    return results  # type: ignore[return-value]
+
+
+class BatchOutput:
+    """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.engine._result``
+    takes it (a one-robot batch), and the seconds its step loop took."""
+
+    def __init__(self, seconds, voff, froff, n_frames, pos, frames, com_traj, com_count,
+                 status, done):
+        self.seconds = seconds  # wall time of the launches alone (arrays already on the device)
+        self.voff, self.froff, self.n_frames = voff, froff, n_frames
+        self.pos, self.frames, self.com_traj = pos, frames, com_traj
+        self.com_count, self.status, self.done = com_count, status, done
+
+    @property
+    def voxel_steps(self) -> float:
+        """Voxel-steps the run stepped: each robot's steps times its voxels."""
+        return float(np.sum(self.done * np.diff(self.voff)))
+
+    def robot(self, r: int) -> tuple[Any, ...]:
+        v0, v1 = self.voff[r], self.voff[r + 1]
+        n = v1 - v0
+        f0, nf = self.froff[r], self.n_frames[r]
+        frames = self.frames[f0: f0 + nf * n].reshape(nf, n, 3)
+        return (
+            SimpleNamespace(voff=np.array([0, n])),
+            SimpleNamespace(pos=self.pos[v0:v1]),
+            frames,
+            self.com_traj[r: r + 1],
+            self.com_count[r: r + 1],
+            self.status[r: r + 1],
+            self.done[r: r + 1],
+        )
+
+
+def _offsets(counts) -> np.ndarray:
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+
+def threads_per_block() -> int:
+    """Threads per block: ``SOFTEVO_CUDA_THREADS``, else ``THREADS`` for the GPU or the
+    simulator."""
+    text = os.environ.get("SOFTEVO_CUDA_THREADS")
+    if text:
+        if not text.isdigit() or not 1 <= int(text) <= 1024:
+            raise EngineUnavailable(f"SOFTEVO_CUDA_THREADS: must be 1..1024 (got {text!r})")
+        return int(text)
+    return THREADS["simulator" if simulator() else "gpu"]
+
+
+def shared_bytes(n_voxels: int, n_links: int) -> int:
+    """Bytes of shared memory a robot's state takes (``sim.cuda_kernels`` layout)."""
+    from .cuda_kernels import LINK_WORDS, VOXEL_WORDS
+
+    return 8 * (VOXEL_WORDS * n_voxels + LINK_WORDS * n_links)
+
+
+def _shared_limit(kernel, dev, want: int) -> int:
+    """The shared memory a block of ``kernel`` may use on ``dev``: up to ``want`` bytes when
+    the device lets a kernel opt in beyond the default, else ``SHARED_DEFAULT``."""
+    optin = int(getattr(dev, "MAX_SHARED_MEMORY_PER_BLOCK_OPTIN", SHARED_DEFAULT))
+    if want <= SHARED_DEFAULT or optin <= SHARED_DEFAULT:
+        return SHARED_DEFAULT
+    try:  # raise the kernel's dynamic shared memory cap (cuFuncSetAttribute)
+        from numba.cuda.cudadrv import driver
+        from numba.cuda.cudadrv.driver import binding
+
+        if not kernel.overloads:
+            return SHARED_DEFAULT
+        for overload in kernel.overloads.values():
+            fn = overload._codelibrary.get_cufunc()
+            attr = binding.CUfunction_attribute.CU_FUNC_ATTRIBUTE_MAX_DYNAMIC_SHARED_SIZE_BYTES
+            driver.driver.cuKernelSetAttribute(attr, min(want, optin), fn.handle, dev.id)
+        return min(want, optin)
+    except Exception:  # an older driver binding: the robots that do not fit run in global memory
+        return SHARED_DEFAULT
+
+
+def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None = None,
+              memory: str = "auto") -> BatchOutput:
+    """Run the built robots (``sim.system.Robot``) to the end on CUDA device ``dev``.
+    ``memory``: "auto" (each robot in shared memory if it fits, else global) or "global"
+    (every robot on the global arrays, for tests of that path)."""
+    cuda = cuda_module()
+    from . import cuda_kernels as ck
+
+    batch, state = pack(robots)
+    R = len(robots)
+    voff, loff, soff, moff, foff = batch.voff, batch.loff, batch.soff, batch.moff, batch.foff
+    n_vox, n_links = int(voff[-1]), int(loff[-1])
+    robot_of_voxel = np.repeat(np.arange(R), np.diff(voff))
+    counts, links = np.diff(voff), np.diff(loff)
+    n_frames = batch.iparams[:, I_N_FRAMES].astype(np.int64)
+    froff = _offsets(n_frames * counts)
+
+    # each voxel's facets (the mesh lists them voxel by voxel) and its place on the surface
+    face_voxel = batch.mesh_face[:, 3] + np.repeat(voff[:-1], np.diff(foff))
+    fstart = np.searchsorted(face_voxel, np.arange(n_vox), side="left")
+    fcount = np.searchsorted(face_voxel, np.arange(n_vox), side="right") - fstart
+    surf_of = -np.ones(n_vox, dtype=np.int64)
+    first_surface = np.repeat(soff[:-1], np.diff(soff))  # each voxel's place on its robot's surface
+    surf_of[batch.surface + np.repeat(voff[:-1], np.diff(soff))] = np.arange(len(batch.surface)) - first_surface
+    exposed = ((batch.nbr < 0) * (1 << np.arange(6))).sum(axis=1)
+    no_link = np.diff(loff)[robot_of_voxel][:, None]  # ``Robot.vlink``'s mark for no link
+    vlink = np.where(batch.vlink == no_link, -1, batch.vlink)
+
+    def put(a, dtype=np.float64):
+        a = np.ascontiguousarray(a, dtype=dtype).reshape(-1)
+        return cuda.to_device(a if a.size else np.zeros(1, dtype))
+
+    i32 = np.int32
+    ls = np.zeros((max(n_links, 1), ck.LINK_STATE))
+    ctl = np.zeros((R, ck.N_CTL), dtype=i32)
+    ctl[:, ck.C_RUNNING] = 1
+    ctl[:, ck.C_DONE] = batch.iparams[:, I_STEPS]
+    if batch.iparams[:, I_STEPS].max(initial=0) >= 2**31 or froff[-1] * 3 >= 2**31:
+        raise EngineUnavailable("batch too large for the cuda engine's int32 counters: split it")
+    a = SimpleNamespace(
+        fp=put(batch.fparams), ip=put(batch.iparams, i32), voff=put(voff, i32), loff=put(loff, i32),
+        soff=put(soff, i32), moff=put(moff, i32), foff=put(foff, i32), froff=put(froff, i32),
+        flags=put(batch.flags, i32), cos_phase=put(batch.cos_phase), sin_phase=put(batch.sin_phase),
+        phase=put(batch.phase), vc=put(batch.vconst), ext=put(batch.ext_force),
+        nbr=put(batch.nbr, i32), vlink=put(vlink, i32), exposed=put(exposed, i32),
+        fstart=put(fstart, i32), fcount=put(fcount, i32), surf_of=put(surf_of, i32),
+        surface=put(batch.surface, i32), near=put(batch.near, i32),
+        lneg=put(batch.link_neg, i32), lpos=put(batch.link_pos, i32), laxis=put(batch.link_axis, i32),
+        lstiff=put(batch.link_stiff), ldamp=put(batch.link_damp),
+        mvert=put(batch.mesh_vert, i32), mface=put(batch.mesh_face, i32),
+        pos=put(state.pos), quat=put(state.quat), lm=put(state.lin_mom), am=put(state.ang_mom),
+        static=put(np.ones(n_vox), i32), ls=put(ls), size=put(np.zeros(n_vox)),
+        force=put(np.zeros(3 * n_vox)), moment=put(np.zeros(3 * n_vox)),
+        loads=put(np.zeros(ck.LINK_LOADS * n_links)), vert=put(np.zeros(3 * len(batch.mesh_vert))),
+        cand=put(np.zeros(ck.MAX_CANDIDATES * len(batch.surface)), i32),
+        ncand=put(np.zeros(len(batch.surface)), i32),
+        built=put(np.full(3 * len(batch.surface), np.nan)),
+        ctl=cuda.to_device(ctl), travel=put(COLLIDE_MARGIN * batch.fparams[:, F_L]),
+        frames=put(np.zeros(3 * int(froff[-1]))),
+        com=put(np.zeros(R * ck.COM_ROWS * 4)),
+    )
+    args = [a.fp, a.ip, a.voff, a.loff, a.soff, a.moff, a.foff, a.froff, a.flags, a.cos_phase,
+            a.sin_phase, a.phase, a.vc, a.ext, a.nbr, a.vlink, a.exposed, a.fstart, a.fcount,
+            a.surf_of, a.surface, a.near, np.int32(batch.near.shape[1]), a.lneg, a.lpos,
+            a.laxis, a.lstiff, a.ldamp, a.mvert, a.mface, a.pos, a.quat, a.lm, a.am, a.static,
+            a.ls, a.size, a.force, a.moment, a.loads, a.vert, a.cand, a.ncand, a.built, a.ctl,
+            a.travel, a.frames, a.com]
+
+    threads = threads_per_block()
+    sim_mode = simulator()
+    need = np.array([shared_bytes(int(n), int(m)) for n, m in zip(counts, links, strict=True)])
+    in_shared = ck.rollout_kernel(True, threads)
+    in_global = ck.rollout_kernel(False, threads)
+    total = int(batch.iparams[:, I_STEPS].max(initial=0)) + 1
+    chunk = total if sim_mode else max(1, int(chunk or CHUNK_STEPS))
+
+    limit = SHARED_DEFAULT if sim_mode or need.max(initial=0) <= SHARED_DEFAULT else None
+    switch = sys.getswitchinterval()
+    if sim_mode:  # the simulator's threads meet at every sync: hand the GIL over often
+        sys.setswitchinterval(SIMULATOR_SWITCH_SECONDS)
+    started = time.perf_counter()
+    try:
+        for _ in range(-(-total // chunk)):  # every robot is done after this many launches
+            running = a.ctl.copy_to_host()[:, ck.C_RUNNING] != 0
+            if not running.any():
+                break
+            if limit is None:  # compile once, then let it use more than the default if it may
+                first = cuda.to_device(np.flatnonzero(running)[:1].astype(np.int32))
+                in_shared = in_shared.specialize(np.int32(chunk), first, *args)
+                limit = _shared_limit(in_shared, dev, int(need.max()))
+            fits = need <= (need.max(initial=0) if sim_mode else limit)
+            if memory == "global":
+                fits = np.zeros(R, dtype=bool)
+            for kernel, mask in ((in_shared, fits & running), (in_global, ~fits & running)):
+                which = np.flatnonzero(mask).astype(np.int32)
+                if len(which):
+                    nbytes = int(need[which].max()) if kernel is in_shared else 0
+                    kernel[len(which), threads, 0, nbytes](np.int32(chunk), cuda.to_device(which), *args)
+            cuda.synchronize()
+    finally:
+        sys.setswitchinterval(switch)
+    seconds = time.perf_counter() - started
+
+    ctl = a.ctl.copy_to_host()
+    com = a.com.copy_to_host().reshape(R, ck.COM_ROWS, 4)
+    status = ctl[:, ck.C_CODE].astype(np.int64)
+    done = ctl[:, ck.C_DONE].astype(np.int64)
+    com_count = ctl[:, ck.C_NCOM].astype(np.int64)
+    if (ctl[:, ck.C_RUNNING] != 0).any():
+        raise RuntimeError("cuda engine: robots still running after their step count")
+    return BatchOutput(seconds, voff, froff, n_frames, a.pos.copy_to_host().reshape(-1, 3),
+                       a.frames.copy_to_host()[: 3 * int(froff[-1])].reshape(-1, 3), com,
+                       com_count, status, done)

@@ -1,0 +1,474 @@
+"""The physics of one step, written once, as scalar functions of scalars.
+
+Every piece of the model that acts on one thing at a time is here: the quaternion helpers,
+the waveform and the actuated size, one link's beam (its geometry in either co-rotational
+frame, bond damping and the loads in world axes), one self-contact pair, the drag on one
+exposed face or one surface-mesh facet, and one voxel's update (world forces, floor contact
+and friction, semi-implicit Euler). The functions take and return numbers and tuples of
+numbers only, never arrays, so that each target compiles them into its own loops and memory
+layout:
+
+- ``sim.kernels`` (the CPU engine): ``compiled(njit(inline="always", ...), fma)``, inlined
+  into its loops over voxels and links;
+- ``sim.cuda_kernels`` (the GPU engine): ``compiled(cuda.jit(device=True, ...), cuda.fma)``,
+  device functions called by the threads of a robot's block; on numba-cuda's simulator
+  (``NUMBA_ENABLE_CUDASIM=1``) the plain functions below.
+
+``compiled(jit, fma)`` gives each target its own copies, which call one another and that
+target's ``fma`` (a * b + c with one rounding: LLVM's ``llvm.fma`` on the CPU, the CUDA
+intrinsic on the GPU). The equations are those of docs/physics.md; the symbols follow
+``sim.kernels``' docstring. Quaternions are (w, x, y, z); a link's frame has x along the link.
+"""
+
+from __future__ import annotations
+
+import math
+import types
+from types import SimpleNamespace
+
+MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
+POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
+SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2  # the co-rotational frames' bounds
+MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
+
+
+def fma(a, b, c):
+    """a * b + c; each target binds its own one-rounding version (``compiled``)."""
+    return a * b + c
+
+
+# ---------------------------------------------------------------- quaternion helpers
+def dot3(ax, ay, az, bx, by, bz):
+    """a . b with fused multiply-adds."""
+    return fma(ax, bx, fma(ay, by, az * bz))
+
+
+def qmul(aw, ax, ay, az, bw, bx, by, bz):
+    """Hamilton product a * b."""
+    return (
+        fma(aw, bw, -fma(ax, bx, fma(ay, by, az * bz))),
+        fma(aw, bx, fma(ax, bw, fma(ay, bz, -(az * by)))),
+        fma(aw, by, fma(ay, bw, fma(az, bx, -(ax * bz)))),
+        fma(aw, bz, fma(ax, by, fma(az, bw, -(ay * bx)))),
+    )
+
+
+def qrot(w, x, y, z, vx, vy, vz):
+    """Rotate vector v by the unit quaternion (w, x, y, z)."""
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (
+        vx + w * tx + (y * tz - z * ty),
+        vy + w * ty + (z * tx - x * tz),
+        vz + w * tz + (x * ty - y * tx),
+    )
+
+
+# f(u) = 2 acos(1 - u) / sqrt(1 - (1 - u)^2) over u in [0, 1]: a unit quaternion's rotation
+# vector is f(1 - |w|) times its vector part. Degree-16 polynomial from a Chebyshev fit to the
+# exact function (relative error < 5e-14 everywhere; its nearest singularity is u = 2), so
+# rotation vectors need no division, no libm call and no branch, and the link loop vectorizes.
+ANGLE_OVER_SIN = (
+    2.000000000000085,
+    0.666666666619135,
+    0.26666667113455084,
+    0.11428554822756917,
+    0.05079689174055483,
+    0.023049764284205198,
+    0.010952681225704275,
+    0.0033813071236987804,
+    0.008445614662157971,
+    -0.015982869178300427,
+    0.03578579361845359,
+    -0.053358252114567725,
+    0.05957216182258554,
+    -0.0468218000572629,
+    0.025036407949616243,
+    -0.008136146214563936,
+    0.0012522127460549246,
+)
+
+
+def angle_over_sin(u):
+    """``ANGLE_OVER_SIN`` at u, by Estrin's scheme (short dependency chains)."""
+    c = ANGLE_OVER_SIN
+    u2 = u * u
+    u4 = u2 * u2
+    u8 = u4 * u4
+    lo = fma(u4, fma(u2, fma(c[7], u, c[6]), fma(c[5], u, c[4])),
+             fma(u2, fma(c[3], u, c[2]), fma(c[1], u, c[0])))
+    hi = fma(u4, fma(u2, fma(c[15], u, c[14]), fma(c[13], u, c[12])),
+             fma(u2, fma(c[11], u, c[10]), fma(c[9], u, c[8])))
+    return fma(u8, fma(u8, c[16], hi), lo)
+
+
+def rotvec(w, x, y, z):
+    """Rotation vector (axis * angle) of a unit quaternion; q and -q give the same one."""
+    f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
+    return f * x, f * y, f * z
+
+
+def qmul_x0(aw, ay, az, bw, bx, by, bz):
+    """``qmul`` of a = (aw, 0, ay, az) and b, without the products with a's zero."""
+    return (
+        fma(aw, bw, -fma(ay, by, az * bz)),
+        fma(aw, bx, fma(ay, bz, -(az * by))),
+        fma(aw, by, fma(ay, bw, az * bx)),
+        fma(aw, bz, fma(az, bw, -(ay * bx))),
+    )
+
+
+def rotvec_x0(w, y, z):
+    """The y and z parts of ``rotvec`` of the unit quaternion (w, 0, y, z) (its x part is 0)."""
+    f = math.copysign(angle_over_sin(1.0 - abs(w)), w)
+    return f * y, f * z
+
+
+def quat_from_rotvec(px, py, pz):
+    """Unit quaternion of the rotation vector p (series when the angle is small)."""
+    a2 = 0.25 * dot3(px, py, pz, px, py, pz)  # (half angle)^2
+    if a2 < 1e-2:
+        c = fma(-a2, fma(-a2, 1.0 / 24.0, 0.5), 1.0)
+        f = 0.5 * fma(-a2, fma(-a2, 1.0 / 120.0, 1.0 / 6.0), 1.0)
+    else:
+        h = math.sqrt(a2)
+        c = math.cos(h)
+        f = math.sin(h) / (2.0 * h)
+    return c, f * px, f * py, f * pz
+
+
+def rotation_matrix(w, x, y, z):
+    """Rows of the rotation matrix of the unit quaternion (w, x, y, z): world = R local."""
+    return (
+        fma(-2.0, fma(y, y, z * z), 1.0), 2.0 * fma(x, y, -(w * z)), 2.0 * fma(x, z, w * y),
+        2.0 * fma(x, y, w * z), fma(-2.0, fma(x, x, z * z), 1.0), 2.0 * fma(y, z, -(w * x)),
+        2.0 * fma(x, z, -(w * y)), 2.0 * fma(y, z, w * x), fma(-2.0, fma(x, x, y * y), 1.0),
+    )
+
+
+# ---------------------------------------------------------------- actuation
+def waveform(kind, angle):
+    """Periodic actuation signal in [-1, 1] of phase angle (radians).
+
+    0 sine; 1 square (smoothed: tanh(8 sin)/tanh(8), so steps are resolvable by the lattice);
+    2 impulse: fast contraction over the first 20% of the cycle, slow release over the rest.
+    """
+    if kind == 0:
+        return math.sin(angle)
+    if kind == 1:
+        return math.tanh(8.0 * math.sin(angle)) / math.tanh(8.0)
+    u = angle / (2.0 * math.pi)
+    u = u - math.floor(u)
+    if u < 0.2:
+        return math.cos(math.pi * u / 0.2)
+    return -math.cos(math.pi * (u - 0.2) / 0.8)
+
+
+def actuated_size(L, amp, w):
+    """Size of an active voxel of nominal size L at signal w: L (1 + amp w), at least
+    ``MIN_SIZE`` L."""
+    return max(L * (1.0 + amp * w), MIN_SIZE * L)
+
+
+# ---------------------------------------------------------------- one link
+def to_link(axis, x, y, z):
+    """Proper rotation taking the world axis ``axis`` (0 x, 1 y, 2 z) onto +x, as selects
+    (links of mixed axes share one vector loop)."""
+    return (x if axis == 0 else (y if axis == 1 else z),
+            y if axis != 1 else -x,
+            z if axis != 2 else -x)
+
+
+def from_link_matrix(axis, R):
+    """R (rows) times the inverse axis permutation: world axes from link axes, as selects."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    return (r00 if axis == 0 else (r01 if axis == 1 else r02),
+            -r00 if axis == 1 else r01, -r00 if axis == 2 else r02,
+            r10 if axis == 0 else (r11 if axis == 1 else r12),
+            -r10 if axis == 1 else r11, -r10 if axis == 2 else r12,
+            r20 if axis == 0 else (r21 if axis == 1 else r22),
+            -r20 if axis == 1 else r21, -r20 if axis == 2 else r22)
+
+
+def beam(ex, ey, ez, e1x, e1y, e1z, e2x, e2y, e2z, a1, a2, b1, b2, b3):
+    """3-D frame element (Euler-Bernoulli) in the link frame: the force on the negative end
+    (the positive end gets its opposite) and the moments on both ends."""
+    fay = b1 * ey - b2 * (e1z + e2z)
+    faz = b1 * ez + b2 * (e1y + e2y)
+    max_ = a2 * (e2x - e1x)
+    may = -b2 * ez - b3 * (2.0 * e1y + e2y)
+    maz = b2 * ey - b3 * (2.0 * e1z + e2z)
+    mby = -b2 * ez - b3 * (e1y + 2.0 * e2y)
+    mbz = b2 * ey - b3 * (e1z + 2.0 * e2z)
+    return a1 * ex, fay, faz, max_, may, maz, -max_, mby, mbz
+
+
+def link_geometry(aw, ax_, ay, az, bw, bx, by, bz, wx, wy, wz, axis):
+    """A link's geometry from its voxels' orientations a (negative end) and b and the world
+    offset w from a's centre to b's: the rotation matrix R (rows) of a, and the centre offset
+    (rx, ry, rz) and relative rotation (ow, ox, oy, oz) of b in the link frame (a's frame
+    turned so that the link's axis is +x)."""
+    R = rotation_matrix(aw, ax_, ay, az)
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    rx, ry, rz = to_link(axis, dot3(r00, r10, r20, wx, wy, wz), dot3(r01, r11, r21, wx, wy, wz),
+                         dot3(r02, r12, r22, wx, wy, wz))
+    ow, ox, oy, oz = qmul(aw, -ax_, -ay, -az, bw, bx, by, bz)
+    ox, oy, oz = to_link(axis, ox, oy, oz)
+    return R, rx, ry, rz, ow, ox, oy, oz
+
+
+def small_frame(R, axis, rx, ry, rz, ow, ox, oy, oz, rest):
+    """The link in its negative voxel's frame: the offset off the axis is shear, the first end
+    does not turn and the second turns by the voxels' relative rotation. Returns W (world
+    from the beam's frame), the deformation (elongation d, end rotations t1 = (0, t1y, t1z)
+    and t2) and whether the bend or the extension has outgrown the frame."""
+    t2x, t2y, t2z = rotvec(ow, ox, oy, oz)
+    leave = abs(ry) + abs(rz) > SMALL_TURN * rx or abs(rx - rest) > SMALL_EXTEND * rest
+    return (from_link_matrix(axis, R), rx - rest, ry, rz, 0.0, 0.0, t2x, t2y, t2z, leave)
+
+
+def large_frame(R, axis, rx, ry, rz, ow, ox, oy, oz, rest):
+    """The link in the frame of its centre line, which c = k (|r| + rx, 0, rz, -ry) with
+    k = 1 / sqrt(2 |r| (|r| + rx)) turns onto +x (half-angle identity; a half turn about z
+    when r points back): no shear, the bend shows in both end rotations. Returns as
+    ``small_frame``, and whether the link is back within the small-angle frame's bounds
+    (tighter by HYSTERESIS than those it left)."""
+    length = math.sqrt(rx * rx + ry * ry + rz * rz)
+    h = length + rx
+    back = h > 1e-4 * length
+    cw = h if back else 0.0
+    cy = rz if back else 0.0
+    cz = -ry if back else 1.0
+    k = 1.0 / math.sqrt(2.0 * length * h) if back else 1.0
+    # products with the unnormalised c run while k is computed
+    pw, px, py, pz = qmul_x0(cw, cy, cz, ow, ox, oy, oz)
+    cw, cy, cz = cw * k, cy * k, cz * k
+    t1y, t1z = rotvec_x0(cw, cy, cz)  # c has no x part, so t1 has none
+    t2x, t2y, t2z = rotvec(pw * k, px * k, py * k, pz * k)
+    # world from the beam's frame: voxel rotation, axis permutation, conj(c), composed
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = from_link_matrix(axis, R)
+    c00 = 1.0 - 2.0 * (cy * cy + cz * cz)
+    c01, c02 = 2.0 * cw * cz, -2.0 * cw * cy
+    c11, c12 = 1.0 - 2.0 * cz * cz, 2.0 * cy * cz
+    c22 = 1.0 - 2.0 * cy * cy
+    W = (dot3(m00, m01, m02, c00, -c01, -c02), dot3(m00, m01, m02, c01, c11, c12),
+         dot3(m00, m01, m02, c02, c12, c22),
+         dot3(m10, m11, m12, c00, -c01, -c02), dot3(m10, m11, m12, c01, c11, c12),
+         dot3(m10, m11, m12, c02, c12, c22),
+         dot3(m20, m21, m22, c00, -c01, -c02), dot3(m20, m21, m22, c01, c11, c12),
+         dot3(m20, m21, m22, c02, c12, c22))
+    enter = (abs(ry) + abs(rz) < (SMALL_TURN / HYSTERESIS) * rx
+             and abs(rx - rest) < (SMALL_EXTEND / HYSTERESIS) * rest)
+    return W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z, enter
+
+
+def damped(g, d, previous):
+    """A deformation d seen with bond damping: d plus g times its change since the previous
+    step (g = gamma_link / (2 dt), 0 with nothing to damp against)."""
+    return fma(g, d - previous, d)
+
+
+def link_loads(W, s, rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x, e2y, e2z):
+    """The beam's force on the negative end and moments on both ends, in world axes (W: world
+    from the beam's frame), for the damped deformation e; the beam constants a1 ... are the
+    robot's reference ones, scaled by the link's stiffness s = E_link / E_ref. The axial term
+    is E A_current strain: area and rest length both scale with the voxel size."""
+    fax, fay, faz, max_, may, maz, mbx, mby, mbz = beam(
+        ex * rest * (1.0 / L), ey, ez, 0.0, e1y, e1z, e2x, e2y, e2z, a1 * s, a2 * s,
+        b1 * s, b2 * s, b3 * s)
+    w00, w01, w02, w10, w11, w12, w20, w21, w22 = W
+    return (dot3(w00, w01, w02, fax, fay, faz), dot3(w10, w11, w12, fax, fay, faz),
+            dot3(w20, w21, w22, fax, fay, faz),
+            dot3(w00, w01, w02, max_, may, maz), dot3(w10, w11, w12, max_, may, maz),
+            dot3(w20, w21, w22, max_, may, maz),
+            dot3(w00, w01, w02, mbx, mby, mbz), dot3(w10, w11, w12, mbx, mby, mbz),
+            dot3(w20, w21, w22, mbx, mby, mbz))
+
+
+def link_diverged(d, rest):
+    """1 if the elongation d is beyond MAX_STRAIN times the rest length (or NaN), else 0."""
+    return 0 if abs(d) <= MAX_STRAIN * rest else 1
+
+
+# ---------------------------------------------------------------- one self-contact pair
+def contact_push(dx, dy, dz, vx, vy, vz, size_i, size_j, ki, kj, ci, cj, reach, stiff, damp):
+    """Penalty contact of voxels i and j, d = x_j - x_i and v = v_j - v_i: the force on j
+    (i gets its opposite), zero when they do not overlap. Contact begins at ``reach`` times
+    the sum of the sizes; stiffness ``stiff`` times the harmonic mean of the voxels' floor
+    stiffnesses 2 E L (exactly it for one material), damping ``damp`` times the mean of
+    their collision damping coefficients; the push never pulls. Swapping i and j gives the
+    opposite force to the last bit."""
+    k = stiff * (ki if ki == kj else 2.0 * ki * kj / (ki + kj))
+    c = damp * (0.5 * (ci + cj))
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    overlap = reach * (size_i + size_j) - dist
+    if overlap <= 0.0 or dist == 0.0:
+        return 0.0, 0.0, 0.0
+    nx, ny, nz = dx / dist, dy / dist, dz / dist
+    vn = vx * nx + vy * ny + vz * nz
+    f = max(k * overlap - c * vn, 0.0)
+    return f * nx, f * ny, f * nz
+
+
+# ---------------------------------------------------------------- drag
+def facet_drag(drag, pn, inv_m, nx, ny, nz):
+    """The paper's engine's drag on one surface-mesh facet with N = (nx, ny, nz) = 2 A n
+    (A its area, n its unit normal), moved by its voxel of momentum p (pn = p . N, inv_m
+    that voxel's 1 / m): -drag A (v.n)^2 n = -drag/2 (p.N)^2 / (m^2 |N|^2) N when it moves
+    into the fluid (pn > 0), else zero (``drag`` = 0.5 rho C_d)."""
+    if pn > 0.0:
+        f = -0.5 * drag * (pn * inv_m) * (pn * inv_m) / (nx * nx + ny * ny + nz * nz)
+        return f * nx, f * ny, f * nz
+    return 0.0, 0.0, 0.0
+
+
+def mesh_corner(c, size, L, has_x, has_y, has_z):
+    """Offset of corner c (bits: x, y, z; 1 the + side) of a voxel from its centre in its own
+    frame: half its current size along an axis where it has a neighbour on that side, half
+    the nominal size L where that face is exposed (the fork places corners by the bonds'
+    strains, and an exposed face has none)."""
+    sx, sy, sz = (c >> 2) & 1, (c >> 1) & 1, c & 1
+    return (0.5 * (size if has_x else L) * (1.0 if sx else -1.0),
+            0.5 * (size if has_y else L) * (1.0 if sy else -1.0),
+            0.5 * (size if has_z else L) * (1.0 if sz else -1.0))
+
+
+def face_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz, area):
+    """The force (fx, fy, fz) plus the quadratic drag -0.5 rho C_d s^2 v_n^2 n (``drag`` =
+    0.5 rho C_d) of each exposed face moving outward (v_n > 0); ``exposed`` has bit f set when
+    face f (ordered -x, +x, -y, +y, -z, +z) has no neighbour."""
+    for a in range(3):
+        ex, ey, ez = qrot(qw, qx, qy, qz, 1.0 if a == 0 else 0.0, 1.0 if a == 1 else 0.0,
+                          1.0 if a == 2 else 0.0)
+        for side in range(2):
+            if not (exposed >> (2 * a + side)) & 1:
+                continue
+            sgn = 1.0 if side == 1 else -1.0
+            vn = sgn * (vx * ex + vy * ey + vz * ez)
+            if vn > 0.0:
+                f = -drag * area * vn * vn * sgn
+                fx += f * ex
+                fy += f * ey
+                fz += f * ez
+    return fx, fy, fz
+
+
+# ---------------------------------------------------------------- one voxel
+def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw, qx, qy, qz,
+                 px, py, pz, lx, ly, lz, static):
+    """Everything that acts on one voxel alone, then its step.
+
+    In: the step's constants ``world`` = (dt, gravity g, water drag, in water, on land,
+    friction mu_s and mu_k, ``fork``: the paper's engine's friction rule, ``slide``: the
+    speed below which a voxel counts as still), the voxel's constants ``own`` = (mass m,
+    1 / m, 1 / I, global damping c_lin and c_ang, floor stiffness, collision damping), its
+    exposed faces (bits) and current size; the
+    force f (links, collisions and external, summed) and moment m of the links; its state
+    (position x, orientation q, momenta p and l) and whether static friction holds it.
+
+    - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
+      drag on its exposed faces (``face_drag``);
+    - on land a penalty floor at z = 0 with static and kinetic (Coulomb) friction: a static
+      voxel starts to slide when the horizontal force exceeds mu_s times the normal force; a
+      sliding one feels mu_k times the normal force against its horizontal velocity (with
+      ``fork``: a voxel at rest is held while the horizontal force is below mu_s N; a moving
+      one stops dead when mu_k N dt would take all its momentum);
+    - semi-implicit Euler: momenta first, then position and orientation from the new
+      momenta; a sliding voxel in floor contact sticks when friction would reverse it
+      (work-energy), and a static one keeps no horizontal momentum.
+
+    Returns the new state (x, q, p, l), the total force and moment, static, whether it
+    touches the floor, its squared speed and whether it stayed in the sane range. (Calls
+    take at most 30 arguments: CPython passes more as a tuple, which numba cannot inline.)"""
+    dt, g, drag, water, land, mu_s, mu_k, fork, slide = world
+    m, inv_m, inv_i, c_lin, c_ang, kfloor, ccoll = own
+    vx, vy, vz = px * inv_m, py * inv_m, pz * inv_m
+    fx = fma(-c_lin, vx, fx)
+    fy = fma(-c_lin, vy, fy)
+    fz = fma(-c_lin, vz, fz) - m * g
+    w_ang = c_ang * inv_i
+    mx = fma(-w_ang, lx, mx)
+    my = fma(-w_ang, ly, my)
+    mz = fma(-w_ang, lz, mz)
+    if water:
+        fx, fy, fz = face_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz,
+                               size * size)
+
+    # floor contact and friction
+    touch = False
+    if land:
+        pen = 0.5 * size - z
+        touch = pen >= 0.0
+        if touch:
+            normal = kfloor * pen
+            fz += normal - ccoll * vz
+            if fork:  # the paper's engine (CalcFloorEffect)
+                if vx == 0.0 and vy == 0.0:  # at rest: held while the force is below mu_s N
+                    static = fx * fx + fy * fy < (mu_s * normal) ** 2
+                else:
+                    hv = math.sqrt(vx * vx + vy * vy)
+                    static = mu_k * normal * dt >= m * hv  # friction would stop it
+                    if static:
+                        px, py = 0.0, 0.0
+                    else:
+                        fx = fx - mu_k * normal * vx / hv
+                        fy = fy - mu_k * normal * vy / hv
+            elif static and fx * fx + fy * fy > (mu_s * normal) ** 2:
+                static = False
+            elif not static:
+                hv = math.sqrt(vx * vx + vy * vy)
+                if hv > slide:
+                    fx = fx - mu_k * normal * vx / hv
+                    fy = fy - mu_k * normal * vy / hv
+        else:
+            static = False
+
+    # semi-implicit Euler
+    px, py, pz = fma(fx, dt, px), fma(fy, dt, py), fma(fz, dt, pz)
+    if touch:
+        work_ = (fx * px + fy * py) * inv_m * dt
+        if not fork and 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
+            static = True
+        if static:
+            px, py = 0.0, 0.0
+    step_m = inv_m * dt
+    x = fma(px, step_m, x)
+    y = fma(py, step_m, y)
+    z = fma(pz, step_m, z)
+    speed2 = dot3(px, py, pz, px, py, pz) * (inv_m * inv_m)
+
+    lx, ly, lz = fma(mx, dt, lx), fma(my, dt, ly), fma(mz, dt, lz)
+    step_i = inv_i * dt
+    dw, dx, dy, dz = quat_from_rotvec(lx * step_i, ly * step_i, lz * step_i)
+    qw, qx, qy, qz = qmul(dw, dx, dy, dz, qw, qx, qy, qz)
+    norm = 1.0 / math.sqrt(fma(qw, qw, dot3(qx, qy, qz, qx, qy, qz)))
+    qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
+    ok = (abs(x) < POSITION_BOUND and abs(y) < POSITION_BOUND and abs(z) < POSITION_BOUND
+          and abs(qw) <= 1.0 + 1e-9)
+    return (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, fx, fy, fz, mx, my, mz,
+            static, touch, speed2, ok)
+
+
+# ---------------------------------------------------------------- targets
+PIECES = (
+    "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
+    "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
+    "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "damped",
+    "link_loads", "link_diverged", "contact_push", "facet_drag", "mesh_corner", "face_drag",
+    "voxel_update",
+)
+
+
+def compiled(jit, fma_impl) -> SimpleNamespace:
+    """The functions of ``PIECES`` compiled by ``jit`` (a decorator; the identity gives the
+    plain functions), each calling the others' compiled versions and ``fma_impl`` for
+    ``fma``. Compilation itself is lazy, at a piece's first use in a compiled caller."""
+    space = dict(globals())
+    space["fma"] = fma_impl
+    for name in PIECES:
+        f = globals()[name]
+        copy = types.FunctionType(f.__code__, space, name, f.__defaults__, f.__closure__)
+        copy.__doc__, copy.__qualname__, copy.__module__ = f.__doc__, f.__qualname__, __name__
+        space[name] = jit(copy)
+    return SimpleNamespace(**{name: space[name] for name in PIECES})
