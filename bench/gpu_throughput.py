@@ -2,7 +2,7 @@
 
 Usage: python bench/gpu_throughput.py [--device cuda:0] [--max-batch 10000] [--steps 2000]
            [--numba-max-batch 100] [--batches 1,10,100,1000,10000] [--precisions float64]
-           [--accuracy 0]
+           [--side 7] [--accuracy 0]
 
 Paper-like robots: random 7^3 bodies (about 2/3 full, half the voxels active), the scene
 defaults of ``sim.scene`` (voxel size, density, actuation), 1 and 10 MPa, land and water.
@@ -25,7 +25,7 @@ policy of docs/gpu.md), or the refusal.
 
 On numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``, pure Python) keep everything tiny:
 ``NUMBA_ENABLE_CUDASIM=1 python bench/gpu_throughput.py --max-batch 1 --steps 5
---numba-max-batch 1``.
+--numba-max-batch 1`` (``--side 3`` for 3^3 robots instead of 7^3).
 """
 
 from __future__ import annotations
@@ -49,14 +49,14 @@ BATCHES = (1, 10, 100, 1000, 10000)
 POOL = 100  # distinct robots per case; a larger batch repeats them
 
 
-def paper_robot(rng: np.random.Generator, world: str, modulus: float) -> dict:
-    """A random 7^3 robot in the evolution's evaluation scene (``DEFAULT_CYCLES`` cycles,
-    0.5 s settling on land)."""
-    body = rng.choice([0, 1, 2], size=(7, 7, 7), p=[0.3, 0.35, 0.35])
-    body[3, 3, 3] = 2
+def paper_robot(rng: np.random.Generator, world: str, modulus: float, side: int = 7) -> dict:
+    """A random ``side``^3 robot (7: the paper's) in the evolution's evaluation scene
+    (``DEFAULT_CYCLES`` cycles, 0.5 s settling on land)."""
+    body = rng.choice([0, 1, 2], size=(side, side, side), p=[0.3, 0.35, 0.35])
+    body[side // 2, side // 2, side // 2] = 2
     return {
         "body": body.tolist(),
-        "phase": rng.uniform(-math.pi, math.pi, (7, 7, 7)).tolist(),
+        "phase": rng.uniform(-math.pi, math.pi, (side, side, side)).tolist(),
         "material": {"youngs_modulus": modulus},
         "environment": {"kind": world},
         "duration": {"cycles": DEFAULT_CYCLES},
@@ -116,7 +116,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--device", default=None, help="CUDA device, e.g. cuda:0 (the engine's default)")
+    parser.add_argument(
+        "--device", default="cuda:0", help="CUDA device (default cuda:0; the simulator's too)"
+    )
     parser.add_argument("--max-batch", type=int, default=10000)
     parser.add_argument("--numba-max-batch", type=int, default=100)
     parser.add_argument("--steps", type=int, default=2000, help="steps per robot per case")
@@ -124,6 +126,7 @@ def main() -> None:
         "--batches", default=",".join(map(str, BATCHES)), help="batch sizes (those up to --max-batch run)"
     )
     parser.add_argument("--precisions", default="float64", help="float64 (float32 is refused for now)")
+    parser.add_argument("--side", type=int, default=7, help="robots' side in voxels (7: the paper's)")
     parser.add_argument("--worlds", default="land,water")
     parser.add_argument("--moduli", default="1e6,1e7", help="Young's moduli, Pa")
     parser.add_argument(
@@ -138,7 +141,7 @@ def main() -> None:
         raise SystemExit(2) from None
     device = args.device
     print(
-        f"device: {device or 'default'} ({device_name(dev)}); numba on {numba.get_num_threads()} "
+        f"device: {device} ({device_name(dev)}); numba on {numba.get_num_threads()} "
         f"threads of {os.cpu_count()} cores; {args.steps} steps per robot"
     )
     precisions = usable_precisions(args.precisions.split(","), device)
@@ -159,7 +162,9 @@ def main() -> None:
     for world in args.worlds.split(","):
         for modulus in (float(m) for m in args.moduli.split(",")):
             rng = np.random.default_rng(0)
-            pool = [paper_robot(rng, world, modulus) for _ in range(min(max(batches, default=1), POOL))]
+            pool = [
+                paper_robot(rng, world, modulus, args.side) for _ in range(min(max(batches, default=1), POOL))
+            ]
             voxels, eval_steps = evaluation_cost(pool[0])
             eval_cost = voxels * eval_steps  # voxel-steps of one whole evaluation
             print(
@@ -200,12 +205,12 @@ def main() -> None:
                         flush=True,
                     )
             if args.accuracy:
-                accuracy(rng, world, modulus, args.accuracy, device)
+                accuracy(rng, world, modulus, args.accuracy, device, args.side)
 
 
-def accuracy(rng, world: str, modulus: float, n: int, device: str | None) -> None:
+def accuracy(rng, world: str, modulus: float, n: int, device: str, side: int = 7) -> None:
     """float32 against float64 over ``n`` whole evaluations, or the engine's refusal."""
-    scenes = [paper_robot(rng, world, modulus) for _ in range(n)]
+    scenes = [paper_robot(rng, world, modulus, side) for _ in range(n)]
     try:
         f32 = cuda_engine.simulate_many(scenes, device, "float32")
     except EngineUnavailable as exc:
