@@ -65,11 +65,11 @@ COORDINATOR_SECONDS = 0.2
 COORDINATOR_POPULATION = 30
 WORKER_SECONDS_PER_EVALUATION = 0.015
 JOB_SECONDS = 0.012
-# An H200's rate in the Warp engine: ESTIMATE, NOT MEASURED (the Warp design review's
-# 1.5-2.2e9 voxel-steps/s, docs/gpu.md "Cost model"); replace it once bench/gpu_throughput.py
-# has run on one.
+# An H200's rate in the cuda engine: ESTIMATE, NOT MEASURED (a GPU design review's
+# 1.5-2.2e9 voxel-steps/s, docs/gpu.md); replace it once bench/gpu_device_check.sh has run on
+# one.
 GPU_VOXEL_STEPS_PER_SECOND = 2.0e9
-GPU_RATE_SOURCE = "estimate, not measured: the Warp design review's 1.5-2.2e9 per H200 (docs/gpu.md)"
+GPU_RATE_SOURCE = "estimate, not measured: a GPU design review's 1.5-2.2e9 per H200 (docs/gpu.md)"
 # Bytes on SQLite (page-rounded, indexes included), measured with dbstat on a 12-generation
 # run of population 10 (pareto, 5^3, land-water, paper encoding): an individual (genome and
 # phenotype JSON) 2150, an evaluation 378, a generation summary 683, a population member 102,

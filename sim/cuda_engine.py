@@ -176,6 +176,65 @@ def _shared_limit(kernel, dev, want: int) -> int:
         return SHARED_DEFAULT
 
 
+def kernel_inputs(batch, state) -> dict[str, Any]:
+    """The rollout kernel's arguments after ``chunk`` and ``which``, in order, as host
+    arrays (flat, int32 indices: ``sim.cuda_kernels`` layout) and scalars, for a packed
+    batch at its initial state."""
+    from . import cuda_kernels as ck
+
+    R = len(batch.voff) - 1
+    voff, loff, soff, moff, foff = batch.voff, batch.loff, batch.soff, batch.moff, batch.foff
+    n_vox, n_links = int(voff[-1]), int(loff[-1])
+    counts = np.diff(voff)
+    froff = _offsets(batch.iparams[:, I_N_FRAMES].astype(np.int64) * counts)
+    if batch.iparams[:, I_STEPS].max(initial=0) >= 2**31 or froff[-1] * 3 >= 2**31:
+        raise EngineUnavailable("batch too large for the cuda engine's int32 counters: split it")
+    # each voxel's facets (the mesh lists them voxel by voxel) and its place on the surface
+    face_voxel = batch.mesh_face[:, 3] + np.repeat(voff[:-1], np.diff(foff))
+    fstart = np.searchsorted(face_voxel, np.arange(n_vox), side="left")
+    fcount = np.searchsorted(face_voxel, np.arange(n_vox), side="right") - fstart
+    surf_of = -np.ones(n_vox, dtype=np.int64)
+    first_surface = np.repeat(soff[:-1], np.diff(soff))
+    surf_of[batch.surface + np.repeat(voff[:-1], np.diff(soff))] = (
+        np.arange(len(batch.surface)) - first_surface)
+    exposed = ((batch.nbr < 0) * (1 << np.arange(6))).sum(axis=1)
+    no_link = np.diff(loff)[np.repeat(np.arange(R), counts)][:, None]  # ``Robot.vlink``'s mark
+    vlink = np.where(batch.vlink == no_link, -1, batch.vlink)
+    ctl = np.zeros((R, ck.N_CTL), dtype=np.int32)
+    ctl[:, ck.C_RUNNING] = 1
+    ctl[:, ck.C_DONE] = batch.iparams[:, I_STEPS]
+
+    def f64(x):
+        x = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
+        return x if x.size else np.zeros(1)
+
+    def i32(x):
+        x = np.ascontiguousarray(x, dtype=np.int32).reshape(-1)
+        return x if x.size else np.zeros(1, np.int32)
+
+    return dict(
+        fp=f64(batch.fparams), ip=i32(batch.iparams), voff=i32(voff), loff=i32(loff),
+        soff=i32(soff), moff=i32(moff), foff=i32(foff), froff=i32(froff),
+        flags=i32(batch.flags), cos_phase=f64(batch.cos_phase), sin_phase=f64(batch.sin_phase),
+        phase=f64(batch.phase), vc=f64(batch.vconst), ext=f64(batch.ext_force),
+        nbr=i32(batch.nbr), vlink=i32(vlink), exposed=i32(exposed), fstart=i32(fstart),
+        fcount=i32(fcount), surf_of=i32(surf_of), surface=i32(batch.surface),
+        near=i32(batch.near), near_width=np.int32(batch.near.shape[1]),
+        lneg=i32(batch.link_neg), lpos=i32(batch.link_pos), laxis=i32(batch.link_axis),
+        lstiff=f64(batch.link_stiff), ldamp=f64(batch.link_damp),
+        mvert=i32(batch.mesh_vert), mface=i32(batch.mesh_face),
+        pos=f64(state.pos), quat=f64(state.quat), lm=f64(state.lin_mom), am=f64(state.ang_mom),
+        static=i32(np.ones(n_vox)), ls=f64(np.zeros(n_links * ck.LINK_STATE)),
+        size=f64(np.zeros(n_vox)), force=f64(np.zeros(3 * n_vox)),
+        moment=f64(np.zeros(3 * n_vox)), loads=f64(np.zeros(ck.LINK_LOADS * n_links)),
+        vert=f64(np.zeros(3 * len(batch.mesh_vert))),
+        cand=i32(np.zeros(ck.MAX_CANDIDATES * len(batch.surface))),
+        ncand=i32(np.zeros(len(batch.surface))), built=f64(np.full(3 * len(batch.surface), np.nan)),
+        ctl=ctl, travel=f64(COLLIDE_MARGIN * batch.fparams[:, F_L]),
+        frames=f64(np.zeros(3 * int(froff[-1]))), com=f64(np.zeros(R * ck.COM_ROWS * 4)),
+    )
+
+
 def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None = None,
               memory: str = "auto") -> BatchOutput:
     """Run the built robots (``sim.system.Robot``) to the end on CUDA device ``dev``.
@@ -186,67 +245,19 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
 
     batch, state = pack(robots)
     R = len(robots)
-    voff, loff, soff, moff, foff = batch.voff, batch.loff, batch.soff, batch.moff, batch.foff
-    n_vox, n_links = int(voff[-1]), int(loff[-1])
-    robot_of_voxel = np.repeat(np.arange(R), np.diff(voff))
-    counts, links = np.diff(voff), np.diff(loff)
+    host = kernel_inputs(batch, state)
+    args = [cuda.to_device(x) if isinstance(x, np.ndarray) else x for x in host.values()]
+    a = SimpleNamespace(**dict(zip(host, args, strict=True)))
+    counts, links = np.diff(batch.voff), np.diff(batch.loff)
+    voff = batch.voff
     n_frames = batch.iparams[:, I_N_FRAMES].astype(np.int64)
     froff = _offsets(n_frames * counts)
 
-    # each voxel's facets (the mesh lists them voxel by voxel) and its place on the surface
-    face_voxel = batch.mesh_face[:, 3] + np.repeat(voff[:-1], np.diff(foff))
-    fstart = np.searchsorted(face_voxel, np.arange(n_vox), side="left")
-    fcount = np.searchsorted(face_voxel, np.arange(n_vox), side="right") - fstart
-    surf_of = -np.ones(n_vox, dtype=np.int64)
-    first_surface = np.repeat(soff[:-1], np.diff(soff))  # each voxel's place on its robot's surface
-    surf_of[batch.surface + np.repeat(voff[:-1], np.diff(soff))] = np.arange(len(batch.surface)) - first_surface
-    exposed = ((batch.nbr < 0) * (1 << np.arange(6))).sum(axis=1)
-    no_link = np.diff(loff)[robot_of_voxel][:, None]  # ``Robot.vlink``'s mark for no link
-    vlink = np.where(batch.vlink == no_link, -1, batch.vlink)
-
-    def put(a, dtype=np.float64):
-        a = np.ascontiguousarray(a, dtype=dtype).reshape(-1)
-        return cuda.to_device(a if a.size else np.zeros(1, dtype))
-
-    i32 = np.int32
-    ls = np.zeros((max(n_links, 1), ck.LINK_STATE))
-    ctl = np.zeros((R, ck.N_CTL), dtype=i32)
-    ctl[:, ck.C_RUNNING] = 1
-    ctl[:, ck.C_DONE] = batch.iparams[:, I_STEPS]
-    if batch.iparams[:, I_STEPS].max(initial=0) >= 2**31 or froff[-1] * 3 >= 2**31:
-        raise EngineUnavailable("batch too large for the cuda engine's int32 counters: split it")
-    a = SimpleNamespace(
-        fp=put(batch.fparams), ip=put(batch.iparams, i32), voff=put(voff, i32), loff=put(loff, i32),
-        soff=put(soff, i32), moff=put(moff, i32), foff=put(foff, i32), froff=put(froff, i32),
-        flags=put(batch.flags, i32), cos_phase=put(batch.cos_phase), sin_phase=put(batch.sin_phase),
-        phase=put(batch.phase), vc=put(batch.vconst), ext=put(batch.ext_force),
-        nbr=put(batch.nbr, i32), vlink=put(vlink, i32), exposed=put(exposed, i32),
-        fstart=put(fstart, i32), fcount=put(fcount, i32), surf_of=put(surf_of, i32),
-        surface=put(batch.surface, i32), near=put(batch.near, i32),
-        lneg=put(batch.link_neg, i32), lpos=put(batch.link_pos, i32), laxis=put(batch.link_axis, i32),
-        lstiff=put(batch.link_stiff), ldamp=put(batch.link_damp),
-        mvert=put(batch.mesh_vert, i32), mface=put(batch.mesh_face, i32),
-        pos=put(state.pos), quat=put(state.quat), lm=put(state.lin_mom), am=put(state.ang_mom),
-        static=put(np.ones(n_vox), i32), ls=put(ls), size=put(np.zeros(n_vox)),
-        force=put(np.zeros(3 * n_vox)), moment=put(np.zeros(3 * n_vox)),
-        loads=put(np.zeros(ck.LINK_LOADS * n_links)), vert=put(np.zeros(3 * len(batch.mesh_vert))),
-        cand=put(np.zeros(ck.MAX_CANDIDATES * len(batch.surface)), i32),
-        ncand=put(np.zeros(len(batch.surface)), i32),
-        built=put(np.full(3 * len(batch.surface), np.nan)),
-        ctl=cuda.to_device(ctl), travel=put(COLLIDE_MARGIN * batch.fparams[:, F_L]),
-        frames=put(np.zeros(3 * int(froff[-1]))),
-        com=put(np.zeros(R * ck.COM_ROWS * 4)),
-    )
-    args = [a.fp, a.ip, a.voff, a.loff, a.soff, a.moff, a.foff, a.froff, a.flags, a.cos_phase,
-            a.sin_phase, a.phase, a.vc, a.ext, a.nbr, a.vlink, a.exposed, a.fstart, a.fcount,
-            a.surf_of, a.surface, a.near, np.int32(batch.near.shape[1]), a.lneg, a.lpos,
-            a.laxis, a.lstiff, a.ldamp, a.mvert, a.mface, a.pos, a.quat, a.lm, a.am, a.static,
-            a.ls, a.size, a.force, a.moment, a.loads, a.vert, a.cand, a.ncand, a.built, a.ctl,
-            a.travel, a.frames, a.com]
-
     threads = threads_per_block()
     sim_mode = simulator()
+    scratch = 8 * (threads + ck.SCRATCH_WORDS)  # every block's reductions and flags
     need = np.array([shared_bytes(int(n), int(m)) for n, m in zip(counts, links, strict=True)])
+    need = need + scratch
     in_shared = ck.rollout_kernel(True, threads)
     in_global = ck.rollout_kernel(False, threads)
     total = int(batch.iparams[:, I_STEPS].max(initial=0)) + 1
@@ -272,7 +283,7 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
             for kernel, mask in ((in_shared, fits & running), (in_global, ~fits & running)):
                 which = np.flatnonzero(mask).astype(np.int32)
                 if len(which):
-                    nbytes = int(need[which].max()) if kernel is in_shared else 0
+                    nbytes = int(need[which].max()) if kernel is in_shared else scratch
                     kernel[len(which), threads, 0, nbytes](np.int32(chunk), cuda.to_device(which), *args)
             cuda.synchronize()
     finally:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from functools import cache
 
-from numba import cuda, float64, int32
+from numba import cuda, float64
 from numba.cuda import config as cuda_config
 
 from . import physics
@@ -86,6 +86,7 @@ COM_ROWS = COM_SAMPLES + 3  # rows of a robot's centre-of-mass trajectory
 VOXEL_WORDS = 20  # float64 per voxel in shared memory: pos 3, quat 4, momenta 6, size 1, force 3, moment 3
 LINK_WORDS = 18  # per link: state 9 (previous deformation 8, frame mode), loads 9
 LINK_STATE, LINK_LOADS = 9, 9
+SCRATCH_WORDS = 2  # float64 in a block's dynamic shared memory beyond one per thread: the flags
 # control words of a robot, ``ctl[r, :]``
 C_RUNNING, C_STEP, C_CODE, C_DONE, C_NCOM = range(5)
 N_CTL = 5
@@ -108,6 +109,7 @@ dot3, qrot, rotation_matrix, waveform = phys.dot3, phys.qrot, phys.rotation_matr
 actuated_size, link_geometry, small_frame = phys.actuated_size, phys.link_geometry, phys.small_frame
 large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
 link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
+contact_overlap = phys.contact_overlap
 mesh_corner, voxel_update = phys.mesh_corner, phys.voxel_update
 
 
@@ -182,8 +184,14 @@ def rollout_kernel(shared: bool, threads: int):
             return
         t = cuda.threadIdx.x
         nt = cuda.blockDim.x
-        red = cuda.shared.array(threads, float64)
-        flag = cuda.shared.array(2, int32)  # a link diverged; a voxel left the sane range
+        # dynamic shared memory: the reductions' scratch, two flags (a link diverged; a voxel
+        # left the sane range), then the robot's state (``shared``). (No static shared
+        # arrays: numba-cuda's simulator can hand two threads of a block different copies of
+        # one.)
+        dyn = cuda.shared.array(0, float64)
+        red = dyn[0:threads]
+        flag = dyn[threads:threads + 2]
+        base = threads + SCRATCH_WORDS
         v0, l0, s0, m0 = voff[r], loff[r], soff[r], moff[r]
         n, m, ns = voff[r + 1] - v0, loff[r + 1] - l0, soff[r + 1] - s0
         nv = moff[r + 1] - m0
@@ -208,12 +216,12 @@ def rollout_kernel(shared: bool, threads: int):
         NEAR = near[v0 * near_width:(v0 + n) * near_width]
         ST = static[v0:v0 + n]
         if shared:
-            dyn = cuda.shared.array(0, float64)
-            pos, quat = dyn[0:3 * n], dyn[3 * n:7 * n]
-            lm, am = dyn[7 * n:10 * n], dyn[10 * n:13 * n]
-            size, force, moment = dyn[13 * n:14 * n], dyn[14 * n:17 * n], dyn[17 * n:20 * n]
-            ls = dyn[20 * n:20 * n + LINK_STATE * m]
-            loads = dyn[20 * n + LINK_STATE * m:20 * n + (LINK_STATE + LINK_LOADS) * m]
+            own = dyn[base:base + VOXEL_WORDS * n + LINK_WORDS * m]
+            pos, quat = own[0:3 * n], own[3 * n:7 * n]
+            lm, am = own[7 * n:10 * n], own[10 * n:13 * n]
+            size, force, moment = own[13 * n:14 * n], own[14 * n:17 * n], own[17 * n:20 * n]
+            ls = own[20 * n:20 * n + LINK_STATE * m]
+            loads = own[20 * n + LINK_STATE * m:20 * n + (LINK_STATE + LINK_LOADS) * m]
             for q in range(t, 3 * n, nt):
                 pos[q], lm[q], am[q] = g_pos[3 * v0 + q], g_lm[3 * v0 + q], g_am[3 * v0 + q]
             for q in range(t, 4 * n, nt):
@@ -228,7 +236,7 @@ def rollout_kernel(shared: bool, threads: int):
             ls = g_ls[LINK_STATE * l0:LINK_STATE * (l0 + m)]
             loads = g_loads[LINK_LOADS * l0:LINK_LOADS * (l0 + m)]
         if t == 0:
-            flag[0], flag[1] = 0, 0
+            flag[0], flag[1] = 0.0, 0.0
         cuda.syncthreads()
 
         k = ctl[r, C_STEP]
@@ -308,7 +316,7 @@ def rollout_kernel(shared: bool, threads: int):
                     W, lstiff[l0 + j], rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x,
                     e2y, e2z)
                 if link_diverged(dx, rest):
-                    flag[0] = 1
+                    flag[0] = 1.0
             # surface-mesh vertices: the mean of the corners of the voxels that share each
             if mesh_drag > 0.0:
                 for kv in range(t, nv, nt):
@@ -386,16 +394,20 @@ def rollout_kernel(shared: bool, threads: int):
                     inv_mv = VC[v * N_VCONST + V_INV_MASS]
                     for c in range(ncand[s0 + q]):
                         j = cand[(s0 + q) * MAX_CANDIDATES + c]
+                        dx = pos[3 * j] - pos[3 * v]
+                        dy = pos[3 * j + 1] - pos[3 * v + 1]
+                        dz = pos[3 * j + 2] - pos[3 * v + 2]
+                        overlap, dist = contact_overlap(dx, dy, dz, size[v], size[j], c_reach)
+                        if overlap <= 0.0 or dist == 0.0:
+                            continue
                         inv_mj = VC[j * N_VCONST + V_INV_MASS]
                         px, py, pz = contact_push(
-                            pos[3 * j] - pos[3 * v], pos[3 * j + 1] - pos[3 * v + 1],
-                            pos[3 * j + 2] - pos[3 * v + 2],
-                            lm[3 * j] * inv_mj - lm[3 * v] * inv_mv,
+                            overlap, dist, dx, dy, dz, lm[3 * j] * inv_mj - lm[3 * v] * inv_mv,
                             lm[3 * j + 1] * inv_mj - lm[3 * v + 1] * inv_mv,
-                            lm[3 * j + 2] * inv_mj - lm[3 * v + 2] * inv_mv, size[v], size[j],
+                            lm[3 * j + 2] * inv_mj - lm[3 * v + 2] * inv_mv,
                             VC[v * N_VCONST + V_KFLOOR], VC[j * N_VCONST + V_KFLOOR],
                             VC[v * N_VCONST + V_CCOLL], VC[j * N_VCONST + V_CCOLL],
-                            c_reach, c_stiff, c_damp)
+                            c_stiff, c_damp)
                         fx, fy, fz = fx - px, fy - py, fz - pz
                 if mesh_drag > 0.0:
                     for tri in range(fstart[v0 + v], fstart[v0 + v] + fcount[v0 + v]):
@@ -425,8 +437,8 @@ def rollout_kernel(shared: bool, threads: int):
                     continue
                 c0 = v * N_VCONST
                 e = 3 * (v0 + v)
-                (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, fx, fy, fz, mx, my, mz, still,
-                 touch, v2, sane) = voxel_update(
+                (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2,
+                 sane) = voxel_update(
                     world, (VC[c0 + V_MASS], VC[c0 + V_INV_MASS], VC[c0 + V_INV_INERTIA],
                             VC[c0 + V_CGLIN], VC[c0 + V_CGANG], VC[c0 + V_KFLOOR],
                             VC[c0 + V_CCOLL]), exposed[v0 + v], size[v],
@@ -444,17 +456,17 @@ def rollout_kernel(shared: bool, threads: int):
                 fastest = max(fastest, v2)
                 sane_all = sane_all and sane
             if not sane_all:
-                flag[1] = 1
+                flag[1] = 1.0
             if collide:
                 red[t] = fastest
             cuda.syncthreads()
             if collide:
                 tree_max(red, t, nt)
                 travel = travel + math.sqrt(max(red[0], 0.0)) * dt
-            if flag[0] != 0:
+            if flag[0] != 0.0:
                 code, done, finished = STATUS_STRAIN, k + 1, True
                 break
-            if flag[1] != 0:
+            if flag[1] != 0.0:
                 code, done, finished = STATUS_NONFINITE, k + 1, True
                 break
             k += 1

@@ -22,7 +22,9 @@ records frames and centre-of-mass samples and stops at divergence; ``step`` is o
     q = exp(L / I dt) q (renormalised); a sliding voxel in floor contact sticks when
     friction would reverse it.
 
-A robot's constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
+The per-link, per-pair and per-voxel physics is ``sim.physics`` (scalar functions written
+once, inlined here, and compiled for the GPU engine too); this module holds the loops and the
+memory layout. A robot's constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
 ``Voxels``, ``Links``, its body state as ``State`` and its scratch as ``Work``, all private
 copies of its slices of the batch (indices local to the robot). Each sub-step is an inlined
 wrapper around a compiled loop (``actuate_kernel``, ``link_kernel`` ...) that takes the arrays
@@ -169,6 +171,7 @@ quat_from_rotvec, rotation_matrix, waveform = _phys.quat_from_rotvec, _phys.rota
 actuated_size, link_geometry_of, small_frame_of = _phys.actuated_size, _phys.link_geometry, _phys.small_frame
 large_frame_of, damped, link_loads = _phys.large_frame, _phys.damped, _phys.link_loads
 link_diverged, contact_push, facet_drag = _phys.link_diverged, _phys.contact_push, _phys.facet_drag
+contact_overlap = _phys.contact_overlap
 mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
 
 
@@ -522,14 +525,17 @@ def collision_forces(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5,
     coefficients. The paper's engine: 0.75, 0.5, 0 (``Params.contact_*``)."""
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
+        dx, dy, dz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
+        overlap, dist = contact_overlap(dx, dy, dz, size[i], size[j], reach)
+        if overlap <= 0.0 or dist == 0.0:
+            continue
         inv_mi, inv_mj = vconst[i, V_INV_MASS], vconst[j, V_INV_MASS]
         fx, fy, fz = contact_push(
-            pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
-            lin_mom[j, 0] * inv_mj - lin_mom[i, 0] * inv_mi,
+            overlap, dist, dx, dy, dz, lin_mom[j, 0] * inv_mj - lin_mom[i, 0] * inv_mi,
             lin_mom[j, 1] * inv_mj - lin_mom[i, 1] * inv_mi,
-            lin_mom[j, 2] * inv_mj - lin_mom[i, 2] * inv_mi, size[i], size[j],
+            lin_mom[j, 2] * inv_mj - lin_mom[i, 2] * inv_mi,
             vconst[i, V_KFLOOR], vconst[j, V_KFLOOR], vconst[i, V_CCOLL], vconst[j, V_CCOLL],
-            reach, stiff, damp)
+            stiff, damp)
         force[j, 0] += fx
         force[j, 1] += fy
         force[j, 2] += fz
@@ -640,10 +646,11 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
       a sliding voxel in floor contact sticks when friction would reverse it (work-energy), and
       a static one keeps no horizontal momentum.
 
-    Fixed voxels feel nothing and keep zero momenta. ``force``/``moment`` come in holding the
-    link and collision terms and leave holding the totals; ``contact`` marks the voxels on the
-    floor. Returns the largest squared speed of a voxel after the step, or -1 if any voxel left
-    the sane range (or went NaN)."""
+    Each voxel's update is ``physics.voxel_update``. Fixed voxels feel nothing and keep zero
+    momenta. ``force``/``moment`` hold the link and collision terms (the world forces are
+    added to them in registers); ``contact`` marks the voxels on the floor. Returns the
+    largest squared speed of a voxel after the step, or -1 if any voxel left the sane range
+    (or went NaN)."""
     dt, g, drag = p.dt, p.gravity, p.drag
     water = p.env == ENV_WATER and drag > 0.0
     land = p.env == ENV_LAND
@@ -668,8 +675,7 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
         if water:
             for f in range(6):
                 exposed |= (1 if nbr[v, f] < 0 else 0) << f
-        (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, fx, fy, fz, mx, my, mz, still, touch,
-         v2, sane) = voxel_update_of(
+        x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane = voxel_update_of(
             world, (VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)],
                     VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)], VC[c + U(V_KFLOOR)],
                     VC[c + U(V_CCOLL)]), exposed, size[v],
@@ -679,8 +685,6 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
             AM[a + X], AM[a + Y], AM[a + Z], static[v])
         static[v] = still
         contact[v] = touch
-        F[a + X], F[a + Y], F[a + Z] = fx, fy, fz
-        M[a + X], M[a + Y], M[a + Z] = mx, my, mz
         LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
         P[a + X], P[a + Y], P[a + Z] = x, y, z
         AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz

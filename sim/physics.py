@@ -292,19 +292,22 @@ def link_diverged(d, rest):
 
 
 # ---------------------------------------------------------------- one self-contact pair
-def contact_push(dx, dy, dz, vx, vy, vz, size_i, size_j, ki, kj, ci, cj, reach, stiff, damp):
-    """Penalty contact of voxels i and j, d = x_j - x_i and v = v_j - v_i: the force on j
-    (i gets its opposite), zero when they do not overlap. Contact begins at ``reach`` times
-    the sum of the sizes; stiffness ``stiff`` times the harmonic mean of the voxels' floor
-    stiffnesses 2 E L (exactly it for one material), damping ``damp`` times the mean of
-    their collision damping coefficients; the push never pulls. Swapping i and j gives the
-    opposite force to the last bit."""
+def contact_overlap(dx, dy, dz, size_i, size_j, reach):
+    """How far voxels i and j (d = x_j - x_i) overlap, and their distance: contact begins
+    at ``reach`` times the sum of their sizes. They touch when the overlap is positive and
+    the distance is not zero."""
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return reach * (size_i + size_j) - dist, dist
+
+
+def contact_push(overlap, dist, dx, dy, dz, vx, vy, vz, ki, kj, ci, cj, stiff, damp):
+    """Penalty contact of touching voxels i and j (``contact_overlap``; d = x_j - x_i,
+    v = v_j - v_i): the force on j (i gets its opposite). Stiffness ``stiff`` times the
+    harmonic mean of the voxels' floor stiffnesses 2 E L (exactly it for one material),
+    damping ``damp`` times the mean of their collision damping coefficients; the push never
+    pulls. Swapping i and j gives the opposite force to the last bit."""
     k = stiff * (ki if ki == kj else 2.0 * ki * kj / (ki + kj))
     c = damp * (0.5 * (ci + cj))
-    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-    overlap = reach * (size_i + size_j) - dist
-    if overlap <= 0.0 or dist == 0.0:
-        return 0.0, 0.0, 0.0
     nx, ny, nz = dx / dist, dy / dist, dz / dist
     vn = vx * nx + vy * ny + vz * nz
     f = max(k * overlap - c * vn, 0.0)
@@ -378,8 +381,8 @@ def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw,
       momenta; a sliding voxel in floor contact sticks when friction would reverse it
       (work-energy), and a static one keeps no horizontal momentum.
 
-    Returns the new state (x, q, p, l), the total force and moment, static, whether it
-    touches the floor, its squared speed and whether it stayed in the sane range. (Calls
+    Returns the new state (x, q, p, l), static, whether it touches the floor, its squared
+    speed and whether it stayed in the sane range. (Calls
     take at most 30 arguments: CPython passes more as a tuple, which numba cannot inline.)"""
     dt, g, drag, water, land, mu_s, mu_k, fork, slide = world
     m, inv_m, inv_i, c_lin, c_ang, kfloor, ccoll = own
@@ -446,8 +449,7 @@ def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw,
     qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
     ok = (abs(x) < POSITION_BOUND and abs(y) < POSITION_BOUND and abs(z) < POSITION_BOUND
           and abs(qw) <= 1.0 + 1e-9)
-    return (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, fx, fy, fz, mx, my, mz,
-            static, touch, speed2, ok)
+    return x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, static, touch, speed2, ok
 
 
 # ---------------------------------------------------------------- targets
@@ -455,8 +457,8 @@ PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
     "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
     "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "damped",
-    "link_loads", "link_diverged", "contact_push", "facet_drag", "mesh_corner", "face_drag",
-    "voxel_update",
+    "link_loads", "link_diverged", "contact_overlap", "contact_push", "facet_drag",
+    "mesh_corner", "face_drag", "voxel_update",
 )
 
 

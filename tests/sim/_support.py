@@ -42,7 +42,7 @@ def _fmt(v: Any) -> str:
 
 
 # Keyword arguments of ``sim.simulate`` for the engine under test: empty is the default
-# (numba) engine; ``test_warp_engine`` runs the analytic tests again with the Warp engine.
+# (numba) engine; ``test_cuda_engine`` runs some analytic tests again with the cuda engine.
 ENGINE: dict[str, Any] = {}
 
 
