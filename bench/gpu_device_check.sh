@@ -17,8 +17,8 @@ cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
 DEVICE=${DEVICE:-cuda:0}
 ROBOTS=${ROBOTS:-100}              # SOFTEVO_CUDA_RANDOM_ROBOTS of the test module
-TEST_LIMIT=${TEST_LIMIT:-100}      # seconds
-BENCH_LIMIT=${BENCH_LIMIT:-110}    # seconds
+TEST_LIMIT=${TEST_LIMIT:-120}      # seconds (the CPU and GPU kernels compile first)
+BENCH_LIMIT=${BENCH_LIMIT:-100}    # seconds
 STEPS=${STEPS:-1000}               # bench steps per robot per case
 MODULI=${MODULI:-1e6}              # bench stiffnesses, Pa (1e6,1e7 doubles its time)
 LOGS=${OUT:-.}/gpu_check
