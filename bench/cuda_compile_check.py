@@ -7,13 +7,20 @@ Usage: python bench/cuda_compile_check.py [--cc 9.0] [--threads 256]
 Needs NVVM and libdevice (``pip install 'numba-cuda[cu13]'``; not in the lock, and not
 needed by CI). Prints, per kernel (state in shared or in global memory), its PTX size and
 the count of double-precision FMA instructions, and fails if a kernel does not compile.
+With ptxas too (``pip install nvidia-cuda-nvcc``, or on PATH) it assembles the PTX and
+prints the registers, spills and stack per thread: what bounds the blocks per multiprocessor.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
+import shutil
+import subprocess
 import sys
+import tempfile
+from pathlib import Path
 from types import SimpleNamespace
 
 if os.environ.get("NUMBA_ENABLE_CUDASIM") == "1":
@@ -47,6 +54,39 @@ def main() -> None:
         ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=cc)
         print(f"rollout shared={shared}: {len(ptx) / 1e3:.0f} kB of PTX, "
               f"{ptx.count('fma.rn.f64')} fma.rn.f64, {ptx.count('bar.sync')} bar.sync")
+        lines = [assemble(ptxas, ptx, cc) for ptxas in find_ptxas()]
+        ok = [line for line in lines if not line.startswith("ptxas failed")]
+        if ok or lines:
+            print("  " + (ok or lines)[0])
+
+
+def find_ptxas() -> list[str]:
+    """The ptxas on PATH and those of nvidia-cuda-nvcc wheels (the newest CUDA first)."""
+    found = [shutil.which("ptxas")] if shutil.which("ptxas") else []
+    try:
+        import nvidia
+    except ImportError:
+        return found
+    for root in nvidia.__path__:
+        found += [str(p) for p in sorted(Path(root).glob("*/bin/ptxas"), reverse=True)]
+    return found
+
+
+def assemble(ptxas: str, ptx: str, cc: tuple[int, int]) -> str:
+    """ptxas's resource line for the kernel: registers, spills, stack."""
+    with tempfile.TemporaryDirectory() as folder:
+        source = Path(folder) / "kernel.ptx"
+        source.write_text(ptx)
+        out = subprocess.run([ptxas, f"-arch=sm_{cc[0]}{cc[1]}", "-v", str(source), "-o",
+                              str(Path(folder) / "kernel.cubin")], capture_output=True, text=True)
+    if out.returncode:
+        return "ptxas failed: " + " | ".join(out.stderr.strip().splitlines()[:3])
+    used = re.findall(r"Used (\d+) registers", out.stderr)
+    spills = re.findall(r"(\d+) bytes spill stores, (\d+) bytes spill loads", out.stderr)
+    stack = re.findall(r"(\d+) bytes stack frame", out.stderr)
+    return (f"ptxas sm_{cc[0]}{cc[1]}: {used[-1] if used else '?'} registers per thread, "
+            f"spills {'/'.join(spills[0]) if spills else '?'} bytes (stores/loads), "
+            f"stack {stack[0] if stack else '?'} bytes")
 
 
 if __name__ == "__main__":
