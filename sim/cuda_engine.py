@@ -275,8 +275,11 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
                 break
             if limit is None:  # compile once, then let it use more than the default if it may
                 first = cuda.to_device(np.flatnonzero(running)[:1].astype(np.int32))
-                in_shared = in_shared.specialize(np.int32(chunk), first, *args)
-                limit = _shared_limit(in_shared, dev, int(need.max()))
+                try:
+                    in_shared = in_shared.specialize(np.int32(chunk), first, *args)
+                    limit = _shared_limit(in_shared, dev, int(need.max()))
+                except Exception:  # no opt-in here: the robots beyond the default run in global memory
+                    limit = SHARED_DEFAULT
             fits = need <= (need.max(initial=0) if sim_mode else limit)
             if memory == "global":
                 fits = np.zeros(R, dtype=bool)
