@@ -4,7 +4,7 @@
 them from here, so the analyses need nothing from ``service``.
 """
 
-# What each evaluation measures (SPEC.md sections 3-4): objectives and descriptors.
+# What each evaluation measures (docs/spec.md sections 3-4): objectives and descriptors.
 TRAITS = (
     "distance",
     "active_share",

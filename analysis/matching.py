@@ -1,4 +1,4 @@
-"""Which treatments are compared, and at which generation (SPEC.md section 4: treatments are
+"""Which treatments are compared, and at which generation (docs/spec.md section 4: treatments are
 compared at the same generation). Functions of the ``treatments`` and ``runs`` frames of
 ``analysis.data`` (the loader calls them before it reads the populations).
 

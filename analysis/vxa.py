@@ -358,7 +358,7 @@ def _warn_unexported(scene) -> None:
 
 
 def scene_to_vxa(scene: dict[str, Any]) -> str:
-    """The ``.vxa`` document of a simulator scene (SPEC.md section 1 schema)."""
+    """The ``.vxa`` document of a simulator scene (docs/spec.md section 1 schema)."""
     from softevo import sim
 
     parsed = sim.parse_scene(scene)

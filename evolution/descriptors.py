@@ -1,4 +1,4 @@
-"""Shape descriptors of a voxel body (paper section 2.4.1, SPEC.md section 4).
+"""Shape descriptors of a voxel body (paper section 2.4.1, docs/spec.md section 4).
 
 All take ``body``: (nx, ny, nz) int array, 0 empty, >0 full (1 passive, 2 active).
 
@@ -16,7 +16,7 @@ All take ``body``: (nx, ny, nz) int array, 0 empty, >0 full (1 passive, 2 active
 - ``branching_index``: 1 - V / V_hull, V the volume of the voxel surface mesh and V_hull the
   volume of its convex hull (trimesh). A full box gives 0.
 - ``shape_entropy``: Shannon entropy (bits) of the discrete Gaussian curvature of the
-  undeformed surface mesh, taken at every vertex of the mesh, flat ones included (SPEC.md
+  undeformed surface mesh, taken at every vertex of the mesh, flat ones included (docs/spec.md
   section 4: the curvature of the whole surface is the random variable, so the share of the
   surface that is angular counts). The measure at each vertex is trimesh's
   ``discrete_gaussian_curvature_measure`` over a ball of ``radius`` (default 0: the vertex's

@@ -1,6 +1,6 @@
 """Robot genotype (two CPPNs) and its development into a phenotype.
 
-Expression (paper section 2.3.2, SPEC.md section 2), per voxel of the workspace:
+Expression (paper section 2.3.2, docs/spec.md section 2), per voxel of the workspace:
 - body CPPN output ``present`` >= 0: the voxel is full; then ``active`` >= 0: active (2),
   else passive (1); otherwise empty (0);
 - control CPPN output ``phase`` * pi: the voxel's phase offset (radians, in (-pi, pi));
@@ -224,7 +224,7 @@ class Phenotype:
         max_seconds: float | None = None,
         **extra: Any,
     ) -> dict[str, Any]:
-        """A simulator scene (SPEC.md section 1 schema), plain JSON types.
+        """A simulator scene (docs/spec.md section 1 schema), plain JSON types.
 
         The evaluation lasts ``cycles`` cycles, capped at ``max_seconds`` seconds when given
         (``duration_of``).

@@ -1,4 +1,4 @@
-"""Structural and parametric mutations of a CPPN (SPEC.md section 2), mutation only.
+"""Structural and parametric mutations of a CPPN (docs/spec.md section 2), mutation only.
 
 Each operator is a pure function ``(cppn, rng) -> cppn | None`` (None: not applicable, e.g.
 no hidden node to remove). :func:`mutate_cppn` picks one applicable operator uniformly at

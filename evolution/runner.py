@@ -1,6 +1,6 @@
 """A local run: drive ask/tell over generations with any evaluate function.
 
-``evaluate`` receives a list of scene dicts (SPEC.md section 1) and returns one result per
+``evaluate`` receives a list of scene dicts (docs/spec.md section 1) and returns one result per
 scene, in order: a ``sim.Result``, a dict with ``distance`` / ``stable`` / ``reason``, an
 ``Evaluation`` or an exception instance (see ``Evaluation.coerce``). ``sim.simulate_many``
 fits as is. Nothing here touches processes, queues or databases.

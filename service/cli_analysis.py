@@ -1,4 +1,4 @@
-"""``softevo report | show | export-vxa | import-vxa | power`` (SPEC.md section 7).
+"""``softevo report | show | export-vxa | import-vxa | power`` (docs/spec.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
   statistics and the run settings (``service.reports.write_report``).

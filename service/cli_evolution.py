@@ -25,7 +25,7 @@ def _read_scene(path: Path):
 
 
 def describe(
-    scene_path: Annotated[Path, typer.Argument(help="A scene JSON file (SPEC.md section 1).")],
+    scene_path: Annotated[Path, typer.Argument(help="A scene JSON file (docs/spec.md section 1).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Shape descriptors of the scene's body: symmetry, branching, shape entropy, voxel

@@ -1,4 +1,4 @@
-"""``softevo run | experiment | status | resume | export | lineage | best`` (SPEC.md section 7).
+"""``softevo run | experiment | status | resume | export | lineage | best`` (docs/spec.md section 7).
 
 Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
 ``sqlite:///softevo.db``) and a local process pool. Runs and experiments are named by
@@ -199,7 +199,7 @@ def experiment(
     preset: Annotated[
         str,
         typer.Argument(
-            help="paper: the paper's grid (SPEC.md section 5); gradual: its two "
+            help="paper: the paper's grid (docs/spec.md section 5); gradual: its two "
             "transitions, abrupt and gradual"
         ),
     ],

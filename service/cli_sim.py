@@ -78,7 +78,7 @@ def _summary(result: Any, wall_seconds: float, environment: str) -> str:
 
 def simulate(
     scene_path: Annotated[
-        Path, typer.Argument(metavar="SCENE.json", help="Scene file (SPEC.md section 1).")
+        Path, typer.Argument(metavar="SCENE.json", help="Scene file (docs/spec.md section 1).")
     ],
     as_json: Annotated[
         bool, typer.Option("--json", help="Print Result.to_dict() as one JSON object.")
@@ -88,11 +88,13 @@ def simulate(
         typer.Option("--record", metavar="OUT.npz", help="Write frames (t, positions, voxels)."),
     ] = None,
     engine: Annotated[
-        str, typer.Option("--engine", help="numba (CPU, default), cuda (NVIDIA GPUs: docs/gpu.md) or sleep (no physics, its time only: docs/cluster.md).")
+        str, typer.Option("--engine", help="numba (CPU, default), cuda (NVIDIA GPUs: docs/gpu.md) or "
+                          "sleep (no physics, its time only: docs/cluster.md).")
     ] = "numba",
     device: Annotated[
         str | None,
-        typer.Option("--device", help="CUDA device: cuda:0 (default), cuda:1, ... (--engine cuda); the sleep engine's speed-up x<factor>."),
+        typer.Option("--device", help="CUDA device: cuda:0 (default), cuda:1, ... (--engine cuda); "
+                     "the sleep engine's speed-up x<factor>."),
     ] = None,
 ) -> None:
     """Simulate one scene and print its result."""

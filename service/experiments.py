@@ -62,7 +62,7 @@ def create_paper(
     **choices: str | None,
 ) -> tuple[int, list[int]]:
     """A preset's treatments (``service.treatments.PRESETS``; default the paper's grid,
-    SPEC.md section 5) at ``scale`` as a new experiment named ``name`` (default
+    docs/spec.md section 5) at ``scale`` as a new experiment named ``name`` (default
     ``<preset>-<scale>``); ``only``: just the treatments of these names, with the seeds they
     have in the whole preset (``select_treatments``); ``choices`` (e.g. ``algorithm``,
     ``model``; None: the paper's) as ``preset_grid`` takes them."""

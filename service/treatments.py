@@ -55,7 +55,7 @@ from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")
-PAPER_CHOICES = {  # what the paper presets run (SPEC.md section 3; evolution.genotype)
+PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
     "algorithm": "pareto",
     "model": "voxcad-land-water",
     "control_mapping": "evosoro",
@@ -70,7 +70,7 @@ PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 
 @dataclass(frozen=True)
 class Treatment:
-    """One treatment; defaults are the paper-like evaluation settings (PHYSICS.md)."""
+    """One treatment; defaults are the paper-like evaluation settings (docs/physics.md)."""
 
     environment: str
     stiffness_mpa: float
@@ -275,7 +275,7 @@ def preset_scale(scale: str) -> Scale:
 def paper_grid(
     scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str
 ) -> list[Treatment]:
-    """The paper's grid (SPEC.md section 5): land and water at S1..S5, transitions at S3,
+    """The paper's grid (docs/spec.md section 5): land and water at S1..S5, transitions at S3,
     with the paper's algorithm, model and encoding (``PAPER_CHOICES``; ``choices`` override
     any of them, e.g. ``algorithm="afpo"``).
 

@@ -3,7 +3,7 @@
 Public API: ``simulate``, ``simulate_many``, ``parse_scene``, ``Scene``, ``SceneError``,
 ``Result``, ``MODELS`` and ``model_defaults`` (the physics models and the scene defaults of
 each), ``largest_component`` (the face-connected part of a body that is simulated) and
-``scene_steps`` (the steps a scene's simulation takes). See SPEC.md section 1 and
+``scene_steps`` (the steps a scene's simulation takes). See docs/spec.md section 1 and
 docs/contracts.md. The engine (and numba) is imported on first use of ``simulate``,
 ``simulate_many`` or ``Result``, so that reading scenes and bodies (``sim.scene``,
 ``sim.system``) stays light.

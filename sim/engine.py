@@ -1,6 +1,6 @@
 """Public entry points: ``simulate(scene)`` and ``simulate_many(scenes)``.
 
-Both accept scene dicts (SPEC.md section 1) or parsed ``Scene`` objects and return ``Result``
+Both accept scene dicts (docs/spec.md section 1) or parsed ``Scene`` objects and return ``Result``
 objects; an unstable robot yields ``stable=False`` with a reason, never an exception. Invalid
 scenes raise ``SceneError`` before anything runs.
 """
@@ -35,7 +35,7 @@ drop_foreign_entries(Path(kernels.__file__).parent / "__pycache__")
 
 @dataclass
 class Result:
-    """What one evaluation returns (SPEC.md section 1). Distances in voxel lengths."""
+    """What one evaluation returns (docs/spec.md section 1). Distances in voxel lengths."""
 
     stable: bool
     reason: str | None
@@ -206,6 +206,6 @@ def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine
 
 def simulate(scene: dict | Scene, threads: int | None = 1, engine: str = "numba",
              device: str | None = None) -> Result:
-    """Simulate one robot (SPEC.md section 1); ``engine``/``device`` as ``simulate_many``."""
+    """Simulate one robot (docs/spec.md section 1); ``engine``/``device`` as ``simulate_many``."""
     return simulate_many([scene], threads=threads, engine=engine, device=device)[0]
 

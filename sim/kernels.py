@@ -44,7 +44,7 @@ f_i; L is the voxel size, nu Poisson's ratio (one for the robot):
   velocity v_j - v_i;
 - a link between voxels a and b is two half-beams of length L/2 in series:
   E_link = 2 E_a E_b / (E_a + E_b) (exactly E when E_a = E_b); its beam constants are those
-  of PHYSICS.md with E_link: a1 = b1 = E_link L, a2 = E_link L^3 / (12 (1 + nu)),
+  of docs/physics.md with E_link: a1 = b1 = E_link L, a2 = E_link L^3 / (12 (1 + nu)),
   b2 = E_link L^2 / 2, b3 = E_link L^3 / 6, computed as the robot's reference constants
   (``Params.a1`` ..., of E_ref = the largest E_i) times ``link_stiff`` = E_link / E_ref;
   bond damping gamma_link = 2 zeta_bond sqrt(m_link / (E_link L)), m_link = (m_a + m_b) / 2,

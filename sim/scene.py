@@ -1,4 +1,4 @@
-"""The scene: a validated, typed form of the JSON scene document (SPEC.md section 1).
+"""The scene: a validated, typed form of the JSON scene document (docs/spec.md section 1).
 
 ``parse_scene(dict) -> Scene`` fills defaults and rejects bad input with a ``SceneError``
 whose message starts with the offending field, e.g.

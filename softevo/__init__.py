@@ -27,7 +27,7 @@ __all__ = ["describe", "evolve", "import_vxa", "load_experiment", "simulate", "s
 
 
 def simulate(scene: dict[str, Any], **options: Any):
-    """Simulate one scene (a dict, SPEC.md section 1); returns a ``softevo.sim.Result``."""
+    """Simulate one scene (a dict, docs/spec.md section 1); returns a ``softevo.sim.Result``."""
     from softevo import sim
 
     return sim.simulate(scene, **options)

@@ -369,7 +369,7 @@ def compound_outcome(outcomes: list[Any]) -> Any:
 def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_FPS) -> int:
     """Steps between frames for about ``fps`` frames per simulated second of ``scene``.
 
-    Uses the stable step of PHYSICS.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to
+    Uses the stable step of docs/physics.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to
     pick a frame rate; the engine's own dt stays authoritative (the frames carry their times).
     """
     from softevo.sim.scene import parse_scene

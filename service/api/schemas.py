@@ -44,7 +44,7 @@ class Strict(BaseModel):
 
 
 class TreatmentIn(Strict):
-    """One treatment (SPEC.md section 5); every field but environment and stiffness_mpa has a
+    """One treatment (docs/spec.md section 5); every field but environment and stiffness_mpa has a
     default. Repetition r runs with seed ``seed + r``."""
 
     name: Name | None = Field(None, description="default: e.g. 'land S=0.1MPa'")
@@ -106,7 +106,7 @@ class ExperimentIn(Strict):
 
 
 class PresetIn(Strict):
-    """A preset experiment: the paper's grid at a scale (SPEC.md section 5), with the paper's
+    """A preset experiment: the paper's grid at a scale (docs/spec.md section 5), with the paper's
     algorithm, model and encoding unless ``algorithm`` or ``model`` says otherwise."""
 
     preset: Literal["paper", "gradual"] = Field(

@@ -1,4 +1,4 @@
-"""Export runs to the files of SPEC.md section 7: runs, individuals, populations.
+"""Export runs to the files of docs/spec.md section 7: runs, individuals, populations.
 
 ``individuals`` has one row per evaluation (an individual re-evaluated at an environment
 switch appears twice). CSV by default; Parquet needs ``pyarrow``.

@@ -84,7 +84,7 @@ def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]
 
 
 def lineage_records(engine: Engine, individual_id: int) -> list[dict[str, Any]]:
-    """Ancestors newest first as plain dicts (SPEC.md section 6, /individuals/{id}/lineage)."""
+    """Ancestors newest first as plain dicts (docs/spec.md section 6, /individuals/{id}/lineage)."""
     frame = ancestors(engine, individual_id)
     if frame.empty:
         raise UserError(f"no individual {individual_id}")

@@ -1,4 +1,4 @@
-"""Export: the CSV files of SPEC.md section 7, readable with pandas."""
+"""Export: the CSV files of docs/spec.md section 7, readable with pandas."""
 
 from __future__ import annotations
 

@@ -78,7 +78,7 @@ def voxel_index(result: Any) -> dict[tuple[int, int, int], int]:
 
 
 def stable_dt(voxel_size: float, density: float, youngs_modulus: float, fraction: float) -> float:
-    """PHYSICS.md's step: dt = fraction * L * sqrt(rho / E) / (2 pi)."""
+    """docs/physics.md's step: dt = fraction * L * sqrt(rho / E) / (2 pi)."""
     return fraction * voxel_size * math.sqrt(density / youngs_modulus) / (2 * math.pi)
 
 

@@ -1,6 +1,6 @@
 """A slow, obvious NumPy/SciPy version of the engine's step, to check the numba kernels.
 
-Written from PHYSICS.md directly, one link and one voxel at a time with SciPy rotations and
+Written from docs/physics.md directly, one link and one voxel at a time with SciPy rotations and
 3x3 matrices, no series expansions and no fused arithmetic. Only for small test cases.
 
 Materials per voxel: the reference takes each voxel's E_i and rho_i (``voxel_materials``) and

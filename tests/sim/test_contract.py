@@ -1,4 +1,4 @@
-"""The sim contract (SPEC.md section 1, docs/contracts.md) as seen from outside.
+"""The sim contract (docs/spec.md section 1, docs/contracts.md) as seen from outside.
 
 Result fields and JSON, initial placement, distance conventions, largest component, the
 step budget, unstable robots, determinism of ``simulate_many``, and the waveforms.
