@@ -60,6 +60,7 @@ from softevo.evolution.selection import (
     objective_matrix,
     select_survivors,
 )
+from softevo.sim import worlds
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 MODES = ("afpo", "pareto")
@@ -71,14 +72,14 @@ class EvolutionConfig:
 
     youngs_modulus: Pa; cycles: actuation cycles per evaluation, and max_seconds, when given,
     the most seconds an evaluation lasts (``genotype.duration_of``); environment: the starting
-    world ("land", "water"); model: the physics model of the scenes (``sim.scene.MODELS``);
+    world (a ``sim.worlds`` name); model: the physics model of the scenes (``sim.scene.MODELS``);
     descriptors: compute shape descriptors at each tell.
     """
 
     population_size: int = 12
     mode: str = "afpo"
     seed: int = 0
-    environment: str = "land"
+    environment: str = worlds.LAND.name
     youngs_modulus: float = 1e6
     cycles: int = DEFAULT_CYCLES
     encoding: EncodingConfig = field(default_factory=EncodingConfig)

@@ -59,6 +59,7 @@ import numpy as np
 
 from softevo.evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
 from softevo.evolution.mutation import mutate_cppn
+from softevo.sim import worlds
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, Material, Scene, model_defaults
 from softevo.sim.system import largest_component
 
@@ -231,8 +232,9 @@ class Phenotype:
 
         ``model`` is the physics model (``sim.scene.MODELS``); the scene names it unless it is
         the default, so scenes of the default model are as they always were. ``amplitude``
-        defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to 0.5 on
-        land and 0 elsewhere, and to the paper scripts' INIT_TIME 0.5 in every world under
+        defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to the
+        world's (``sim.worlds``: 0.5 on a floor, 0 elsewhere), and to the paper scripts'
+        INIT_TIME 0.5 in every world under
         "voxcad-land-water" (examples/swimming_complex.py:55: the fork's InitCmTime, from which
         its distance counts). ``extra`` fields are copied into the scene as given (e.g.
         ``record``). An evolved stiffness field enters as ``youngs_modulus_field`` (Pa; it
@@ -243,9 +245,10 @@ class Phenotype:
         defaults = model_defaults(model)
         if amplitude is None:
             amplitude = defaults["amplitude"]
+        world = worlds.get(environment)
         if settle_seconds is None:
             paper = model == "voxcad-land-water"
-            settle_seconds = PAPER_SETTLE_SECONDS if paper or environment == "land" else 0.0
+            settle_seconds = PAPER_SETTLE_SECONDS if paper else world.settle_seconds
         scene = {
             "voxel_size": voxel_size,
             "material": {
@@ -253,7 +256,7 @@ class Phenotype:
                 "density": density,
                 "poisson_ratio": poisson_ratio,
             },
-            "environment": {"kind": environment},
+            "environment": world.scene_environment(),
             "body": self.body.astype(int).tolist(),
             "phase": self.phase.tolist(),
             "actuation": {"frequency": float(self.frequency), "amplitude": amplitude},

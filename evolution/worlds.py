@@ -1,4 +1,10 @@
-"""World names: a pure world (``land``, ``water``) or a compound world of a gradual transition.
+"""World names: a pure world (``sim.worlds``, re-exported here), a transition between two, or
+a compound world of a gradual transition. Every spelling of a transition is read here.
+
+A treatment's environment is a pure world or a transition ``A-B`` (``transition`` reads it
+as ``("A", "B")``; ``environments()`` lists every one offered for evolution); a schedule's
+text ``A:0,B:50+10`` is read by ``evolution.schedule.Schedule.parse``, whose compound worlds
+are the names below.
 
 A gradual transition moves a population from world A to world B over a span of ``G``
 generations (``--switch-over G``). At the ``k``-th generation of the span (``k = 0..G-1``)
@@ -14,6 +20,15 @@ with three decimals and read back from the name, so the name alone (stored in
 
 from __future__ import annotations
 
+from softevo.sim.worlds import KINDS, LAND, VOID, WATER, World, all_worlds, get, names, register, unregister
+
+__all__ = [
+    "KINDS", "LAND", "VOID", "WATER", "World", "all_worlds", "get", "names", "register", "unregister",
+    "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts", "share_at",
+    "transition",
+]
+
+TRANSITION = "-"
 SEPARATOR = ">"
 SHARE_MARK = "@"
 SHARE_DIGITS = 3
@@ -56,3 +71,31 @@ def parts(name: str) -> list[tuple[str, float]]:
 def new_share(name: str) -> float:
     """The share of the last world of ``name`` (1.0 for a pure world)."""
     return parts(name)[-1][1]
+
+
+def transition(environment: str) -> tuple[str, ...]:
+    """The worlds of a treatment's environment in order: ``("land",)`` for a pure world,
+    ``("land", "water")`` for the transition ``land-water``; ValueError for an unknown world."""
+    parts_ = tuple(environment.split(TRANSITION))
+    if len(parts_) > 2 or len(set(parts_)) != len(parts_):
+        raise ValueError(f"bad environment {environment!r}; expected a world or two joined by {TRANSITION}")
+    for world in parts_:
+        if world not in names(evolve=True):
+            raise ValueError(f"unknown world {world!r}; choose one of {', '.join(names(evolve=True))}")
+    return parts_
+
+
+def is_transition(environment: str) -> bool:
+    return TRANSITION in environment
+
+
+def environments() -> tuple[str, ...]:
+    """Every treatment environment: the evolvable worlds, then each ordered pair of them as a
+    transition (``land``, ``water``, ``land-water``, ``water-land``, ...)."""
+    pure = names(evolve=True)
+    return pure + tuple(f"{a}{TRANSITION}{b}" for a in pure for b in pure if a != b)
+
+
+def final(environment: str) -> str:
+    """The world a treatment's environment ends in (``land-water`` -> ``water``)."""
+    return environment.split(TRANSITION)[-1]

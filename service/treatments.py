@@ -1,6 +1,7 @@
 """Treatments (environment schedule, stiffness, sizes, seeds) and the paper's presets.
 
-A treatment's environment is ``land``, ``water``, ``land-water`` or ``water-land``. A
+A treatment's environment is a world of the registry (``sim.worlds``: ``land``, ``water``,
+...) or a transition between two, ``land-water`` (``evolution.worlds.transition``). A
 transition switches at ``switch_at`` (default: half the generations): generations
 ``0 .. switch_at - 1`` are evaluated in the first environment, ``switch_at ..`` in the
 second, and at ``switch_at`` the whole surviving population is re-evaluated in the new one.
@@ -49,12 +50,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from softevo.errors import UserError
+from softevo.evolution import worlds
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
-ENVIRONMENTS = ("land", "water", "land-water", "water-land")
 ALGORITHMS = ("afpo", "pareto")
+PAPER_WORLDS = (worlds.LAND.name, worlds.WATER.name)  # the paper's two worlds and its transitions
+PAPER_TRANSITIONS = tuple(worlds.TRANSITION.join(pair) for pair in (PAPER_WORLDS, PAPER_WORLDS[::-1]))
 PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
     "algorithm": "pareto",
     "model": "voxcad-land-water",
@@ -100,9 +103,9 @@ class Treatment:
 
     def validate(self) -> None:
         """Raise UserError (one clear line) for an impossible setting."""
-        if self.environment not in ENVIRONMENTS:
+        if self.environment not in worlds.environments():
             raise UserError(
-                f"unknown environment {self.environment!r}; choose one of {', '.join(ENVIRONMENTS)}"
+                f"unknown environment {self.environment!r}; choose one of {', '.join(worlds.environments())}"
             )
         low, high = STIFFNESS_RANGE_MPA
         stiffness = self.stiffness_mpa
@@ -146,7 +149,7 @@ class Treatment:
         over = self.switch_over
         if isinstance(over, bool) or not isinstance(over, int) or over < 0:
             raise UserError(f"switch_over must be an integer >= 0 (got {over!r})")
-        if over and "-" not in self.environment:
+        if over and not worlds.is_transition(self.environment):
             raise UserError(f"--switch-over needs a transition environment (got {self.environment})")
         if over and self.switch_generation() + over >= self.generations:
             raise UserError(
@@ -155,7 +158,7 @@ class Treatment:
             )
         if self.switch_at is None:
             return
-        if "-" not in self.environment:
+        if not worlds.is_transition(self.environment):
             raise UserError(f"--switch-at needs a transition environment (got {self.environment})")
         if not 1 <= self.switch_at < self.generations:
             raise UserError(f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})")
@@ -174,7 +177,7 @@ class Treatment:
 
     def switch_generation(self) -> int | None:
         """First generation in the second environment (None without a transition)."""
-        if "-" not in self.environment:
+        if not worlds.is_transition(self.environment):
             return None
         return self.switch_at if self.switch_at is not None else max(1, self.generations // 2)
 
@@ -183,7 +186,7 @@ class Treatment:
         switch = self.switch_generation()
         if switch is None:
             return Schedule.static(self.environment)
-        first, second = self.environment.split("-")
+        first, second = worlds.transition(self.environment)
         return Schedule([(first, 0), (second, switch)], spans=[0, self.switch_over])
 
     def arrival_generation(self) -> int | None:
@@ -294,7 +297,7 @@ def paper_grid(
         **_paper_choices(choices),
     }
     treatments = []
-    for environment in ("land", "water"):
+    for environment in PAPER_WORLDS:
         for index, stiffness in enumerate(PAPER_STIFFNESSES_MPA, start=1):
             long = stiffness == 0.1 and scale == "paper"
             generations = sizes.transition_generations if long else sizes.generations
@@ -307,7 +310,7 @@ def paper_grid(
                     **common,
                 )
             )
-    for environment in ("land-water", "water-land"):
+    for environment in PAPER_TRANSITIONS:
         treatments.append(
             Treatment(
                 environment,
@@ -350,7 +353,7 @@ def gradual_grid(
     }
     return [
         Treatment(environment, 0.1, name=f"{environment} S3 {kind}", switch_over=over, **common)
-        for environment in ("land-water", "water-land")
+        for environment in PAPER_TRANSITIONS
         for kind, over in (("abrupt", 0), ("gradual", sizes.switch_over))
     ]
 

@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import worlds
 from .scene import Scene
 from .system import largest_component, scene_steps, stable_dt
 
-WORLDS = ("land", "water", "void")
+WORLDS = worlds.KINDS
 
 
 def voxel_steps(scene: Scene) -> tuple[int, int]:
@@ -82,12 +83,12 @@ class CostModel:
 # robots, numba, one thread per robot, whole evaluations: voxel-steps/s by model and world.
 MEASURED = CostModel(
     rates={
-        ("voxcad-land-water", "land"): 1.6e7,
-        ("voxcad-land-water", "water"): 8.0e6,
-        ("voxcad-land-water", "void"): 1.6e7,
-        ("voxelyze-2", "land"): 1.45e7,
-        ("voxelyze-2", "water"): 9.5e6,
-        ("voxelyze-2", "void"): 1.45e7,
+        ("voxcad-land-water", worlds.LAND.name): 1.6e7,
+        ("voxcad-land-water", worlds.WATER.name): 8.0e6,
+        ("voxcad-land-water", worlds.VOID.name): 1.6e7,
+        ("voxelyze-2", worlds.LAND.name): 1.45e7,
+        ("voxelyze-2", worlds.WATER.name): 9.5e6,
+        ("voxelyze-2", worlds.VOID.name): 1.45e7,
     },
     overhead_seconds=0.004,
     default_rate=1.2e7,

@@ -14,7 +14,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from . import kernels
+from . import kernels, worlds
 from .cache import drop_foreign_entries
 from .engines import check_engine
 from .scene import Scene, parse_scene
@@ -109,7 +109,7 @@ def _result(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, 
         reason = f"diverged: a link's axial strain exceeded {kernels.MAX_STRAIN:g} at step {steps_done[r]}"
     elif status[r] == kernels.STATUS_NONFINITE or not stable:
         reason = f"diverged: a voxel's state became non-finite or exploded at step {steps_done[r]}"
-    horizontal = scene.environment.kind == "land" and scene.options.distance == "horizontal"
+    horizontal = worlds.get(scene.environment.kind).floor and scene.options.distance == "horizontal"
     distance = float(np.hypot(disp[0], disp[1]) if horizontal else np.linalg.norm(disp)) / L
     recorded = None
     every = int(robot.iparams[I_RECORD])

@@ -44,10 +44,12 @@ from typing import Any
 
 import numpy as np
 
+from . import worlds
+
 WAVEFORMS = ("sine", "square", "impulse")
 MODELS = ("voxelyze-2", "voxcad-land-water")
 DEFAULT_MODEL = "voxelyze-2"
-ENVIRONMENTS = ("land", "water", "void")
+ENVIRONMENTS = worlds.KINDS  # the physics kinds (sim.worlds): every other world simulates as one
 DEFAULT_MAX_STEPS = 20_000_000
 MAX_SIDE = 64  # workspace side limit: a guard against absurd inputs, far above any robot here
 
@@ -73,7 +75,7 @@ class Material:
 
 @dataclass(frozen=True)
 class Environment:
-    kind: str = "land"
+    kind: str = worlds.LAND.name
     gravity: float = 9.81  # m / s^2, pointing -z
     fluid_density: float = 1000.0  # kg / m^3 (water only)
     drag_coefficient: float = 1.5  # (water only)
@@ -271,11 +273,11 @@ def _parse_material(data: Any) -> Material:
 
 def _parse_environment(data: Any) -> Environment:
     d = _section(data, "environment", set(Environment.__dataclass_fields__))
-    kind = d.get("kind", "land")
+    kind = d.get("kind", worlds.LAND.name)
     if kind not in ENVIRONMENTS:
         raise SceneError(f"environment.kind: must be one of {', '.join(ENVIRONMENTS)} (got {kind!r})")
     gravity = _number(d["gravity"], "environment.gravity") if "gravity" in d else (
-        9.81 if kind == "land" else 0.0)
+        worlds.get(kind).gravity)
     rho = _number(d.get("fluid_density", 1000.0), "environment.fluid_density", low=0)
     cd = _number(d.get("drag_coefficient", 1.5), "environment.drag_coefficient", low=0)
     return Environment(kind=kind, gravity=gravity, fluid_density=rho, drag_coefficient=cd)

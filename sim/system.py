@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import ndimage, sparse
 
+from . import worlds
 from .scene import ModelOptions, Scene
 
 # Columns of the per-robot float parameter table ``fparams``.
@@ -39,7 +40,7 @@ V_WEIGHT = 8
 N_VCONST = 9
 
 ENV_LAND, ENV_WATER, ENV_VOID = 0, 1, 2
-ENV_CODES = {"land": ENV_LAND, "water": ENV_WATER, "void": ENV_VOID}
+ENV_CODES = {worlds.LAND.name: ENV_LAND, worlds.WATER.name: ENV_WATER, worlds.VOID.name: ENV_VOID}
 FRICTION_VOXELYZE2, FRICTION_VOXCAD = 0, 1
 FRICTION_CODES = {"voxelyze-2": FRICTION_VOXELYZE2, "voxcad": FRICTION_VOXCAD}
 WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
@@ -310,7 +311,7 @@ def build_robot(scene: Scene) -> Robot:
         E_ref * L**3 / 6.0)
     f[[F_DT, F_GRAVITY]] = dt, gravity
     f[[F_MUS, F_MUK]] = mat.friction_static, mat.friction_kinetic
-    drag = 0.5 * env.fluid_density * env.drag_coefficient if env.kind == "water" else 0.0
+    drag = 0.5 * env.fluid_density * env.drag_coefficient if worlds.get(env.kind).drag else 0.0
     mesh = opts.drag == "mesh" and drag > 0.0
     f[F_DRAG], f[F_MESH_DRAG] = (0.0, drag) if mesh else (drag, 0.0)
     f[[F_OMEGA, F_AMP, F_SETTLE]] = 2 * math.pi * f_common, act.amplitude, scene.settle_seconds
