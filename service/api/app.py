@@ -36,6 +36,7 @@ from softevo.service.api.headers import SecurityHeaders
 from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import analyses, experiments, exports, health, individuals, phylogeny, runs
 from softevo.service.api.routes import plan as plan_routes
+from softevo.service.api.routes import worlds as world_routes
 from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
 from softevo.service.db import open_database
@@ -279,6 +280,7 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     install_error_handlers(app)
     for module in (health, experiments, analyses, exports, runs, individuals, phylogeny):
         app.include_router(_reads_of(module.router) if read_only else module.router)
+    app.include_router(world_routes.router)  # the world registry, read-only
     app.include_router(plan_routes.router)  # POST, but it stores nothing: read-only servers too
     app.include_router(dashboard_router())  # /dashboard pages and assets
     app.include_router(docs_page.router)  # /docs

@@ -15,10 +15,14 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
+    GetCoreSchemaHandler,
+    GetJsonSchemaHandler,
     StringConstraints,
     Tag,
 )
+from pydantic_core import core_schema
 
+from softevo.evolution import worlds
 from softevo.service.treatments import SCALES, Treatment
 
 MAX_INT32 = 2**31 - 1
@@ -26,7 +30,41 @@ Name = Annotated[
     str,
     StringConstraints(min_length=1, max_length=200, strip_whitespace=True, pattern=r"^[^\x00-\x1f\x7f]+$"),
 ]
-Environment = Literal["land", "water", "land-water", "water-land"]
+
+
+class RegistryEnum(str):
+    """A string that must be one of ``choices()``, read when a value is validated and when
+    the JSON schema is made (its ``enum``): the REST schema follows the world registry,
+    worlds registered after this module was imported included."""
+
+    choices: staticmethod
+
+    @classmethod
+    def __get_pydantic_core_schema__(cls, source: Any, handler: GetCoreSchemaHandler) -> Any:
+        def check(value: str) -> str:
+            allowed = cls.choices()
+            if value not in allowed:
+                raise ValueError(f"must be one of {', '.join(allowed)} (got {value!r})")
+            return value
+
+        return core_schema.no_info_after_validator_function(check, core_schema.str_schema())
+
+    @classmethod
+    def __get_pydantic_json_schema__(cls, schema: Any, handler: GetJsonSchemaHandler) -> dict[str, Any]:
+        return {"type": "string", "enum": list(cls.choices())}
+
+
+class Environment(RegistryEnum):
+    """A treatment's environment: a world or a transition (``evolution.worlds.environments``)."""
+
+    choices = staticmethod(worlds.environments)
+
+
+class WorldName(RegistryEnum):
+    """One evolvable world of the registry (``sim.worlds``)."""
+
+    choices = staticmethod(lambda: worlds.names(evolve=True))
+
 Algorithm = Literal["afpo", "pareto"]
 Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.scene.MODELS
 ControlMapping = Literal["linear", "evosoro"]  # evolution.genotype.CONTROL_MAPPINGS
@@ -38,6 +76,22 @@ class Strict(BaseModel):
     """Unknown fields are an error (a typo must not be silently ignored)."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class WorldOut(BaseModel):
+    """One world of the registry (``sim.worlds.World``)."""
+
+    name: str
+    kind: str = Field(description="the physics kind it simulates as")
+    gravity: float
+    floor: bool
+    drag: bool
+    distance: str
+    settle_seconds: float
+    colour: str
+    background: str
+    label: str
+    evolve: bool
 
 
 # -- requests ------------------------------------------------------------------------------

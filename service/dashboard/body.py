@@ -9,14 +9,14 @@ materials, phases and actuation, without simulating anything.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, HTTPException, Path, Query
 
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.routes.individuals import stored_task
-from softevo.service.api.schemas import MAX_INT32
+from softevo.service.api.schemas import MAX_INT32, WorldName
 from softevo.worker.tasks import scenes_of
 
 router = APIRouter()
@@ -52,7 +52,7 @@ def scene_body(scene: dict[str, Any]) -> dict[str, Any]:
 def body(
     individual_id: IndividualId,
     services: ServicesDep,
-    environment: Annotated[Literal["land", "water"] | None, Query()] = None,
+    environment: Annotated[WorldName | None, Query()] = None,
 ) -> dict[str, Any]:
     """The individual's body and actuation in ``environment`` (default: that of its latest
     evaluation, as for the frames). 404 for an unknown or never evaluated individual."""

@@ -8,6 +8,7 @@ dashboard also works behind a reverse proxy that serves the API under a prefix.
 from __future__ import annotations
 
 import html
+import json
 from functools import cache
 from pathlib import Path as FilePath
 from string import Template
@@ -16,6 +17,7 @@ from typing import Annotated
 from fastapi import APIRouter, Path, Request
 from fastapi.responses import HTMLResponse
 
+from softevo.evolution import worlds
 from softevo.service.api.deps import ConnectionDep
 from softevo.service.api.headers import policy
 from softevo.service.api.schemas import MAX_INT32
@@ -39,9 +41,11 @@ def template(name: str) -> Template:
 
 def render(request: Request, page: str, title: str, status_code: int = 200, **values) -> HTMLResponse:
     """``templates/<page>`` inside ``layout.html``; ``values`` fill the page's ``$names``
-    (HTML-escaped), ``$root`` and ``$static`` are filled everywhere."""
+    (HTML-escaped), ``$root``, ``$static`` and ``$worlds`` (the world registry as JSON, what
+    ``GET /worlds`` answers; ``static/js/worlds.js`` reads it) are filled everywhere."""
     root = html.escape(request.scope.get("root_path", "").rstrip("/"))
-    common = {"root": root, "static": f"{root}/dashboard/static"}
+    registry = json.dumps([world.to_json() for world in worlds.all_worlds()])
+    common = {"root": root, "static": f"{root}/dashboard/static", "worlds": html.escape(registry)}
     escaped = {key: html.escape(str(value)) for key, value in values.items()}
     content = template(page).substitute(common, **escaped)
     body = template("layout.html").substitute(

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Path, Query, Request
 from fastapi.concurrency import run_in_threadpool
@@ -11,7 +11,7 @@ from fastapi.responses import Response
 from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep, client_of
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
-from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry
+from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry, WorldName
 from softevo.service.db.individuals import individual, individual_context
 from softevo.service.db.rows import finite
 from softevo.service.db.status import lineage_records
@@ -100,7 +100,7 @@ async def frames(
     every: Annotated[int, Query(ge=10, le=1_000_000, description="record every n steps")] = 100,
     max_frames: Annotated[int, Query(ge=1, le=2000)] = 500,
     environment: Annotated[
-        Literal["land", "water"] | None,
+        WorldName | None,
         Query(description="default: that of the individual's latest evaluation"),
     ] = None,
 ):

@@ -108,7 +108,7 @@ function frontPanels(treatments) {
   return panels;
 }
 
-/** The final world of a schedule ("land-water" -> "water"): the fronts of one world share
+/** The final world of a schedule (land-water -> water): the fronts of one world share
  * their distance axis (distances of different worlds are not comparable). */
 function finalWorld(environment) {
   return environment.split("-").pop();

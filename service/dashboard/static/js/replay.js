@@ -8,10 +8,10 @@
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { meshVertices, neighbours, voxelAxes } from "./mesh.js";
+import { defaultWorld, world } from "./worlds.js";
 
 const ACTIVE = new THREE.Color("#e8322b");
 const PASSIVE = new THREE.Color("#27c6d9");
-const BACKGROUND = { land: "#eef2f6", water: "#d6e9f6" };
 const MIN_BRIGHTNESS = 0.25; // of an active voxel fully contracted
 // light baked into the faces by their normal (unlit: cheap on CPU-rendered WebGL), as if lit
 // from above, front and right: shade of a face facing +x, -x, +y, -y, +z, -z
@@ -129,7 +129,7 @@ export class Replay {
     this._cursor = 0;
     this._needsRender = true;
     this._last = null;
-    this._buildScene(container, body ? body.environment : "land");
+    this._buildScene(container, body ? body.environment : defaultWorld());
     this.renderer.setAnimationLoop((now) => this._tick(now));
   }
 
@@ -154,7 +154,7 @@ export class Replay {
     renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
     container.append(renderer.domElement);
     const scene = new THREE.Scene();
-    scene.background = new THREE.Color(BACKGROUND[environment] || BACKGROUND.land);
+    scene.background = new THREE.Color(world(environment).background);
 
     const { centre, radius } = boundsOf(this.motion, 0);
     const size = Math.max(radius, 2 * this.voxelSize);
@@ -179,9 +179,9 @@ export class Replay {
     this._fit();
   }
 
-  /** Grid in voxel lengths: the floor at z = 0 on land, a reference plane below in water. */
+  /** Grid in voxel lengths: the floor at z = 0 in a world with one, else a reference plane below. */
   _floor(environment, centre) {
-    const land = environment === "land";
+    const land = world(environment).floor;
     const z = land ? 0 : centre.z - 4 * this.voxelSize;
     const cells = Math.max(GRID_CELLS, 2 * Math.ceil((4 * this._radius) / this.voxelSize));
     const grid = new THREE.LineSegments(

@@ -1,11 +1,12 @@
 // Run page: fitness curves over generations and the Pareto front of a chosen generation.
 // Plotly is the global from /dashboard/static/vendor/plotly.min.js (the plotly package's copy).
 import { LIVE, badge, el, errorLine, fill, fmt, getJSON, page, poll, showHealth, table } from "./api.js";
-import { FONT, LEGEND_TOP, MARGIN, PLOT_CONFIG } from "./plots.js";
+import { FONT, LEGEND_TOP, MARGIN, PLOT_CONFIG, withAlpha } from "./plots.js";
+import { world } from "./worlds.js";
 
 const runId = Number(document.getElementById("run").dataset.run);
 const POLL_MS = 2000;
-const ENVIRONMENT_FILL = { land: "rgba(196, 160, 100, 0.13)", water: "rgba(60, 140, 220, 0.12)" };
+const FILL_ALPHA = 0.12; // of a world's colour (worlds.js), behind the curves
 
 const state = { run: null, generation: -2, fronts: new Map(), shown: null };
 
@@ -50,7 +51,7 @@ function environmentBands(generations) {
     shapes.push({
       type: "rect", xref: "x", yref: "paper", x0: generations[start].generation - 0.5,
       x1: generations[i - 1].generation + 0.5, y0: 0, y1: 1, line: { width: 0 },
-      fillcolor: ENVIRONMENT_FILL[environment] || "rgba(0,0,0,0.04)", layer: "below",
+      fillcolor: withAlpha(world(environment).colour, FILL_ALPHA), layer: "below",
     });
     annotations.push({
       xref: "x", yref: "paper", x: generations[start].generation - 0.4, y: 1, xanchor: "left",

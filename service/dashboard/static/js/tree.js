@@ -2,11 +2,11 @@
 // surviving lineages and a bounded sample of extinct ones) laid out and drawn on a canvas.
 // x: generation; y: leaves in depth-first order, a parent at the mean of its children.
 import { el, errorLine, fill, fmt, getJSON, page, showHealth } from "./api.js";
+import { worldRGB as pureRGB } from "./worlds.js";
 
 const runId = Number(document.getElementById("tree-page").dataset.run);
 const HEIGHT = 560;
 const MARGIN = { left: 56, right: 18, top: 26, bottom: 34 };
-const WORLD_RGB = { land: [183, 121, 31], water: [31, 111, 235] };
 const UNKNOWN_RGB = [120, 120, 120];
 const HIT_PX = 8;
 
@@ -14,8 +14,8 @@ const HIT_PX = 8;
 function worldRGB(name) {
   if (!name) return UNKNOWN_RGB;
   const compound = /^(\w+)>(\w+)@([0-9.]+)$/.exec(name);
-  if (!compound) return WORLD_RGB[name] || UNKNOWN_RGB;
-  const [a, b, s] = [WORLD_RGB[compound[1]] || UNKNOWN_RGB, WORLD_RGB[compound[2]] || UNKNOWN_RGB, Number(compound[3])];
+  if (!compound) return pureRGB(name);
+  const [a, b, s] = [pureRGB(compound[1]), pureRGB(compound[2]), Number(compound[3])];
   return a.map((value, i) => Math.round(value * (1 - s) + b[i] * s));
 }
 
