@@ -34,17 +34,11 @@ from matplotlib.patches import Patch  # noqa: E402
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
 from softevo.analysis.stats_tables import ALPHA, ci_table  # noqa: E402
+from softevo.evolution import worlds  # noqa: E402
 from softevo.evolution.selection import non_dominated_sort  # noqa: E402
 
 DPI = 100
-ENVIRONMENT_ORDER = ("land", "water", "land-water", "water-land")
-ENVIRONMENT_CMAPS = {"land": "Oranges", "water": "Blues", "land-water": "Purples", "water-land": "Greens"}
-ENVIRONMENT_TITLES = {
-    "land": "land",
-    "water": "water",
-    "land-water": "land \u2192 water",
-    "water-land": "water \u2192 land",
-}
+TRANSITION_CMAPS = ("Purples", "Greens", "Reds", "YlGn", "PuRd", "GnBu")  # transitions, in order
 MAX_BRACKETS = 6
 SAMPLES_PER_FRONT = 3
 MOVED_SHARE = 0.02
@@ -120,16 +114,30 @@ def treatment_colors(treatments: pd.DataFrame) -> dict[str, tuple]:
     colors = {}
     for name, env, value in zip(treatments["name"], treatments["environment"], log_e, strict=True):
         shade = 0.35 + 0.6 * (value - low) / (high - low)
-        colors[name] = plt.get_cmap(ENVIRONMENT_CMAPS.get(env, "Greys"))(shade)
+        colors[name] = plt.get_cmap(environment_cmap(env))(shade)
     return colors
+
+
+def environment_cmap(environment: str) -> str:
+    """The colormap of a treatment environment: a world's own (``sim.worlds``), the
+    transitions' in the registry's order of them, grey for an unknown one."""
+    if environment in worlds.names():
+        return worlds.get(environment).colormap
+    transitions = [e for e in worlds.environments() if worlds.is_transition(e)]
+    if environment in transitions:
+        return TRANSITION_CMAPS[transitions.index(environment) % len(TRANSITION_CMAPS)]
+    return "Greys"
+
+
+def environment_title(environment: str) -> str:
+    """``land``; ``land \u2192 water`` for a transition."""
+    return " \u2192 ".join(environment.split(worlds.TRANSITION))
 
 
 def _environments(data: ExperimentData) -> list[str]:
     present = list(dict.fromkeys(data.treatments["environment"]))
-    return sorted(
-        present,
-        key=lambda e: ENVIRONMENT_ORDER.index(e) if e in ENVIRONMENT_ORDER else len(ENVIRONMENT_ORDER),
-    )
+    order = worlds.environments()
+    return sorted(present, key=lambda e: order.index(e) if e in order else len(order))
 
 
 def _grid(fig: Figure, n: int, cols: int, **kwargs) -> list[Axes]:
@@ -172,7 +180,7 @@ def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) ->
         for name in rows["name"]:
             _curve(ax, curves[curves["treatment"] == name], colors[name], name)
         _switch_line(ax, rows["switch_at"].dropna().iloc[0] if rows["switch_at"].notna().any() else None)
-        ax.set_title(ENVIRONMENT_TITLES.get(env, env))
+        ax.set_title(environment_title(env))
         ax.set_xlabel("generation")
         ax.set_ylabel("best distance (voxel lengths)")
         ax.grid(alpha=0.3)

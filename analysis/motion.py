@@ -28,6 +28,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from softevo.analysis.render import ACTIVE_COLOR, EDGE_COLOR, PASSIVE_COLOR, VIEW  # noqa: E402
 from softevo.errors import UserError  # noqa: E402
+from softevo.sim import worlds  # noqa: E402
 from softevo.sim.mesh import deformed_mesh, lattice_mesh  # noqa: E402
 
 FORMATS = (".gif", ".mp4")
@@ -128,11 +129,16 @@ def frame_indices(t: np.ndarray, fps: int = PLAYBACK_FPS, max_frames: int = MAX_
     return indices, speed
 
 
+def _has_floor(environment: str) -> bool:
+    """Whether a pure world of the registry with a floor (a compound world is drawn without)."""
+    return environment in worlds.names() and worlds.get(environment).floor
+
+
 def _limits(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     half = motion.voxel_size
     low = motion.positions.min(axis=(0, 1)) - half
     high = motion.positions.max(axis=(0, 1)) + half
-    if motion.environment == "land":
+    if _has_floor(motion.environment):
         low[2] = 0.0
     span = high - low
     pad = np.maximum(0.0, 0.5 * (np.max(span[:2]) - span))  # square ground footprint
@@ -183,7 +189,7 @@ def animate(
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
-    if motion.environment == "land":
+    if _has_floor(motion.environment):
         _floor(ax, low, high)
     body = Poly3DCollection([], facecolors=colors, edgecolor=EDGE_COLOR, linewidths=0.3, zorder=1)
     ax.add_collection3d(body)

@@ -54,6 +54,7 @@ from scipy import optimize, stats
 from softevo.analysis.data import ExperimentData
 from softevo.analysis.matching import families, family_size
 from softevo.errors import UserError
+from softevo.evolution import worlds
 from softevo.evolution.stats import mann_whitney, vargha_delaney
 
 RESAMPLES = 2_000
@@ -76,14 +77,22 @@ class PaperComparison:
     b: tuple[str, float]
 
 
+_LAND, _WATER = worlds.PAPER
+_LAND_WATER, _WATER_LAND = worlds.TRANSITION.join(worlds.PAPER), worlds.TRANSITION.join(worlds.PAPER[::-1])
 PAPER_COMPARISONS = (
-    PaperComparison("land fitness, S4 vs S1", "best_distance", ("land", 1.0), ("land", 0.001)),
-    PaperComparison("water fitness, S1 vs S5", "best_distance", ("water", 0.001), ("water", 10.0)),
-    PaperComparison("land->water vs water only, S3", "best_distance", ("land-water", 0.1), ("water", 0.1)),
-    PaperComparison("water->land vs land only, S3", "best_distance", ("water-land", 0.1), ("land", 0.1)),
-    PaperComparison("frequency vs stiffness on land, S1 vs S5", "frequency", ("land", 0.001), ("land", 10.0)),
+    PaperComparison(f"{_LAND} fitness, S4 vs S1", "best_distance", (_LAND, 1.0), (_LAND, 0.001)),
+    PaperComparison(f"{_WATER} fitness, S1 vs S5", "best_distance", (_WATER, 0.001), (_WATER, 10.0)),
     PaperComparison(
-        "frequency vs stiffness in water, S1 vs S5", "frequency", ("water", 0.001), ("water", 10.0)
+        f"{_LAND}->{_WATER} vs {_WATER} only, S3", "best_distance", (_LAND_WATER, 0.1), (_WATER, 0.1)
+    ),
+    PaperComparison(
+        f"{_WATER}->{_LAND} vs {_LAND} only, S3", "best_distance", (_WATER_LAND, 0.1), (_LAND, 0.1)
+    ),
+    *(
+        PaperComparison(
+            f"frequency vs stiffness {worlds.get(w).label}, S1 vs S5", "frequency", (w, 0.001), (w, 10.0)
+        )
+        for w in worlds.PAPER
     ),
 )
 

@@ -52,6 +52,7 @@ from softevo.analysis.stats_tables import (
     summary_table,
 )
 from softevo.errors import UserError
+from softevo.evolution import worlds
 
 METHODS = (
     f"Intervals: {INTERVAL} of the mean over repetitions, and of a difference of means "
@@ -443,7 +444,11 @@ def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
     parsed, encoding = sim.parse_scene(scene), robots.encoding(record["treatment"], record["seed"])
     m, low_high = parsed.material, encoding.frequency_range
     phenotype, modulus = record["phenotype_object"], record["treatment"].stiffness_pa
-    settle = {env: phenotype.to_scene(env, modulus)["settle_seconds"] for env in ("land", "water")}
+    present = {world for env in data.treatments["environment"] for world in env.split(worlds.TRANSITION)}
+    settle = ", ".join(
+        f"{phenotype.to_scene(world, modulus)['settle_seconds']:g} s {worlds.get(world).label}"
+        for world in worlds.names() if world in worlds.PAPER or world in present
+    )
     algorithms = set(data.treatments["algorithm"])
     selection = "with age (AFPO)" if algorithms == {"afpo"} else f"algorithm {', '.join(sorted(algorithms))}"
     return (
@@ -453,8 +458,7 @@ def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
         f"amplitude {parsed.actuation.amplitude:g} at one evolved frequency in "
         f"{low_high[0]:g}-{low_high[1]:g} Hz with evolved per-voxel phases; each evaluation runs "
         f"the treatment's number of cycles (at most its seconds, where capped) after settling "
-        f"({settle['land']:g} s on land, "
-        f"{settle['water']:g} s in water). Objectives: distance (max), active share (min), voxel "
+        f"({settle}). Objectives: distance (max), active share (min), voxel "
         f"count (min), {selection}."
     )
 

@@ -12,11 +12,10 @@ from __future__ import annotations
 from typing import Any
 
 from softevo.errors import UserError
+from softevo.evolution import worlds
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
 from softevo.worker.tasks import Task, scene_of
 from softevo.worker.tasks import encoding_of as settings_encoding
-
-ENVIRONMENTS = ("land", "water")
 
 
 def encoding_of(treatment, seed: int = 0) -> EncodingConfig:
@@ -38,8 +37,8 @@ def record_environment(record: dict[str, Any], environment: str | None = None) -
         if evaluations.empty:
             raise UserError(f"individual {individual_id} was never evaluated; give --environment")
         environment = str(evaluations["environment"].iloc[-1])
-    if environment not in ENVIRONMENTS:
-        raise UserError(f"environment must be land or water (got {environment!r})")
+    if environment not in worlds.names(evolve=True):
+        raise UserError(f"environment must be {' or '.join(worlds.names(evolve=True))} (got {environment!r})")
     return environment
 
 

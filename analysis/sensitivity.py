@@ -26,6 +26,7 @@ import time
 from dataclasses import replace
 
 from softevo import sim
+from softevo.evolution import worlds
 from softevo.evolution.afpo import EvolutionConfig
 from softevo.evolution.genotype import EncodingConfig
 from softevo.evolution.runner import best_distance, run
@@ -96,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     rows, started = [], time.monotonic()
     total = len(variants) * 2 * len(stiffnesses) * args.repetitions
     for variant in variants:
-        for environment in ("land", "water"):
+        for environment in worlds.PAPER:
             for mpa in stiffnesses:
                 for seed in range(args.repetitions):
                     d = one_run(variant, environment, mpa, seed, args)
@@ -115,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
           + " | best stiffness | S-first to S-last |")
     print("| --- | --- | " + " | ".join("---:" for _ in stiffnesses) + " | --- | --- |")
     for variant in variants:
-        for environment in ("land", "water"):
+        for environment in worlds.PAPER:
             means = []
             for mpa in stiffnesses:
                 values = [r["best_distance"] for r in rows if r["variant"] == variant

@@ -52,6 +52,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from softevo.errors import UserError
+from softevo.sim import worlds
 
 TEMP_BASE = 25.0  # degrees: the temperature the sine swings about
 ACTIVE_CTE = 0.01  # the active material's thermal expansion coefficient (1 / degree)
@@ -211,7 +212,7 @@ def _simulator(scene, indent: str) -> list[str]:
 def _environment(scene, indent: str) -> list[str]:
     i2, i3 = indent + "  ", indent + "    "
     env, act = scene.environment, scene.actuation
-    water = env.kind == "water"
+    water = worlds.get(env.kind).drag
     if water and env.gravity != 0:
         warnings.warn(
             "environment.gravity: the fork has no gravity in water (neutral buoyancy)",
@@ -229,7 +230,7 @@ def _environment(scene, indent: str) -> list[str]:
     gravity = [
         ("GravEnabled", int(env.gravity != 0)),
         ("GravAcc", _number(-env.gravity)),
-        ("FloorEnabled", int(env.kind == "land")),
+        ("FloorEnabled", int(worlds.get(env.kind).floor)),
     ]
     return _block(
         indent,

@@ -71,6 +71,7 @@ from softevo.analysis.vxa import (
     VxaWarning,
     aggregate_drag,
 )
+from softevo.sim import worlds
 
 __all__ = ["MAX_FILE_BYTES", "Imported", "VxaError", "VxaWarning", "import_vxa", "read_vxa", "vxa_to_scene"]
 
@@ -576,13 +577,13 @@ def _stop_seconds(file: _File, sim: dict[str, float], period: float) -> float:
 def _environment(env: dict[str, float]) -> dict[str, Any]:
     if env["fluid"]:  # the fork: neutral buoyancy (no gravity) and no floor in a fluid
         return {
-            "kind": "water",
+            "kind": worlds.WATER.name,
             "gravity": 0.0,
             "fluid_density": FLUID_DENSITY,
             "drag_coefficient": env["aggregate_drag"] / aggregate_drag(FLUID_DENSITY, 1.0),
         }
     gravity = -env["gravity_acceleration"] if env["gravity_enabled"] else 0.0
-    return {"kind": "land" if env["floor"] else "void", "gravity": gravity}
+    return {"kind": worlds.LAND.name if env["floor"] else worlds.VOID.name, "gravity": gravity}
 
 
 def _scene(file: _File) -> dict[str, Any]:

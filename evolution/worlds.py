@@ -20,14 +20,27 @@ with three decimals and read back from the name, so the name alone (stored in
 
 from __future__ import annotations
 
-from softevo.sim.worlds import KINDS, LAND, VOID, WATER, World, all_worlds, get, names, register, unregister
+from softevo.sim.worlds import (
+    KINDS,
+    LAND,
+    VOID,
+    WATER,
+    World,
+    all_worlds,
+    get,
+    names,
+    register,
+    unregister,
+)
 
 __all__ = [
-    "KINDS", "LAND", "VOID", "WATER", "World", "all_worlds", "get", "names", "register", "unregister",
-    "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts", "share_at",
-    "transition",
+    "KINDS", "LAND", "PAPER", "VOID", "WATER", "World", "all_worlds", "get", "names", "register",
+    "unregister",
+    "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts",
+    "share_at", "transition",
 ]
 
+PAPER = (LAND.name, WATER.name)  # the paper's two worlds (docs/spec.md section 5)
 TRANSITION = "-"
 SEPARATOR = ">"
 SHARE_MARK = "@"

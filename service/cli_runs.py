@@ -20,6 +20,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
+from softevo.evolution import worlds
 from softevo.service.treatments import SCALES, Treatment
 
 DbOption = Annotated[
@@ -103,7 +104,7 @@ def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
 
 
 def run(
-    env: Annotated[str, typer.Option("--env", help="land | water | land-water | water-land")],
+    env: Annotated[str, typer.Option("--env", help=" | ".join(worlds.environments()))],
     stiffness: Annotated[
         float | None,
         typer.Option(

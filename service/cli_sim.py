@@ -22,6 +22,7 @@ from typing import Annotated, Any
 import typer
 
 from softevo.errors import UserError
+from softevo.sim import worlds
 from softevo.worker.tasks import default_record_every
 
 
@@ -65,7 +66,7 @@ def _write_record(out: Path, result: Any) -> int:
 
 def _summary(result: Any, wall_seconds: float, environment: str) -> str:
     """A few stable-format lines a person can read at a glance."""
-    axes = "horizontal" if environment == "land" else "3-D"
+    axes = worlds.get(environment).distance
     lines = [
         f"stable     {'yes' if result.stable else 'NO: ' + str(result.reason)}",
         f"distance   {result.distance:.4g} voxel lengths ({axes}, {environment})",

@@ -56,7 +56,7 @@ from softevo.evolution.schedule import Schedule
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 ALGORITHMS = ("afpo", "pareto")
-PAPER_WORLDS = (worlds.LAND.name, worlds.WATER.name)  # the paper's two worlds and its transitions
+PAPER_WORLDS = worlds.PAPER  # the paper's two worlds and its transitions
 PAPER_TRANSITIONS = tuple(worlds.TRANSITION.join(pair) for pair in (PAPER_WORLDS, PAPER_WORLDS[::-1]))
 PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
     "algorithm": "pareto",

@@ -33,8 +33,9 @@ class World:
     ``drag``: fluid drag on the voxels (water's); ``distance``: ``"horizontal"`` (on a
     floor) or ``"3-D"``; ``settle_seconds``: the settling time before actuation in the
     Voxelyze 2.0 model (the paper's model always settles 0.5 s); ``colour`` (``#rrggbb``)
-    its lines and points, ``background`` the replay's sky; ``label`` how a report says a
-    result is in it (``"on land"``); ``evolve``: offered as an evolution environment."""
+    its lines and points, ``background`` the replay's sky, ``colormap`` (a matplotlib name)
+    the report figures' shades of it; ``label`` how a report says a result is in it
+    (``"on land"``); ``evolve``: offered as an evolution environment."""
 
     name: str
     gravity: float
@@ -45,6 +46,7 @@ class World:
     colour: str = "#667085"
     background: str = "#eef2f6"
     label: str = ""
+    colormap: str = "Greys"
     evolve: bool = True
 
     def __post_init__(self) -> None:
@@ -82,8 +84,10 @@ class World:
 
 
 _KINDS = (
-    World("land", gravity=9.81, floor=True, drag=False, colour="#b7791f", background="#eef2f6"),
-    World("water", gravity=0.0, floor=False, drag=True, colour="#1f6feb", background="#d6e9f6"),
+    World("land", gravity=9.81, floor=True, drag=False, colour="#b7791f", background="#eef2f6",
+          colormap="Oranges"),
+    World("water", gravity=0.0, floor=False, drag=True, colour="#1f6feb", background="#d6e9f6",
+          colormap="Blues"),
     World("void", gravity=0.0, floor=False, drag=False, colour="#667085", background="#f4f4f5",
           evolve=False),
 )

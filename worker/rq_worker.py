@@ -54,6 +54,7 @@ from rq.worker import SimpleWorker, WorkerStatus
 
 from softevo import __version__
 from softevo.errors import UserError
+from softevo.evolution import worlds
 
 log = logging.getLogger("softevo.worker")
 
@@ -218,7 +219,7 @@ def warm(threads: int = 1) -> float:
     task = {
         "id": 0,
         "genome": genome.to_dict(),
-        "environment": "land",
+        "environment": worlds.LAND.name,
         "youngs_modulus": 1e5,
         "cycles": 1,
         "encoding": config.to_dict(),

@@ -10,7 +10,7 @@
        "run_id": int,                  # optional: job ids and logs only
        "generation": int,              # optional: job ids and logs only
        "genome": {...},                # Genotype.to_dict()
-       "environment": "land" | "water" | "land>water@0.250" (a compound world),
+       "environment": str,             # a world (sim.worlds) or a compound world, land>water@0.250
        "youngs_modulus": float,        # Pa
        "cycles": int,
        "max_seconds": float,           # optional: the cap on an evaluation's seconds; absent: none

@@ -91,6 +91,7 @@ class WorldOut(BaseModel):
     colour: str
     background: str
     label: str
+    colormap: str
     evolve: bool
 
 
