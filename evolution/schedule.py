@@ -85,25 +85,9 @@ class Schedule:
 
     @classmethod
     def parse(cls, text: str) -> Schedule:
-        """From the text form ``env:first,env:first,...``; ValueError naming the problem."""
-        if not isinstance(text, str) or not text.strip():
-            raise ValueError(f"schedule: empty text {text!r}; expected e.g. land:0,water:50")
-        entries, spans = [], []
-        for part in text.split(","):
-            environment, colon, first = part.strip().partition(":")
-            if not colon or not environment:
-                raise ValueError(f"schedule: {part.strip()!r} is not environment:first_generation")
-            first, plus, span = first.partition("+")
-            try:
-                generation = int(first)
-                spans.append(int(span) if plus else 0)
-            except ValueError:
-                raise ValueError(
-                    f"schedule: first generation (+ switch-over) of {environment} is not an integer "
-                    f"({part.strip()!r})"
-                ) from None
-            entries.append((environment, generation))
-        return cls(entries, spans)
+        """From the text form ``env:first,env:first,...`` (``evolution.worlds.schedule_entries``);
+        ValueError naming the problem."""
+        return cls(*worlds.schedule_entries(text))
 
     def format(self) -> str:
         """The text form, e.g. ``land:0,water:50`` (``water:50+10`` with a switch-over)."""

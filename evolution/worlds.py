@@ -3,8 +3,8 @@ a compound world of a gradual transition. Every spelling of a transition is read
 
 A treatment's environment is a pure world or a transition ``A-B`` (``transition`` reads it
 as ``("A", "B")``; ``environments()`` lists every one offered for evolution); a schedule's
-text ``A:0,B:50+10`` is read by ``evolution.schedule.Schedule.parse``, whose compound worlds
-are the names below.
+text ``A:0,B:50+10`` by ``schedule_entries`` (``evolution.schedule.Schedule.parse``); the
+compound worlds of a gradual switch are named and read by ``compound`` / ``parts``.
 
 A gradual transition moves a population from world A to world B over a span of ``G``
 generations (``--switch-over G``). At the ``k``-th generation of the span (``k = 0..G-1``)
@@ -37,7 +37,7 @@ __all__ = [
     "KINDS", "LAND", "PAPER", "VOID", "WATER", "World", "all_worlds", "get", "names", "register",
     "unregister",
     "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts",
-    "share_at", "transition",
+    "schedule_entries", "share_at", "transition",
 ]
 
 PAPER = (LAND.name, WATER.name)  # the paper's two worlds (docs/spec.md section 5)
@@ -112,3 +112,28 @@ def environments() -> tuple[str, ...]:
 def final(environment: str) -> str:
     """The world a treatment's environment ends in (``land-water`` -> ``water``)."""
     return environment.split(TRANSITION)[-1]
+
+
+def schedule_entries(text: str) -> tuple[list[tuple[str, int]], list[int]]:
+    """The ``(world, first generation)`` entries and switch-over spans of a schedule's text
+    ``land:0,water:50+10`` (``evolution.schedule.Schedule.parse`` checks them); ValueError
+    naming the problem."""
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError(f"schedule: empty text {text!r}; expected e.g. land:0,water:50")
+    entries, spans = [], []
+    for part in text.split(","):
+        environment, colon, first = part.strip().partition(":")
+        if not colon or not environment:
+            raise ValueError(f"schedule: {part.strip()!r} is not environment:first_generation")
+        first, plus, span = first.partition("+")
+        try:
+            generation = int(first)
+            spans.append(int(span) if plus else 0)
+        except ValueError:
+            raise ValueError(
+                f"schedule: first generation (+ switch-over) of {environment} is not an integer "
+                f"({part.strip()!r})"
+            ) from None
+        entries.append((environment, generation))
+    return entries, spans
+
