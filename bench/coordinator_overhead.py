@@ -29,6 +29,7 @@ from softevo.service.db import open_database
 from softevo.service.executors import LocalExecutor
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment
+from softevo.sim.worlds import LAND
 
 
 class InstantExecutor:
@@ -58,7 +59,7 @@ def overhead_per_generation(population: int, generations: int, args, folder: Pat
     """Seconds of coordinator + storage work per generation (no evaluation cost)."""
     engine = open_database(f"sqlite:///{folder / f'overhead{population}.db'}")
     treatment = Treatment(
-        "land",
+        LAND.name,
         0.1,
         population=population,
         generations=generations + 1,
@@ -77,7 +78,7 @@ def generation_tasks(population: int, args, folder: Path) -> list[dict]:
     """The evaluation tasks of a fresh run's first generation."""
     engine = open_database(f"sqlite:///{folder / f'tasks{population}.db'}")
     treatment = Treatment(
-        "land", 0.1, population=population, generations=2, workspace=args.workspace, cycles=args.cycles
+        LAND.name, 0.1, population=population, generations=2, workspace=args.workspace, cycles=args.cycles
     )
     _, (run_id,) = create(engine, "bench", [treatment])
     return ask(load_run(engine, run_id))

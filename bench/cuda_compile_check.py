@@ -33,6 +33,7 @@ from numba import cuda  # noqa: E402
 from softevo.sim import cuda_engine, cuda_kernels  # noqa: E402
 from softevo.sim.scene import parse_scene  # noqa: E402
 from softevo.sim.system import build_robot, pack  # noqa: E402
+from softevo.sim.worlds import WATER  # noqa: E402
 
 
 def main() -> None:
@@ -43,7 +44,7 @@ def main() -> None:
     cc = tuple(int(x) for x in args.cc.split("."))
     # device functions ask the current device for its compute capability: there is none here
     dispatcher.get_current_device = lambda: SimpleNamespace(compute_capability=cc)
-    scenes = [{"body": [[[1, 2], [2, 1]]], "environment": {"kind": "water"},
+    scenes = [{"body": [[[1, 2], [2, 1]]], "environment": {"kind": WATER.name},
                "model": "voxcad-land-water", "self_collisions": True, "record": {"every": 10}}]
     batch, state = pack([build_robot(parse_scene(s)) for s in scenes])
     host = cuda_engine.kernel_inputs(batch, state)

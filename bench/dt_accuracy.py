@@ -25,6 +25,7 @@ import numpy as np
 from softevo import sim
 from softevo.sim import system
 from softevo.sim.scene import Scene
+from softevo.sim.worlds import LAND, WATER
 
 STIFFNESS_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 FRACTIONS = (0.15, 0.2, 0.3, 0.5, 0.7, 0.9, 1.2)
@@ -55,14 +56,14 @@ def swimmer() -> tuple[np.ndarray, np.ndarray]:
 
 
 def scene(kind: str, mpa: float, fraction: float, cycles: float) -> dict:
-    body, phase = walker() if kind == "land" else swimmer()
+    body, phase = walker() if kind == LAND.name else swimmer()
     return {
         "body": body.tolist(), "phase": phase.tolist(),
         "material": {"youngs_modulus": mpa * 1e6},
         "environment": {"kind": kind},
         "actuation": {"frequency": 2.0},
         "duration": {"cycles": cycles},
-        "settle_seconds": 0.5 if kind == "land" else 0.0,
+        "settle_seconds": 0.5 if kind == LAND.name else 0.0,
         "dt_fraction": fraction,
     }
 
@@ -72,7 +73,7 @@ def accuracy(cycles: float, reference: float) -> None:
     print(f"{'world':<7}{'MPa':>7}{'ref dist':>10}" + "".join(f"{f:>8}" for f in FRACTIONS)
           + "   largest safe")
     safe_all = []
-    for kind in ("land", "water"):
+    for kind in (LAND.name, WATER.name):
         for mpa in STIFFNESS_MPA:
             fractions = (reference, *FRACTIONS)
             results = sim.simulate_many([scene(kind, mpa, f, cycles) for f in fractions])
@@ -98,7 +99,7 @@ def caps(cycles: float) -> None:
     print(f"{'world':<7}{'MPa':>7}{'ref dist':>10}" + "".join(f"{c:>8}" for c in CAPS)
           + "   smallest safe")
     safe_all = []
-    for kind in ("land", "water"):
+    for kind in (LAND.name, WATER.name):
         for mpa in STIFFNESS_MPA[:3]:
             distances, stable = [], []
             for cap in (CAP_REFERENCE, *CAPS):
@@ -130,10 +131,10 @@ def speed() -> None:
           f"50 cycles at 2 Hz, dt_fraction {default}), one core:")
     print(f"{'world':<7}{'MPa':>7}{'steps':>10}{'seconds':>9}{'evals/s':>9}{'Mvs/s':>8}")
     sim.simulate(dict(base, duration={"seconds": 0.001}))
-    for kind in ("land", "water"):
+    for kind in (LAND.name, WATER.name):
         for mpa in STIFFNESS_MPA:
             s = dict(base, environment={"kind": kind}, material={"youngs_modulus": mpa * 1e6},
-                     settle_seconds=0.5 if kind == "land" else 0.0)
+                     settle_seconds=0.5 if kind == LAND.name else 0.0)
             start = time.perf_counter()
             r = sim.simulate(s)
             el = time.perf_counter() - start

@@ -44,6 +44,7 @@ from softevo.sim import cuda_engine
 from softevo.sim.engines import EngineUnavailable
 from softevo.sim.scene import DEFAULT_CYCLES, parse_scene
 from softevo.sim.system import F_DT, I_STEPS, build_robot
+from softevo.sim.worlds import LAND
 
 BATCHES = (1, 10, 100, 1000, 10000)
 POOL = 100  # distinct robots per case; a larger batch repeats them
@@ -60,7 +61,7 @@ def paper_robot(rng: np.random.Generator, world: str, modulus: float, side: int 
         "material": {"youngs_modulus": modulus},
         "environment": {"kind": world},
         "duration": {"cycles": DEFAULT_CYCLES},
-        "settle_seconds": 0.5 if world == "land" else 0.0,
+        "settle_seconds": 0.5 if world == LAND.name else 0.0,
     }
 
 

@@ -26,6 +26,7 @@ from softevo.service.executors import make_executor
 from softevo.service.experiments import create
 from softevo.service.plan import plan
 from softevo.service.treatments import Treatment
+from softevo.sim.worlds import LAND, WATER
 
 COMMON = {"population": 6, "workspace": (5, 5, 5), "cycles": 2, "max_seconds": 1.0,
           "model": "voxcad-land-water", "algorithm": "pareto", "control_mapping": "evosoro",
@@ -36,11 +37,11 @@ def cases() -> list[tuple[str, list[Treatment]]]:
     """(label, treatments): single runs over stiffness and world, then a mixed grid."""
     single = [
         (f"{world} {stiffness:g} MPa", [Treatment(world, stiffness, generations=gens, **COMMON)])
-        for world, stiffness, gens in (("land", 0.01, 8), ("water", 0.1, 8), ("land", 1.0, 6),
-                                       ("water", 1.0, 4))
+        for world, stiffness, gens in ((LAND.name, 0.01, 8), (WATER.name, 0.1, 8), (LAND.name, 1.0, 6),
+                                       (WATER.name, 1.0, 4))
     ]
     mixed = [Treatment(world, stiffness, name=f"{world} {stiffness:g}", generations=4, seed=k, **COMMON)
-             for k, (world, stiffness) in enumerate((("land", 0.01), ("water", 0.1), ("land", 1.0)))]
+             for k, (world, stiffness) in enumerate(((LAND.name, 0.01), (WATER.name, 0.1), (LAND.name, 1.0)))]
     return [*single, ("mixed 3 runs", mixed)]
 
 

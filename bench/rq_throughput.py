@@ -34,6 +34,7 @@ from redis import Redis
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.service.executors import LocalExecutor
 from softevo.service.rq_executor import Batch, RQExecutor
+from softevo.sim.worlds import LAND
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -49,7 +50,7 @@ def workload(genomes: int, rounds: int, cycles: int, workspace: int) -> list[lis
                 "run_id": 1,
                 "generation": g,
                 "genome": random_viable_genotype(rng, config).to_dict(),
-                "environment": "land",
+                "environment": LAND.name,
                 "youngs_modulus": 1e5,
                 "cycles": cycles,
                 "encoding": config.to_dict(),

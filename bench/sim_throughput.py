@@ -23,6 +23,7 @@ import numba
 import numpy as np
 
 from softevo import sim
+from softevo.sim.worlds import LAND
 
 VOXELYZE = 2.8e6
 
@@ -32,7 +33,7 @@ def cube(n: int, rng: np.random.Generator, seconds: float) -> dict:
         "body": np.full((n, n, n), 2).tolist(),
         "phase": rng.uniform(0, 2 * np.pi, (n, n, n)).tolist(),
         "material": {"youngs_modulus": 1e6},
-        "environment": {"kind": "land"},
+        "environment": {"kind": LAND.name},
         "actuation": {"frequency": 3.0},
         "duration": {"seconds": seconds},
     }

@@ -25,6 +25,7 @@ import numpy as np
 
 from softevo import sim
 from softevo.sim.scene import parse_scene
+from softevo.sim.worlds import LAND
 
 SOURCES = ("Voxelyze", "VX_Voxel", "VX_External", "VX_Link", "VX_Material", "VX_MaterialVoxel",
            "VX_MaterialLink", "VX_Collision", "VX_LinearSolver", "VX_MeshRender")
@@ -62,7 +63,7 @@ def scene(mixed: bool, collisions: bool, seconds: float, n: int = 7) -> dict:
         "body": body.tolist(), "phase": phase.tolist(), "voxel_size": 0.05,
         "material": {"youngs_modulus": 1e6, "density": 1200.0, "poisson_ratio": 0.4},
         "youngs_modulus_field": e.tolist(), "density_field": rho.tolist(),
-        "environment": {"kind": "land", "gravity": G},
+        "environment": {"kind": LAND.name, "gravity": G},
         "actuation": {"frequency": 3.0, "amplitude": 0.39},
         "duration": {"seconds": seconds}, "self_collisions": collisions,
     }
