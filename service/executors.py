@@ -18,6 +18,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
+from softevo.sim import worlds
 from softevo.worker.evaluate import ensure_compiled, evaluate_batch, init_pool_process
 from softevo.worker.tasks import failed
 
@@ -93,6 +94,7 @@ class LocalExecutor:
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=init_pool_process,
+            initargs=(worlds.added(),),
         )
 
     def drop_runs(self, run_ids: Iterable[int]) -> None:

@@ -126,3 +126,15 @@ def names(evolve: bool = False) -> tuple[str, ...]:
 
 def all_worlds() -> tuple[World, ...]:
     return tuple(_REGISTRY.values())
+
+
+def added() -> tuple[World, ...]:
+    """The worlds ``register`` added (what a spawned process must register to know them)."""
+    return tuple(world for world in _REGISTRY.values() if world.name not in KINDS)
+
+
+def register_missing(records: tuple[World, ...]) -> None:
+    """Register each of ``records`` this process does not know yet (a pool's initializer)."""
+    for world in records:
+        if world.name not in _REGISTRY:
+            register(world)

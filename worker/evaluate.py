@@ -119,12 +119,18 @@ def ensure_compiled() -> None:
     _CACHE_READY = True
 
 
-def init_pool_process() -> None:
-    """Process-pool initializer: ignore Ctrl-C, one numba thread per process (the pool is the
-    parallelism), then warm the simulator so the first real batch pays no compilation."""
+def init_pool_process(added_worlds: tuple = ()) -> None:
+    """Process-pool initializer: register the parent's added worlds (``sim.worlds.added``: a
+    spawned process knows only the built-in ones), ignore Ctrl-C, one numba thread per process
+    (the pool is the parallelism), then warm the simulator so the first real batch pays no
+    compilation."""
     import signal
 
     import numba
+
+    from softevo.sim import worlds
+
+    worlds.register_missing(added_worlds)
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's to handle
     numba.set_num_threads(1)

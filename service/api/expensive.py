@@ -29,6 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
+from softevo.sim import worlds
 from softevo.worker.evaluate import ensure_compiled, init_pool_process
 
 DEFAULT_RETRY_AFTER_S = 5
@@ -69,6 +70,7 @@ class ExpensiveReads:
                     max_workers=1,
                     mp_context=multiprocessing.get_context("spawn"),
                     initializer=init_pool_process,
+                    initargs=(worlds.added(),),
                 )
             return self._pool
 

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 import httpx
 import pytest
+import sqlalchemy
 import uvicorn
 
 from softevo.evolution import worlds
@@ -38,7 +39,13 @@ def moon_db(moon, capsys, tmp_path) -> str:
     code, out, err = softevo(capsys, "run", "--env", "moon", "--stiffness", "1", *TINY, "--db", db)
     assert code == 0, err
     assert "finished" in out
+    assert evaluation_errors(db) == [None]
     return db
+
+
+def evaluation_errors(db: str) -> list:
+    with sqlalchemy.create_engine(db).connect() as conn:
+        return conn.execute(sqlalchemy.text("SELECT DISTINCT error FROM evaluations")).scalars().all()
 
 
 @pytest.fixture
@@ -71,6 +78,18 @@ def test_a_registered_world_is_a_scene_and_a_treatment_environment(moon):
     assert moon.kind == worlds.LAND.name and moon.distance == "horizontal" and moon.settle_seconds == 0.5
     environment = parse_scene({"body": [[[1]]], "environment": moon.scene_environment()}).environment
     assert (environment.kind, environment.gravity) == (worlds.LAND.name, 1.62)
+
+
+def test_spawned_evaluation_processes_know_the_registered_world(moon, capsys, tmp_path):
+    """``--workers 1``: the evaluations run in a spawned pool process, which registers the
+    parent's added worlds (``worker.evaluate.init_pool_process``)."""
+    args = [a for a in TINY if a not in ("--workers", "0")]
+    db = f"sqlite:///{tmp_path / 'pool.db'}"
+    code, out, err = softevo(capsys, "run", "--env", "moon", "--stiffness", "1", *args, "--workers", "1",
+                             "--db", db)
+    assert code == 0, err
+    assert "finished" in out
+    assert evaluation_errors(db) == [None]
 
 
 def test_the_registration_is_undone():
