@@ -195,6 +195,7 @@ def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
         "branching": descriptors.get("branching"),
         "shape_entropy": descriptors.get("shape_entropy"),
         "descriptors": ind.descriptors,
+        "objectives": dict(objectives),
         "stable": bool(ind.stable),
         "error": ind.error,
         "seconds": result.get("seconds") if result else None,

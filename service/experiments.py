@@ -8,6 +8,7 @@ from sqlalchemy import Connection, Engine
 
 from softevo.errors import UserError
 from softevo.evolution.afpo import EvolutionConfig
+from softevo.evolution.selection import objectives_named
 from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment, unfinished_work
 from softevo.service.limits import check_experiment, generation_cost
 from softevo.service.settings import Settings
@@ -89,4 +90,5 @@ def evolution_config(treatment: Treatment, seed: int):
         descriptors=False,
         model=treatment.model,
         max_seconds=treatment.max_seconds,
+        objectives=objectives_named(treatment.objectives),
     )

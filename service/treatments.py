@@ -51,6 +51,7 @@ from typing import Any
 from softevo.errors import UserError
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
+from softevo.evolution.selection import objectives_named
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 ENVIRONMENTS = ("land", "water", "land-water", "water-land")
@@ -92,6 +93,7 @@ class Treatment:
     control_mapping: str = "linear"
     body_rule: str = "any"
     max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
+    objectives: tuple[str, ...] = ()  # names of registered objectives (empty: the paper's three)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -141,6 +143,10 @@ class Treatment:
             raise UserError(f"stiffness range must be two numbers lo < hi within {low}..{high} MPa "
                             f"(got {bounds!r})")
         self._validate_switch()
+        try:
+            objectives_named(self.objectives)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
 
     def _validate_switch(self) -> None:
         over = self.switch_over
@@ -209,6 +215,10 @@ class Treatment:
         settings = dataclasses.asdict(self)
         settings["workspace"] = list(self.workspace)
         settings["stiffness_range_mpa"] = list(self.stiffness_range_mpa)
+        if self.objectives:
+            settings["objectives"] = list(self.objectives)
+        else:
+            del settings["objectives"]
         return settings
 
     @classmethod
@@ -223,6 +233,8 @@ class Treatment:
             values["workspace"] = tuple(int(n) for n in values["workspace"])
         if "stiffness_range_mpa" in values:
             values["stiffness_range_mpa"] = tuple(values["stiffness_range_mpa"])
+        if "objectives" in values:
+            values["objectives"] = tuple(values["objectives"])
         return cls(**values)
 
 

@@ -43,12 +43,12 @@ def evaluation_fields(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def objectives(evaluation: dict[str, Any]) -> dict[str, Any]:
-    """The three objectives of an evaluation row."""
-    return {
-        "distance": evaluation["distance"],
-        "active_share": evaluation["active_share"],
-        "voxel_count": evaluation["voxel_count"],
-    }
+    """The objectives of an evaluation row, {name: value}: its ``objectives`` JSON (every
+    objective its run selected on), or the paper's three columns where that is empty."""
+    stored = evaluation.get("objectives")
+    if stored:
+        return dict(stored)
+    return {name: evaluation[name] for name in ("distance", "active_share", "voxel_count")}
 
 
 def evaluations_of(conn: Connection, individual_id: int) -> list[dict[str, Any]]:
