@@ -93,7 +93,7 @@ class Treatment:
     control_mapping: str = "linear"
     body_rule: str = "any"
     max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
-    objectives: tuple[str, ...] = ()  # names of registered objectives (empty: the paper's three)
+    objectives: tuple[str, ...] = ()  # registered objectives, distance among them (empty: the paper's)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -147,6 +147,8 @@ class Treatment:
             objectives_named(self.objectives)
         except ValueError as exc:
             raise UserError(str(exc)) from None
+        if self.objectives and "distance" not in self.objectives:
+            raise UserError(f"objectives must include distance (got {', '.join(self.objectives)})")
 
     def _validate_switch(self) -> None:
         over = self.switch_over
