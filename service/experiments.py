@@ -26,7 +26,10 @@ def create(
 ) -> tuple[int, list[int]]:
     """Store an experiment with one pending run per repetition; return (id, run ids).
     UserError if it is over the budget (``service.limits.check_experiment``: runs per
-    request, voxel-steps per request and, with the server's unfinished runs, per server)."""
+    request, voxel-steps per request and, with the server's unfinished runs, per server) or
+    names an objective not registered in this process."""
+    for t in treatments:
+        run_objectives(t)
     new = [
         NewTreatment(
             t.name,
@@ -73,6 +76,15 @@ def create_paper(
     return create(engine, name or f"{preset}-{scale}", treatments, preset=preset, scale=scale)
 
 
+def run_objectives(treatment: Treatment):
+    """The registered objectives ``treatment`` names (``evolution.selection.objectives_named``;
+    the paper's when it names none); UserError for a name not registered in this process."""
+    try:
+        return objectives_named(treatment.objectives)
+    except ValueError as exc:
+        raise UserError(f"treatment {treatment.name}: {exc}") from None
+
+
 def evolution_config(treatment: Treatment, seed: int):
     """The ``evolution.EvolutionConfig`` of one run of ``treatment``.
 
@@ -90,5 +102,5 @@ def evolution_config(treatment: Treatment, seed: int):
         descriptors=False,
         model=treatment.model,
         max_seconds=treatment.max_seconds,
-        objectives=objectives_named(treatment.objectives),
+        objectives=run_objectives(treatment),
     )

@@ -103,12 +103,27 @@ def test_a_registered_objective_flows_through_a_real_run(toy_objective, tmp_path
     assert "active_share" not in text.split("## Objectives")[1].split("##")[0]
 
 
-def test_an_unregistered_objective_is_refused(tmp_path):
+def test_an_unregistered_objective_is_refused_and_its_runs_still_read(toy_objective, tmp_path):
+    """A new experiment may only name registered objectives; one stored with an objective no
+    longer registered still reads (its settings, its report), it only cannot run."""
     from softevo.errors import UserError
+    from softevo.service.experiments import create, evolution_config
     from softevo.service.treatments import Treatment
 
+    engine = open_database(f"sqlite:///{tmp_path / 'old.db'}")
     with pytest.raises(UserError, match="unknown objective 'height'"):
-        Treatment("land", 0.1, objectives=("distance", "height"))
+        create(engine, "x", [Treatment("land", 0.1, objectives=("distance", "height"))])
+    toy = Treatment("land", 0.1, objectives=("distance", TOY))
+    create(engine, "toy", [toy])
+    unregister_objective(TOY)
+    try:
+        stored = Treatment.from_settings(toy.to_settings())
+        assert stored.objectives == ("distance", TOY)
+        with pytest.raises(UserError, match=f"unknown objective '{TOY}'"):
+            evolution_config(stored, 0)
+    finally:
+        register_objective(toy_objective)
+    engine.dispose()
     with pytest.raises(UserError, match="must include distance"):
         Treatment("land", 0.1, objectives=("active_share",))
     assert "objectives" not in Treatment("land", 0.1).to_settings()
