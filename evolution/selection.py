@@ -65,9 +65,12 @@ OBJECTIVES: dict[str, Objective] = {o.name: o for o in PAPER_OBJECTIVES}
 
 def register_objective(objective: Objective) -> Objective:
     """Make ``objective`` available by name to run configurations (``objectives_named``,
-    ``EvolutionConfig.from_dict``, a treatment's ``objectives``); ValueError for a name
-    already taken, the reserved ``age``, a bad direction or no ``value``."""
+    ``EvolutionConfig.from_dict``, a treatment's ``objectives``); ValueError for a name that
+    is not an identifier or is already taken, the reserved ``age``, a bad direction or no
+    ``value``."""
     objective.sign()
+    if not objective.name.isidentifier() or len(objective.name) > 64:
+        raise ValueError(f"objective name {objective.name!r}: an identifier of at most 64 characters")
     if objective.value is None:
         raise ValueError(f"objective {objective.name}: needs a value function")
     if objective.name in OBJECTIVES or objective.name == AGE_OBJECTIVE.name:

@@ -31,9 +31,6 @@ Algorithm = Literal["afpo", "pareto"]
 Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.scene.MODELS
 ControlMapping = Literal["linear", "evosoro"]  # evolution.genotype.CONTROL_MAPPINGS
 BodyRule = Literal["any", "evosoro"]  # evolution.genotype.BODY_RULES
-ObjectiveName = Annotated[
-    str, StringConstraints(min_length=1, max_length=64, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
-]
 RunStatusName = Literal["pending", "running", "finished", "failed", "cancelled"]
 
 
@@ -44,6 +41,11 @@ class Strict(BaseModel):
 
 
 # -- requests ------------------------------------------------------------------------------
+
+
+ObjectiveName = Annotated[
+    str, StringConstraints(min_length=1, max_length=64, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+]  # an objective's name (evolution.selection.OBJECTIVES)
 
 
 class TreatmentIn(Strict):
