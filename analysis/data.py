@@ -161,8 +161,10 @@ def experiment_data(
 
 def member_traits(members: pd.DataFrame, evaluations: pd.DataFrame) -> pd.DataFrame:
     """Members with the traits of their latest evaluation at or before the member's
-    generation (``evaluation_generation``, ``environment``, ``stable`` and ``TRAITS``)."""
-    traits = evaluations[["individual_id", "generation", "environment", "stable", *TRAITS]]
+    generation (``evaluation_generation``, ``environment``, ``stable``, ``TRAITS``, and
+    ``objectives``, {name: value}, where the evaluations have it)."""
+    extra = ["objectives"] if "objectives" in evaluations.columns else []
+    traits = evaluations[["individual_id", "generation", "environment", "stable", *TRAITS, *extra]]
     traits = traits.rename(columns={"generation": "evaluation_generation"})
     if members.empty:  # nothing stored yet: merge_asof cannot type empty keys
         return pd.DataFrame(columns=[*members.columns, *traits.columns.drop("individual_id")])

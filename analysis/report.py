@@ -53,6 +53,7 @@ from softevo.analysis.stats_tables import (
 )
 from softevo.errors import UserError
 from softevo.evolution import worlds
+from softevo.evolution.selection import Objective, objectives_named
 
 METHODS = (
     f"Intervals: {INTERVAL} of the mean over repetitions, and of a difference of means "
@@ -247,6 +248,53 @@ def settings_table(data: ExperimentData) -> pd.DataFrame:
             "runs finished": [f"{finished.get(n, 0)}/{total.get(n, 0)}" for n in t["name"]],
         }
     )
+
+
+def treatment_objectives(treatment: pd.Series) -> tuple[Objective, ...]:
+    """The objectives a treatment (a row of ``data.treatments``) selects on: those its
+    settings name, or the paper's; an objective no longer registered keeps its name, with
+    the direction unknown ("?")."""
+    names = treatment.get("objectives")
+    names = list(names) if isinstance(names, list | tuple) else []
+    found = []
+    for name in names:
+        try:
+            found.append(objectives_named([name])[0])
+        except ValueError:
+            found.append(Objective(name, "?"))
+    return tuple(found) or objectives_named(())
+
+
+def objectives_table(data: ExperimentData) -> pd.DataFrame:
+    """One row per treatment and objective it selects on: the direction, and the mean and the
+    best (the largest of one maximised, the smallest of one minimised) of the objective over
+    the members each treatment is shown with (``display_populations``)."""
+    members = data.display_populations()
+    rows = []
+    for _, treatment in data.treatments.iterrows():
+        mine = members[members["treatment"] == treatment["name"]] if not members.empty else members
+        for objective in treatment_objectives(treatment):
+            values = _objective_column(mine, objective.name)
+            best = values.max() if objective.direction == "max" else values.min()
+            rows.append({
+                "treatment": treatment["name"],
+                "objective": objective.name,
+                "direction": {"max": "maximised", "min": "minimised"}.get(objective.direction, "?"),
+                "mean": float(values.mean()) if len(values) else math.nan,
+                "best": float(best) if len(values) else math.nan,
+            })
+    return pd.DataFrame(rows, columns=["treatment", "objective", "direction", "mean", "best"])
+
+
+def _objective_column(members: pd.DataFrame, name: str) -> pd.Series:
+    """The members' values of objective ``name`` (from their ``objectives``, else the column
+    of that name), missing ones dropped."""
+    stored = members["objectives"] if "objectives" in members.columns else pd.Series(dtype=object)
+    values = [o.get(name) if isinstance(o, dict) else None for o in stored]
+    if name in members.columns:
+        values = [v if v is not None else c for v, c in zip(values or [None] * len(members),
+                                                             members[name], strict=True)]
+    return pd.Series(values, dtype=float).dropna()
 
 
 def _cycles_text(cycles: int, max_seconds: float | None) -> str:
@@ -512,6 +560,12 @@ def build_document(
     note = sample_size_warning(data)
     if note is not None:
         doc.paragraph(f"Warning: {note}.")
+    doc.heading("Objectives")
+    doc.paragraph(
+        "What each treatment's selection optimises, with each objective's mean and best over "
+        "the members the treatment is shown with (the same generation as the summary)."
+    )
+    doc.table(objectives_table(data))
     doc.heading("Summary")
     doc.paragraph(
         f"Mean over repetitions with its {INTERVAL} interval, at each generation the "

@@ -58,6 +58,8 @@ from softevo.evolution.selection import (
     Objective,
     evosoro_survivors,
     objective_matrix,
+    objective_named,
+    objective_values,
     select_survivors,
 )
 from softevo.sim import worlds
@@ -73,7 +75,8 @@ class EvolutionConfig:
     youngs_modulus: Pa; cycles: actuation cycles per evaluation, and max_seconds, when given,
     the most seconds an evaluation lasts (``genotype.duration_of``); environment: the starting
     world (a ``sim.worlds`` name); model: the physics model of the scenes (``sim.scene.MODELS``);
-    descriptors: compute shape descriptors at each tell.
+    descriptors: compute shape descriptors at each tell; objectives: what selection optimises
+    (``selection.Objective``s; age is added in ``mode="afpo"``).
     """
 
     population_size: int = 12
@@ -95,6 +98,10 @@ class EvolutionConfig:
             raise ValueError(f"model must be one of {MODELS} (got {self.model!r})")
         if self.population_size < 1:
             raise ValueError("population_size must be >= 1")
+        # an objective given by name and direction alone is the registered one of that name
+        resolved = tuple(o if o.value is not None else objective_named(o.name, o.direction)
+                         for o in self.objectives)
+        object.__setattr__(self, "objectives", resolved)
 
     @property
     def selection_objectives(self) -> tuple[Objective, ...]:
@@ -121,7 +128,7 @@ class EvolutionConfig:
         if "encoding" in data:
             data["encoding"] = EncodingConfig.from_dict(data["encoding"])
         if "objectives" in data:
-            data["objectives"] = tuple(Objective(n, d) for n, d in data["objectives"])
+            data["objectives"] = tuple(objective_named(n, d) for n, d in data["objectives"])
         return cls(**data)
 
 
@@ -248,11 +255,7 @@ class Evolution:
 
     def _record(self, ind: Individual, evaluation: Evaluation) -> None:
         phenotype = ind.phenotype(self.config.encoding)
-        ind.objectives = {
-            "distance": evaluation.distance,
-            "active_share": phenotype.active_share,
-            "voxel_count": float(phenotype.voxel_count),
-        }
+        ind.objectives = objective_values(self.config.objectives, evaluation, phenotype)
         ind.environment = self.environment
         ind.stable, ind.error = evaluation.stable, evaluation.error
         ind.evaluated_generation = self.generation

@@ -65,7 +65,8 @@ def score(distance: float, stable: bool, reason: str | None = None) -> Evaluatio
 class Individual:
     """One robot in a run. Evaluation fields stay None until the individual is told a result.
 
-    objectives: {"distance", "active_share", "voxel_count"} (plus "age" at selection time).
+    objectives: {name: value} of the run's configured objectives (``selection.objective_values``;
+    the paper's: distance, active_share, voxel_count), plus "age" at selection time.
     descriptors: see ``evolution.descriptors.describe``.
     evaluated_generation: the generation whose ``tell`` gave the current evaluation.
     """

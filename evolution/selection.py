@@ -14,19 +14,36 @@ Two survivor selections:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 
+def _distance(evaluation: Any, phenotype: Any) -> float:
+    return evaluation.distance
+
+
+def _active_share(evaluation: Any, phenotype: Any) -> float:
+    return phenotype.active_share
+
+
+def _voxel_count(evaluation: Any, phenotype: Any) -> float:
+    return float(phenotype.voxel_count)
+
+
 @dataclass(frozen=True)
 class Objective:
-    """An objective declared as data: a name looked up in an individual's objectives and
-    ``direction`` "max" or "min"."""
+    """An objective declared as data: ``name`` (the key in an individual's objectives),
+    ``direction`` "max" or "min", and ``value(evaluation, phenotype) -> float``, how its value
+    is computed from an ``individual.Evaluation`` and the individual's ``genotype.Phenotype``
+    (None: the value is given, as ``age`` is at selection time). Two objectives are equal
+    when name and direction are."""
 
     name: str
     direction: str
+    value: Callable[[Any, Any], float] | None = field(default=None, compare=False, repr=False)
 
     def sign(self) -> float:
         """+1 for "min", -1 for "max": multiplying by it gives minimisation form."""
@@ -36,11 +53,64 @@ class Objective:
 
 
 PAPER_OBJECTIVES: tuple[Objective, ...] = (
-    Objective("distance", "max"),
-    Objective("active_share", "min"),
-    Objective("voxel_count", "min"),
+    Objective("distance", "max", _distance),
+    Objective("active_share", "min", _active_share),
+    Objective("voxel_count", "min", _voxel_count),
 )
 AGE_OBJECTIVE = Objective("age", "min")
+
+OBJECTIVES: dict[str, Objective] = {o.name: o for o in PAPER_OBJECTIVES}
+"""The objectives a run may be configured with, by name: the paper's and any registered."""
+
+
+def register_objective(objective: Objective) -> Objective:
+    """Make ``objective`` available by name to run configurations (``objectives_named``,
+    ``EvolutionConfig.from_dict``, a treatment's ``objectives``); ValueError for a name that
+    is not an identifier or is already taken, the reserved ``age``, a bad direction or no
+    ``value``."""
+    objective.sign()
+    if not objective.name.isidentifier() or len(objective.name) > 64:
+        raise ValueError(f"objective name {objective.name!r}: an identifier of at most 64 characters")
+    if objective.value is None:
+        raise ValueError(f"objective {objective.name}: needs a value function")
+    if objective.name in OBJECTIVES or objective.name == AGE_OBJECTIVE.name:
+        raise ValueError(f"objective {objective.name!r} is already registered")
+    OBJECTIVES[objective.name] = objective
+    return objective
+
+
+def unregister_objective(name: str) -> None:
+    """Undo ``register_objective`` (the paper's objectives stay)."""
+    if any(o.name == name for o in PAPER_OBJECTIVES):
+        raise ValueError(f"objective {name!r} is one of the paper's")
+    OBJECTIVES.pop(name, None)
+
+
+def objective_named(name: str, direction: str | None = None) -> Objective:
+    """The registered objective ``name``; ValueError for an unknown name or a ``direction``
+    other than the registered one."""
+    objective = OBJECTIVES.get(name)
+    if objective is None:
+        raise ValueError(f"unknown objective {name!r}; registered: {', '.join(OBJECTIVES)}")
+    if direction is not None and direction != objective.direction:
+        raise ValueError(f"objective {name!r} is {objective.direction}imised (got {direction!r})")
+    return objective
+
+
+def objectives_named(names: Sequence[str]) -> tuple[Objective, ...]:
+    """The registered objectives of ``names``, in order; the paper's when ``names`` is empty."""
+    return tuple(objective_named(n) for n in names) if names else PAPER_OBJECTIVES
+
+
+def objective_values(objectives: Sequence[Objective], evaluation: Any, phenotype: Any) -> dict[str, float]:
+    """{name: value} of each objective for one evaluation of one phenotype, in order: the
+    one place an individual's objectives are computed."""
+    values = {}
+    for objective in objectives:
+        if objective.value is None:
+            raise ValueError(f"objective {objective.name}: has no value function")
+        values[objective.name] = objective.value(evaluation, phenotype)
+    return values
 
 
 def objective_matrix(

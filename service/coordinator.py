@@ -179,8 +179,17 @@ def _individual_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
     }
 
 
+def _traits(run: ActiveRun, ind) -> dict[str, float]:
+    """The individual's objectives over the phenotype's active_share and voxel_count: the
+    paper's three columns of its evaluation row and summary, whichever objectives its run
+    selects on (a treatment's objectives always include distance)."""
+    phenotype = ind.phenotype(run.algorithm.config.encoding)
+    return {"active_share": phenotype.active_share, "voxel_count": float(phenotype.voxel_count),
+            **ind.objectives}
+
+
 def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
-    objectives, descriptors = ind.objectives, ind.descriptors or {}
+    objectives, descriptors = _traits(run, ind), ind.descriptors or {}
     return {
         "local_id": ind.id,
         "generation": run.next_generation,
@@ -195,6 +204,7 @@ def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
         "branching": descriptors.get("branching"),
         "shape_entropy": descriptors.get("shape_entropy"),
         "descriptors": ind.descriptors,
+        "objectives": dict(ind.objectives),
         "stable": bool(ind.stable),
         "error": ind.error,
         "seconds": result.get("seconds") if result else None,
@@ -246,8 +256,8 @@ def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
         # empty body (survivors are never simulated again in their world: Evolution.ask)
         "reused": run.algorithm.not_simulated["reused"],
         "empty_bodies": run.algorithm.not_simulated["empty"],
-        "mean_voxel_count": float(np.mean([i.objectives["voxel_count"] for i in population])),
-        "mean_active_share": float(np.mean([i.objectives["active_share"] for i in population])),
+        "mean_voxel_count": float(np.mean([_traits(run, i)["voxel_count"] for i in population])),
+        "mean_active_share": float(np.mean([_traits(run, i)["active_share"] for i in population])),
         "best_local_id": population[int(np.argmax(distances))].id,
     }
 

@@ -8,6 +8,7 @@ from sqlalchemy import Connection, Engine
 
 from softevo.errors import UserError
 from softevo.evolution.afpo import EvolutionConfig
+from softevo.evolution.selection import objectives_named
 from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment, unfinished_work
 from softevo.service.limits import check_experiment, generation_cost
 from softevo.service.settings import Settings
@@ -25,7 +26,10 @@ def create(
 ) -> tuple[int, list[int]]:
     """Store an experiment with one pending run per repetition; return (id, run ids).
     UserError if it is over the budget (``service.limits.check_experiment``: runs per
-    request, voxel-steps per request and, with the server's unfinished runs, per server)."""
+    request, voxel-steps per request and, with the server's unfinished runs, per server) or
+    names an objective not registered in this process."""
+    for t in treatments:
+        run_objectives(t)
     new = [
         NewTreatment(
             t.name,
@@ -72,6 +76,15 @@ def create_paper(
     return create(engine, name or f"{preset}-{scale}", treatments, preset=preset, scale=scale)
 
 
+def run_objectives(treatment: Treatment):
+    """The registered objectives ``treatment`` names (``evolution.selection.objectives_named``;
+    the paper's when it names none); UserError for a name not registered in this process."""
+    try:
+        return objectives_named(treatment.objectives)
+    except ValueError as exc:
+        raise UserError(f"treatment {treatment.name}: {exc}") from None
+
+
 def evolution_config(treatment: Treatment, seed: int):
     """The ``evolution.EvolutionConfig`` of one run of ``treatment``.
 
@@ -89,4 +102,5 @@ def evolution_config(treatment: Treatment, seed: int):
         descriptors=False,
         model=treatment.model,
         max_seconds=treatment.max_seconds,
+        objectives=run_objectives(treatment),
     )

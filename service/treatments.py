@@ -95,6 +95,7 @@ class Treatment:
     control_mapping: str = "linear"
     body_rule: str = "any"
     max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
+    objectives: tuple[str, ...] = ()  # objective names, distance among them (empty: the paper's)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -144,6 +145,10 @@ class Treatment:
             raise UserError(f"stiffness range must be two numbers lo < hi within {low}..{high} MPa "
                             f"(got {bounds!r})")
         self._validate_switch()
+        if not all(isinstance(n, str) and n for n in self.objectives):
+            raise UserError(f"objectives must be names (got {self.objectives!r})")
+        if self.objectives and "distance" not in self.objectives:
+            raise UserError(f"objectives must include distance (got {', '.join(self.objectives)})")
 
     def _validate_switch(self) -> None:
         over = self.switch_over
@@ -212,6 +217,10 @@ class Treatment:
         settings = dataclasses.asdict(self)
         settings["workspace"] = list(self.workspace)
         settings["stiffness_range_mpa"] = list(self.stiffness_range_mpa)
+        if self.objectives:
+            settings["objectives"] = list(self.objectives)
+        else:
+            del settings["objectives"]
         return settings
 
     @classmethod
@@ -226,6 +235,8 @@ class Treatment:
             values["workspace"] = tuple(int(n) for n in values["workspace"])
         if "stiffness_range_mpa" in values:
             values["stiffness_range_mpa"] = tuple(values["stiffness_range_mpa"])
+        if "objectives" in values:
+            values["objectives"] = tuple(values["objectives"])
         return cls(**values)
 
 

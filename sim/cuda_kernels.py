@@ -259,7 +259,7 @@ def rollout_kernel(shared: bool, threads: int):
                 finished = True
                 break
 
-            # actuate
+            # actuate (``kernels.actuate``)
             time = (k - act_start) * dt
             s_wt, c_wt = math.sin(omega * time), math.cos(omega * time)
             for v in range(t, n, nt):
@@ -274,7 +274,8 @@ def rollout_kernel(shared: bool, threads: int):
                     size[v] = actuated_size(L, amp, w)
             cuda.syncthreads()
 
-            # links, in the co-rotational frame each is in (mode +1 small, -1 large, 0 new)
+            # link_forces, first half (``kernels.link_kernel`` and ``change_frames``): each link
+            # in the co-rotational frame it is in (mode +1 small, -1 large, 0 new)
             for j in range(t, m, nt):
                 a, b = lneg[l0 + j], lpos[l0 + j]
                 axis = laxis[l0 + j]
@@ -317,7 +318,8 @@ def rollout_kernel(shared: bool, threads: int):
                     e2y, e2z)
                 if link_diverged(dx, rest):
                     flag[0] = 1.0
-            # surface-mesh vertices: the mean of the corners of the voxels that share each
+            # mesh drag, first half (``kernels.mesh_drag_kernel``): surface-mesh vertices, the
+            # mean of the corners of the voxels that share each
             if mesh_drag > 0.0:
                 for kv in range(t, nv, nt):
                     sx, sy, sz, count = 0.0, 0.0, 0.0, 0
@@ -338,8 +340,8 @@ def rollout_kernel(shared: bool, threads: int):
                     vert[3 * (m0 + kv)] = sx / count
                     vert[3 * (m0 + kv) + 1] = sy / count
                     vert[3 * (m0 + kv) + 2] = sz / count
-            # the self-contact candidates, rebuilt once surface voxels may have closed half
-            # the margin and did (as ``kernels.collide_kernel``)
+            # collide, first half (``kernels.collide_kernel``): the self-contact candidates,
+            # rebuilt once surface voxels may have closed half the margin and did
             if collide and 2.0 * travel >= margin:
                 most = 0.0
                 for q in range(t, ns, nt):
@@ -379,7 +381,8 @@ def rollout_kernel(shared: bool, threads: int):
                     travel = 0.0
             cuda.syncthreads()
 
-            # gather: each voxel's force and moment from its links, contacts and facets
+            # the second halves, gathered per voxel: link_forces' sums (``kernels.link_sums``),
+            # collide's contacts and the mesh drag's facets
             for v in range(t, n, nt):
                 p0, p1, p2 = VL[6 * v + 1], VL[6 * v + 3], VL[6 * v + 5]  # v the negative end
                 q0, q1, q2 = VL[6 * v], VL[6 * v + 2], VL[6 * v + 4]  # v the positive end
@@ -427,7 +430,7 @@ def rollout_kernel(shared: bool, threads: int):
                 force[3 * v], force[3 * v + 1], force[3 * v + 2] = fx, fy, fz
             cuda.syncthreads()
 
-            # every voxel's own forces and its step
+            # voxel_update (``kernels.voxel_kernel``): every voxel's own forces and its step
             fastest = 0.0
             sane_all = True
             for v in range(t, n, nt):

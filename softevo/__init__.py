@@ -68,13 +68,16 @@ def evolve(
     cycles: int = 4,
     seed: int = 0,
     switch_at: int | None = None,
+    objectives: tuple[str, ...] = (),
     progress: bool = False,
 ):
     """A local run in memory (no database) of the treatment ``softevo run`` would store:
     AFPO over CPPN robots in ``environment`` (``land``, ``water``, or an abrupt transition
     ``land-water`` / ``water-land`` at ``switch_at``, default half-way) at ``stiffness_mpa``,
-    for ``generations`` generations (0 .. generations - 1). The settings are checked as the
-    CLI checks them (``service.treatments.Treatment``, ``service.limits.check_workspace``):
+    for ``generations`` generations (0 .. generations - 1), selecting on ``objectives`` (names
+    of registered objectives, ``evolution.selection.OBJECTIVES``; empty: the paper's). The
+    settings are checked as the CLI checks them (``service.treatments.Treatment``,
+    ``service.limits.check_workspace``):
     a ``softevo.errors.UserError`` says what is wrong. Returns an
     ``evolution.runner.LocalRun``: ``.evolution`` (its ``population`` holds the survivors
     with their objectives) and ``.history`` (one row per generation: world, best and mean
@@ -96,6 +99,7 @@ def evolve(
         cycles=cycles,
         seed=seed,
         switch_at=switch_at,
+        objectives=tuple(objectives),
     )
     check_workspace(treatment.workspace)
     config = dataclasses.replace(evolution_config(treatment, seed), descriptors=True)

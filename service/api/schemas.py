@@ -98,6 +98,11 @@ class WorldOut(BaseModel):
 # -- requests ------------------------------------------------------------------------------
 
 
+ObjectiveName = Annotated[
+    str, StringConstraints(min_length=1, max_length=64, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+]  # an objective's name (evolution.selection.OBJECTIVES)
+
+
 class TreatmentIn(Strict):
     """One treatment (docs/spec.md section 5); every field but environment and stiffness_mpa has a
     default. Repetition r runs with seed ``seed + r``."""
@@ -151,6 +156,10 @@ class TreatmentIn(Strict):
     stiffness_range_mpa: list[Annotated[float, Field(ge=0.001, le=10.0, allow_inf_nan=False)]] = Field(
         list(Treatment.stiffness_range_mpa), min_length=2, max_length=2,
         description="[low, high] MPa of an evolved stiffness (default the paper's S1..S5)")
+    objectives: list[ObjectiveName] = Field(
+        [], max_length=16,
+        description="names of the objectives selection optimises, each a registered one "
+        "(evolution.selection.OBJECTIVES; empty: the paper's distance, active_share, voxel_count)")
 
 
 class ExperimentIn(Strict):
@@ -283,6 +292,11 @@ class ExperimentOut(BaseModel):
 
 
 class Objectives(BaseModel):
+    """Every objective of the evaluation's run by name: the paper's three, and any other the
+    treatment names (``TreatmentIn.objectives``) as an extra field."""
+
+    model_config = ConfigDict(extra="allow")
+
     distance: float = Field(description="voxel lengths (maximised)")
     active_share: float = Field(description="active voxels / voxels (minimised)")
     voxel_count: int = Field(description="voxels (minimised)")
@@ -339,6 +353,8 @@ class EvaluationOut(BaseModel):
     branching: float | None
     shape_entropy: float | None
     descriptors: dict[str, Any] | None
+    objectives: dict[str, float] | None = Field(
+        description="every objective of the evaluation's run, by name (None: not recorded)")
     stable: bool
     error: str | None
     seconds: float | None

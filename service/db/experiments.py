@@ -365,7 +365,7 @@ def _end_members(conn: Connection, run_ids: list[int], wanted: list[int] | None)
 def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int] | None) -> pd.DataFrame:
     """Every evaluation of the individuals in ``_end_members`` (of every individual of the
     runs when ``wanted`` is None), with the export's individuals columns
-    (``INDIVIDUAL_COLUMNS``)."""
+    (``INDIVIDUAL_COLUMNS``) and ``objectives`` ({name: value} of the run's objectives)."""
     evaluations = Evaluation.__table__
     members, runs = PopulationMember.__table__, Run.__table__
     if wanted is None:
@@ -376,10 +376,10 @@ def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int] 
             .join(runs, members.c.run_id == runs.c.id)
             .where(_end_member_filter(run_ids, wanted))
         )
-    result = conn.execute(evaluation_rows(where))
+    result = conn.execute(evaluation_rows(where).add_columns(evaluations.c.objectives))
     frame = pd.DataFrame(result.fetchall(), columns=list(result.keys()))
     frame["parent_id"] = frame["parent_id"].astype("Int64")
-    return frame[INDIVIDUAL_COLUMNS]
+    return frame[[*INDIVIDUAL_COLUMNS, "objectives"]]
 
 
 def _generations_frame(conn: Connection, run_ids: list[int]) -> pd.DataFrame:

@@ -18,6 +18,8 @@ from softevo.service.db.rows import dict_rows
 from softevo.service.db.runs import run_row
 from softevo.service.treatments import Treatment as Settings
 
+PAPER_COLUMNS = ("distance", "active_share", "voxel_count")  # objectives stored as columns too
+
 
 def individual_run_id(conn: Connection, individual_id: int) -> int | None:
     """The run of an individual, or None if there is no such individual."""
@@ -43,12 +45,11 @@ def evaluation_fields(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def objectives(evaluation: dict[str, Any]) -> dict[str, Any]:
-    """The three objectives of an evaluation row."""
-    return {
-        "distance": evaluation["distance"],
-        "active_share": evaluation["active_share"],
-        "voxel_count": evaluation["voxel_count"],
-    }
+    """The objectives of an evaluation row, {name: value}: the paper's three columns, then
+    every other objective its run selected on (its ``objectives`` JSON)."""
+    columns = {name: evaluation[name] for name in PAPER_COLUMNS}
+    stored = evaluation.get("objectives") or {}
+    return {**columns, **{name: value for name, value in stored.items() if name not in columns}}
 
 
 def evaluations_of(conn: Connection, individual_id: int) -> list[dict[str, Any]]:

@@ -62,6 +62,7 @@ EVALUATION_FIELDS = (
     "age",
     *TRAITS,
     "descriptors",
+    "objectives",
     "stable",
     "error",
     "seconds",
@@ -146,8 +147,11 @@ class Individual(Base):
 class Evaluation(Base):
     """One evaluation of an individual: at birth, and again when the environment switches.
 
-    Objectives: ``distance`` (maximised, voxel lengths), ``active_share`` and ``voxel_count``
-    (minimised). A failed or unstable evaluation keeps its ``error`` and the worst fitness.
+    ``objectives``: {name: value} of every objective the run selects on (its treatment's
+    ``objectives``, ``evolution.selection.OBJECTIVES``), so a new objective needs no new
+    column. The paper's three are also columns: ``distance`` (maximised, voxel lengths),
+    ``active_share`` and ``voxel_count`` (minimised). A failed or unstable evaluation keeps
+    its ``error`` and the worst fitness.
     """
 
     __tablename__ = "evaluations"
@@ -171,6 +175,7 @@ class Evaluation(Base):
     branching: Mapped[float | None] = mapped_column(Float)
     shape_entropy: Mapped[float | None] = mapped_column(Float)
     descriptors: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    objectives: Mapped[dict[str, float] | None] = mapped_column(JSON)
     stable: Mapped[bool] = mapped_column(Boolean, default=True)
     error: Mapped[str | None] = mapped_column(Text)
     seconds: Mapped[float | None] = mapped_column(Float)

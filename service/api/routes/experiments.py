@@ -80,6 +80,7 @@ def _treatments(body: ExperimentIn):
             evolve_stiffness=t.evolve_stiffness,
             frequency_per_voxel=t.frequency_per_voxel,
             stiffness_range_mpa=tuple(t.stiffness_range_mpa),
+            objectives=tuple(t.objectives),
         )
         for t in body.treatments
     ]
