@@ -86,7 +86,9 @@ def worker(
         str | None, typer.Option("--engine", help="numba, cuda or sleep; default $SOFTEVO_ENGINE or numba")
     ] = None,
     device: Annotated[
-        str | None, typer.Option("--device", help="CUDA device (cuda:0, cuda:1, ...), or the sleep engine's x<factor>; default $SOFTEVO_DEVICE")
+        str | None,
+        typer.Option("--device", help="CUDA device (cuda:0, cuda:1, ...), or the sleep engine's "
+                     "x<factor>; default $SOFTEVO_DEVICE"),
     ] = None,
 ) -> None:
     """Evaluate genomes for a coordinator: an RQ worker on the Redis of $SOFTEVO_REDIS_URL.

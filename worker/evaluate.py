@@ -25,8 +25,8 @@ ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 def engine_options() -> dict[str, Any]:
     """The engine this process evaluates on, as keyword arguments of ``sim.simulate_many``:
     ``$SOFTEVO_ENGINE`` (``numba``, the default, ``cuda`` or ``sleep``) and ``$SOFTEVO_DEVICE``
-    (the CUDA device, e.g. ``cuda:0``, or the sleep engine's ``x<factor>``). Empty for the default engine, so its calls are
-    exactly as they were."""
+    (the CUDA device, e.g. ``cuda:0``, or the sleep engine's ``x<factor>``). Empty for the
+    default engine, so its calls are exactly as they were."""
     engine = os.environ.get(ENGINE_ENV) or "numba"
     if engine == "numba":
         return {}
