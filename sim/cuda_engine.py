@@ -249,9 +249,8 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
     args = [cuda.to_device(x) if isinstance(x, np.ndarray) else x for x in host.values()]
     a = SimpleNamespace(**dict(zip(host, args, strict=True)))
     counts, links = np.diff(batch.voff), np.diff(batch.loff)
-    voff = batch.voff
     n_frames = batch.iparams[:, I_N_FRAMES].astype(np.int64)
-    froff = _offsets(n_frames * counts)
+    froff = host["froff"].astype(np.int64)
 
     threads = threads_per_block()
     sim_mode = simulator()
@@ -263,7 +262,9 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
     total = int(batch.iparams[:, I_STEPS].max(initial=0)) + 1
     chunk = total if sim_mode else max(1, int(chunk or CHUNK_STEPS))
 
-    limit = SHARED_DEFAULT if sim_mode or need.max(initial=0) <= SHARED_DEFAULT else None
+    # bytes a block may take: anything on the simulator; on a GPU the default, or more once
+    # the kernel has opted in (``_shared_limit``, after its first compilation)
+    limit = need.max() if sim_mode else (SHARED_DEFAULT if need.max() <= SHARED_DEFAULT else None)
     switch = sys.getswitchinterval()
     if sim_mode:  # the simulator's threads meet at every sync: hand the GIL over often
         sys.setswitchinterval(SIMULATOR_SWITCH_SECONDS)
@@ -280,9 +281,7 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
                     limit = _shared_limit(in_shared, dev, int(need.max()))
                 except Exception:  # no opt-in here: the robots beyond the default run in global memory
                     limit = SHARED_DEFAULT
-            fits = need <= (need.max(initial=0) if sim_mode else limit)
-            if memory == "global":
-                fits = np.zeros(R, dtype=bool)
+            fits = need <= limit if memory == "auto" else np.zeros(R, dtype=bool)
             for kernel, mask in ((in_shared, fits & running), (in_global, ~fits & running)):
                 which = np.flatnonzero(mask).astype(np.int32)
                 if len(which):
@@ -300,6 +299,6 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
     com_count = ctl[:, ck.C_NCOM].astype(np.int64)
     if (ctl[:, ck.C_RUNNING] != 0).any():
         raise RuntimeError("cuda engine: robots still running after their step count")
-    return BatchOutput(seconds, voff, froff, n_frames, a.pos.copy_to_host().reshape(-1, 3),
+    return BatchOutput(seconds, batch.voff, froff, n_frames, a.pos.copy_to_host().reshape(-1, 3),
                        a.frames.copy_to_host()[: 3 * int(froff[-1])].reshape(-1, 3), com,
                        com_count, status, done)

@@ -31,41 +31,11 @@ from numba import cuda, float64
 from numba.cuda import config as cuda_config
 
 from . import physics
-from .kernels import COLLIDE_MARGIN, FRICTION_EPS, STATUS_NONFINITE, STATUS_STRAIN
+from .kernels import COLLIDE_MARGIN, STATUS_NONFINITE, STATUS_STRAIN
 from .system import (
     COM_SAMPLES,
-    ENV_LAND,
-    ENV_WATER,
-    F_A1,
-    F_A2,
-    F_AMP,
-    F_B1,
-    F_B2,
-    F_B3,
-    F_CONTACT_DAMP,
-    F_CONTACT_REACH,
-    F_CONTACT_STIFF,
-    F_DRAG,
-    F_DT,
-    F_GRAVITY,
-    F_L,
-    F_MESH_DRAG,
-    F_MUK,
-    F_MUS,
-    F_OMEGA,
     FLAG_ACTIVE,
     FLAG_FIXED,
-    FRICTION_VOXCAD,
-    I_ACT_START,
-    I_COLLIDE,
-    I_COM_EVERY,
-    I_ENV,
-    I_FREQ_FIELD,
-    I_FRICTION,
-    I_RECORD,
-    I_SETTLE_STEPS,
-    I_STEPS,
-    I_WAVE,
     N_FPARAMS,
     N_IPARAMS,
     N_VCONST,
@@ -78,6 +48,7 @@ from .system import (
     V_MASS,
     V_OMEGA,
     V_WEIGHT,
+    params_of,
 )
 
 SIMULATOR = bool(cuda_config.ENABLE_CUDASIM)
@@ -110,7 +81,8 @@ actuated_size, link_geometry, small_frame = phys.actuated_size, phys.link_geomet
 large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
 link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
 contact_overlap = phys.contact_overlap
-mesh_corner, voxel_update = phys.mesh_corner, phys.voxel_update
+mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
+params = device(params_of)
 
 
 @device
@@ -195,19 +167,10 @@ def rollout_kernel(shared: bool, threads: int):
         v0, l0, s0, m0 = voff[r], loff[r], soff[r], moff[r]
         n, m, ns = voff[r + 1] - v0, loff[r + 1] - l0, soff[r + 1] - s0
         nv = moff[r + 1] - m0
-        f0 = fp[r * N_FPARAMS:(r + 1) * N_FPARAMS]
-        i0 = ip[r * N_IPARAMS:(r + 1) * N_IPARAMS]
-        L, dt, amp, omega = f0[F_L], f0[F_DT], f0[F_AMP], f0[F_OMEGA]
-        a1, a2, b1, b2, b3 = f0[F_A1], f0[F_A2], f0[F_B1], f0[F_B2], f0[F_B3]
-        mesh_drag = f0[F_MESH_DRAG]
-        c_reach, c_stiff, c_damp = f0[F_CONTACT_REACH], f0[F_CONTACT_STIFF], f0[F_CONTACT_DAMP]
-        steps, settle_steps, record = i0[I_STEPS], i0[I_SETTLE_STEPS], i0[I_RECORD]
-        wave, collide, com_every = i0[I_WAVE], i0[I_COLLIDE], i0[I_COM_EVERY]
-        freq_field, act_start = i0[I_FREQ_FIELD], i0[I_ACT_START]
-        drag = f0[F_DRAG]
-        water = i0[I_ENV] == ENV_WATER and drag > 0.0
-        world = (dt, f0[F_GRAVITY], drag, water, i0[I_ENV] == ENV_LAND, f0[F_MUS], f0[F_MUK],
-                 i0[I_FRICTION] == FRICTION_VOXCAD, FRICTION_EPS * L / dt)
+        p = params(fp[r * N_FPARAMS:(r + 1) * N_FPARAMS], ip[r * N_IPARAMS:(r + 1) * N_IPARAMS])
+        L, dt, amp, omega = p.L, p.dt, p.amp, p.omega
+        steps, record, wave, collide = p.steps, p.record, p.wave, p.collide
+        world = voxel_world(p)
         margin = COLLIDE_MARGIN * L
 
         # this robot's slices (local indices from here on)
@@ -249,8 +212,8 @@ def rollout_kernel(shared: bool, threads: int):
                 base = froff[r] + (k // record) * n
                 for q in range(t, 3 * n, nt):
                     frames[3 * base + q] = pos[q]
-            after = k - settle_steps
-            if after >= 0 and after % com_every == 0 and n_com < COM_ROWS - 1:
+            after = k - p.settle_steps
+            if after >= 0 and after % p.com_every == 0 and n_com < COM_ROWS - 1:
                 if t == 0:
                     com_traj[(r * COM_ROWS + n_com) * 4] = k * dt
                     com_sample(n, VC, pos, com_traj[r * COM_ROWS * 4:(r + 1) * COM_ROWS * 4], n_com)
@@ -260,12 +223,12 @@ def rollout_kernel(shared: bool, threads: int):
                 break
 
             # actuate (``kernels.actuate``)
-            time = (k - act_start) * dt
+            time = (k - p.act_start) * dt
             s_wt, c_wt = math.sin(omega * time), math.cos(omega * time)
             for v in range(t, n, nt):
                 size[v] = L
                 if time >= 0.0 and FL[v] & FLAG_ACTIVE:
-                    if freq_field:
+                    if p.freq_field:
                         w = waveform(wave, VC[v * N_VCONST + V_OMEGA] * time + phase[v0 + v])
                     elif wave == 0:  # sin(wt + phi) without libm per voxel
                         w = s_wt * cos_phase[v0 + v] + c_wt * sin_phase[v0 + v]
@@ -314,13 +277,13 @@ def rollout_kernel(shared: bool, threads: int):
                 O = LINK_LOADS * j
                 (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
                  loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
-                    W, lstiff[l0 + j], rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x,
+                    W, lstiff[l0 + j], rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y, e1z, e2x,
                     e2y, e2z)
                 if link_diverged(dx, rest):
                     flag[0] = 1.0
             # mesh drag, first half (``kernels.mesh_drag_kernel``): surface-mesh vertices, the
             # mean of the corners of the voxels that share each
-            if mesh_drag > 0.0:
+            if p.mesh_drag > 0.0:
                 for kv in range(t, nv, nt):
                     sx, sy, sz, count = 0.0, 0.0, 0.0, 0
                     for slot in range(8):
@@ -357,7 +320,7 @@ def rollout_kernel(shared: bool, threads: int):
                 travel = math.sqrt(red[0])
                 cuda.syncthreads()
                 if not (2.0 * travel < margin):
-                    reach = 2.0 * c_reach * L * (1.0 + amp) + margin
+                    reach = 2.0 * p.contact_reach * L * (1.0 + amp) + margin
                     reach2 = reach * reach
                     for q in range(t, ns, nt):
                         i = surface[s0 + q]
@@ -400,7 +363,7 @@ def rollout_kernel(shared: bool, threads: int):
                         dx = pos[3 * j] - pos[3 * v]
                         dy = pos[3 * j + 1] - pos[3 * v + 1]
                         dz = pos[3 * j + 2] - pos[3 * v + 2]
-                        overlap, dist = contact_overlap(dx, dy, dz, size[v], size[j], c_reach)
+                        overlap, dist = contact_overlap(dx, dy, dz, size[v], size[j], p.contact_reach)
                         if overlap <= 0.0 or dist == 0.0:
                             continue
                         inv_mj = VC[j * N_VCONST + V_INV_MASS]
@@ -410,9 +373,9 @@ def rollout_kernel(shared: bool, threads: int):
                             lm[3 * j + 2] * inv_mj - lm[3 * v + 2] * inv_mv,
                             VC[v * N_VCONST + V_KFLOOR], VC[j * N_VCONST + V_KFLOOR],
                             VC[v * N_VCONST + V_CCOLL], VC[j * N_VCONST + V_CCOLL],
-                            c_stiff, c_damp)
+                            p.contact_stiff, p.contact_damp)
                         fx, fy, fz = fx - px, fy - py, fz - pz
-                if mesh_drag > 0.0:
+                if p.mesh_drag > 0.0:
                     for tri in range(fstart[v0 + v], fstart[v0 + v] + fcount[v0 + v]):
                         va, vb, vcn = (m0 + mface[4 * tri], m0 + mface[4 * tri + 1],
                                        m0 + mface[4 * tri + 2])
@@ -424,7 +387,7 @@ def rollout_kernel(shared: bool, threads: int):
                         wz = vert[3 * vcn + 2] - vert[3 * va + 2]
                         nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
                         dfx, dfy, dfz = facet_drag(
-                            mesh_drag, lm[3 * v] * nx + lm[3 * v + 1] * ny + lm[3 * v + 2] * nz,
+                            p.mesh_drag, lm[3 * v] * nx + lm[3 * v + 1] * ny + lm[3 * v + 2] * nz,
                             VC[v * N_VCONST + V_INV_MASS], nx, ny, nz)
                         fx, fy, fz = fx + dfx, fy + dfy, fz + dfz
                 force[3 * v], force[3 * v + 1], force[3 * v + 2] = fx, fy, fz

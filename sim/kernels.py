@@ -76,40 +76,8 @@ from numba.extending import intrinsic
 from . import physics
 from .physics import MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine reports MAX_STRAIN)
 from .system import (
-    ENV_LAND,
-    ENV_WATER,
-    F_A1,
-    F_A2,
-    F_AMP,
-    F_B1,
-    F_B2,
-    F_B3,
-    F_CONTACT_DAMP,
-    F_CONTACT_REACH,
-    F_CONTACT_STIFF,
-    F_DRAG,
-    F_DT,
-    F_GRAVITY,
-    F_L,
-    F_MESH_DRAG,
-    F_MUK,
-    F_MUS,
-    F_OMEGA,
-    F_SETTLE,
     FLAG_ACTIVE,
     FLAG_FIXED,
-    FRICTION_VOXCAD,
-    I_ACT_START,
-    I_COLLIDE,
-    I_COM_EVERY,
-    I_ENV,
-    I_FREQ_FIELD,
-    I_FRICTION,
-    I_N_FRAMES,
-    I_RECORD,
-    I_SETTLE_STEPS,
-    I_STEPS,
-    I_WAVE,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,
@@ -119,8 +87,8 @@ from .system import (
     V_MASS,
     V_OMEGA,
     V_WEIGHT,
-    Params,
     State,
+    params_of,
 )
 
 # fastmath without 'nnan'/'ninf' (divergence stays detectable by comparisons) and without
@@ -162,7 +130,6 @@ STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
 # Self-collision candidates are unbonded surface pairs within the largest contact distance plus
 # this margin (in voxel lengths); the list is rebuilt once surface voxels have moved half of it.
 COLLIDE_MARGIN = 0.2
-FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
 
 # The physics, compiled for this target (``sim.physics``): inlined into the loops below.
 _phys = physics.compiled(njit(inline="always", fastmath=FASTMATH, error_model="numpy"), fma)
@@ -173,6 +140,7 @@ large_frame_of, damped, link_loads = _phys.large_frame, _phys.damped, _phys.link
 link_diverged, contact_push, facet_drag = _phys.link_diverged, _phys.contact_push, _phys.facet_drag
 contact_overlap = _phys.contact_overlap
 mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
+voxel_world = _phys.voxel_world
 
 
 @njit(**JIT)
@@ -651,13 +619,8 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
     added to them in registers); ``contact`` marks the voxels on the floor. Returns the
     largest squared speed of a voxel after the step, or -1 if any voxel left the sane range
     (or went NaN)."""
-    dt, g, drag = p.dt, p.gravity, p.drag
-    water = p.env == ENV_WATER and drag > 0.0
-    land = p.env == ENV_LAND
-    mu_s, mu_k = p.mu_s, p.mu_k
-    fork_friction = p.friction == FRICTION_VOXCAD
-    slide = FRICTION_EPS * p.L / p.dt
-    world = (dt, g, drag, water, land, mu_s, mu_k, fork_friction, slide)
+    world = voxel_world(p)
+    water = world[3]
     ok = True
     speed2 = 0.0
     # flat views with unsigned offsets (no negative-index wrap-around to test per access)
@@ -837,15 +800,7 @@ def keep(owners):
     return len(owners)
 
 
-@njit(**JIT)
-def params(fp, ip):
-    """A robot's ``Params`` from its rows of ``Batch.fparams`` and ``Batch.iparams``."""
-    return Params(
-        fp[F_L], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3], fp[F_DT], fp[F_GRAVITY],
-        fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE], fp[F_MESH_DRAG],
-        fp[F_CONTACT_REACH], fp[F_CONTACT_STIFF], fp[F_CONTACT_DAMP],
-        ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
-        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD], ip[I_ACT_START], ip[I_FRICTION])
+params = njit(**JIT)(params_of)  # a robot's ``Params`` from its rows (``system.params_of``)
 
 
 @njit(**JIT)

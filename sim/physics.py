@@ -26,10 +26,13 @@ import math
 import types
 from types import SimpleNamespace
 
+from .system import ENV_LAND, ENV_WATER, FRICTION_VOXCAD
+
 MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
 SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2  # the co-rotational frames' bounds
 MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
+FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
 
 
 def fma(a, b, c):
@@ -452,13 +455,21 @@ def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw,
     return x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, static, touch, speed2, ok
 
 
+def voxel_world(p):
+    """The step's constants ``voxel_update`` takes as ``world``, from a robot's ``Params``:
+    (dt, gravity, water drag, in water with drag, on land, mu_s, mu_k, the fork's friction
+    rule, the speed below which a voxel counts as still)."""
+    return (p.dt, p.gravity, p.drag, p.env == ENV_WATER and p.drag > 0.0, p.env == ENV_LAND,
+            p.mu_s, p.mu_k, p.friction == FRICTION_VOXCAD, FRICTION_EPS * p.L / p.dt)
+
+
 # ---------------------------------------------------------------- targets
 PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
     "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
     "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "damped",
     "link_loads", "link_diverged", "contact_overlap", "contact_push", "facet_drag",
-    "mesh_corner", "face_drag", "voxel_update",
+    "mesh_corner", "face_drag", "voxel_update", "voxel_world",
 )
 
 

@@ -103,6 +103,17 @@ class Params(NamedTuple):
     friction: int  # FRICTION_VOXELYZE2 or FRICTION_VOXCAD (the floor's friction rule)
 
 
+def params_of(fp, ip) -> Params:
+    """A robot's ``Params`` from its rows of ``Batch.fparams`` and ``Batch.iparams`` (plain
+    Python, compiled by each engine: ``kernels.params``, ``cuda_kernels.params``)."""
+    return Params(
+        fp[F_L], fp[F_A1], fp[F_A2], fp[F_B1], fp[F_B2], fp[F_B3], fp[F_DT], fp[F_GRAVITY],
+        fp[F_MUS], fp[F_MUK], fp[F_DRAG], fp[F_OMEGA], fp[F_AMP], fp[F_SETTLE], fp[F_MESH_DRAG],
+        fp[F_CONTACT_REACH], fp[F_CONTACT_STIFF], fp[F_CONTACT_DAMP],
+        ip[I_STEPS], ip[I_SETTLE_STEPS], ip[I_ENV], ip[I_WAVE], ip[I_RECORD], ip[I_COLLIDE],
+        ip[I_COM_EVERY], ip[I_N_FRAMES], ip[I_FREQ_FIELD], ip[I_ACT_START], ip[I_FRICTION])
+
+
 class Robot(NamedTuple):
     """Arrays of one robot before packing."""
 
