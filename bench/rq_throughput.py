@@ -171,9 +171,8 @@ def dispatch_rates(redis_url: str, jobs: int) -> tuple[float, float]:
         waiting = {b.job_id: b for b in end_to_end_batches}
         start = time.perf_counter()
         executor._submit(waiting.values())
-        cursors: dict[str, str] = {}
         while waiting:
-            for batch, _ in executor._poll(waiting, cursors):
+            for batch, _ in executor._poll(waiting):
                 del waiting[batch.job_id]
         end_to_end = jobs / (time.perf_counter() - start)
     finally:

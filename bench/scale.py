@@ -2,7 +2,8 @@
 through real Redis and real PostgreSQL, on one machine.
 
     python bench/scale.py [--workers 100,500,1000] [--seconds 60] [--warmup 25]
-                          [--speed-up 1] [--processes 4] [--postgres URL] [--json OUT]
+                          [--speed-up 1] [--processes 4] [--coordinators 1]
+                          [--postgres URL] [--json OUT]
 
 Per load level (a number of workers):
 - a fresh PostgreSQL database holds the paper grid at paper scale (180 runs, population 30,
@@ -13,13 +14,16 @@ Per load level (a number of workers):
   voxel count, stiffness and world, divided by ``--speed-up``), as threads of ``--processes``
   processes: a sleeping worker uses no CPU, so hundreds fit on 2 cores;
 - the coordinator is ``softevo serve``'s loop (``service.driver.CoordinatorLoop`` with the RQ
-  executor), in a process of its own;
+  executor and Redis run locks), in a process of its own; ``--coordinators K`` starts K, which
+  split the runs between them;
 - after ``--warmup`` seconds, for ``--seconds`` seconds it measures: evaluations per second
   (genomes of the jobs that ended in the window), database writes per second (rows inserted,
   updated or deleted, from PostgreSQL's own statistics) and commits per second, queue latency
   (a job's start less its enqueueing; p50 and p99), worker utilisation (busy worker-seconds
   over the window's worker-seconds), and the CPU share of the coordinator, Redis, PostgreSQL
-  and the workers; then it names the bottleneck.
+  and the workers, and what one coordinator process carries per CPU-second (evaluations per
+  second at a whole core: the rate at which it becomes the bottleneck); then it names the
+  bottleneck.
 Everything stays on 127.0.0.1; every level ends by itself (the processes are stopped, the
 database dropped).
 """
@@ -83,15 +87,17 @@ def workers_role(redis_url: str, count: int, first: int) -> None:
 
 
 def coordinator_role(db_url: str, redis_url: str) -> None:
-    """``softevo serve``'s coordinator loop on the database's runs, until terminated."""
+    """``softevo serve``'s coordinator loop on the database's runs, until terminated: with
+    ``--coordinators K`` there are K of these, sharing the runs through Redis locks."""
     from softevo.service.db import open_database
-    from softevo.service.driver import CoordinatorLoop, LocalLocks
+    from softevo.service.driver import CoordinatorLoop, RedisLocks
     from softevo.service.rq_executor import RQExecutor
 
     stop = threading.Event()
     engine = open_database(db_url)
     executor = RQExecutor(redis_url, queue=QUEUE, genomes_per_job=4, stop=stop)
-    loop = CoordinatorLoop(engine, executor, LocalLocks(), poll_seconds=0.2, stop=stop)
+    locks = RedisLocks(redis_url, "scale")
+    loop = CoordinatorLoop(engine, executor, locks, poll_seconds=0.2, stop=stop)
     loop.start()
     signal.sigwait({signal.SIGTERM})
     stop.set()
@@ -196,7 +202,7 @@ def bottleneck(row: dict) -> str:
     if row["utilisation"] >= 0.9:
         return "none: the workers (over 90% busy)"
     shares = {
-        "the coordinator (one process)": row["cpu_coordinator"],
+        "the coordinator (one process)": row["cpu_coordinator"] / row["coordinators"],
         "Redis (one thread)": row["cpu_redis"],
         "PostgreSQL": row["cpu_postgres"] / CORES,
     }
@@ -256,22 +262,22 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
         per = [workers // args.processes + (k < workers % args.processes) for k in range(args.processes)]
         first = 0
         for count in per:
-            procs.append(subprocess.Popen([sys.executable, __file__, "--role", "workers", "--redis", redis_url,
-                                           "--count", str(count), "--first", str(first)], env=env))
+            role = ["--role", "workers", "--redis", redis_url, "--count", str(count), "--first", str(first)]
+            procs.append(subprocess.Popen([sys.executable, __file__, *role], env=env))
             first += count
         deadline = time.monotonic() + 120
         while int(client.scard("rq:workers")) < workers and time.monotonic() < deadline:
             time.sleep(0.5)
         registered = int(client.scard("rq:workers"))
-        coordinator = subprocess.Popen([sys.executable, __file__, "--role", "coordinator", "--redis", redis_url,
-                                        "--db", db_url], env=env)
-        procs.append(coordinator)
+        worker_pids = [p.pid for p in procs]
+        role = [sys.executable, __file__, "--role", "coordinator", "--redis", redis_url, "--db", db_url]
+        coordinators = [subprocess.Popen(role, env=env) for _ in range(args.coordinators)]
+        procs += coordinators
         time.sleep(args.warmup)
         pg_pids = pids_of_user("postgres")
-        worker_pids = [p.pid for p in procs[:-1]]
 
         def snapshot():
-            return {"t": time.time(), "coordinator": cpu_seconds([coordinator.pid]),
+            return {"t": time.time(), "coordinator": cpu_seconds([c.pid for c in coordinators]),
                     "redis": cpu_seconds([redis.pid]), "postgres": cpu_seconds(pg_pids),
                     "workers": cpu_seconds(worker_pids), "machine": machine_busy(),
                     "pg": pg_counters(admin_url, name)}
@@ -280,13 +286,16 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
         time.sleep(args.seconds)
         b = snapshot()
         seconds = b["t"] - a["t"]
-        row = {"workers": workers, "registered": registered,
+        row = {"workers": workers, "coordinators": args.coordinators, "registered": registered,
                **window_figures(job_times(redis_url), a["t"], b["t"], workers),
                "db_writes_per_s": (b["pg"][0] - a["pg"][0]) / seconds,
                "commits_per_s": (b["pg"][1] - a["pg"][1]) / seconds}
         for key in ("coordinator", "redis", "postgres", "workers"):
             row[f"cpu_{key}"] = (b[key] - a[key]) / seconds
         row["cpu_machine"] = (b["machine"] - a["machine"]) / seconds / CORES
+        # what one coordinator process would carry at a whole core: evaluations per CPU-second
+        per_process = row["cpu_coordinator"] / args.coordinators
+        row["coordinator_capacity"] = row["evaluations_per_s"] / args.coordinators / max(per_process, 1e-9)
         row["bottleneck"] = bottleneck(row)
         return row
     finally:
@@ -304,15 +313,17 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
 
 
 def show(rows: list[dict]) -> None:
-    head = ("workers", "evals/s", "DB writes/s", "commits/s", "queue p50 s", "queue p99 s", "utilisation",
-            "CPU coord / redis / pg / workers", "bottleneck")
+    head = ("workers", "coordinators", "evals/s", "DB writes/s", "commits/s", "queue p50 s", "queue p99 s",
+            "utilisation", "CPU coord / redis / pg / workers", "evals per coordinator CPU-s", "bottleneck")
     print("| " + " | ".join(head) + " |")
     print("|" + " --- |" * len(head))
     for r in rows:
-        cpu = f"{r['cpu_coordinator']:.2f} / {r['cpu_redis']:.2f} / {r['cpu_postgres']:.2f} / {r['cpu_workers']:.2f}"
-        print(f"| {r['workers']} | {r['evaluations_per_s']:.0f} | {r['db_writes_per_s']:.0f} | "
+        parts = ("cpu_coordinator", "cpu_redis", "cpu_postgres", "cpu_workers")
+        cpu = " / ".join(f"{r[k]:.2f}" for k in parts)
+        print(f"| {r['workers']} | {r['coordinators']} | {r['evaluations_per_s']:.0f} | "
+              f"{r['db_writes_per_s']:.0f} | "
               f"{r['commits_per_s']:.1f} | {r['queue_p50_s']:.3f} | {r['queue_p99_s']:.2f} | "
-              f"{r['utilisation']:.2f} | {cpu} | {r['bottleneck']} |")
+              f"{r['utilisation']:.2f} | {cpu} | {r['coordinator_capacity']:.0f} | {r['bottleneck']} |")
 
 
 def main() -> None:
@@ -322,6 +333,7 @@ def main() -> None:
     parser.add_argument("--warmup", type=float, default=25.0)
     parser.add_argument("--speed-up", type=float, default=1.0)
     parser.add_argument("--processes", type=int, default=4)
+    parser.add_argument("--coordinators", type=int, default=1)
     parser.add_argument("--postgres", default=os.environ.get(
         "SOFTEVO_BENCH_POSTGRES", "postgresql+psycopg://postgres:postgres@127.0.0.1:5432/postgres"))
     parser.add_argument("--json", type=Path)
@@ -341,7 +353,8 @@ def main() -> None:
         sys.exit("bench/scale.py needs redis-server on PATH")
     admin_url = with_database(args.postgres, "postgres").replace("postgresql+psycopg://", "postgresql://")
     print(f"paper grid (180 runs, population 30, 7^3) on the sleep engine x{args.speed_up:g}, "
-          f"{args.processes} worker processes, {CORES} cores; window {args.seconds:g} s after {args.warmup:g} s")
+          f"{args.processes} worker processes, {args.coordinators} coordinator(s), {CORES} cores; "
+          f"window {args.seconds:g} s after {args.warmup:g} s")
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for workers in [int(w) for w in args.workers.split(",")]:

@@ -62,6 +62,9 @@ def plan(
     measure: Annotated[
         bool, typer.Option("--measure", help="measure the per-core rates here first (~30 s)")
     ] = False,
+    coordinators: Annotated[
+        int, typer.Option("--coordinators", help="coordinator processes sharing the runs")
+    ] = 1,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
@@ -70,11 +73,12 @@ def plan(
     from softevo.sim.cost import measure as measure_rates
 
     planner.check_devices(cores, gpus)
+    planner.check_coordinators(coordinators)
     treatments = treatments_of(preset_or_spec, scale)
     cost = MEASURED
     if measure:
         cost = measure_rates(planner.scenes_for_measure(treatments), repeats=1)
-    result = planner.plan(treatments, cores=cores, gpus=gpus, cost=cost)
+    result = planner.plan(treatments, cores=cores, gpus=gpus, cost=cost, coordinators=coordinators)
     typer.echo(json.dumps(result.to_json(), indent=2) if as_json else plan_text(result))
 
 
@@ -94,6 +98,8 @@ def plan_text(result) -> str:
         f"utilisation {result.utilisation:.0%}",
         f"{result.evaluations:,} evaluations, {result.voxel_steps:.3g} voxel-steps, "
         f"database {result.database_bytes / GB:,.3g} GB",
+        f"{result.coordinators} coordinator(s) busy {result.coordinator_utilisation:.0%} of the time; "
+        f"{result.coordinators_needed()} keep(s) each under 80%",
     ]
     if result.gpus:
         rows.append(f"GPU rate {result.cost['gpu_rate']:.2g} voxel-steps/s: {result.cost['gpu_rate_source']}")

@@ -14,12 +14,21 @@ locks expire within ``ttl``. Without Redis, the database holds them
 (``service.db.locks.DatabaseLocks``: PostgreSQL advisory locks, a lock file beside a SQLite
 file). A coordinator that finds a run locked by another logs once who holds it and waits:
 it takes the run over when the lock is freed.
+
+Several coordinators on one database (with Redis): each counts the coordinators alive now
+(``RedisLocks.peers``) and drives at most its share, ``ceil(unfinished runs / peers)``; one
+that joins takes the runs the others hand over between generations, and the runs of one
+that stops or dies are taken by the others once its locks expire. So coordinator capacity
+grows with the number of coordinator processes (docs/cluster.md). Without Redis the first
+coordinator drives every run, as above.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import threading
+import time
 import uuid
 from collections.abc import Iterable
 from typing import Protocol
@@ -67,6 +76,14 @@ class RunLocks(Protocol):
 
     def release(self, run_ids: Iterable[int]) -> None: ...
 
+    def peers(self) -> int:
+        """Coordinators sharing the runs now, this one included (at least 1)."""
+        ...
+
+    def leave(self) -> None:
+        """Stop counting among the peers (this coordinator is stopping)."""
+        ...
+
 
 class LocalLocks:
     """Locks within this process (no Redis): one coordinator per database."""
@@ -89,6 +106,12 @@ class LocalLocks:
         with self._mutex:
             self.held.difference_update(run_ids)
 
+    def peers(self) -> int:
+        return 1
+
+    def leave(self) -> None:
+        pass
+
 
 class RedisLocks:
     """One Redis key per run, ``softevo:<database>:run:<id>:coordinator`` = owner token."""
@@ -107,6 +130,23 @@ class RedisLocks:
 
     def key(self, run_id: int) -> str:
         return f"softevo:{self.namespace}:run:{run_id}:coordinator"
+
+    def peers(self) -> int:
+        """Coordinators of this database alive now, this one included: each one that asks
+        counts itself in for ``ttl`` (a sorted set scored by expiry), so a coordinator that
+        died drops out within ``ttl``."""
+        key = f"softevo:{self.namespace}:coordinators"
+        now_ms = int(time.time() * 1000)
+        with self.connection.pipeline(transaction=True) as pipe:
+            pipe.zadd(key, {self.token: now_ms + self.ttl_ms})
+            pipe.zremrangebyscore(key, "-inf", now_ms)
+            pipe.zcard(key)
+            pipe.pexpire(key, self.ttl_ms)
+            count = pipe.execute()[2]
+        return max(1, int(count))
+
+    def leave(self) -> None:
+        self.connection.zrem(f"softevo:{self.namespace}:coordinators", self.token)
 
     def acquire(self, run_id: int) -> bool:
         with self._mutex:
@@ -168,6 +208,8 @@ class CoordinatorLoop:
         self.lost: set[int] = set()
         self.waiting: set[int] = set()  # runs locked by another coordinator (logged once)
         self.coordinator = Coordinator(engine, executor, on_generation=self._on_generation)
+        self.share = 0  # runs this coordinator drives at most (``_claim``)
+        self.driven: set[int] = set()  # every run this coordinator has driven
         self._threads: list[threading.Thread] = []
 
     # -- control -----------------------------------------------------------------------------
@@ -185,6 +227,10 @@ class CoordinatorLoop:
         for thread in self._threads:
             thread.join(timeout)
         self.locks.release([run.run_id for run in self.active])
+        try:
+            self.locks.leave()
+        except Exception as exc:  # Redis away: the others count this one out within the ttl
+            log.warning("cannot leave the coordinators' count: %s", exc)
 
     def request_cancel(self, run_id: int) -> None:
         """Keep ``run_id`` cancelled even if a generation in flight commits after the cancel,
@@ -230,10 +276,30 @@ class CoordinatorLoop:
         else:
             self.active = self.coordinator.round(self.active)
         self.locks.release(before - {run.run_id for run in self.active})
+        self._hand_over()
         return True
 
+    def _hand_over(self) -> None:
+        """Give up runs beyond this coordinator's share (another coordinator joined), among
+        those between generations: whoever takes one resumes it from its stored generation."""
+        excess = len(self.active) - self.share
+        if excess <= 0:
+            return
+        idle = [run for run in self.active if run.run_id not in self.coordinator.in_flight][:excess]
+        if not idle:
+            return
+        given = {run.run_id for run in idle}
+        self.active = [run for run in self.active if run.run_id not in given]
+        self.coordinator.forget(given)
+        self.locks.release(given)
+        log.info("handed run(s) %s over to the other coordinators (share %d)", sorted(given), self.share)
+
     def _claim(self) -> None:
+        """Hold the unfinished runs of this coordinator's share: ``ceil(unfinished / peers)``
+        with the coordinators alive now (``RunLocks.peers``), so several coordinators on one
+        database split its runs between them, and take over a stopped one's runs."""
         unfinished = unfinished_runs(self.engine)
+        self.share = math.ceil(len(unfinished) / self.locks.peers())
         lost, self.lost = self.lost, set()  # swapped, not cleared: the renew thread adds to it
         keep = set(unfinished) - lost
         dropped = [run.run_id for run in self.active if run.run_id not in keep]
@@ -243,6 +309,8 @@ class CoordinatorLoop:
         for run_id in unfinished:
             if run_id in held:
                 continue
+            if len(self.active) >= self.share:  # the others' share
+                break
             if not self.locks.acquire(run_id):
                 self._waits_for(run_id)
                 continue
@@ -257,6 +325,7 @@ class CoordinatorLoop:
             self._mark_running(run_id)
             log.info("driving run %d from generation %d", run_id, run.next_generation)
             self.active.append(run)
+            self.driven.add(run_id)
 
     def _waits_for(self, run_id: int) -> None:
         """Say once why a run is not driven here."""

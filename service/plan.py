@@ -151,6 +151,13 @@ class Plan:
     treatments: list[TreatmentPlan]
     cost: dict[str, Any]
     assumptions: list[str] = field(default_factory=list)
+    coordinators: int = 1
+    coordinator_utilisation: float = 0.0  # the coordinators' busy share: near 1, they limit
+
+    def coordinators_needed(self, target: float = 0.8) -> int:
+        """Coordinator processes at which they would be busy at most ``target`` of the time
+        at this plan's pace (more workers than they can feed otherwise wait on them)."""
+        return max(1, math.ceil(self.coordinators * self.coordinator_utilisation / target))
 
     @property
     def wall_hours(self) -> float:
@@ -164,6 +171,7 @@ class Plan:
         out["wall_hours"] = self.wall_hours
         out["runs"] = sum(t.runs for t in self.treatments)
         out["evaluation_core_hours"] = sum(t.core_seconds for t in self.treatments) / 3600
+        out["coordinators_needed"] = self.coordinators_needed()
         return out
 
 
@@ -177,10 +185,13 @@ def plan(
     seed: int = 0,
     coordinator_seconds: float = COORDINATOR_SECONDS,
     gpu_rate: float = GPU_VOXEL_STEPS_PER_SECOND,
+    coordinators: int = 1,
 ) -> Plan:
-    """The plan of ``treatments`` on ``cores`` CPU workers or ``gpus`` GPUs (exactly one);
-    UserError for neither, both, or fewer than 1."""
+    """The plan of ``treatments`` on ``cores`` CPU workers or ``gpus`` GPUs (exactly one),
+    driven by ``coordinators`` coordinator processes (``service.driver``: they split the
+    runs); UserError for neither, both, or fewer than 1."""
     check_devices(cores, gpus)
+    check_coordinators(coordinators)
     if not treatments:
         raise UserError("nothing to plan: no treatment")
     dispatch = DISPATCH if dispatch is None else dispatch
@@ -188,11 +199,15 @@ def plan(
     counts = [count_evaluations(t) for t in treatments]
     costs = [sample_costs(t, cost, samples, seed) for t in treatments]
     lines = [_treatment_plan(t, c, k) for t, c, k in zip(treatments, counts, costs, strict=True)]
+    told = sum(_coordinator(t, coordinator_seconds) * t.repetitions * t.generations for t in treatments)
     if gpus is not None:
-        wall, busy = _gpu_dispatch(treatments, counts, costs, gpus, gpu_rate, coordinator_seconds, rng)
+        share = coordinator_seconds / coordinators
+        wall, busy = _gpu_dispatch(treatments, counts, costs, gpus, gpu_rate, share, rng)
         workers = gpus
     else:
-        wall, busy = _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng)
+        wall, busy = _cpu_dispatch(
+            treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators
+        )
         workers = cores
     return Plan(
         wall_seconds=wall,
@@ -200,6 +215,8 @@ def plan(
         gpu_hours=wall * gpus / 3600 if gpus else 0.0,
         database_bytes=sum(line.database_bytes for line in lines),
         utilisation=min(1.0, busy / (wall * workers)) if wall > 0 else 0.0,
+        coordinators=coordinators,
+        coordinator_utilisation=min(1.0, told / (wall * coordinators)) if wall > 0 else 0.0,
         evaluations=sum(line.evaluations for line in lines),
         voxel_steps=sum(line.voxel_steps for line in lines),
         cores=cores,
@@ -213,6 +230,12 @@ def plan(
 
 def _gpu_rate(rate: float, gpus: int | None) -> dict[str, Any]:
     return {"gpu_rate": rate, "gpu_rate_source": GPU_RATE_SOURCE} if gpus else {}
+
+
+def check_coordinators(coordinators: int) -> None:
+    """UserError unless ``coordinators`` is an integer >= 1."""
+    if isinstance(coordinators, bool) or not isinstance(coordinators, int) or coordinators < 1:
+        raise UserError(f"coordinators must be an integer >= 1 (got {coordinators!r})")
 
 
 def check_devices(cores: int | None, gpus: int | None) -> None:
@@ -442,7 +465,9 @@ def _timeline(treatments, counts, jobs_of) -> tuple[list[tuple[int, float]], lis
     return rounds, runs
 
 
-def _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng) -> tuple:
+def _cpu_dispatch(
+    treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators=1
+) -> tuple:
     def size_of(t: Treatment, n: int) -> int:  # plan_batches / executors.chunks
         return max(1, min(t.genomes_per_task, math.ceil(n / cores)))
 
@@ -462,7 +487,7 @@ def _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_second
             told = weight * _coordinator(treatment, coordinator_seconds)
             generations.append(Generation(jobs * weight, told))
         simulated_runs.append(generations)
-    return simulate(simulated_runs, cores, dispatch)
+    return simulate(simulated_runs, cores, dispatch, coordinators)
 
 
 def _coordinator(treatment: Treatment, seconds: float) -> float:

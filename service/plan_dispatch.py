@@ -1,8 +1,9 @@
 """A small discrete-event simulation of how runs' generations are dispatched to workers.
 
 Each run is a list of generations; a generation is a set of jobs (seconds each, on one
-worker) and the coordinator's seconds for it (tell, store, ask: one coordinator, one
-generation at a time). ``W`` workers take jobs first in, first out. Two policies:
+worker) and the coordinator's seconds for it (tell, store, ask: a coordinator does one
+generation at a time; with ``coordinators`` K, run ``r``'s generations go to coordinator
+``r mod K``). ``W`` workers take jobs first in, first out. Two policies:
 
 - ``"rounds"`` (``service.coordinator.Coordinator.round``): every active run's generation is
   dispatched together; the next round starts when the whole round is done and the
@@ -10,7 +11,8 @@ generation at a time). ``W`` workers take jobs first in, first out. Two policies
 - ``"per-run"``: a run's next generation is dispatched as soon as its own generation is done
   and the coordinator has told and stored it, whatever the other runs do.
 
-``simulate(runs, workers, policy)`` returns (makespan seconds, busy worker-seconds).
+``simulate(runs, workers, policy, coordinators)`` returns (makespan seconds, busy
+worker-seconds).
 """
 
 from __future__ import annotations
@@ -36,23 +38,27 @@ class Generation:
 
 
 def simulate(
-    runs: Sequence[Sequence[Generation]], workers: int, policy: str = "rounds"
+    runs: Sequence[Sequence[Generation]], workers: int, policy: str = "rounds", coordinators: int = 1
 ) -> tuple[float, float]:
-    """(makespan, busy worker-seconds) of ``runs`` on ``workers`` workers under ``policy``."""
+    """(makespan, busy worker-seconds) of ``runs`` on ``workers`` workers under ``policy``,
+    told by ``coordinators`` coordinators (rounds: their tell seconds shared out evenly)."""
     if policy not in POLICIES:
         raise ValueError(f"unknown dispatch policy {policy!r}; choose {' or '.join(POLICIES)}")
-    return _Dispatch(runs, workers, policy == "rounds").run()
+    return _Dispatch(runs, workers, policy == "rounds", coordinators).run()
 
 
 class _Dispatch:
-    def __init__(self, runs: Sequence[Sequence[Generation]], workers: int, rounds: bool) -> None:
+    def __init__(
+        self, runs: Sequence[Sequence[Generation]], workers: int, rounds: bool, coordinators: int = 1
+    ) -> None:
         self.runs, self.idle, self.rounds = runs, int(workers), rounds
         self.events: list[tuple[float, int, int, int]] = []
         self.ready: deque[tuple[int, float]] = deque()
         self.position = [0] * len(runs)  # the generation each run is at
         self.remaining = [0] * len(runs)  # its jobs not finished
         self.waiting: set[int] = set()  # runs of the round not done (rounds)
-        self.coordinator_free = self.now = self.end = self.busy = 0.0
+        self.now = self.end = self.busy = 0.0
+        self.coordinator_free = [0.0] * max(1, int(coordinators))  # when each is free next
         self.sequence = 0
 
     def run(self) -> tuple[float, float]:
@@ -90,20 +96,23 @@ class _Dispatch:
 
     def _done(self, r: int) -> None:
         if not self.rounds:
-            self._told([r], self.runs[r][self.position[r]].coordinator_seconds)
+            seconds = self.runs[r][self.position[r]].coordinator_seconds
+            self._told([r], seconds, r % len(self.coordinator_free))
             return
         self.waiting.discard(r)
         if self.waiting:
             return
         told = [s for s, generations in enumerate(self.runs) if self.position[s] < len(generations)]
-        self._told(told, sum(self.runs[s][self.position[s]].coordinator_seconds for s in told))
+        seconds = sum(self.runs[s][self.position[s]].coordinator_seconds for s in told)
+        self._told(told, seconds / len(self.coordinator_free), 0)
 
-    def _told(self, told: list[int], seconds: float) -> None:
-        """The coordinator tells and stores ``told``'s generations, then releases the next."""
-        self.coordinator_free = max(self.now, self.coordinator_free) + seconds
-        self.end = max(self.end, self.coordinator_free)
+    def _told(self, told: list[int], seconds: float, coordinator: int) -> None:
+        """``coordinator`` tells and stores ``told``'s generations, then releases the next."""
+        free = max(self.now, self.coordinator_free[coordinator]) + seconds
+        self.coordinator_free[coordinator] = free
+        self.end = max(self.end, free)
         for r in told:
             self.position[r] += 1
             if self.position[r] < len(self.runs[r]):
                 self.waiting.add(r)
-                self._push(self.coordinator_free, _RELEASE, r)
+                self._push(free, _RELEASE, r)

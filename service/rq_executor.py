@@ -11,6 +11,11 @@ order, ``workers``, ``close``). What travels:
   batch's tasks, so the same batch always has the same id. A resubmitted batch (coordinator
   restarted, Redis emptied, job lost) finds its finished job and takes the stored result, or
   waits for the queued or running one; two databases sharing one Redis never share a job.
+- The executor learns which jobs ended from one Redis stream per queue, which workers append
+  to after storing each result (``worker.rq_worker.done_stream``); a poll then reads the
+  statuses and results of just those jobs, in one round trip each. Every job in flight is
+  looked at once per ``maintenance_seconds`` as well, for jobs lost, stopped or announced
+  while nobody read.
 - Each job has a timeout and ``Retry(max=retries)``. A worker SIGKILLed mid-job stops
   refreshing its job's heartbeat (``worker.heartbeat``); the executor calls
   ``StartedJobRegistry.cleanup()`` every ``maintenance_seconds`` and RQ re-queues the
@@ -49,7 +54,7 @@ from rq.worker_registration import clean_worker_registry
 
 from softevo import __version__
 from softevo.service.executors import Task, chunks
-from softevo.worker.rq_worker import JOB_FUNCTION, VERSION_KEY, EvaluationJob
+from softevo.worker.rq_worker import JOB_FUNCTION, VERSION_KEY, EvaluationJob, done_stream
 from softevo.worker.tasks import failed, result_problem
 
 WAITING = {
@@ -64,6 +69,7 @@ WAITING = {
 MAX_BAD_RESULTS = 3  # resubmits of a batch whose job "finished" without usable results
 MAX_RESULT_BYTES = 1_000_000  # JSON of one job's results, at most (SOFTEVO_MAX_RESULT_BYTES)
 GATHER_SECONDS = 0.02  # once a result arrived, how long a poll waits for the ones close behind
+SWEPT = 500  # jobs whose statuses a sweep reads per maintenance period, at most, on average
 
 log = logging.getLogger(__name__)
 
@@ -176,8 +182,9 @@ class RQExecutor:
         self.max_result_bytes = max_result_bytes
         self.stop = stop or threading.Event()
         self._last_maintenance = 0.0
-        self._last_sweep = 0.0
-        self._cursors: dict[str, str] = {}  # job id -> last result-stream entry read
+        self._last_sweep = 0.0  # the first poll looks at every job: some may have ended already
+        self._done = done_stream(queue)
+        self._done_cursor: str | None = None  # the last entry of the done stream read
 
     # -- the Executor interface -------------------------------------------------------------
 
@@ -222,11 +229,10 @@ class RQExecutor:
             owner = {job_id: t for t in tickets for job_id in t.waiting}
             waiting = {job_id: batch for t in tickets for job_id, batch in t.waiting.items()}
             left = None if deadline is None else max(0.0, deadline - time.monotonic())
-            settled = self._retrying(partial(self._poll, waiting, self._cursors, left))
+            settled = self._retrying(partial(self._poll, waiting, left))
             for batch, outcome in settled or []:
                 ticket = owner[batch.job_id]
                 del ticket.waiting[batch.job_id]
-                self._cursors.pop(batch.job_id, None)
                 if isinstance(outcome, list):
                     for position, result in zip(batch.positions, outcome, strict=True):
                         ticket.results[position] = result
@@ -312,26 +318,26 @@ class RQExecutor:
             raw = pipe.execute()
         return [None if value is None else value.decode() for value in raw]
 
-    def _wait_for_results(
-        self, waiting: dict[str, Batch], cursors: dict[str, str], timeout: float | None = None
-    ) -> set[str]:
-        """Block (up to 0.5 s, or ``timeout``) until some job of ``waiting`` writes a result;
-        return the ids of the jobs that wrote one. Once something arrived it waits
-        ``GATHER_SECONDS`` more, so that one poll settles the jobs ending about together."""
+    def _wait_for_results(self, waiting: dict[str, Batch], timeout: float | None = None) -> set[str]:
+        """Block (up to 0.5 s, or ``timeout``) until the queue's done stream names a job;
+        return the ids of ``waiting`` it named. Once something arrived it waits
+        ``GATHER_SECONDS`` more, so that one poll settles the jobs ending about together.
+        One stream, whatever the number of jobs in flight (other coordinators' jobs are
+        named there too, and passed over)."""
+        if self._done_cursor is None:  # from now: what ended before, the first sweep finds
+            last = self.connection.xrevrange(self._done, "+", "-", count=1)
+            self._done_cursor = last[0][0].decode() if last else "0-0"
         block = 500 if timeout is None else max(1, min(500, int(timeout * 1000)))
-        streams = {Result.get_key(job_id): cursors.get(job_id, "0-0") for job_id in waiting}
-        response = self.connection.xread(streams, block=block) or []
+        response = self.connection.xread({self._done: self._done_cursor}, block=block) or []
         if response:
             time.sleep(GATHER_SECONDS)
-            response = self.connection.xread(streams, block=None) or response
-        by_key = {Result.get_key(job_id): job_id for job_id in waiting}
-        wrote = set()
-        for key, entries in response:
-            key = key.decode() if isinstance(key, bytes) else key
-            last = entries[-1][0]
-            cursors[by_key[key]] = last.decode() if isinstance(last, bytes) else last
-            wrote.add(by_key[key])
-        return wrote
+            response += self.connection.xread({self._done: response[0][1][-1][0]}) or []
+        named = set()
+        for _, entries in response:
+            for entry_id, fields in entries:
+                self._done_cursor = entry_id.decode() if isinstance(entry_id, bytes) else entry_id
+                named.add(fields[b"job"].decode())
+        return named & waiting.keys()
 
     def _maintain(self) -> None:
         """Re-queue jobs of dead workers now rather than at RQ's 10-minute maintenance."""
@@ -342,21 +348,24 @@ class RQExecutor:
         StartedJobRegistry(queue=self.queue, job_class=EvaluationJob).cleanup()
 
     def _poll(
-        self, waiting: dict[str, Batch], cursors: dict[str, str], timeout: float | None = None
+        self, waiting: dict[str, Batch], timeout: float | None = None
     ) -> list[tuple[Batch, list[Task] | dict[str, Batch]]]:
         """Wait a little, then settle what finished: (batch, results) for a finished batch,
-        (batch, {id: part}) for a batch replaced by one-genome parts. The jobs that wrote a
-        result are looked at on every poll; every job, for those that failed, were lost or
-        were stopped, once per ``maintenance_seconds``."""
+        (batch, {id: part}) for a batch replaced by one-genome parts. The jobs the done stream
+        names are looked at on every poll; every job, for those that failed, were lost or
+        were stopped, once per ``maintenance_seconds`` (longer with more than ``SWEPT`` jobs
+        in flight, so that sweeping costs about the same whatever their number)."""
         self._maintain()
-        wrote = self._wait_for_results(waiting, cursors, timeout)
+        wrote = self._wait_for_results(waiting, timeout)
         now = time.monotonic()
-        if now - self._last_sweep >= self.maintenance_seconds:
+        if now - self._last_sweep >= self.maintenance_seconds * max(1.0, len(waiting) / SWEPT):
             self._last_sweep = now
             batches = list(waiting.values())
         else:
             batches = [batch for job_id, batch in waiting.items() if job_id in wrote]  # in order
         statuses = self._statuses([b.job_id for b in batches])
+        finished = [b for b, st in zip(batches, statuses, strict=True) if st == JobStatus.FINISHED.value]
+        values = dict(zip((b.job_id for b in finished), self._return_values(finished), strict=True))
         settled: list[tuple[Batch, list[Task] | dict[str, Batch]]] = []
         lost = []
         for batch, status in zip(batches, statuses, strict=True):
@@ -365,7 +374,7 @@ class RQExecutor:
             if status is None:
                 lost.append(batch)
             elif status == JobStatus.FINISHED.value:
-                outcome = self._finished(batch)
+                outcome = self._finished(batch, values[batch.job_id])
                 if outcome is None:
                     lost.append(batch)
                 else:
@@ -380,13 +389,31 @@ class RQExecutor:
             self._submit(lost)
         return settled
 
-    def _finished(self, batch: Batch) -> list[Task] | None:
-        """The batch's results, or None (and the job deleted) if they are missing or wrong."""
-        job = self._fetch(batch.job_id)
-        value = job.return_value(refresh=True) if job is not None else None
+    def _return_values(self, batches: list[Batch]) -> list[Any]:
+        """What each batch's job returned (None: no successful result stored), in one round
+        trip: the latest entry of each job's RQ result stream."""
+        with self.connection.pipeline(transaction=False) as pipe:
+            for batch in batches:
+                pipe.xrevrange(Result.get_key(batch.job_id), "+", "-", count=1)
+            latest = pipe.execute()
+        values = []
+        for batch, entries in zip(batches, latest, strict=True):
+            result = None
+            if entries:
+                entry_id, payload = entries[0]
+                entry_id = entry_id.decode() if isinstance(entry_id, bytes) else entry_id
+                result = Result.restore(batch.job_id, entry_id, payload, self.connection, JSONSerializer)
+            ok = result is not None and result.type == Result.Type.SUCCESSFUL
+            values.append(result.return_value if ok else None)
+        return values
+
+    def _finished(self, batch: Batch, value: Any) -> list[Task] | None:
+        """The batch's results (``value``, what its job returned), or None (and the job
+        deleted) if they are missing or wrong."""
         problem = self._problem(batch, value)
         if problem is None:
             return value
+        job = self._fetch(batch.job_id)
         batch.bad_results += 1
         worker = (job.worker_name if job is not None else None) or "(unknown)"
         log.warning(

@@ -19,6 +19,8 @@
   stops with one line (``softevo worker`` exits with status 2). Redis going away later: the
   worker waits and reconnects (under a fresh RQ worker name, since its old registration may
   still be there).
+- Each job the worker finishes is named in its queue's done stream (``done_stream``), after
+  its result is stored, so that the coordinator learns of it without polling every job.
 - Burst (``--burst``): the worker drains its queue and quits once the queue has stayed
   empty, with no job of it running anywhere, for ``idle`` seconds: a coordinator puts the
   next generation's jobs in the queue after the last job of a generation ends, so the
@@ -63,6 +65,14 @@ JOB_FUNCTION = "softevo.worker.evaluate.evaluate_batch"  # the one function a wo
 SHOWN = 200  # characters of a refused job's sender-chosen strings that go to the log
 CONNECT_TIMEOUT = 5.0  # seconds a starting worker tries to reach Redis (--connect-timeout)
 BURST_IDLE = 5  # seconds a burst worker's queue stays empty, nothing running, before it quits
+DONE_LENGTH = 100_000  # entries a queue's done stream keeps, about (older ones are trimmed)
+
+
+def done_stream(queue: str) -> str:
+    """The Redis stream in which workers name each job of ``queue`` they have finished
+    (succeeded, failed or been given back for a retry), once its result is stored: a
+    coordinator reads this one stream instead of watching every job it waits for."""
+    return f"softevo:done:{queue}"
 
 
 class RefusedJob(Exception):
@@ -162,6 +172,23 @@ class EvaluationWorker(SimpleWorker):
             self._fail_unrun(job, queue, execution, problem)
             return False
         return super().perform_job(job, queue, execution)
+
+    def handle_job_success(self, job, queue, started_job_registry, execution) -> None:
+        super().handle_job_success(job, queue, started_job_registry, execution)
+        self._say_done(job)
+
+    def handle_job_failure(self, job, queue, started_job_registry=None, exc_string="", execution=None):
+        super().handle_job_failure(job, queue, started_job_registry, exc_string, execution)
+        self._say_done(job)
+
+    def _say_done(self, job) -> None:
+        """Name the job in its queue's done stream (``done_stream``); if Redis refuses, the
+        coordinator still finds the job at its next sweep of every job it waits for."""
+        try:
+            stream = done_stream(job.origin)
+            self.connection.xadd(stream, {"job": job.id}, maxlen=DONE_LENGTH, approximate=True)
+        except RedisError as exc:
+            log.warning("cannot announce job %s as done: %s", _short(job.id), exc)
 
     def refuse(self, job, queue, problem: str) -> None:
         """Log the refusal with the job's origin, mark the job failed, run nothing."""

@@ -202,6 +202,7 @@ class Devices(Strict):
 
     cores: int | None = Field(None, ge=1, le=100_000, description="CPU workers, one core each")
     gpus: int | None = Field(None, ge=1, le=10_000, description="GPUs (their rate: an estimate)")
+    coordinators: int = Field(1, ge=1, le=1_000, description="coordinator processes sharing the runs")
 
 
 class PlanExperimentIn(ExperimentIn, Devices):

@@ -70,6 +70,14 @@ class DatabaseLocks:
             self.held -= lost
             return lost
 
+    def peers(self) -> int:
+        """1: coordinators sharing a database without Redis do not know of each other, so
+        each takes what nobody holds (the first to start drives every run)."""
+        return 1
+
+    def leave(self) -> None:
+        pass
+
     def release(self, run_ids: Iterable[int]) -> None:
         with self._mutex:
             for run_id in list(run_ids):

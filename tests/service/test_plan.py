@@ -67,6 +67,16 @@ def test_per_run_dispatch_uses_workers_at_least_as_well_as_rounds():
     assert per_run.wall_seconds <= rounds.wall_seconds
 
 
+def test_a_second_coordinator_halves_their_load_and_never_slows_the_plan():
+    grid = paper_grid("tiny")
+    one, two = plan(grid, cores=64, coordinators=1), plan(grid, cores=64, coordinators=2)
+    assert 0 < two.coordinator_utilisation < one.coordinator_utilisation <= 1
+    assert two.wall_seconds <= one.wall_seconds * 1.0001
+    slow = plan(grid, cores=64, coordinator_seconds=5.0)  # a coordinator far too slow
+    assert slow.coordinator_utilisation > 0.9 and slow.coordinators_needed() > 1
+    assert plan(grid, cores=64, coordinator_seconds=5.0, coordinators=4).wall_seconds < slow.wall_seconds
+
+
 def test_gpus_give_gpu_hours():
     result = plan(paper_grid("tiny"), gpus=2)
     assert result.gpu_hours == pytest.approx(result.wall_seconds * 2 / 3600)
@@ -79,6 +89,10 @@ def test_cli_json_has_the_keys(capsys):
     assert code == 0, err
     data = json.loads(out)
     assert PLAN_KEYS <= set(data) and data["cores"] == 2 and data["runs"] == 12
+    assert data["coordinators"] == 1 and data["coordinators_needed"] >= 1
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", "--cores", "2",
+                             "--coordinators", "3")
+    assert code == 0 and "3 coordinator(s) busy" in out, err
 
 
 def test_cli_reads_a_spec_file(capsys, tmp_path):
@@ -96,6 +110,7 @@ def test_cli_reads_a_spec_file(capsys, tmp_path):
         ("paper", "--cores", "2", "--gpus", "1"),
         ("paper",),
         ("paper", "--cores", "0"),
+        ("paper", "--cores", "2", "--coordinators", "0"),
         ("nonsense", "--cores", "2"),
         ("paper", "--scale", "huge", "--cores", "2"),
     ],
@@ -122,9 +137,13 @@ def test_rest_plan_200_and_422(tmp_path):
         ok = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2}, timeout=120)
         assert ok.status_code == 200, ok.text
         assert PLAN_KEYS <= set(ok.json()) and ok.json()["evaluations"] > 0
+        two = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
+                                               "coordinators": 2}, timeout=120)
+        assert two.status_code == 200 and two.json()["coordinators"] == 2, two.text
         for bad in ({"preset": "paper", "scale": "tiny"},
                     {"preset": "paper", "cores": 2, "gpus": 1},
                     {"preset": "paper", "cores": 0},
+                    {"preset": "paper", "cores": 2, "coordinators": 0},
                     {"treatments": [{"environment": "moon", "stiffness_mpa": 1}], "cores": 2}):
             answer = httpx.post(f"{base}/plan", json=bad, timeout=60)
             assert answer.status_code == 422, (bad, answer.text)

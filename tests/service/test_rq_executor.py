@@ -217,3 +217,54 @@ def test_runs_driven_at_their_own_pace_store_what_rounds_store(redis_url, queue,
         engine.dispose()
     assert snapshots[0] == snapshots[1]
     assert all(snap["run"][:2] == ("finished", 2) for snap in snapshots[1])
+
+
+def test_two_coordinators_share_the_runs_and_store_what_one_stores(redis_url, queue, tmp_path):
+    """A second coordinator on the same database and Redis takes its share of the runs
+    (``ceil(unfinished / coordinators)``): the first hands runs over between generations,
+    each drives at most its share once both count each other, and what they store together
+    is what one coordinator stores alone."""
+    import time
+
+    from softevo.service.coordinator import Coordinator
+    from softevo.service.db import open_database
+    from softevo.service.driver import CoordinatorLoop
+    from softevo.service.experiments import create
+    from softevo.service.treatments import Treatment
+    from tests.service import tinyrun
+
+    treatment = Treatment("land", 1.0, population=4, generations=8, workspace=(3, 3, 3), cycles=1, seed=5,
+                          repetitions=4)
+    alone = open_database(f"sqlite:///{tmp_path / 'alone'}.db")
+    _, run_ids = create(alone, "test", [treatment])
+    Coordinator(alone, InlineExecutor()).run(run_ids)
+    expected = [tinyrun.snapshot(alone, run_id) for run_id in run_ids]
+
+    engine = open_database(f"sqlite:///{tmp_path / 'shared'}.db")
+    _, run_ids = create(engine, "test", [treatment])
+    namespace = uuid.uuid4().hex[:8]
+
+    def loop() -> CoordinatorLoop:
+        executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2)
+        return CoordinatorLoop(engine, executor, RedisLocks(redis_url, namespace), poll_seconds=0.1,
+                               renew_seconds=0.5)
+
+    first, second = loop(), loop()
+    first.start()
+    try:
+        wait_for(lambda: len(first.active) == 4, 60, "the first coordinator to claim every run")
+        second.start()
+        wait_for(lambda: first.share == 2 and second.share == 2, 30, "both coordinators to count each other")
+        wait_for(lambda: len(first.active) <= 2, 60, "the first coordinator to hand runs over")
+        largest = 0
+        deadline = time.monotonic() + 240
+        while any(tinyrun.snapshot(engine, r)["run"][0] != "finished" for r in run_ids):
+            largest = max(largest, len(first.active), len(second.active))
+            assert time.monotonic() < deadline, "the runs did not finish"
+            time.sleep(0.05)
+    finally:
+        first.stop()
+        second.stop()
+    assert first.driven and second.driven and first.driven | second.driven == set(run_ids)
+    assert 0 < largest <= 2
+    assert [tinyrun.snapshot(engine, run_id) for run_id in run_ids] == expected

@@ -50,8 +50,11 @@ def bounded(treatments: list) -> list:
 async def plan_experiment(body: PlanRequest) -> dict[str, Any]:
     """The plan of an experiment body (as ``POST /experiments`` takes it) on ``cores`` CPU
     workers or ``gpus`` GPUs: ``wall_seconds, core_hours, gpu_hours, database_bytes,
-    utilisation, evaluations, voxel_steps`` and per-treatment lines. 422 for neither or both."""
+    utilisation, evaluations, voxel_steps``, the coordinators' share busy and per-treatment
+    lines. 422 for neither or both."""
     check_devices(body.cores, body.gpus)
     treatments = bounded(request_treatments(body))
-    result = await run_in_threadpool(plan, treatments, cores=body.cores, gpus=body.gpus)
+    result = await run_in_threadpool(
+        plan, treatments, cores=body.cores, gpus=body.gpus, coordinators=body.coordinators
+    )
     return result.to_json()
