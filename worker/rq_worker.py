@@ -307,14 +307,15 @@ def wait_for_redis(redis_url: str, seconds: float = CONNECT_TIMEOUT) -> None:
             connection.ping()
             return
         except RedisError as exc:
-            if time.monotonic() + delay > deadline:
+            left = deadline - time.monotonic()
+            if left <= 0:
                 raise UserError(
                     f"cannot reach Redis at {redacted(redis_url)} after {seconds:g} s ({exc}); "
                     "is it running? (--connect-timeout to wait longer)"
                 ) from None
         finally:
             connection.close()
-        time.sleep(delay)
+        time.sleep(min(delay, left))
         delay = min(1.0, delay * 2)
 
 
