@@ -55,7 +55,7 @@ from softevo.service.db.experiments import list_experiments, load_experiment
 from softevo.service.db.export import export_runs
 from softevo.service.db.generations import GenerationRecord, generations, insert_ignore, record_generation
 from softevo.service.db.individuals import local_to_db_ids
-from softevo.service.db.models import Evaluation, Generation, Individual, PopulationMember, Run
+from softevo.service.db.models import EvaluationRow, GenerationRow, IndividualRow, PopulationMemberRow, RunRow
 from softevo.service.db.phylogeny import ancestors
 from softevo.service.db.run_tree import run_phylogeny, tree_sample
 from softevo.service.db.runs import list_runs
@@ -303,7 +303,7 @@ def store_index(engine: Engine, full: int, others: list[dict], treatments: list[
             for start in range(0, len(earlier), 5000):
                 insert_ignore(
                     conn,
-                    Generation.__table__,
+                    GenerationRow.__table__,
                     [
                         {"run_id": run["id"], **r, "stats": r.pop("extra")}
                         for r in earlier[start : start + 5000]
@@ -351,11 +351,11 @@ def table_bytes(conn: Connection) -> dict[str, int]:
 
 def row_counts(conn: Connection, run_id: int) -> dict[str, int]:
     """Rows per table of ``ROW_KINDS``, and the full run's own."""
-    tables = {"individuals": Individual, "evaluations": Evaluation, "population_members": PopulationMember,
-              "generations": Generation}  # fmt: skip
+    tables = {"individuals": IndividualRow, "evaluations": EvaluationRow,
+              "population_members": PopulationMemberRow, "generations": GenerationRow}  # fmt: skip
     counts = {name: conn.execute(select(func.count()).select_from(model.__table__)).scalar_one()
               for name, model in tables.items()}  # fmt: skip
-    counts["runs"] = conn.execute(select(func.count()).select_from(Run.__table__)).scalar_one()
+    counts["runs"] = conn.execute(select(func.count()).select_from(RunRow.__table__)).scalar_one()
     for name, model in tables.items():
         table = model.__table__
         counts[f"run:{name}"] = conn.execute(
@@ -483,7 +483,7 @@ def compression(engine: Engine, run_id: int, sample: int = 5000) -> dict[str, di
     """Mean bytes per value of the genome, phenotype and algorithm state JSON as stored, with
     compact separators, and zlib-compressed (level 6) of each: over ``sample`` individuals
     spread through the run."""
-    individuals, runs = Individual.__table__, Run.__table__
+    individuals, runs = IndividualRow.__table__, RunRow.__table__
     with engine.connect() as conn:
         count = conn.execute(select(func.count()).where(individuals.c.run_id == run_id)).scalar_one()
         step = max(1, count // sample)

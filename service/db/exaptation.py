@@ -27,7 +27,7 @@ import pandas as pd
 from sqlalchemy import Connection, select
 
 from softevo.errors import UserError
-from softevo.service.db.models import PopulationMember
+from softevo.service.db.models import PopulationMemberRow
 from softevo.service.db.phylogeny import population_lines
 from softevo.service.db.rows import finite
 from softevo.service.db.run_tree import birth_evaluations, run_facts
@@ -36,7 +36,7 @@ LINE_TRAITS = ("voxel_count", "active_share", "frequency", "symmetry", "branchin
 
 
 def _members(conn: Connection, run_id: int, generation: int) -> pd.DataFrame:
-    pm = PopulationMember.__table__
+    pm = PopulationMemberRow.__table__
     rows = conn.execute(
         select(pm.c.individual_id, pm.c.front_rank)
         .where(pm.c.run_id == run_id, pm.c.generation == generation)

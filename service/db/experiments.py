@@ -19,19 +19,19 @@ from softevo.analysis.matching import analysis_generations
 from softevo.errors import UserError
 from softevo.service.db.export import evaluation_rows, runs_frame
 from softevo.service.db.models import (
-    Evaluation,
-    Experiment,
-    Generation,
-    PopulationMember,
-    Run,
+    EvaluationRow,
+    ExperimentRow,
+    GenerationRow,
+    PopulationMemberRow,
+    RunRow,
     RunStatus,
-    Treatment,
+    TreatmentRow,
     utcnow,
 )
 from softevo.service.db.rows import dict_rows
 from softevo.service.db.runs import parse_reference
 from softevo.service.db.status import run_summary_select, with_best_by_world
-from softevo.service.treatments import Treatment as Settings
+from softevo.service.treatments import Treatment
 
 STATUS_PRECEDENCE = ("running", "pending", "failed", "cancelled", "finished")
 
@@ -66,12 +66,12 @@ def create_experiment(
 ) -> tuple[int, list[int]]:
     """Insert an experiment, its treatments and pending runs; return (experiment id, run ids)."""
     experiment_id = conn.execute(
-        Experiment.__table__.insert().values(name=name, preset=preset, scale=scale, created_at=utcnow())
+        ExperimentRow.__table__.insert().values(name=name, preset=preset, scale=scale, created_at=utcnow())
     ).inserted_primary_key[0]
     run_ids: list[int] = []
     for treatment in treatments:
         treatment_id = conn.execute(
-            Treatment.__table__.insert().values(
+            TreatmentRow.__table__.insert().values(
                 experiment_id=experiment_id, name=treatment.name, settings=treatment.settings
             )
         ).inserted_primary_key[0]
@@ -83,7 +83,7 @@ def create_experiment(
 def unfinished_work(conn: Connection) -> list[tuple[dict[str, Any], int]]:
     """(settings, generations left over its pending and running runs) of every treatment with
     such a run: what the server has still to do (``service.experiments.unfinished_cost``)."""
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     left = (
         select(
             runs.c.treatment_id,
@@ -100,7 +100,7 @@ def unfinished_work(conn: Connection) -> list[tuple[dict[str, Any], int]]:
 def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
     now = utcnow()
     return conn.execute(
-        Run.__table__.insert().values(
+        RunRow.__table__.insert().values(
             treatment_id=treatment_id,
             repetition=run.repetition,
             seed=run.seed,
@@ -116,7 +116,7 @@ def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
 def resolve_experiment(conn: Connection, reference: str) -> int:
     """The experiment named by ``e2``, ``exp-2``, ``2``, ``latest`` or its name (the newest of
     that name); UserError if there is none."""
-    experiments = Experiment.__table__
+    experiments = ExperimentRow.__table__
     kind, number = parse_reference(reference)
     query = select(func.max(experiments.c.id))
     if kind in ("experiment", "run"):  # a bare number names an experiment here
@@ -156,7 +156,7 @@ def list_experiments(
     progress and ``runs_total`` over all its runs and the page ``runs_offset`` ..
     ``runs_offset + runs_limit`` of its runs (in id order): a listing's size is bounded
     whatever the experiments hold."""
-    table = Experiment.__table__
+    table = ExperimentRow.__table__
     query = select(table.c.id, table.c.name, table.c.preset, table.c.scale, table.c.created_at)
     if experiment_id is not None:
         query = query.where(table.c.id == experiment_id)
@@ -186,7 +186,7 @@ def list_experiments(
 
 def _run_tallies(conn: Connection, experiment_ids: list[int]) -> dict[int, dict[str, dict[str, int]]]:
     """experiment id -> run status -> {runs, done (generations stored), total (generations)}."""
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     query = (
         select(
             treatments.c.experiment_id,
@@ -211,7 +211,7 @@ def _run_pages(conn: Connection, experiment_ids: list[int], limit: int, offset: 
     runs from its ``offset``-th in id order: one query, a window function over experiments."""
     if limit <= 0:
         return []
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     rank = func.row_number().over(partition_by=treatments.c.experiment_id, order_by=runs.c.id)
     ranked = (
         run_summary_select(id_label="id")
@@ -230,13 +230,13 @@ def _run_pages(conn: Connection, experiment_ids: list[int], limit: int, offset: 
 
 def experiment_exists(conn: Connection, experiment_id: int) -> bool:
     """Whether there is an experiment ``experiment_id``."""
-    table = Experiment.__table__
+    table = ExperimentRow.__table__
     return conn.execute(select(table.c.id).where(table.c.id == experiment_id)).first() is not None
 
 
 def experiment_generations(conn: Connection, experiment_id: int) -> int:
     """Generations stored over all runs of the experiment."""
-    generations, runs, treatments = Generation.__table__, Run.__table__, Treatment.__table__
+    generations, runs, treatments = GenerationRow.__table__, RunRow.__table__, TreatmentRow.__table__
     return conn.execute(
         select(func.count())
         .select_from(generations)
@@ -248,7 +248,7 @@ def experiment_generations(conn: Connection, experiment_id: int) -> int:
 
 def experiment_updated_at(conn: Connection, experiment_id: int):
     """When a run of the experiment last changed (None without runs)."""
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     return conn.execute(
         select(func.max(runs.c.updated_at))
         .join(treatments, runs.c.treatment_id == treatments.c.id)
@@ -285,7 +285,7 @@ def load_experiment(
 
 
 def _experiment_row(conn: Connection, experiment_id: int) -> dict[str, Any]:
-    table = Experiment.__table__
+    table = ExperimentRow.__table__
     row = conn.execute(select(table).where(table.c.id == experiment_id)).mappings().first()
     if row is None:
         raise UserError(f"no experiment e{experiment_id} (see `softevo status`)")
@@ -293,7 +293,7 @@ def _experiment_row(conn: Connection, experiment_id: int) -> dict[str, Any]:
 
 
 def _treatments_frame(conn: Connection, experiment_id: int) -> pd.DataFrame:
-    table = Treatment.__table__
+    table = TreatmentRow.__table__
     rows = conn.execute(
         select(table.c.name, table.c.settings)
         .where(table.c.experiment_id == experiment_id)
@@ -301,7 +301,7 @@ def _treatments_frame(conn: Connection, experiment_id: int) -> pd.DataFrame:
     ).all()
     records = []
     for name, settings in rows:
-        treatment = Settings.from_settings(settings)
+        treatment = Treatment.from_settings(settings)
         record = treatment.to_settings()
         record["name"] = name
         record["switch_at"] = treatment.switch_generation()
@@ -315,7 +315,7 @@ def _treatments_frame(conn: Connection, experiment_id: int) -> pd.DataFrame:
 
 
 def _run_ids(conn: Connection, experiment_id: int) -> list[int]:
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     query = (
         select(runs.c.id)
         .join(treatments, runs.c.treatment_id == treatments.c.id)
@@ -326,7 +326,7 @@ def _run_ids(conn: Connection, experiment_id: int) -> list[int]:
 
 
 def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
-    table = Run.__table__
+    table = RunRow.__table__
     rows = conn.execute(
         select(table.c.id.label("run_id"), table.c.generation.label("generation")).where(
             table.c.id.in_([int(i) for i in runs["run_id"]])
@@ -339,7 +339,7 @@ def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
 def _end_member_filter(run_ids: list[int], wanted: list[int] | None):
     """WHERE clause: population rows of ``run_ids`` at a ``wanted`` generation or the run's
     last one (every generation when ``wanted`` is None)."""
-    members, runs = PopulationMember.__table__, Run.__table__
+    members, runs = PopulationMemberRow.__table__, RunRow.__table__
     if wanted is None:
         return members.c.run_id.in_(run_ids)
     return and_(
@@ -351,7 +351,7 @@ def _end_member_filter(run_ids: list[int], wanted: list[int] | None):
 def _end_members(conn: Connection, run_ids: list[int], wanted: list[int] | None) -> pd.DataFrame:
     """Population rows (run_id, generation, individual_id, front_rank) at the ``wanted``
     generations and the last stored generation of each run."""
-    members, runs = PopulationMember.__table__, Run.__table__
+    members, runs = PopulationMemberRow.__table__, RunRow.__table__
     columns = ["run_id", "generation", "individual_id", "front_rank"]
     result = conn.execute(
         select(*[members.c[name] for name in columns])
@@ -366,8 +366,8 @@ def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int] 
     """Every evaluation of the individuals in ``_end_members`` (of every individual of the
     runs when ``wanted`` is None), with the export's individuals columns
     (``INDIVIDUAL_COLUMNS``) and ``objectives`` ({name: value} of the run's objectives)."""
-    evaluations = Evaluation.__table__
-    members, runs = PopulationMember.__table__, Run.__table__
+    evaluations = EvaluationRow.__table__
+    members, runs = PopulationMemberRow.__table__, RunRow.__table__
     if wanted is None:
         where = evaluations.c.run_id.in_(run_ids)
     else:
@@ -383,7 +383,7 @@ def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int] 
 
 
 def _generations_frame(conn: Connection, run_ids: list[int]) -> pd.DataFrame:
-    table = Generation.__table__
+    table = GenerationRow.__table__
     columns = [
         "run_id",
         "generation",

@@ -19,14 +19,14 @@ from sqlalchemy import Boolean, Connection, Engine, Float, Integer, Select, sele
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.errors import UserError
 from softevo.service.db.models import (
-    Evaluation,
-    Experiment,
-    Individual,
-    PopulationMember,
-    Run,
-    Treatment,
+    EvaluationRow,
+    ExperimentRow,
+    IndividualRow,
+    PopulationMemberRow,
+    RunRow,
+    TreatmentRow,
 )
-from softevo.service.treatments import Treatment as TreatmentSettings
+from softevo.service.treatments import Treatment
 
 FORMATS = ("csv", "parquet")
 RUN_COLUMNS = [
@@ -53,7 +53,7 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per run: treatment settings flattened to the export columns."""
-    runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
+    runs, treatments, experiments = RunRow.__table__, TreatmentRow.__table__, ExperimentRow.__table__
     query = (
         select(
             runs.c.id.label("run_id"),
@@ -71,7 +71,7 @@ def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
         .order_by(runs.c.id)
     )
     frame = _read(conn, query)
-    settings = [TreatmentSettings.from_settings(s) for s in frame.pop("settings")]
+    settings = [Treatment.from_settings(s) for s in frame.pop("settings")]
     frame["environment_schedule"] = [t.schedule_text() for t in settings]
     frame["stiffness_pa"] = [t.stiffness_pa for t in settings]
     frame["population"] = [t.population for t in settings]
@@ -82,7 +82,7 @@ def evaluation_rows(where) -> Select:
     """SELECT of one row per evaluation with the ``INDIVIDUAL_COLUMNS``, filtered by
     ``where`` (a condition on the evaluations/individuals tables), ordered by run,
     generation and individual."""
-    evaluations, individuals = Evaluation.__table__, Individual.__table__
+    evaluations, individuals = EvaluationRow.__table__, IndividualRow.__table__
     return (
         select(
             individuals.c.id.label("individual_id"),
@@ -110,7 +110,7 @@ def populations_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
 
 
 def _population_rows(run_ids: Sequence[int]) -> Select:
-    members = PopulationMember.__table__
+    members = PopulationMemberRow.__table__
     return (
         select(*[members.c[name] for name in POPULATION_COLUMNS])
         .where(members.c.run_id.in_(list(run_ids)))
@@ -128,7 +128,8 @@ def table_chunks(
         yield runs_frame(conn, run_ids)
         return
     if table == "individuals":
-        query, columns = evaluation_rows(Evaluation.__table__.c.run_id.in_(list(run_ids))), INDIVIDUAL_COLUMNS
+        run_id = EvaluationRow.__table__.c.run_id
+        query, columns = evaluation_rows(run_id.in_(list(run_ids))), INDIVIDUAL_COLUMNS
     elif table == "populations":
         query, columns = _population_rows(run_ids), POPULATION_COLUMNS
     else:

@@ -20,11 +20,11 @@ from softevo.errors import UserError
 from softevo.service.db.individuals import evaluation_fields, local_to_db_ids, objectives
 from softevo.service.db.models import (
     EVALUATION_FIELDS,
-    Evaluation,
-    Generation,
-    Individual,
-    PopulationMember,
-    Run,
+    EvaluationRow,
+    GenerationRow,
+    IndividualRow,
+    PopulationMemberRow,
+    RunRow,
     RunStatus,
     utcnow,
 )
@@ -79,7 +79,7 @@ def record_generation(conn: Connection, record: GenerationRecord) -> None:
     parent_ids = local_to_db_ids(conn, run_id, parents)
     insert_ignore(
         conn,
-        Individual.__table__,
+        IndividualRow.__table__,
         [
             {
                 "run_id": run_id,
@@ -97,7 +97,7 @@ def record_generation(conn: Connection, record: GenerationRecord) -> None:
     ids = local_to_db_ids(conn, run_id, locals_needed)
     insert_ignore(
         conn,
-        Evaluation.__table__,
+        EvaluationRow.__table__,
         [
             {
                 "run_id": run_id,
@@ -109,7 +109,7 @@ def record_generation(conn: Connection, record: GenerationRecord) -> None:
     )
     insert_ignore(
         conn,
-        PopulationMember.__table__,
+        PopulationMemberRow.__table__,
         [
             {
                 "run_id": run_id,
@@ -121,7 +121,7 @@ def record_generation(conn: Connection, record: GenerationRecord) -> None:
             for m in record.members
         ],
     )
-    insert_ignore(conn, Generation.__table__, [_generation_row(record)])
+    insert_ignore(conn, GenerationRow.__table__, [_generation_row(record)])
     _advance_run(conn, record)
 
 
@@ -146,7 +146,7 @@ def _advance_run(conn: Connection, record: GenerationRecord) -> None:
     """Move the run's committed generation forward (never backward) and store the state.
 
     A run cancelled meanwhile (e.g. over HTTP, from another process) stays cancelled."""
-    table = Run.__table__
+    table = RunRow.__table__
     status = RunStatus.FINISHED if record.finished else RunStatus.RUNNING
     cancelled = RunStatus.CANCELLED.value
     conn.execute(
@@ -163,7 +163,7 @@ def _advance_run(conn: Connection, record: GenerationRecord) -> None:
 
 def generations(conn: Connection, run_id: int) -> list[dict[str, Any]]:
     """Per-generation statistics of a run (schemas.GenerationOut), oldest first."""
-    table = Generation.__table__
+    table = GenerationRow.__table__
     query = (
         select(
             table.c.generation,
@@ -187,9 +187,9 @@ def front(conn: Connection, run_id: int, generation: int | None) -> dict[str, An
     (default: the latest stored), each with its latest evaluation up to that generation.
     None if the run has no such generation."""
     members, individuals, evaluations = (
-        PopulationMember.__table__,
-        Individual.__table__,
-        Evaluation.__table__,
+        PopulationMemberRow.__table__,
+        IndividualRow.__table__,
+        EvaluationRow.__table__,
     )
     if generation is None:
         generation = conn.execute(

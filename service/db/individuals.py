@@ -13,17 +13,17 @@ from sqlalchemy import Connection, Engine, select
 
 from softevo.analysis.columns import TRAITS
 from softevo.errors import UserError
-from softevo.service.db.models import EVALUATION_FIELDS, Evaluation, Individual, Run, Treatment
+from softevo.service.db.models import EVALUATION_FIELDS, EvaluationRow, IndividualRow, RunRow, TreatmentRow
 from softevo.service.db.rows import dict_rows
 from softevo.service.db.runs import run_row
-from softevo.service.treatments import Treatment as Settings
+from softevo.service.treatments import Treatment
 
 PAPER_COLUMNS = ("distance", "active_share", "voxel_count")  # objectives stored as columns too
 
 
 def individual_run_id(conn: Connection, individual_id: int) -> int | None:
     """The run of an individual, or None if there is no such individual."""
-    table = Individual.__table__
+    table = IndividualRow.__table__
     return conn.execute(select(table.c.run_id).where(table.c.id == individual_id)).scalar()
 
 
@@ -32,7 +32,7 @@ def local_to_db_ids(conn: Connection, run_id: int, local_ids: Iterable[int]) -> 
     wanted = sorted(set(local_ids))
     if not wanted:
         return {}
-    table = Individual.__table__
+    table = IndividualRow.__table__
     rows = conn.execute(
         select(table.c.local_id, table.c.id).where(table.c.run_id == run_id, table.c.local_id.in_(wanted))
     )
@@ -54,7 +54,7 @@ def objectives(evaluation: dict[str, Any]) -> dict[str, Any]:
 
 def evaluations_of(conn: Connection, individual_id: int) -> list[dict[str, Any]]:
     """Every evaluation of an individual, oldest first."""
-    table = Evaluation.__table__
+    table = EvaluationRow.__table__
     query = (
         select(*[table.c[name] for name in EVALUATION_FIELDS])
         .where(table.c.individual_id == individual_id)
@@ -65,7 +65,7 @@ def evaluations_of(conn: Connection, individual_id: int) -> list[dict[str, Any]]
 
 def individual(conn: Connection, individual_id: int) -> dict[str, Any] | None:
     """One individual (schemas.IndividualOut) or None."""
-    table = Individual.__table__
+    table = IndividualRow.__table__
     rows = dict_rows(
         conn,
         select(
@@ -91,7 +91,7 @@ def individual(conn: Connection, individual_id: int) -> dict[str, Any] | None:
 def individual_context(conn: Connection, individual_id: int) -> dict[str, Any] | None:
     """What re-simulating an individual needs: genome, its run's treatment settings and seed,
     and its evaluations (environment, stiffness). None if there is no such individual."""
-    individuals, runs, treatments = Individual.__table__, Run.__table__, Treatment.__table__
+    individuals, runs, treatments = IndividualRow.__table__, RunRow.__table__, TreatmentRow.__table__
     rows = dict_rows(
         conn,
         select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
@@ -110,7 +110,7 @@ def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
     """The stored individual (id, run_id, genome, generation_born, ...), its run's treatment
     (``service.treatments.Treatment``) and seed, and its evaluations (a DataFrame, oldest
     first). UserError if there is no such individual."""
-    table = Individual.__table__
+    table = IndividualRow.__table__
     with engine.connect() as conn:
         row = conn.execute(select(table).where(table.c.id == int(individual_id))).mappings().first()
         if row is None:
@@ -119,7 +119,7 @@ def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
         evaluations = evaluation_frame(conn, int(individual_id))
     return {
         **dict(row),
-        "treatment": Settings.from_settings(run["settings"]),
+        "treatment": Treatment.from_settings(run["settings"]),
         "treatment_name": run["treatment"],
         "experiment": run["experiment"],
         "seed": run["seed"],
@@ -128,13 +128,13 @@ def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
     }
 
 
-def stored_genomes(conn: Connection, individual_ids: Iterable[int]) -> dict[int, tuple[dict, Settings, int]]:
+def stored_genomes(conn: Connection, individual_ids: Iterable[int]) -> dict[int, tuple[dict, Treatment, int]]:
     """(genome, treatment, seed) of many stored individuals in one query; unknown ids are
     left out."""
     ids = sorted({int(i) for i in individual_ids})
     if not ids:
         return {}
-    individuals, runs, treatments = Individual.__table__, Run.__table__, Treatment.__table__
+    individuals, runs, treatments = IndividualRow.__table__, RunRow.__table__, TreatmentRow.__table__
     query = (
         select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
         .join(runs, individuals.c.run_id == runs.c.id)
@@ -142,14 +142,14 @@ def stored_genomes(conn: Connection, individual_ids: Iterable[int]) -> dict[int,
         .where(individuals.c.id.in_(ids))
     )
     return {
-        int(i): (genome, Settings.from_settings(settings), int(seed))
+        int(i): (genome, Treatment.from_settings(settings), int(seed))
         for i, genome, settings, seed in conn.execute(query)
     }
 
 
 def evaluation_frame(conn: Connection, individual_id: int) -> pd.DataFrame:
     """An individual's evaluations as a DataFrame, oldest first."""
-    table = Evaluation.__table__
+    table = EvaluationRow.__table__
     columns = ["generation", "age", "environment", "stiffness", *TRAITS, "stable", "error"]
     result = conn.execute(
         select(*[table.c[name] for name in columns])

@@ -79,7 +79,7 @@ class RunStatus(enum.StrEnum):
     CANCELLED = "cancelled"
 
 
-class Experiment(Base):
+class ExperimentRow(Base):
     """A named group of treatments (e.g. the paper's grid)."""
 
     __tablename__ = "experiments"
@@ -91,7 +91,7 @@ class Experiment(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class Treatment(Base):
+class TreatmentRow(Base):
     """One treatment of an experiment; ``settings`` is ``service.treatments.Treatment`` as JSON."""
 
     __tablename__ = "treatments"
@@ -103,7 +103,7 @@ class Treatment(Base):
     settings: Mapped[dict[str, Any]] = mapped_column(JSON)
 
 
-class Run(Base):
+class RunRow(Base):
     """One repetition (seed) of a treatment.
 
     ``generation`` is the last generation committed (-1 before generation 0);
@@ -127,7 +127,7 @@ class Run(Base):
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 
 
-class Individual(Base):
+class IndividualRow(Base):
     """Every individual that ever lived in a run (its genome never changes)."""
 
     __tablename__ = "individuals"
@@ -144,7 +144,7 @@ class Individual(Base):
     phenotype: Mapped[dict[str, Any] | None] = mapped_column(JSON)
 
 
-class Evaluation(Base):
+class EvaluationRow(Base):
     """One evaluation of an individual: at birth, and again when the environment switches.
 
     ``objectives``: {name: value} of every objective the run selects on (its treatment's
@@ -181,7 +181,7 @@ class Evaluation(Base):
     seconds: Mapped[float | None] = mapped_column(Float)
 
 
-class Generation(Base):
+class GenerationRow(Base):
     """Summary of one committed generation of a run."""
 
     __tablename__ = "generations"
@@ -198,7 +198,7 @@ class Generation(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-class PopulationMember(Base):
+class PopulationMemberRow(Base):
     """Membership of the population kept at a generation, with its front rank (0 = Pareto)."""
 
     __tablename__ = "population_members"

@@ -14,8 +14,15 @@ import pandas as pd
 from sqlalchemy import Connection, Engine, and_, func, literal, select
 
 from softevo.errors import UserError
-from softevo.service.db.models import TRAITS, Evaluation, Individual, PopulationMember, Run, Treatment
-from softevo.service.treatments import Treatment as TreatmentSettings
+from softevo.service.db.models import (
+    TRAITS,
+    EvaluationRow,
+    IndividualRow,
+    PopulationMemberRow,
+    RunRow,
+    TreatmentRow,
+)
+from softevo.service.treatments import Treatment
 
 Which = Literal["birth", "latest"]
 _EVALUATION_COLUMNS = ("generation", "environment", "stiffness", "age", *TRAITS, "stable", "error")
@@ -36,7 +43,7 @@ def _frame(bind: Connection | Engine, query) -> pd.DataFrame:
 
 def _chosen_evaluation(which: Which):
     """Subquery: one evaluation per individual (its first or its last)."""
-    evaluations = Evaluation.__table__
+    evaluations = EvaluationRow.__table__
     order = evaluations.c.generation.asc() if which == "birth" else evaluations.c.generation.desc()
     ranked = select(
         evaluations,
@@ -51,7 +58,7 @@ def _chosen_evaluation(which: Which):
 
 def _ancestor_cte(individual_id: int):
     """Recursive CTE: the individual (depth 0), its parent (depth 1), ... to the root."""
-    individuals = Individual.__table__
+    individuals = IndividualRow.__table__
     anchor = select(
         individuals.c.id,
         individuals.c.parent_id,
@@ -97,21 +104,21 @@ def ancestors(bind: Connection | Engine, individual_id: int, which: Which = "bir
 def switch_generation(bind: Connection | Engine, run_id: int) -> int | None:
     """The generation at which run ``run_id`` changes environment (None if it never does)."""
     query = (
-        select(Treatment.__table__.c.settings)
-        .join(Run.__table__, Run.__table__.c.treatment_id == Treatment.__table__.c.id)
-        .where(Run.__table__.c.id == run_id)
+        select(TreatmentRow.__table__.c.settings)
+        .join(RunRow.__table__, RunRow.__table__.c.treatment_id == TreatmentRow.__table__.c.id)
+        .where(RunRow.__table__.c.id == run_id)
     )
     frame = _frame(bind, query)
     if frame.empty:
         raise UserError(f"no run {run_id}")
-    return TreatmentSettings.from_settings(frame.iloc[0]["settings"]).switch_generation()
+    return Treatment.from_settings(frame.iloc[0]["settings"]).switch_generation()
 
 
 def population_lines(run_id: int, generation: int, label: str, down: bool):
     """A recursive CTE of every member of the population kept at ``generation`` (its id in
     column ``label``) with all its descendants (``down``) or all its ancestors: label, id,
     parent_id, generation_born, depth (0 = the member)."""
-    ind, pm = Individual.__table__, PopulationMember.__table__
+    ind, pm = IndividualRow.__table__, PopulationMemberRow.__table__
     anchor = (
         select(
             ind.c.id.label(label), ind.c.id, ind.c.parent_id, ind.c.generation_born, literal(0).label("depth")
@@ -149,7 +156,7 @@ def transition_lineages(bind: Connection | Engine, run_id: int, switch_at: int |
                     "last_generation",
                 ]
             )
-    members = PopulationMember.__table__
+    members = PopulationMemberRow.__table__
     cte = population_lines(run_id, switch_at - 1, "founder_id", down=True)
     last = (
         select(members.c.individual_id, func.max(members.c.generation).label("last_generation"))

@@ -18,9 +18,9 @@ from typing import Any
 from sqlalchemy import Connection, and_, func, select
 
 from softevo.errors import UserError
-from softevo.service.db.models import Evaluation, Individual, PopulationMember, Run, Treatment
+from softevo.service.db.models import EvaluationRow, IndividualRow, PopulationMemberRow, RunRow, TreatmentRow
 from softevo.service.db.rows import dict_rows
-from softevo.service.treatments import Treatment as TreatmentSettings
+from softevo.service.treatments import Treatment
 
 NODE_OBJECTIVES = ("distance", "active_share", "voxel_count")
 SAMPLE_PRIME = 10_007  # the extinct sample orders ids by (id * SAMPLE_STEP) mod this prime
@@ -31,7 +31,7 @@ ID_CHUNK = 500  # ids bound per IN (...) when reading the chosen nodes
 def birth_evaluations(run_id: int, columns: tuple[str, ...] = NODE_OBJECTIVES):
     """Subquery: each individual of run ``run_id`` with its first evaluation's
     generation, environment and ``columns``."""
-    ev = Evaluation.__table__
+    ev = EvaluationRow.__table__
     ranked = (
         select(
             ev.c.individual_id,
@@ -50,7 +50,7 @@ def birth_evaluations(run_id: int, columns: tuple[str, ...] = NODE_OBJECTIVES):
 def last_kept(run_id: int, generation: int | None = None):
     """Subquery: individual_id, last_generation (the last kept population holding it, at or
     before ``generation`` if given)."""
-    pm = PopulationMember.__table__
+    pm = PopulationMemberRow.__table__
     query = select(pm.c.individual_id, func.max(pm.c.generation).label("last_generation")).where(
         pm.c.run_id == run_id
     )
@@ -64,7 +64,7 @@ def run_facts(conn: Connection, run_id: int) -> dict[str, Any]:
     {run_id, generation, generations, treatment (``service.treatments.Treatment``),
     switch_at, arrival (first generation wholly in the new world), environments}.
     UserError for an unknown run."""
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     row = conn.execute(
         select(runs.c.generation, runs.c.generations, treatments.c.settings)
         .join(treatments, runs.c.treatment_id == treatments.c.id)
@@ -72,7 +72,7 @@ def run_facts(conn: Connection, run_id: int) -> dict[str, Any]:
     ).first()
     if row is None:
         raise UserError(f"no run {run_id}")
-    treatment = TreatmentSettings.from_settings(row.settings)
+    treatment = Treatment.from_settings(row.settings)
     return {
         "run_id": run_id,
         "generation": int(row.generation),
@@ -94,7 +94,7 @@ def _node_query(
     through the indexes on ``evaluations (individual_id, ...)`` and
     ``population_members.individual_id``), so a page or a sample of a large run costs only
     its own rows. ``ids``: only those individuals (of this run)."""
-    ind, ev, pm = Individual.__table__, Evaluation.__table__, PopulationMember.__table__
+    ind, ev, pm = IndividualRow.__table__, EvaluationRow.__table__, PopulationMemberRow.__table__
     earlier = ev.alias("earlier")
     first = (
         select(func.min(earlier.c.generation)).where(earlier.c.individual_id == ind.c.id).scalar_subquery()
@@ -135,7 +135,7 @@ def run_phylogeny(
     Row keys: id, parent_id, generation_born, last_generation, environment, distance,
     active_share, voxel_count. UserError for an unknown run."""
     run_facts(conn, run_id)
-    ind = Individual.__table__
+    ind = IndividualRow.__table__
     chosen = select(ind.c.id).where(ind.c.run_id == run_id)
     if generation is not None:
         chosen = chosen.where(ind.c.generation_born <= generation)
@@ -154,7 +154,7 @@ def run_phylogeny(
 def surviving_ancestry(run_id: int, generation: int):
     """Recursive CTE (id, parent_id): the members of the population kept at ``generation``
     and all their ancestors, each once (UNION, not UNION ALL)."""
-    ind, pm = Individual.__table__, PopulationMember.__table__
+    ind, pm = IndividualRow.__table__, PopulationMemberRow.__table__
     anchor = (
         select(ind.c.id, ind.c.parent_id)
         .join(pm, pm.c.individual_id == ind.c.id)
@@ -178,7 +178,7 @@ def tree_sample(
     out = {key: facts[key] for key in keys}
     if last < 0:
         return {**out, "survivors_total": 0, "extinct_total": 0, "nodes": []}
-    ind, pm = Individual.__table__, PopulationMember.__table__
+    ind, pm = IndividualRow.__table__, PopulationMemberRow.__table__
     surviving = surviving_ancestry(run_id, last)
     survivor_ids = (
         select(surviving.c.id, ind.c.generation_born)

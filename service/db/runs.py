@@ -13,7 +13,7 @@ from typing import Any
 from sqlalchemy import Connection, Table, func, select, update
 
 from softevo.errors import UserError
-from softevo.service.db.models import Evaluation, Experiment, Run, RunStatus, Treatment, utcnow
+from softevo.service.db.models import EvaluationRow, ExperimentRow, RunRow, RunStatus, TreatmentRow, utcnow
 from softevo.service.db.rows import dict_rows
 from softevo.service.db.status import run_summary_select, with_best_by_world
 
@@ -31,7 +31,7 @@ def set_run_status(
     """Set the status (and error message, None for none) of run ``run_ids`` (one id or
     several); with ``only_from``, only of those runs whose status is one of these (e.g. a
     cancel touches only pending or running runs). Returns how many runs changed."""
-    table = Run.__table__
+    table = RunRow.__table__
     ids = [run_ids] if isinstance(run_ids, int) else list(run_ids)
     query = update(table).where(table.c.id.in_(ids))
     if only_from is not None:
@@ -42,7 +42,7 @@ def set_run_status(
 
 def active_run_ids(conn: Connection, run_ids: Sequence[int] | None = None) -> list[int]:
     """Ids of pending or running runs (among ``run_ids`` if given), in id order."""
-    table = Run.__table__
+    table = RunRow.__table__
     query = select(table.c.id).where(table.c.status.in_(ACTIVE)).order_by(table.c.id)
     if run_ids is not None:
         query = query.where(table.c.id.in_(list(run_ids)))
@@ -59,15 +59,15 @@ def list_runs(
     """Run summaries (schemas.RunSummary), optionally of one experiment and/or one status."""
     query = run_summary_select(id_label="id")
     if experiment_id is not None:
-        query = query.where(Treatment.__table__.c.experiment_id == experiment_id)
+        query = query.where(TreatmentRow.__table__.c.experiment_id == experiment_id)
     if status is not None:
-        query = query.where(Run.__table__.c.status == status)
+        query = query.where(RunRow.__table__.c.status == status)
     return with_best_by_world(conn, dict_rows(conn, query.limit(limit).offset(offset)))
 
 
 def run_detail(conn: Connection, run_id: int) -> dict[str, Any] | None:
     """One run (schemas.RunOut) or None."""
-    runs, treatments = Run.__table__, Treatment.__table__
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
     query = (
         select(
             runs.c.id,
@@ -98,7 +98,7 @@ def run_detail(conn: Connection, run_id: int) -> dict[str, Any] | None:
 def best_of_run(conn: Connection, run_id: int, environment: str | None = None) -> dict[str, Any] | None:
     """The evaluation with the greatest distance in the run (in ``environment`` if given;
     first stored on a tie)."""
-    evaluations = Evaluation.__table__
+    evaluations = EvaluationRow.__table__
     query = (
         select(
             evaluations.c.individual_id,
@@ -121,7 +121,7 @@ def best_of_run(conn: Connection, run_id: int, environment: str | None = None) -
 def best_per_world(conn: Connection, run_id: int) -> list[dict[str, Any]]:
     """The run's best evaluation (``best_of_run``) in each world it was evaluated in, the
     worlds in the order the run first met them (its last world last)."""
-    evaluations = Evaluation.__table__
+    evaluations = EvaluationRow.__table__
     worlds = conn.execute(
         select(evaluations.c.environment)
         .where(evaluations.c.run_id == run_id)
@@ -133,7 +133,7 @@ def best_per_world(conn: Connection, run_id: int) -> list[dict[str, Any]]:
 
 def run_status(conn: Connection, run_id: int) -> str | None:
     """The run's status, or None if there is no such run."""
-    table = Run.__table__
+    table = RunRow.__table__
     return conn.execute(select(table.c.status).where(table.c.id == run_id)).scalar()
 
 
@@ -144,7 +144,7 @@ def reopen_runs(conn: Connection, run_ids: Sequence[int]) -> None:
 
 def run_row(conn: Connection, run_id: int) -> dict[str, Any]:
     """The run with its treatment and experiment names and settings, as a dict."""
-    runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
+    runs, treatments, experiments = RunRow.__table__, TreatmentRow.__table__, ExperimentRow.__table__
     row = (
         conn.execute(
             select(
@@ -173,7 +173,7 @@ def resolve_runs(conn: Connection, reference: str | None) -> list[int]:
     experiment 2. ``latest``: the runs of the newest experiment. Anything else: the runs of
     the experiment(s) with that name.
     """
-    runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
+    runs, treatments, experiments = RunRow.__table__, TreatmentRow.__table__, ExperimentRow.__table__
     query = select(runs.c.id).join(treatments, runs.c.treatment_id == treatments.c.id)
     kind, number = parse_reference(reference)
     if kind == "latest":

@@ -9,7 +9,7 @@ from typing import Any
 from sqlalchemy import Connection, Engine, and_, func, select
 
 from softevo.errors import UserError
-from softevo.service.db.models import Experiment, Generation, Run, Treatment
+from softevo.service.db.models import ExperimentRow, GenerationRow, RunRow, TreatmentRow
 from softevo.service.db.phylogeny import ancestors
 from softevo.service.db.rows import dict_rows
 
@@ -22,8 +22,8 @@ def run_summary_select(id_label: str = "run_id"):
 
     The best at the last generation, not the best ever: a land -> water run's land walkers of
     generation 0 would otherwise stand for its water robots."""
-    runs, treatments, experiments = Run.__table__, Treatment.__table__, Experiment.__table__
-    last = Generation.__table__.alias("last")
+    runs, treatments, experiments = RunRow.__table__, TreatmentRow.__table__, ExperimentRow.__table__
+    last = GenerationRow.__table__.alias("last")
     return (
         select(
             runs.c.id.label(id_label),
@@ -48,7 +48,7 @@ def run_summary_select(id_label: str = "run_id"):
 def best_by_world(conn: Connection, run_ids: Sequence[int]) -> dict[int, dict[str, float]]:
     """Per run of ``run_ids``: {world: best distance of any generation evaluated in it}, the
     worlds in the order the run first met them (a gradual switch's compound worlds too)."""
-    generations = Generation.__table__
+    generations = GenerationRow.__table__
     query = (
         select(
             generations.c.run_id,
@@ -78,7 +78,7 @@ def with_best_by_world(
 
 def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]]:
     """Per run, the columns of ``run_summary_select`` and ``best_by_world`` for ``run_ids``."""
-    query = run_summary_select().where(Run.__table__.c.id.in_(list(run_ids)))
+    query = run_summary_select().where(RunRow.__table__.c.id.in_(list(run_ids)))
     with engine.connect() as conn:
         return with_best_by_world(conn, dict_rows(conn, query), "run_id")
 

@@ -13,7 +13,7 @@ from sqlalchemy import func, select
 from softevo.service.db import open_database
 from softevo.service.db.exaptation import exaptation
 from softevo.service.db.experiments import load_experiment
-from softevo.service.db.models import Individual
+from softevo.service.db.models import IndividualRow
 from softevo.service.db.phylogeny import ancestors
 from softevo.service.db.run_tree import run_phylogeny
 from softevo.service.db.runs import list_runs
@@ -37,7 +37,7 @@ def test_storage_scale_tiny(tmp_path):
         full = next(r for r in runs if (r["treatment"], r["repetition"]) == ("land-water S3", 0))
         assert full["generation"] == GENERATIONS - 1
         total, nodes = run_phylogeny(conn, full["id"])
-        assert total == conn.execute(select(func.count()).select_from(Individual.__table__)).scalar_one()
+        assert total == conn.execute(select(func.count()).select_from(IndividualRow.__table__)).scalar_one()
         assert total >= POPULATION * GENERATIONS - 1
         born = {n["id"]: n["generation_born"] for n in nodes}
         assert all(born[n["parent_id"]] < n["generation_born"] for n in nodes if n["parent_id"] is not None)

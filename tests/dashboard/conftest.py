@@ -23,7 +23,7 @@ import httpx
 import pytest
 from sqlalchemy import create_engine, select, update
 
-from softevo.service.db.models import Individual
+from softevo.service.db.models import IndividualRow
 from tests.dashboard.block import WORKSPACE, block_genome
 from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
 
@@ -63,7 +63,7 @@ def _install_block(url: str, run_id: int) -> int:
     """Give the first individual of ``run_id`` (a 7x7x7 run) the full-block genome: the
     replay re-simulates from the genome, so its page replays a 343-voxel robot."""
     engine = create_engine(url)
-    table = Individual.__table__
+    table = IndividualRow.__table__
     with engine.begin() as conn:
         individual_id = conn.execute(
             select(table.c.id).where(table.c.run_id == run_id).order_by(table.c.id).limit(1)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from sqlalchemy import create_engine, select
 
-from softevo.service.db.models import Individual
+from softevo.service.db.models import IndividualRow
 from tests.dashboard.chromium import browser_missing
 
 pytestmark = [
@@ -144,7 +144,7 @@ def test_individual_page_links_to_its_parent(dashboard_url, tiny_db, open_page):
 
 def _an_individual_with_a_parent(url: str, run_id: int) -> dict:
     """A child born in generation 1 of the tiny run (AFPO breeds every generation)."""
-    table = Individual.__table__
+    table = IndividualRow.__table__
     engine = create_engine(url)
     with engine.connect() as conn:
         row = conn.execute(

@@ -12,7 +12,7 @@ import sys
 
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import generations, open_database
-from softevo.service.db.models import PopulationMember
+from softevo.service.db.models import PopulationMemberRow
 from softevo.service.executors import InlineExecutor
 
 
@@ -31,7 +31,7 @@ def main(url: str, mode: str, generation: int) -> None:
 
     def insert_then_die(conn, table, rows):
         real_insert(conn, table, rows)
-        if table is PopulationMember.__table__ and rows and rows[0]["generation"] == generation:
+        if table is PopulationMemberRow.__table__ and rows and rows[0]["generation"] == generation:
             _die()  # individuals, evaluations and members written, not committed
 
     if mode == "during-write":

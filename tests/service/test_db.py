@@ -11,7 +11,7 @@ from softevo.service.db import make_engine, open_database
 from softevo.service.db.experiments import resolve_experiment
 from softevo.service.db.generations import record_generation
 from softevo.service.db.migrate import alembic_config, script_location
-from softevo.service.db.models import Evaluation, Generation, Individual, PopulationMember, Run
+from softevo.service.db.models import EvaluationRow, GenerationRow, IndividualRow, PopulationMemberRow, RunRow
 from softevo.service.db.runs import count_rows, resolve_runs, run_row
 from tests.service import handbuilt
 
@@ -57,7 +57,7 @@ def test_bad_url_is_a_user_error():
 
 def test_recording_twice_changes_nothing(engine):
     run_id = handbuilt.build(engine)
-    tables = [t.__table__ for t in (Individual, Evaluation, PopulationMember, Generation)]
+    tables = [t.__table__ for t in (IndividualRow, EvaluationRow, PopulationMemberRow, GenerationRow)]
     with engine.connect() as conn:
         before = [count_rows(conn, t, run_id) for t in tables]
     for generation in range(4):
@@ -80,7 +80,7 @@ def test_older_generation_never_rewinds_the_run(engine):
 
 def test_failed_evaluation_keeps_its_error(engine):
     run_id = handbuilt.build(engine)
-    table = Evaluation.__table__
+    table = EvaluationRow.__table__
     with engine.connect() as conn:
         rows = conn.execute(
             select(table.c.stable, table.c.error).where(
@@ -100,7 +100,7 @@ def test_a_failed_generation_write_leaves_nothing(engine):
     with pytest.raises(KeyError), engine.begin() as conn:
         record_generation(conn, record)
     with engine.connect() as conn:
-        assert count_rows(conn, Individual.__table__, run_id) == 12
+        assert count_rows(conn, IndividualRow.__table__, run_id) == 12
         assert run_row(conn, run_id)["generation"] == 3
 
 
@@ -118,7 +118,7 @@ def test_resolve_runs(engine):
             resolve_runs(conn, "nope")
         with pytest.raises(UserError):
             resolve_experiment(conn, "e999")
-        assert conn.execute(select(Run.__table__.c.seed)).scalar_one() == 7
+        assert conn.execute(select(RunRow.__table__.c.seed)).scalar_one() == 7
 
 
 def test_migrations_are_packaged_for_an_installed_coordinator():

@@ -16,7 +16,7 @@ from sqlalchemy import select, text
 
 from softevo.service.cli import main
 from softevo.service.db import open_database
-from softevo.service.db.models import Individual, PopulationMember
+from softevo.service.db.models import IndividualRow, PopulationMemberRow
 from softevo.service.treatments import Treatment
 from tests.service import tinyrun
 from tests.service.rq_support import Processes, service_env
@@ -51,7 +51,7 @@ def cli(capsys, *args: str) -> str:
 def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
     engine, url, run_id, base = served
     summary = json.loads(cli(capsys, "exaptation", f"r{run_id}", "--json", "--db", url))
-    ind, pm = Individual.__table__, PopulationMember.__table__
+    ind, pm = IndividualRow.__table__, PopulationMemberRow.__table__
     with engine.connect() as conn:
         final = set(
             conn.execute(
@@ -144,7 +144,7 @@ def test_phylogeny_cli_and_rest_list_the_same_tree(served, capsys):
     rows = list(csv.DictReader(io.StringIO(cli(capsys, "phylogeny", f"r{run_id}", "--csv", "--db", url))))
     with engine.connect() as conn:
         count = conn.execute(
-            select(Individual.__table__.c.id).where(Individual.__table__.c.run_id == run_id)
+            select(IndividualRow.__table__.c.id).where(IndividualRow.__table__.c.run_id == run_id)
         ).all()
     assert len(rows) == len(count)
     first = httpx.get(f"{base}/runs/{run_id}/phylogeny", params={"limit": 5}).json()

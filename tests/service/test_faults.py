@@ -36,7 +36,7 @@ from sqlalchemy.exc import OperationalError
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import open_database
 from softevo.service.db.locks import DatabaseLocks
-from softevo.service.db.models import Evaluation, Individual, Run
+from softevo.service.db.models import EvaluationRow, IndividualRow, RunRow
 from softevo.service.driver import CoordinatorLoop
 from softevo.service.executors import InlineExecutor
 from softevo.service.rq_executor import RQExecutor
@@ -67,7 +67,7 @@ def reference(tmp_path_factory):
 def _generation(engine, run_id: int = 1) -> int:
     with engine.connect() as conn:
         return conn.execute(
-            select(Run.__table__.c.generation).where(Run.__table__.c.id == run_id)
+            select(RunRow.__table__.c.generation).where(RunRow.__table__.c.id == run_id)
         ).scalar_one()
 
 
@@ -93,7 +93,7 @@ def test_sqlite_disk_full_pauses_the_run_and_resume_completes_it(tmp_path, refer
     engine = open_database(url)
     with engine.connect() as conn:
         assert conn.execute(text("PRAGMA integrity_check")).scalar_one() == "ok"
-        status = conn.execute(select(Run.__table__.c.status)).scalar_one()
+        status = conn.execute(select(RunRow.__table__.c.status)).scalar_one()
     assert _generation(engine, run_id) == 1 and status in ("pending", "running")  # paused, not failed
     tinyrun.run_to_end(engine, run_id)  # space is back
     assert tinyrun.snapshot(engine, run_id) == reference
@@ -145,7 +145,7 @@ def test_postgres_restarted_mid_generation(reference, caplog):
             def finished():
                 try:
                     with engine.connect() as conn:
-                        return conn.execute(select(Run.__table__.c.status)).scalar_one() == "finished"
+                        return conn.execute(select(RunRow.__table__.c.status)).scalar_one() == "finished"
                 except OperationalError:  # while the server is down
                     return False
 
@@ -271,7 +271,7 @@ def test_bad_results_are_requeued_and_a_timed_out_job_fails_its_individual(tmp_p
         assert timed_out[8] is False and "JobTimeoutException" in timed_out[9], timed_out
         assert all(e[9] is None or "Timeout" not in e[9] for k, e in last.items() if k != slow)
         with engine.connect() as conn:
-            ev, ind = Evaluation.__table__, Individual.__table__
+            ev, ind = EvaluationRow.__table__, IndividualRow.__table__
             rows = conn.execute(
                 select(ev.c.error).join(ind, ev.c.individual_id == ind.c.id).where(ind.c.local_id == slow)
             ).all()

@@ -9,8 +9,7 @@ from sqlalchemy import select
 
 from softevo import sim
 from softevo.service.db import open_database
-from softevo.service.db.models import Evaluation, Individual, Run
-from softevo.service.db.models import Treatment as TreatmentRow
+from softevo.service.db.models import EvaluationRow, IndividualRow, RunRow, TreatmentRow
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task, encoding_of, scene_of
 from tests.service.test_cli_runs import TINY, softevo
@@ -27,7 +26,7 @@ def test_run_with_fields_stores_reproducible_individuals(capsys, tmp_path, flags
                              *TINY, "--db", db)
     assert code == 0, err
     engine = open_database(db)
-    ind, ev, runs, tr = (Individual.__table__, Evaluation.__table__, Run.__table__,
+    ind, ev, runs, tr = (IndividualRow.__table__, EvaluationRow.__table__, RunRow.__table__,
                          TreatmentRow.__table__)
     with engine.connect() as conn:
         rows = conn.execute(

@@ -8,7 +8,7 @@ from collections import Counter
 from sqlalchemy import select
 
 from softevo.service.db import open_database
-from softevo.service.db.models import Evaluation, Generation
+from softevo.service.db.models import EvaluationRow, GenerationRow
 from softevo.service.executors import InlineExecutor
 from tests.service import tinyrun
 
@@ -42,12 +42,12 @@ def test_survivors_are_simulated_again_only_in_a_new_world(tmp_path):
             assert not survivors & handed_out
     with engine.connect() as conn:
         rows = conn.execute(
-            select(Generation.generation, Generation.evaluations, Generation.stats).where(
-                Generation.run_id == run_id
+            select(GenerationRow.generation, GenerationRow.evaluations, GenerationRow.stats).where(
+                GenerationRow.run_id == run_id
             )
         ).all()
         stored = Counter(
-            conn.execute(select(Evaluation.generation).where(Evaluation.run_id == run_id)).scalars()
+            conn.execute(select(EvaluationRow.generation).where(EvaluationRow.run_id == run_id)).scalars()
         )
     per_generation = Counter(g for _, g, _ in executor.tasks)
     assert len(rows) == 5

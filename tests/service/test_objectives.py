@@ -25,7 +25,7 @@ from softevo.service.coordinator import Coordinator
 from softevo.service.db import make_engine, open_database
 from softevo.service.db.individuals import individual
 from softevo.service.db.migrate import upgrade
-from softevo.service.db.models import Evaluation, PopulationMember, Run
+from softevo.service.db.models import EvaluationRow, PopulationMemberRow, RunRow
 from softevo.service.executors import InlineExecutor
 from softevo.service.reports import write_report
 from softevo.service.settings import Settings
@@ -62,14 +62,15 @@ def test_a_registered_objective_flows_through_a_real_run(toy_objective, tmp_path
 
         # selection: the run's algorithm selects on the toy objective (plus age, afpo)
         with engine.connect() as conn:
-            state = conn.execute(sa.select(Run.__table__.c.algorithm_state)).scalar_one()
-            last = conn.execute(sa.select(Run.__table__.c.generation)).scalar_one()
-            stored = conn.execute(sa.select(Evaluation.__table__.c.objectives,
-                                            Evaluation.__table__.c.voxel_count)).all()
+            state = conn.execute(sa.select(RunRow.__table__.c.algorithm_state)).scalar_one()
+            last = conn.execute(sa.select(RunRow.__table__.c.generation)).scalar_one()
+            stored = conn.execute(sa.select(EvaluationRow.__table__.c.objectives,
+                                            EvaluationRow.__table__.c.voxel_count)).all()
+            pm = PopulationMemberRow.__table__
             members = conn.execute(
-                sa.select(PopulationMember.__table__.c.individual_id, PopulationMember.__table__.c.front_rank)
-                .where(PopulationMember.__table__.c.generation == last)
-                .order_by(PopulationMember.__table__.c.individual_id)
+                sa.select(pm.c.individual_id, pm.c.front_rank)
+                .where(pm.c.generation == last)
+                .order_by(pm.c.individual_id)
             ).all()
         algo = Evolution.from_state_dict(state)
         assert [o.name for o in algo.config.selection_objectives] == ["distance", TOY, "age"]
@@ -152,7 +153,7 @@ def test_migration_0002_gives_stored_evaluations_their_objectives(db_url):
             distance=2.5, active_share=0.25, voxel_count=12, stable=True))
     upgrade(engine)
     with engine.connect() as conn:
-        stored = conn.execute(sa.select(Evaluation.__table__.c.objectives)).scalar_one()
+        stored = conn.execute(sa.select(EvaluationRow.__table__.c.objectives)).scalar_one()
         assert stored == {"distance": 2.5, "active_share": 0.25, "voxel_count": 12}
         assert individual(conn, 1)["objectives"] == stored
     engine.dispose()

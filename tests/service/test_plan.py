@@ -11,7 +11,7 @@ import pytest
 from sqlalchemy import func, select
 
 from softevo.service.db import open_database
-from softevo.service.db.models import Generation
+from softevo.service.db.models import GenerationRow
 from softevo.service.plan import plan
 from softevo.service.treatments import Treatment, paper_grid
 from tests.analysis.cli import softevo
@@ -34,7 +34,7 @@ def real_runs(tmp_path_factory):
     for treatment in (TINY, GRADUAL):
         run_to_end(engine, new_run(engine, treatment))
     with engine.connect() as conn:
-        simulated = conn.execute(select(func.sum(Generation.evaluations))).scalar_one()
+        simulated = conn.execute(select(func.sum(GenerationRow.evaluations))).scalar_one()
     engine.dispose()
     return simulated, os.path.getsize(path) - before
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import select
 
-from softevo.service.db.models import Evaluation, Run
+from softevo.service.db.models import EvaluationRow, RunRow
 from tests.service import tinyrun
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -42,11 +42,11 @@ def _python(*args: str) -> subprocess.Popen:
 
 def _generation(engine) -> int:
     with engine.connect() as conn:
-        return conn.execute(select(Run.__table__.c.generation)).scalar_one()
+        return conn.execute(select(RunRow.__table__.c.generation)).scalar_one()
 
 
 def _environments(engine) -> list[str]:
-    table = Evaluation.__table__
+    table = EvaluationRow.__table__
     with engine.connect() as conn:
         rows = conn.execute(
             select(table.c.generation, table.c.environment).distinct().order_by(table.c.generation)

@@ -9,7 +9,7 @@ from sqlalchemy import Engine, select
 
 from softevo.service.coordinator import Coordinator
 from softevo.service.db import open_database
-from softevo.service.db.models import Evaluation, Individual, PopulationMember, Run
+from softevo.service.db.models import EvaluationRow, IndividualRow, PopulationMemberRow, RunRow
 from softevo.service.executors import Executor, InlineExecutor
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment
@@ -48,7 +48,7 @@ def reference_snapshot(folder: Path, treatment: Treatment = TINY) -> dict[str, A
 
 def snapshot(engine: Engine, run_id: int) -> dict[str, Any]:
     """Everything a run stored, keyed by the algorithm's local ids (comparable across DBs)."""
-    ind, ev, pm = Individual.__table__, Evaluation.__table__, PopulationMember.__table__
+    ind, ev, pm = IndividualRow.__table__, EvaluationRow.__table__, PopulationMemberRow.__table__
     parent = ind.alias("parent")
     with engine.connect() as conn:
         individuals = conn.execute(
@@ -80,10 +80,9 @@ def snapshot(engine: Engine, run_id: int) -> dict[str, Any]:
             .where(pm.c.run_id == run_id)
             .order_by(pm.c.generation, ind.c.local_id)
         ).all()
+        runs = RunRow.__table__
         run = conn.execute(
-            select(Run.__table__.c.status, Run.__table__.c.generation, Run.__table__.c.algorithm_state).where(
-                Run.__table__.c.id == run_id
-            )
+            select(runs.c.status, runs.c.generation, runs.c.algorithm_state).where(runs.c.id == run_id)
         ).one()
     return {
         "individuals": [tuple(r) for r in individuals],

@@ -98,9 +98,9 @@ def stored(tmp_path_factory):
 def _stored_evaluations(engine, run_id):
     from sqlalchemy import select
 
-    from softevo.service.db.models import Evaluation, Individual
+    from softevo.service.db.models import EvaluationRow, IndividualRow
 
-    ind, ev = Individual.__table__, Evaluation.__table__
+    ind, ev = IndividualRow.__table__, EvaluationRow.__table__
     query = (
         select(ind.c.id, ind.c.local_id, ind.c.genome, ev.c.generation, ev.c.environment, ev.c.stiffness,
                ev.c.distance, ev.c.stable)
