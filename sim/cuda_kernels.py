@@ -249,16 +249,16 @@ def rollout_kernel(shared: bool, threads: int):
                     pos[3 * b] - pos[3 * a], pos[3 * b + 1] - pos[3 * a + 1],
                     pos[3 * b + 2] - pos[3 * a + 2], axis)
                 mode = ls[LINK_STATE * j + 8]
-                g = ldamp[l0 + j]
+                damp = ldamp[l0 + j]
                 if mode >= 0.0:
                     W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
                         R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                    g = g if mode != 0.0 else 0.0
+                    damp = damp if mode != 0.0 else 0.0
                     mode = 1.0
                     if leave:  # computed again in the other frame, undamped
                         W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
                             R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                        g, mode = 0.0, -1.0
+                        damp, mode = 0.0, -1.0
                 else:
                     W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
                         R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
@@ -266,12 +266,12 @@ def rollout_kernel(shared: bool, threads: int):
                     if back:
                         W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
                             R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                        g, mode = 0.0, 1.0
+                        damp, mode = 0.0, 1.0
                 S = LINK_STATE * j
-                ex, ey, ez = damped(g, dx, ls[S]), damped(g, dy, ls[S + 1]), damped(g, dz, ls[S + 2])
-                e1y, e1z = damped(g, t1y, ls[S + 3]), damped(g, t1z, ls[S + 4])
-                e2x, e2y = damped(g, t2x, ls[S + 5]), damped(g, t2y, ls[S + 6])
-                e2z = damped(g, t2z, ls[S + 7])
+                ex, ey, ez = damped(damp, dx, ls[S]), damped(damp, dy, ls[S + 1]), damped(damp, dz, ls[S + 2])
+                e1y, e1z = damped(damp, t1y, ls[S + 3]), damped(damp, t1z, ls[S + 4])
+                e2x, e2y = damped(damp, t2x, ls[S + 5]), damped(damp, t2y, ls[S + 6])
+                e2z = damped(damp, t2z, ls[S + 7])
                 ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
                 ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
                 O = LINK_LOADS * j

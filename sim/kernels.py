@@ -238,20 +238,20 @@ def link_geometry(B, J):
 
 
 @njit(**INLINE)
-def beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
-    """Damp link J's deformation (elongation d, end rotations t1 = (0, t1y, t1z) and t2) by g
+def beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
+    """Damp link J's deformation (elongation d, end rotations t1 = (0, t1y, t1z) and t2) by damp
     times its change since the previous step, keep it as the new previous one, and write the
     beam's forces and moments in world axes (``physics.link_loads``) to the output rows.
     Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or NaN), else 0."""
     S = ROW_STATE
-    ex = damped(g, dx, B[at(S, J)])
-    ey = damped(g, dy, B[at(S + 1, J)])
-    ez = damped(g, dz, B[at(S + 2, J)])
-    e1y = damped(g, t1y, B[at(S + 4, J)])
-    e1z = damped(g, t1z, B[at(S + 5, J)])
-    e2x = damped(g, t2x, B[at(S + 6, J)])
-    e2y = damped(g, t2y, B[at(S + 7, J)])
-    e2z = damped(g, t2z, B[at(S + 8, J)])
+    ex = damped(damp, dx, B[at(S, J)])
+    ey = damped(damp, dy, B[at(S + 1, J)])
+    ez = damped(damp, dz, B[at(S + 2, J)])
+    e1y = damped(damp, t1y, B[at(S + 4, J)])
+    e1z = damped(damp, t1z, B[at(S + 5, J)])
+    e2x = damped(damp, t2x, B[at(S + 6, J)])
+    e2y = damped(damp, t2y, B[at(S + 7, J)])
+    e2z = damped(damp, t2z, B[at(S + 8, J)])
     B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)] = dx, dy, dz
     B[at(S + 4, J)], B[at(S + 5, J)] = t1y, t1z
     B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = t2x, t2y, t2z
@@ -264,24 +264,24 @@ def beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
 
 
 @njit(**INLINE)
-def small_frame(p, B, J, g):
+def small_frame(p, B, J, damp):
     """Link J in its negative voxel's frame (``physics.small_frame``). Returns the divergence
     flag and whether the bend or the extension has outgrown the frame."""
     R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
     W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame_of(
         R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-    bad = beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
+    bad = beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
     return bad, leave
 
 
 @njit(**INLINE)
-def large_frame(p, B, J, g):
+def large_frame(p, B, J, damp):
     """Link J in the frame of its centre line (``physics.large_frame``). Returns the
     divergence flag and whether the link is back within the small-angle frame's bounds."""
     R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
     W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, enter = large_frame_of(
         R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-    bad = beam_out(p, B, J, g, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
+    bad = beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
     return bad, enter
 
 
@@ -404,8 +404,8 @@ def link_kernel(p, ends, split, pos, quat, size, B):
         lo, hi = 0, max(0, min(LINK_TILE, ns - first))
         for lane in range(lo, hi):  # mode +1, or 0 before the first step (nothing to damp)
             J = tile + U(lane)
-            g = B[at(ROW_DAMP, J)] if B[at(ROW_MODE, J)] != 0.0 else 0.0
-            flag, leave = small_frame(p, B, J, g)
+            damp = B[at(ROW_DAMP, J)] if B[at(ROW_MODE, J)] != 0.0 else 0.0
+            flag, leave = small_frame(p, B, J, damp)
             B[at(ROW_MODE, J)] = LEAVES if leave else 1.0
             count += MOVED if leave else flag
         lo, hi = hi, min(LINK_TILE, m - first)

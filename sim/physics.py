@@ -266,10 +266,10 @@ def large_frame(R, axis, rx, ry, rz, ow, ox, oy, oz, rest):
     return W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z, enter
 
 
-def damped(g, d, previous):
-    """A deformation d seen with bond damping: d plus g times its change since the previous
-    step (g = gamma_link / (2 dt), 0 with nothing to damp against)."""
-    return fma(g, d - previous, d)
+def damped(damp, d, previous):
+    """A deformation d seen with bond damping: d plus damp times its change since the previous
+    step (damp = gamma_link / (2 dt), 0 with nothing to damp against)."""
+    return fma(damp, d - previous, d)
 
 
 def link_loads(W, s, rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x, e2y, e2z):
