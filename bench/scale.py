@@ -90,7 +90,8 @@ def coordinator_role(db_url: str, redis_url: str) -> None:
     """``softevo serve``'s coordinator loop on the database's runs, until terminated: with
     ``--coordinators K`` there are K of these, sharing the runs through Redis locks."""
     from softevo.service.db import open_database
-    from softevo.service.driver import CoordinatorLoop, RedisLocks
+    from softevo.service.driver import CoordinatorLoop
+    from softevo.service.locks import RedisLocks
     from softevo.service.rq_executor import RQExecutor
 
     stop = threading.Event()

@@ -8,12 +8,10 @@ before the next is dispatched. Runs submitted meanwhile join at the next round; 
 runs leave at the next round. A coordinator restarted (or another one taking over a lock
 that expired) resumes every run from its last stored generation.
 
-Locks: with Redis, a key per run (``SET NX PX``, renewed every ``ttl / 3`` seconds by a
-thread, re-taken after a Redis restart if nobody else did); a coordinator that dies lets its
-locks expire within ``ttl``. Without Redis, the database holds them
-(``service.db.locks.DatabaseLocks``: PostgreSQL advisory locks, a lock file beside a SQLite
-file). A coordinator that finds a run locked by another logs once who holds it and waits:
-it takes the run over when the lock is freed.
+Locks (``service.locks``): with Redis, a key per run renewed by a thread (``RedisLocks``);
+without Redis, the database holds them (``service.db.locks.DatabaseLocks``). A coordinator
+that finds a run locked by another logs once who holds it and waits: it takes the run over
+when the lock is freed.
 
 Several coordinators on one database (with Redis): each counts the coordinators alive now
 (``RedisLocks.peers``) and drives at most its share, ``ceil(unfinished runs / peers)``; one
@@ -28,10 +26,6 @@ from __future__ import annotations
 import logging
 import math
 import threading
-import time
-import uuid
-from collections.abc import Iterable
-from typing import Protocol
 
 from sqlalchemy import Engine
 
@@ -47,143 +41,9 @@ from softevo.service.coordinator import (
 from softevo.service.db.models import RunStatus
 from softevo.service.db.runs import set_run_status
 from softevo.service.executors import Executor
+from softevo.service.locks import RunLocks
 
 log = logging.getLogger("softevo.coordinator")
-
-RENEW_SCRIPT = """
-local owner = redis.call('GET', KEYS[1])
-if owner == ARGV[1] then
-  return redis.call('PEXPIRE', KEYS[1], ARGV[2])
-elseif not owner then
-  return redis.call('SET', KEYS[1], ARGV[1], 'NX', 'PX', ARGV[2]) and 1 or 0
-end
-return 0
-"""
-RELEASE_SCRIPT = """
-if redis.call('GET', KEYS[1]) == ARGV[1] then return redis.call('DEL', KEYS[1]) end
-return 0
-"""
-
-
-class RunLocks(Protocol):
-    """Who drives which run."""
-
-    def acquire(self, run_id: int) -> bool: ...
-
-    def renew(self) -> set[int]:
-        """Extend every lock held; return the runs whose lock was lost."""
-        ...
-
-    def release(self, run_ids: Iterable[int]) -> None: ...
-
-    def peers(self) -> int:
-        """Coordinators sharing the runs now, this one included (at least 1)."""
-        ...
-
-    def leave(self) -> None:
-        """Stop counting among the peers (this coordinator is stopping)."""
-        ...
-
-
-class LocalLocks:
-    """Locks within this process (no Redis): one coordinator per database."""
-
-    def __init__(self) -> None:
-        self.held: set[int] = set()
-        self._mutex = threading.Lock()
-
-    def acquire(self, run_id: int) -> bool:
-        with self._mutex:
-            if run_id in self.held:
-                return False
-            self.held.add(run_id)
-            return True
-
-    def renew(self) -> set[int]:
-        return set()
-
-    def release(self, run_ids: Iterable[int]) -> None:
-        with self._mutex:
-            self.held.difference_update(run_ids)
-
-    def peers(self) -> int:
-        return 1
-
-    def leave(self) -> None:
-        pass
-
-
-class RedisLocks:
-    """One Redis key per run, ``softevo:<database>:run:<id>:coordinator`` = owner token."""
-
-    def __init__(self, redis_url: str, namespace: str, ttl: float = 30.0) -> None:
-        from softevo.service.rq_executor import connect  # rq and redis: only for Redis locks
-
-        self.connection = connect(redis_url)
-        self.namespace = namespace
-        self.ttl_ms = int(ttl * 1000)
-        self.token = uuid.uuid4().hex
-        self.held: set[int] = set()
-        self._renew = self.connection.register_script(RENEW_SCRIPT)
-        self._release = self.connection.register_script(RELEASE_SCRIPT)
-        self._mutex = threading.Lock()
-
-    def key(self, run_id: int) -> str:
-        return f"softevo:{self.namespace}:run:{run_id}:coordinator"
-
-    def peers(self) -> int:
-        """Coordinators of this database alive now, this one included: each one that asks
-        counts itself in for ``ttl`` (a sorted set scored by expiry), so a coordinator that
-        died drops out within ``ttl``."""
-        key = f"softevo:{self.namespace}:coordinators"
-        now_ms = int(time.time() * 1000)
-        with self.connection.pipeline(transaction=True) as pipe:
-            pipe.zadd(key, {self.token: now_ms + self.ttl_ms})
-            pipe.zremrangebyscore(key, "-inf", now_ms)
-            pipe.zcard(key)
-            pipe.pexpire(key, self.ttl_ms)
-            count = pipe.execute()[2]
-        return max(1, int(count))
-
-    def leave(self) -> None:
-        self.connection.zrem(f"softevo:{self.namespace}:coordinators", self.token)
-
-    def acquire(self, run_id: int) -> bool:
-        with self._mutex:
-            if run_id in self.held:
-                return False
-            if self.connection.set(self.key(run_id), self.token, nx=True, px=self.ttl_ms):
-                self.held.add(run_id)
-                return True
-            return False
-
-    def renew(self) -> set[int]:
-        with self._mutex:
-            lost = {
-                run_id
-                for run_id in self.held
-                if not self._renew(keys=[self.key(run_id)], args=[self.token, self.ttl_ms])
-            }
-            self.held -= lost
-            return lost
-
-    def release(self, run_ids: Iterable[int]) -> None:
-        with self._mutex:
-            for run_id in list(run_ids):
-                if run_id in self.held:
-                    self.held.discard(run_id)
-                    self._release(keys=[self.key(run_id)], args=[self.token])
-
-    def owner(self, run_id: int) -> str | None:
-        """The token of the coordinator holding the run (None: nobody)."""
-        value = self.connection.get(self.key(run_id))
-        return value.decode() if value else None
-
-    def holder(self, run_id: int) -> str:
-        """Who holds ``run_id``'s lock, in words."""
-        owner = self.owner(run_id)
-        return f"Redis key {self.key(run_id)} is held by coordinator {owner or '(expired just now)'}"
-
 
 class CoordinatorLoop:
     """Drives the database's unfinished runs in a background thread (see the module doc)."""

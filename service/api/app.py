@@ -41,8 +41,9 @@ from softevo.service.api.schemas import EXPERIMENT_TAGS
 from softevo.service.dashboard import dashboard_router
 from softevo.service.db import open_database
 from softevo.service.db.locks import DatabaseLocks
-from softevo.service.driver import CoordinatorLoop, RedisLocks
+from softevo.service.driver import CoordinatorLoop
 from softevo.service.executors import make_executor
+from softevo.service.locks import RedisLocks
 from softevo.service.reports import write_report
 from softevo.service.settings import Settings
 

@@ -1,5 +1,5 @@
 """Run locks kept by the database itself, for coordinators without Redis
-(``service.driver``'s ``RunLocks``): two ``softevo serve`` started on one database never
+(``service.locks.RunLocks``): two ``softevo serve`` started on one database never
 drive the same run; the second says who holds it and waits.
 
 - PostgreSQL: a session advisory lock per run (``pg_try_advisory_lock(LOCK_CLASS, run)``)

@@ -20,8 +20,8 @@ from rq.serializers import JSONSerializer
 
 from softevo import __version__
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
-from softevo.service.driver import RedisLocks
 from softevo.service.executors import InlineExecutor
+from softevo.service.locks import RedisLocks
 from softevo.service.rq_executor import JOB_FUNCTION, RQExecutor, plan_batches
 from softevo.worker.rq_worker import VERSION_KEY
 from tests.service.rq_support import Processes, redis_for_test, wait_for
