@@ -40,11 +40,11 @@ import numba
 import numpy as np
 
 from softevo import sim
+from softevo.evolution.worlds import LAND, PAPER
 from softevo.sim import cuda_engine
 from softevo.sim.engines import EngineUnavailable
 from softevo.sim.scene import DEFAULT_CYCLES, parse_scene
 from softevo.sim.system import F_DT, I_STEPS, build_robot
-from softevo.sim.worlds import LAND
 
 BATCHES = (1, 10, 100, 1000, 10000)
 POOL = 100  # distinct robots per case; a larger batch repeats them
@@ -128,7 +128,7 @@ def main() -> None:
     )
     parser.add_argument("--precisions", default="float64", help="float64 (float32 is refused for now)")
     parser.add_argument("--side", type=int, default=7, help="robots' side in voxels (7: the paper's)")
-    parser.add_argument("--worlds", default="land,water")
+    parser.add_argument("--worlds", default=",".join(PAPER))
     parser.add_argument("--moduli", default="1e6,1e7", help="Young's moduli, Pa")
     parser.add_argument(
         "--accuracy", type=int, default=0, help="whole evaluations per case for float32 vs float64"

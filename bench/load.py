@@ -46,6 +46,8 @@ from pathlib import Path
 import httpx
 import numpy as np
 
+from softevo.evolution.worlds import LAND
+
 REPO = Path(__file__).resolve().parents[1]
 TOKEN = "bench-load-token"
 ENDPOINTS = ("status", "runs", "generations", "front", "lineage", "dashboard")
@@ -59,7 +61,7 @@ def free_port() -> int:
 
 def treatment(generations: int, seed: int) -> dict:
     return {
-        "environment": "land",
+        "environment": LAND.name,
         "stiffness_mpa": 0.1,
         "population": 8,
         "generations": generations,

@@ -48,6 +48,7 @@ from coordinator_overhead import InstantExecutor  # bench/: the instant results 
 from sqlalchemy import Connection, Engine, func, select, text
 
 from softevo.evolution.selection import non_dominated_sort
+from softevo.evolution.worlds import PAPER, between
 from softevo.service.coordinator import ask, load_run, tell
 from softevo.service.db import open_database
 from softevo.service.db.exaptation import exaptation
@@ -63,7 +64,7 @@ from softevo.service.experiments import create
 from softevo.service.treatments import Treatment, paper_grid
 
 PAPER_LONGEST = 9000  # the paper's longest runs (S3 and the transitions), generations
-FULL_RUN = ("land-water S3", 0)  # the run stored in full: a transition, for exaptation
+FULL_RUN = (f"{between(*PAPER)} S3", 0)  # the run stored in full: a transition, for exaptation
 BATCH = 100  # synthesised generations per transaction
 PHYLOGENY_PAGE = 10_000  # what ``softevo phylogeny`` reads per query
 ROW_KINDS = {  # table -> what one row is

@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from softevo.evolution.worlds import PAPER, WATER
+
 HERE = Path(__file__).resolve().parent
 SPEC = importlib.util.spec_from_file_location("voxcad_reference", HERE / "voxcad_reference.py")
 reference = importlib.util.module_from_spec(SPEC)
@@ -74,13 +76,13 @@ def main() -> None:
     print(f"{'robot':<28}{'vox':>5}{'steps':>8}{'paper engine':>14}{'softevo':>10}{'ratio':>8}")
     for k in range(args.robots):
         level, youngs = LEVELS[k % len(LEVELS)]
-        env = ("land", "water")[(k // len(LEVELS)) % 2]
+        env = PAPER[(k // len(LEVELS)) % 2]
         collisions = bool(rng.random() < 0.5)
         seed, pheno = reference.cppn_robot(seed, (args.workspace,) * 3)
         period = 1.0 / pheno.frequency
-        stop = args.cycles * period + (0.0 if env == "water" else 0.5)
+        stop = args.cycles * period + (0.0 if env == WATER.name else 0.5)
         vxa = reference.make_vxa(pheno.body, pheno.phase / (2 * np.pi), period, youngs,
-                                 env == "water", collisions, stop)
+                                 env == WATER.name, collisions, stop)
         name = f"{level}_{env}_{'col' if collisions else 'nocol'}_{seed}"
         seed += 1
         fork = reference.run_driver(info["driver"], vxa, work, name, every=0)

@@ -45,6 +45,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from softevo.evolution.worlds import LAND, WATER
+
 BENCH = Path(__file__).resolve().parent
 REFERENCE = BENCH.parent / "tests" / "sim" / "reference" / "voxcad"
 
@@ -68,7 +70,7 @@ def samples(only: str | None) -> list[dict]:
         if only and not re.search(only, doc["name"]):
             continue
         vxa = doc["vxa"]
-        world = "water" if "<FluidEnvironment>1<" in vxa else "land"
+        world = WATER.name if "<FluidEnvironment>1<" in vxa else LAND.name
         out.append({"name": doc["name"][len("sample_") :], "vxa": vxa, "world": world})
     if not out:
         sys.exit(f"error: no sample robots under {REFERENCE} (--only {only!r})")
@@ -317,7 +319,7 @@ def profile(args, driver: str, robots: list[dict]) -> None:
         per_world = defaultdict(list)
         for robot in robots:
             vxa = cut(robot["vxa"], args.profile_seconds)
-            shares = callgrind_shares(driver, vxa, work, robot["name"], robot["world"] == "water")
+            shares = callgrind_shares(driver, vxa, work, robot["name"], robot["world"] == WATER.name)
             per_world[robot["world"]].append(shares)
             print(
                 f"{robot['name']:<30}{robot['world']:<7}" + "".join(f"{shares[b]:>13.1%}" for b in BUCKETS),
@@ -349,7 +351,7 @@ def profile(args, driver: str, robots: list[dict]) -> None:
         nocol = {**scene, "self_collisions": False}
         faces = {**scene, "model_options": {**scene["model_options"], "drag": "faces"}}
         variants = {"ours": scene, "nocol": nocol}
-        if robot["world"] == "water":
+        if robot["world"] == WATER.name:
             variants["faces"] = faces
         for s in variants.values():
             warm_up(s)

@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from softevo.evolution.worlds import LAND, PAPER, WATER
+
 REPO = Path(__file__).resolve().parents[1]
 DRIVER = Path(__file__).with_name("voxcad") / "driver.cpp"
 MIRROR = Path("/work/.mirror/skriegman+evosoro/repo")
@@ -370,14 +372,14 @@ def cases(src: Path) -> list[dict]:
         )
     seed = 100
     for level, youngs in STIFFNESS.items():
-        for env in ("land", "water"):
+        for env in PAPER:
             seed, pheno = cppn_robot(seed, (5, 5, 5))
             cycles = CYCLES
             period = 1.0 / pheno.frequency
-            stop = cycles * period + (0.0 if env == "water" else 0.5)
+            stop = cycles * period + (0.0 if env == WATER.name else 0.5)
             for collisions in (True, False):
                 vxa = make_vxa(
-                    pheno.body, pheno.phase / (2 * np.pi), period, youngs, env == "water", collisions, stop
+                    pheno.body, pheno.phase / (2 * np.pi), period, youngs, env == WATER.name, collisions, stop
                 )
                 out.append(
                     {
@@ -397,16 +399,16 @@ def cases(src: Path) -> list[dict]:
                     }
                 )
             seed += 1
-    for k, env in enumerate(("land", "water", "land", "water")):
+    for k, env in enumerate(PAPER * 2):
         seed, pheno = cppn_robot(500 + 10 * k, (6, 6, 6), evolve_stiffness=True)
         period = 1.0 / pheno.frequency
-        stop = CYCLES * period + (0.0 if env == "water" else 0.5)
+        stop = CYCLES * period + (0.0 if env == WATER.name else 0.5)
         vxa = make_vxa(
             pheno.body,
             pheno.phase / (2 * np.pi),
             period,
             1e5,
-            env == "water",
+            env == WATER.name,
             True,
             stop,
             stiffness=pheno.stiffness,
@@ -636,12 +638,12 @@ def speed(args, infos: dict[str, dict]) -> None:
         f"{'eval/s':>8}{'Mvox-step/s':>13}"
     )
     for label, info in infos.items():
-        rows = {"land": [], "water": []}
+        rows = {name: [] for name in PAPER}
         for case in cases(Path(info["src"]))[:8]:
             vxa = case["vxa"]
             if args.speed_seconds:
                 vxa = re.sub(r"<StopConditionValue>[^<]+<", f"<StopConditionValue>{args.speed_seconds}<", vxa)
-            env = "water" if "<FluidEnvironment>1<" in vxa else "land"
+            env = WATER.name if "<FluidEnvironment>1<" in vxa else LAND.name
             best = None
             for _ in range(args.repeat):
                 run = run_driver(info["driver"], vxa, Path(args.build) / "speed", case["name"], every=0)

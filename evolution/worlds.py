@@ -36,7 +36,7 @@ from softevo.sim.worlds import (
 __all__ = [
     "KINDS", "LAND", "PAPER", "VOID", "WATER", "World", "all_worlds", "get", "names", "register",
     "unregister",
-    "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts",
+    "between", "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts",
     "schedule_entries", "share_at", "transition",
 ]
 
@@ -102,11 +102,16 @@ def is_transition(environment: str) -> bool:
     return TRANSITION in environment
 
 
+def between(old: str, new: str) -> str:
+    """The abrupt transition from world ``old`` to world ``new`` (``land-water``)."""
+    return f"{old}{TRANSITION}{new}"
+
+
 def environments() -> tuple[str, ...]:
     """Every treatment environment: the evolvable worlds, then each ordered pair of them as a
     transition (``land``, ``water``, ``land-water``, ``water-land``, ...)."""
     pure = names(evolve=True)
-    return pure + tuple(f"{a}{TRANSITION}{b}" for a in pure for b in pure if a != b)
+    return pure + tuple(between(a, b) for a in pure for b in pure if a != b)
 
 
 def final(environment: str) -> str:

@@ -27,11 +27,14 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
+from softevo.evolution import worlds
 from softevo.service.cli_runs import INDIVIDUAL_HELP, DbOption, one_individual
 
 EnvironmentOption = Annotated[
     str | None,
-    typer.Option("--environment", help="land | water (default: of its latest evaluation)"),
+    typer.Option(
+        "--environment", help=f"{' | '.join(worlds.names(evolve=True))} (default: of its latest evaluation)"
+    ),
 ]
 
 

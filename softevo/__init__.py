@@ -59,7 +59,7 @@ def import_vxa(path) -> dict[str, Any]:
 
 
 def evolve(
-    environment: str = "land",
+    environment: str | None = None,
     stiffness_mpa: float = 1.0,
     *,
     population: int = 8,
@@ -72,7 +72,7 @@ def evolve(
     progress: bool = False,
 ):
     """A local run in memory (no database) of the treatment ``softevo run`` would store:
-    AFPO over CPPN robots in ``environment`` (``land``, ``water``, or an abrupt transition
+    AFPO over CPPN robots in ``environment`` (``land``, the default, ``water``, or an abrupt transition
     ``land-water`` / ``water-land`` at ``switch_at``, default half-way) at ``stiffness_mpa``,
     for ``generations`` generations (0 .. generations - 1), selecting on ``objectives`` (names
     of registered objectives, ``evolution.selection.OBJECTIVES``; empty: the paper's). The
@@ -89,9 +89,10 @@ def evolve(
     from softevo.service.experiments import evolution_config
     from softevo.service.limits import check_workspace
     from softevo.service.treatments import Treatment
+    from softevo.sim.worlds import LAND
 
     treatment = Treatment(
-        environment,
+        environment or LAND.name,
         stiffness_mpa,
         population=population,
         generations=generations,

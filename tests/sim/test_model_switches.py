@@ -53,8 +53,8 @@ def test_nearby_matches_a_breadth_first_walk(hops):
 
 def test_collision_pairs_skip_every_pair_within_the_horizon():
     """A U whose arms stand 2 voxels apart: its tips are 10 bond hops apart. Horizons of 1 and
-    3 let close arm voxels collide; a horizon of 10 leaves no pair; the candidate list holds exactly the close surface pairs
-    more than the horizon apart (brute force)."""
+    3 let close arm voxels collide; a horizon of 10 leaves no pair; the candidate list holds
+    exactly the close surface pairs more than the horizon apart (brute force)."""
     body = np.zeros((3, 1, 5), int)
     body[0, 0, :] = 1
     body[:, 0, 0] = 1
@@ -258,7 +258,9 @@ def test_a_sliding_voxel_stops_where_coulomb_friction_says():
     rule = "voxcad"
     v0, mu_k, g = 0.2, 0.5, 9.81
     scene = {"body": [[[1]]], "material": {"youngs_modulus": 1e5, "damping_global": 0.0},
-             "initial_velocity": [v0, 0, 0], "initial_offset": [0, 0, -1200 * 0.05**3 * g / (2 * 1e5 * 0.05)],  # at rest on the floor
+             "initial_velocity": [v0, 0, 0],
+             # initial_offset: at rest on the floor
+             "initial_offset": [0, 0, -1200 * 0.05**3 * g / (2 * 1e5 * 0.05)],
              "duration": {"seconds": 0.1}, "model_options": {"friction": rule},
              "record": {"every": 20}}
     result = sim.simulate(scene)
