@@ -36,7 +36,6 @@ import json
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -47,16 +46,11 @@ import httpx
 import numpy as np
 
 from softevo.evolution.worlds import LAND
+from softevo.service.loopback import free_port, wait_healthy
 
 REPO = Path(__file__).resolve().parents[1]
 TOKEN = "bench-load-token"
 ENDPOINTS = ("status", "runs", "generations", "front", "lineage", "dashboard")
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def treatment(generations: int, seed: int) -> dict:
@@ -90,16 +84,10 @@ class Server:
             [sys.executable, "-m", "softevo.service.cli", "serve", "--port", str(self.port)],
             cwd=REPO, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True,
         )  # fmt: skip
-        deadline = time.monotonic() + 120
-        while True:
-            try:
-                if httpx.get(f"{self.base}/health", timeout=2).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                pass
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                raise SystemExit(f"softevo serve did not start; see {workdir / 'serve.log'}")
-            time.sleep(0.25)
+        try:
+            wait_healthy(self.base, self.process, 120)
+        except RuntimeError as exc:
+            raise SystemExit(f"softevo serve did not start ({exc}); see {workdir / 'serve.log'}") from None
 
     def submit(self, name: str, generations: int, seed: int) -> tuple[int, int]:
         body = {"name": name, "treatments": [treatment(generations, seed)]}

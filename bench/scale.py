@@ -35,7 +35,6 @@ import json
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -46,6 +45,8 @@ from pathlib import Path
 from urllib.parse import urlsplit, urlunsplit
 
 import numpy as np
+
+from softevo.service.loopback import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 QUEUE = "softevo-scale"
@@ -216,12 +217,6 @@ def bottleneck(row: dict) -> str:
 
 
 # -- one level --------------------------------------------------------------------------------
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def with_database(url: str, name: str) -> str:

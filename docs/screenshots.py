@@ -17,13 +17,11 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
-import httpx
+from softevo.service.loopback import free_port, wait_healthy
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
@@ -44,12 +42,6 @@ def experiment_id(db: str, reference: str) -> int:
         engine.dispose()
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 def start_dashboard(db: str) -> tuple[subprocess.Popen, str]:
     """``softevo dashboard`` on a free loopback port, once it answers ``/health``."""
     port = free_port()
@@ -57,18 +49,12 @@ def start_dashboard(db: str) -> tuple[subprocess.Popen, str]:
                "--host", "127.0.0.1", "--port", str(port)]  # fmt: skip
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + START_S
-    while time.monotonic() < deadline:
-        if process.poll() is not None:
-            raise SystemExit(f"softevo dashboard exited with {process.returncode}: {process.stderr.read()}")
-        try:
-            if httpx.get(f"{base}/health", timeout=2).status_code == 200:
-                return process, base
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.3)
-    process.terminate()
-    raise SystemExit(f"softevo dashboard did not answer within {START_S} s")
+    try:
+        wait_healthy(base, process, START_S)
+    except RuntimeError as exc:
+        process.terminate()
+        raise SystemExit(f"softevo dashboard: {exc}") from None
+    return process, base
 
 
 def screenshot(base: str, experiment: int, out: Path, width: int, timeout_s: float) -> None:

@@ -38,6 +38,7 @@ The whole state (including the random generator) is JSON: ``state_to_json`` /
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -108,19 +109,14 @@ class EvolutionConfig:
         return self.objectives + ((AGE_OBJECTIVE,) if self.mode == "afpo" else ())
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "population_size": self.population_size,
-            "mode": self.mode,
-            "seed": self.seed,
-            "environment": self.environment,
-            "youngs_modulus": self.youngs_modulus,
-            "cycles": self.cycles,
-            "encoding": self.encoding.to_dict(),
-            "objectives": [[o.name, o.direction] for o in self.objectives],
-            "descriptors": self.descriptors,
-            "model": self.model,
-            **({"max_seconds": self.max_seconds} if self.max_seconds is not None else {}),
-        }
+        """Plain JSON, in field order: the encoding as its dict, each objective as [name,
+        direction], ``max_seconds`` only where set."""
+        data = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)}
+        data["encoding"] = self.encoding.to_dict()
+        data["objectives"] = [[o.name, o.direction] for o in self.objectives]
+        if self.max_seconds is None:
+            del data["max_seconds"]
+        return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> EvolutionConfig:

@@ -12,16 +12,16 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 import numpy as np
-from fastapi import APIRouter, HTTPException, Path, Query
+from fastapi import APIRouter, HTTPException, Query
 
 from softevo.service.api.deps import ServicesDep
+from softevo.service.api.params import IndividualId
 from softevo.service.api.routes.individuals import stored_task
-from softevo.service.api.schemas import MAX_INT32, WorldName
+from softevo.service.api.schemas import WorldName
 from softevo.worker.tasks import scenes_of
 
 router = APIRouter()
 
-IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32, description="individual id")]
 
 
 def scene_body(scene: dict[str, Any]) -> dict[str, Any]:

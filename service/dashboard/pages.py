@@ -12,15 +12,14 @@ import json
 from functools import cache
 from pathlib import Path as FilePath
 from string import Template
-from typing import Annotated
 
-from fastapi import APIRouter, Path, Request
+from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
 from softevo.evolution import worlds
 from softevo.service.api.deps import ConnectionDep
 from softevo.service.api.headers import policy
-from softevo.service.api.schemas import MAX_INT32
+from softevo.service.api.params import ExperimentId, IndividualId, RunId
 from softevo.service.db import experiments as db_experiments
 from softevo.service.db import individuals as db_individuals
 from softevo.service.db import runs as db_runs
@@ -29,9 +28,6 @@ TEMPLATES = FilePath(__file__).parent / "templates"
 
 router = APIRouter()
 
-ExperimentId = Annotated[int, Path(ge=1, le=MAX_INT32)]
-RunId = Annotated[int, Path(ge=1, le=MAX_INT32)]
-IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32)]
 
 
 @cache

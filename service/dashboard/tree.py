@@ -13,19 +13,18 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, HTTPException, Path, Query, Request
+from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import HTMLResponse
 
 from softevo.errors import UserError
 from softevo.service.api.deps import ConnectionDep
-from softevo.service.api.schemas import MAX_INT32
+from softevo.service.api.params import RunId
 from softevo.service.dashboard.pages import not_found, render
 from softevo.service.db import runs as db_runs
 from softevo.service.db.run_tree import tree_sample
 
 router = APIRouter()
 
-RunId = Annotated[int, Path(ge=1, le=MAX_INT32)]
 MAX_SURVIVORS = 4000
 MAX_EXTINCT = 600
 

@@ -20,12 +20,12 @@ from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.errors import UserError
 from softevo.service.db.models import (
     EvaluationRow,
-    ExperimentRow,
     IndividualRow,
     PopulationMemberRow,
     RunRow,
     TreatmentRow,
 )
+from softevo.service.db.status import run_summary_select
 from softevo.service.treatments import Treatment
 
 FORMATS = ("csv", "parquet")
@@ -53,24 +53,8 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per run: treatment settings flattened to the export columns."""
-    runs, treatments, experiments = RunRow.__table__, TreatmentRow.__table__, ExperimentRow.__table__
-    query = (
-        select(
-            runs.c.id.label("run_id"),
-            experiments.c.name.label("experiment"),
-            treatments.c.name.label("treatment"),
-            runs.c.repetition,
-            runs.c.seed,
-            treatments.c.settings,
-            runs.c.generations,
-            runs.c.status,
-        )
-        .join(treatments, runs.c.treatment_id == treatments.c.id)
-        .join(experiments, treatments.c.experiment_id == experiments.c.id)
-        .where(runs.c.id.in_(list(run_ids)))
-        .order_by(runs.c.id)
-    )
-    frame = _read(conn, query)
+    query = run_summary_select().add_columns(TreatmentRow.__table__.c.settings)
+    frame = _read(conn, query.where(RunRow.__table__.c.id.in_(list(run_ids))))
     settings = [Treatment.from_settings(s) for s in frame.pop("settings")]
     frame["environment_schedule"] = [t.schedule_text() for t in settings]
     frame["stiffness_pa"] = [t.stiffness_pa for t in settings]

@@ -28,7 +28,7 @@ from softevo.service.db.models import (
     RunStatus,
     utcnow,
 )
-from softevo.service.db.rows import dict_rows
+from softevo.service.db.rows import columns, dict_rows
 
 
 @dataclass
@@ -161,21 +161,17 @@ def _advance_run(conn: Connection, record: GenerationRecord) -> None:
     )
 
 
+GENERATION_FIELDS = (  # schemas.GenerationOut
+    "generation", "environment", "evaluations", "best_distance", "mean_distance", "front_size",
+    "evaluation_seconds", "stats", "created_at",
+)  # fmt: skip
+
+
 def generations(conn: Connection, run_id: int) -> list[dict[str, Any]]:
     """Per-generation statistics of a run (schemas.GenerationOut), oldest first."""
     table = GenerationRow.__table__
     query = (
-        select(
-            table.c.generation,
-            table.c.environment,
-            table.c.evaluations,
-            table.c.best_distance,
-            table.c.mean_distance,
-            table.c.front_size,
-            table.c.evaluation_seconds,
-            table.c.stats,
-            table.c.created_at,
-        )
+        select(*columns(table, *GENERATION_FIELDS))
         .where(table.c.run_id == run_id)
         .order_by(table.c.generation)
     )

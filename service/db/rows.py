@@ -27,6 +27,11 @@ def finite(value: Any) -> Any:
     return value
 
 
+def columns(table, *names: str) -> list:
+    """The columns of ``table`` named ``names``, in that order (for ``select(*columns(...))``)."""
+    return [table.c[name] for name in names]
+
+
 def dict_rows(conn: Connection, query) -> list[dict[str, Any]]:
     """Every row of ``query`` as a ``finite`` dict."""
     return [finite(dict(row)) for row in conn.execute(query).mappings()]

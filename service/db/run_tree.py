@@ -19,32 +19,30 @@ from sqlalchemy import Connection, and_, func, select
 
 from softevo.errors import UserError
 from softevo.service.db.models import EvaluationRow, IndividualRow, PopulationMemberRow, RunRow, TreatmentRow
+from softevo.service.db.rows import columns as columns_of
 from softevo.service.db.rows import dict_rows
 from softevo.service.treatments import Treatment
 
 NODE_OBJECTIVES = ("distance", "active_share", "voxel_count")
+BIRTH = ("individual_id", "generation", "environment")  # where and when an evaluation was
 SAMPLE_PRIME = 10_007  # the extinct sample orders ids by (id * SAMPLE_STEP) mod this prime
 SAMPLE_STEP = 7_919
 ID_CHUNK = 500  # ids bound per IN (...) when reading the chosen nodes
 
 
-def birth_evaluations(run_id: int, columns: tuple[str, ...] = NODE_OBJECTIVES):
+def birth_evaluations(run_id: int, objectives: tuple[str, ...] = NODE_OBJECTIVES):
     """Subquery: each individual of run ``run_id`` with its first evaluation's
-    generation, environment and ``columns``."""
+    generation, environment and ``objectives``."""
     ev = EvaluationRow.__table__
     ranked = (
         select(
-            ev.c.individual_id,
-            ev.c.generation,
-            ev.c.environment,
-            *[ev.c[name] for name in columns],
+            *columns_of(ev, *BIRTH, *objectives),
             func.row_number().over(partition_by=ev.c.individual_id, order_by=ev.c.generation).label("n"),
         )
         .where(ev.c.run_id == run_id)
         .subquery("ranked")
     )
-    names = ("individual_id", "generation", "environment", *columns)
-    return select(*[ranked.c[name] for name in names]).where(ranked.c.n == 1).subquery("birth")
+    return select(*columns_of(ranked, *BIRTH, *objectives)).where(ranked.c.n == 1).subquery("birth")
 
 
 def last_kept(run_id: int, generation: int | None = None):

@@ -14,7 +14,8 @@ from sqlalchemy import Connection, Table, func, select, update
 
 from softevo.errors import UserError
 from softevo.service.db.models import EvaluationRow, ExperimentRow, RunRow, RunStatus, TreatmentRow, utcnow
-from softevo.service.db.rows import dict_rows
+from softevo.service.db.rows import columns, dict_rows
+from softevo.service.db.run_tree import BIRTH, NODE_OBJECTIVES
 from softevo.service.db.status import run_summary_select, with_best_by_world
 
 ACTIVE = (RunStatus.PENDING.value, RunStatus.RUNNING.value)
@@ -100,14 +101,7 @@ def best_of_run(conn: Connection, run_id: int, environment: str | None = None) -
     first stored on a tie)."""
     evaluations = EvaluationRow.__table__
     query = (
-        select(
-            evaluations.c.individual_id,
-            evaluations.c.generation,
-            evaluations.c.environment,
-            evaluations.c.distance,
-            evaluations.c.active_share,
-            evaluations.c.voxel_count,
-        )
+        select(*columns(evaluations, *BIRTH, *NODE_OBJECTIVES))
         .where(evaluations.c.run_id == run_id)
         .order_by(evaluations.c.distance.desc(), evaluations.c.id)
         .limit(1)

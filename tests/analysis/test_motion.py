@@ -19,7 +19,7 @@ from softevo.analysis.motion import (
 )
 from softevo.service.db.individuals import individual_record
 from softevo.sim.mesh import deformed_mesh, lattice_mesh
-from tests.analysis.cli import softevo
+from tests.support import softevo
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from softevo.analysis.figures import FIGURES
-from tests.analysis.cli import exit_code, softevo
+from tests.support import exit_code, softevo
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from softevo.analysis.power import (
 from softevo.service.db import open_database
 from softevo.service.treatments import STUDY_REPETITIONS, Treatment, paper_grid
 from tests.analysis import matched
-from tests.analysis.cli import softevo
+from tests.support import softevo
 
 LAND = (
     Treatment("land", 1.0, name="land S4", population=2, generations=4),

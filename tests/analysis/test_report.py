@@ -9,7 +9,7 @@ import pytest
 
 from softevo.analysis.figures import FIGURES, TITLES
 from softevo.service.reports import report_html, write_report
-from tests.analysis.cli import softevo
+from tests.support import softevo
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import softevo
 from softevo import sim
 from softevo.analysis.vxa import VxaError, VxaWarning, scene_to_vxa
 from softevo.analysis.vxa_import import MAX_FILE_BYTES, read_vxa, vxa_to_scene
-from tests.analysis.cli import softevo as run_cli
+from tests.support import softevo as run_cli
 
 SAMPLES = Path(__file__).parent / "data" / "vxa"
 LAND = ("hopper", "land_stiffness_phaseoffset", "pusher_land", "quadruped_land")

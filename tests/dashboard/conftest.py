@@ -11,21 +11,19 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import httpx
 import pytest
 from sqlalchemy import create_engine, select, update
 
 from softevo.service.db.models import IndividualRow
 from tests.dashboard.block import WORKSPACE, block_genome
 from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
+from tests.support import free_port, softevo_process, wait_healthy
 
 SERVER_START_S = 60
 CLI_TIMEOUT_S = 600
@@ -41,13 +39,7 @@ class TinyDatabase:
 
 def softevo(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     """Run the CLI in a subprocess (as a user would), failing the test on a non-zero exit."""
-    done = subprocess.run(
-        [sys.executable, "-m", "softevo.service.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=CLI_TIMEOUT_S,
-        env={**os.environ, **(env or {})},
-    )
+    done = softevo_process(*args, env=env, timeout=CLI_TIMEOUT_S)
     assert done.returncode == 0, f"softevo {' '.join(args)} failed:\n{done.stdout}\n{done.stderr}"
     return done
 
@@ -84,26 +76,6 @@ def tiny_db(tmp_path_factory) -> TinyDatabase:
     return TinyDatabase(path, url, run_id=1, block_id=_install_block(url, run_id=2))
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _wait_healthy(base: str, process: subprocess.Popen) -> None:
-    deadline = time.monotonic() + SERVER_START_S
-    while time.monotonic() < deadline:
-        if process.poll() is not None:
-            raise RuntimeError(f"the server exited with {process.returncode}:\n{process.stdout.read()}")
-        try:
-            if httpx.get(f"{base}/health", timeout=2).status_code == 200:
-                return
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.3)
-    raise RuntimeError(f"the server at {base} did not answer /health in {SERVER_START_S} s")
-
-
 @pytest.fixture(scope="session")
 def start_server():
     """``start_server(command, db_url) -> base URL``: the CLI command serving on a free
@@ -132,7 +104,7 @@ def start_server():
         )
         processes.append(process)
         base = f"http://127.0.0.1:{port}"
-        _wait_healthy(base, process)
+        wait_healthy(base, process, SERVER_START_S)
         return base
 
     yield start

@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -22,14 +21,10 @@ import pytest
 from redis import Redis
 from redis.exceptions import RedisError
 
+from tests.support import free_port
+
 REPO = Path(__file__).resolve().parents[2]
 TOKEN = "test-token-123-456789"  # at least 16 characters (MIN_TOKEN_LENGTH)
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def wait_for(condition: Callable[[], object], timeout: float, what: str, every: float = 0.1):

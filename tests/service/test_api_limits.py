@@ -27,10 +27,9 @@ import pytest
 from softevo.service.api.frames import decode_frames
 from softevo.service.api.guards import json_depth
 from softevo.service.api.routes.experiments import _stale
-from softevo.service.db import open_database
-from tests.analysis.cli import softevo
 from tests.service import tinyrun
 from tests.service.rq_support import Processes, auth, service_env
+from tests.support import softevo
 
 READ_TOKEN = "read-token-456-789012"
 QUEUE = 2  # SOFTEVO_BACKGROUND_QUEUE of the test server
@@ -40,11 +39,7 @@ QUEUE = 2  # SOFTEVO_BACKGROUND_QUEUE of the test server
 def served(tmp_path_factory):
     """(base URL, ids of the individuals of the tiny run's last population)."""
     tmp_path = tmp_path_factory.mktemp("limits")
-    url = f"sqlite:///{tmp_path / 'limits.db'}"
-    engine = open_database(url)
-    run_id = tinyrun.new_run(engine)
-    tinyrun.run_to_end(engine, run_id)
-    engine.dispose()
+    url, run_id = tinyrun.stored(tmp_path, "limits")
     env = service_env(
         url,
         None,

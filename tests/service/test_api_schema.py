@@ -17,7 +17,6 @@ from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance
 
 from softevo.service.api.frames import decode_frames
-from softevo.service.db import open_database
 from tests.service import tinyrun
 from tests.service.rq_support import TOKEN, Processes, auth, service_env
 
@@ -28,11 +27,7 @@ WRITE_METHODS = {"post", "put", "patch", "delete"}
 def server(tmp_path_factory):
     """A served SQLite database with one finished tiny run; yields (base URL, run id)."""
     tmp_path = tmp_path_factory.mktemp("api")
-    url = f"sqlite:///{tmp_path / 'api.db'}"
-    engine = open_database(url)
-    run_id = tinyrun.new_run(engine)
-    tinyrun.run_to_end(engine, run_id)
-    engine.dispose()
+    url, run_id = tinyrun.stored(tmp_path, "api")
     group = Processes(tmp_path, service_env(url, None, SOFTEVO_COORDINATOR="false"))
     _, base = group.serve()
     yield base, run_id

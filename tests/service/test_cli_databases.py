@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from tests.analysis.cli import softevo
+from tests.support import softevo
 
 REFUSED = "postgresql+psycopg://u:secret@127.0.0.1:1/x"
 

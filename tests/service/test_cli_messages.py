@@ -8,7 +8,7 @@ import socket
 
 from softevo import __version__
 from softevo.service.db import open_database
-from tests.analysis.cli import softevo
+from tests.support import softevo
 
 
 def test_version(capsys):

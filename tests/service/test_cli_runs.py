@@ -7,7 +7,7 @@ import json
 import pandas as pd
 import pytest
 
-from tests.analysis.cli import softevo
+from tests.support import softevo
 
 TINY = [
     "--population",

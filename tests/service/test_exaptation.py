@@ -21,6 +21,7 @@ from softevo.service.treatments import Treatment
 from tests.service import tinyrun
 from tests.service.rq_support import Processes, service_env
 from tests.service.test_sql_cookbook import cookbook
+from tests.support import softevo
 
 WATER_LAND = Treatment(
     "water-land", 0.1, population=4, generations=5, workspace=(4, 4, 4), cycles=2, switch_at=2, seed=3
@@ -43,9 +44,9 @@ def served(tmp_path_factory):
 
 
 def cli(capsys, *args: str) -> str:
-    capsys.readouterr()
-    main(list(args))
-    return capsys.readouterr().out
+    code, out, err = softevo(capsys, *args)
+    assert code == 0, err
+    return out
 
 
 def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
@@ -120,7 +121,7 @@ def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
 def test_the_exaptation_tables_fit_80_columns(served, capsys, monkeypatch):
     """Every line of the text output within 80 columns, and every trait of every surviving
     line on one row, its three values whole."""
-    from softevo.service.cli_phylogeny import TRAIT_HEADERS
+    from softevo.service.cli.phylogeny import TRAIT_HEADERS
 
     def cell(value) -> str:  # as the table writes a value
         return "-" if value is None else f"{value:.3g}" if isinstance(value, float) else str(value)

@@ -17,8 +17,8 @@ from softevo.service.experiments import evolution_config
 from softevo.service.limits import evaluation_steps
 from softevo.service.treatments import PAPER_CHOICES, PAPER_MAX_SECONDS, Treatment, preset_grid
 from softevo.worker.tasks import Task, scene_of, scenes_of
-from tests.analysis.cli import softevo
 from tests.service.rq_support import Processes, auth, service_env
+from tests.support import softevo
 
 
 def choices(treatment: Treatment) -> tuple[str, str, str, str]:

@@ -14,9 +14,9 @@ from softevo.service.db import open_database
 from softevo.service.db.models import GenerationRow
 from softevo.service.plan import plan
 from softevo.service.treatments import Treatment, paper_grid
-from tests.analysis.cli import softevo
 from tests.service.rq_support import Processes, service_env
 from tests.service.tinyrun import TINY, new_run, run_to_end
+from tests.support import softevo
 
 PLAN_KEYS = {"wall_seconds", "core_hours", "gpu_hours", "database_bytes", "utilisation",
              "evaluations", "voxel_steps"}

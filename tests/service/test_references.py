@@ -14,8 +14,8 @@ import pytest
 from softevo.service.db import open_database
 from softevo.service.experiments import create
 from softevo.service.treatments import Treatment
-from tests.analysis.cli import softevo
 from tests.service.rq_support import Processes, service_env
+from tests.support import softevo
 
 TINY = ["--population", "3", "--generations", "4", "--workspace", "3,3,3", "--cycles", "1"]
 NAME = "ref-test"

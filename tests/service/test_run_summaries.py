@@ -10,8 +10,8 @@ from softevo.service.db.experiments import NewRun, NewTreatment, create_experime
 from softevo.service.db.generations import record_generation
 from softevo.service.db.runs import list_runs
 from softevo.service.db.status import run_summaries
-from tests.analysis.cli import softevo
 from tests.service import handbuilt
+from tests.support import softevo
 
 # a land -> water run whose generation-0 land walker outdoes every water robot
 BEST = {0: 5.207, 1: 4.0, 2: 0.33, 3: 0.65}

@@ -113,10 +113,7 @@ def open_servers(tmp_path_factory):
     """``softevo serve`` and ``softevo dashboard`` without a token, coordinator off, on one
     database with a pending run: (serve's URL, dashboard's URL, run id, database URL)."""
     tmp_path = tmp_path_factory.mktemp("open")
-    url = f"sqlite:///{tmp_path / 'open.db'}"
-    engine = open_database(url)
-    run_id = tinyrun.new_run(engine)
-    engine.dispose()
+    url, run_id = tinyrun.stored(tmp_path, "open", finished=False)
     group = Processes(tmp_path, service_env(url, None, SOFTEVO_TOKEN="", SOFTEVO_COORDINATOR="false"))
     _, base = group.serve()
     port = free_port()
@@ -293,11 +290,7 @@ def limits_server(tmp_path_factory):
     one per client and a frames time-out shorter than the background process takes to start:
     (base URL, individual ids, serve's process)."""
     tmp_path = tmp_path_factory.mktemp("slots")
-    url = f"sqlite:///{tmp_path / 'slots.db'}"
-    engine = open_database(url)
-    run_id = tinyrun.new_run(engine)
-    tinyrun.run_to_end(engine, run_id)
-    engine.dispose()
+    url, run_id = tinyrun.stored(tmp_path, "slots")
     env = service_env(
         url, None, SOFTEVO_COORDINATOR="false", SOFTEVO_READ_CACHE_SECONDS="30",
         SOFTEVO_BACKGROUND_QUEUE="2", SOFTEVO_BACKGROUND_PER_CLIENT="1", SOFTEVO_FRAMES_TIMEOUT="0.2",

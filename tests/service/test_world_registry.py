@@ -17,9 +17,8 @@ import uvicorn
 
 from softevo.evolution import worlds
 from softevo.sim import parse_scene
-from tests.analysis.cli import softevo
-from tests.dashboard.conftest import free_port
 from tests.service.test_cli_runs import TINY
+from tests.support import free_port, softevo
 
 MOON = worlds.World("moon", gravity=1.62, floor=True, drag=False, colour="#8a8f98", label="on the moon")
 

@@ -26,6 +26,13 @@ TINY = Treatment(
 )
 
 
+# what a snapshot compares of each evaluation (not its ids or timings)
+SNAPSHOT_EVALUATION = (
+    "generation", "environment", "age", "distance", "active_share", "voxel_count", "symmetry", "stable",
+    "error",
+)  # fmt: skip
+
+
 def new_run(engine: Engine, treatment: Treatment = TINY) -> int:
     _, (run_id,) = create(engine, "test", [treatment])
     return run_id
@@ -33,6 +40,18 @@ def new_run(engine: Engine, treatment: Treatment = TINY) -> int:
 
 def run_to_end(engine: Engine, run_id: int, executor: Executor | None = None) -> None:
     Coordinator(engine, executor or InlineExecutor()).run([run_id])
+
+
+def stored(folder: Path, name: str, finished: bool = True) -> tuple[str, int]:
+    """A SQLite database ``folder/name.db`` holding one tiny run, run to its end unless
+    ``finished`` is false (then pending): (database URL, run id)."""
+    url = f"sqlite:///{folder / f'{name}.db'}"
+    engine = open_database(url)
+    run_id = new_run(engine)
+    if finished:
+        run_to_end(engine, run_id)
+    engine.dispose()
+    return url, run_id
 
 
 def reference_snapshot(folder: Path, treatment: Treatment = TINY) -> dict[str, Any]:
@@ -58,18 +77,7 @@ def snapshot(engine: Engine, run_id: int) -> dict[str, Any]:
             .order_by(ind.c.local_id)
         ).all()
         evaluations = conn.execute(
-            select(
-                ind.c.local_id,
-                ev.c.generation,
-                ev.c.environment,
-                ev.c.age,
-                ev.c.distance,
-                ev.c.active_share,
-                ev.c.voxel_count,
-                ev.c.symmetry,
-                ev.c.stable,
-                ev.c.error,
-            )
+            select(ind.c.local_id, *(ev.c[name] for name in SNAPSHOT_EVALUATION))
             .join(ind, ev.c.individual_id == ind.c.id)
             .where(ev.c.run_id == run_id)
             .order_by(ev.c.generation, ind.c.local_id)

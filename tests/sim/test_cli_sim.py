@@ -8,15 +8,15 @@ never a traceback.
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from softevo import sim
+from tests import support
+from tests.support import softevo_process
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLES = REPO / "examples"
@@ -30,23 +30,13 @@ TINY = {
 
 
 def softevo(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """Run the installed console command, as a user does (slow: a fresh interpreter)."""
-    exe = shutil.which("softevo")
-    cmd = [exe] if exe else [sys.executable, "-c", "from softevo.service.cli import main; main()"]
-    return subprocess.run([*cmd, *args], capture_output=True, text=True, timeout=300, cwd=cwd)
+    """The installed console command, as a user runs it (slow: a fresh interpreter)."""
+    return softevo_process(*args, cwd=cwd)
 
 
 def softevo_here(capsys, *args: str) -> subprocess.CompletedProcess:
     """The same entry point in this process (fast; any stray exception fails the test)."""
-    from softevo.service.cli import main
-
-    code = 0
-    try:
-        main(list(args))
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    captured = capsys.readouterr()
-    return subprocess.CompletedProcess(list(args), code, captured.out, captured.err)
+    return subprocess.CompletedProcess(list(args), *support.softevo(capsys, *args))
 
 
 def write(tmp_path: Path, scene, name: str = "scene.json") -> Path:
@@ -147,7 +137,7 @@ def test_unwritable_record_is_one_line_exit_2(tmp_path, capsys):
 
 
 def test_usage_error_is_one_line_exit_2():
-    """Bad arguments are a user's mistake too (service/cli.py promises one line, exit 2)."""
+    """Bad arguments are a user's mistake too (service/cli/__init__.py promises one line, exit 2)."""
     assert_user_error(softevo("simulate"))
 
 

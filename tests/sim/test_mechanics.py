@@ -408,6 +408,16 @@ def _friction_scene(body, force_total, mu_s, mu_k, seconds, settle=0.0, damping_
     }
 
 
+def _assert_slides(t, com, force: float, mu_k: float, m: float, name: str) -> None:
+    """Once sliding (t >= 0.1 s) the centre of mass accelerates at (F - mu_k m g) / m, the
+    kinetic friction law, within 2%."""
+    late = t >= 0.1
+    accel = 2 * np.polyfit(t[late], com[late, 0], 2)[0]
+    expected = (force - mu_k * m * G) / m
+    report(name, accel_expected=expected, accel_got=accel, ratio=accel / expected)
+    assert accel == pytest.approx(expected, rel=0.02)
+
+
 @pytest.mark.parametrize("factor", [0.95, 1.05])
 @pytest.mark.parametrize("body", [[[[1]]], np.ones((2, 2, 1), int).tolist()])
 def test_friction_threshold_from_equilibrium(body, factor):
@@ -429,12 +439,7 @@ def test_friction_threshold_from_equilibrium(body, factor):
         report(f"land.friction_threshold.n{n}.below", drift_L=result.distance)
         assert result.distance < 1e-6
         return
-    late = t >= 0.1
-    accel = 2 * np.polyfit(t[late], com[late, 0], 2)[0]
-    expected = (force - mu_k * m * G) / m
-    report(f"land.friction_threshold.n{n}.above", accel_expected=expected, accel_got=accel,
-           ratio=accel / expected)
-    assert accel == pytest.approx(expected, rel=0.02)
+    _assert_slides(t, com, force, mu_k, m, f"land.friction_threshold.n{n}.above")
 
 
 @pytest.mark.parametrize("body", [[[[1]]], np.ones((2, 2, 1), int).tolist()])
@@ -468,10 +473,5 @@ def test_friction_slides_above_static_threshold(body, mu_k):
     force = 1.05 * mu_s * m * G
     result = simulate(_friction_scene(body, force, mu_s, mu_k, 1.0))
     t, com = com_trajectory(result)
-    late = t >= 0.1
-    accel = 2 * np.polyfit(t[late], com[late, 0], 2)[0]
-    expected = (force - mu_k * m * G) / m
-    report(f"land.friction_slide.n{n}.mu_k{mu_k}", accel_expected=expected, accel_got=accel,
-           ratio=accel / expected)
-    assert accel == pytest.approx(expected, rel=0.02)
+    _assert_slides(t, com, force, mu_k, m, f"land.friction_slide.n{n}.mu_k{mu_k}")
     assert np.abs(com[:, 1] - com[0, 1]).max() < 1e-9  # no sideways motion

@@ -9,15 +9,14 @@ changes (the key holds its last update), so polling a finished experiment comput
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, HTTPException, Path, Request
+from fastapi import APIRouter, HTTPException, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
 from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep, client_of
-from softevo.service.api.schemas import MAX_INT32, ErrorOut
+from softevo.service.api.params import ExperimentId
+from softevo.service.api.schemas import ErrorOut
 from softevo.service.api.schemas_analysis import ExperimentAnalysisOut
 from softevo.service.db import experiments as db_experiments
 from softevo.service.experiment_analysis import analysis_json
@@ -48,7 +47,7 @@ def _last_update(services, experiment_id: int):
     },
 )
 async def analysis(
-    experiment_id: Annotated[int, Path(ge=1, le=MAX_INT32, description="experiment id")],
+    experiment_id: ExperimentId,
     services: ServicesDep,
     request: Request,
 ) -> Response:

@@ -8,7 +8,7 @@ from datetime import UTC, datetime
 from pathlib import Path as FilePath
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path, Query, Request, status
+from fastapi import APIRouter, HTTPException, Query, Request, status
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
 
@@ -24,6 +24,7 @@ from softevo.service.api.deps import (
     WriteAccess,
     client_of,
 )
+from softevo.service.api.params import ExperimentId, Offset
 from softevo.service.api.schemas import (
     MAX_INT32,
     ErrorOut,
@@ -42,7 +43,6 @@ from softevo.service.treatments import Treatment, preset_grid
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 log = logging.getLogger("softevo.api")
 
-ExperimentId = Annotated[int, Path(ge=1, le=MAX_INT32, description="experiment id")]
 REPORT_FILE = "report.html"
 REPORT_FAILED = (
     "the report could not be written (the server's log says why); "
@@ -60,29 +60,7 @@ def _treatments(body: ExperimentIn):
     """The request's treatments as ``service.treatments.Treatment`` (their own checks apply:
     switch_at within the generations and for a transition only)."""
     treatments = [
-        Treatment(
-            t.environment,
-            t.stiffness_mpa,
-            name=t.name or "",
-            switch_at=t.switch_at,
-            switch_over=t.switch_over,
-            population=t.population,
-            generations=t.generations,
-            workspace=tuple(t.workspace),
-            cycles=t.cycles,
-            max_seconds=t.max_seconds,
-            repetitions=t.repetitions,
-            seed=t.seed,
-            algorithm=t.algorithm,
-            model=t.model,
-            control_mapping=t.control_mapping,
-            body_rule=t.body_rule,
-            evolve_stiffness=t.evolve_stiffness,
-            frequency_per_voxel=t.frequency_per_voxel,
-            stiffness_range_mpa=tuple(t.stiffness_range_mpa),
-            objectives=tuple(t.objectives),
-        )
-        for t in body.treatments
+        Treatment.from_settings({**t.model_dump(), "name": t.name or ""}) for t in body.treatments
     ]
     for treatment in treatments:
         check_workspace(treatment.workspace)
@@ -147,7 +125,7 @@ RunsOffset = Annotated[int, Query(ge=0, le=MAX_INT32, description="runs of each 
 def list_experiments(
     conn: ConnectionDep,
     limit: Annotated[int, Query(ge=1, le=MAX_EXPERIMENTS_PAGE)] = 100,
-    offset: Annotated[int, Query(ge=0, le=MAX_INT32)] = 0,
+    offset: Offset = 0,
     runs_limit: ListedRunsLimit = RUNS_PAGE,
     runs_offset: RunsOffset = 0,
     newest_first: bool = False,

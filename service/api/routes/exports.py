@@ -12,15 +12,16 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Annotated, Literal
 
-from fastapi import APIRouter, HTTPException, Path, Query, Request
+from fastapi import APIRouter, Depends, HTTPException, Query, Request
 from fastapi.responses import StreamingResponse
 
 from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ServicesDep
 from softevo.service.api.expensive import Busy
-from softevo.service.api.schemas import MAX_INT32
+from softevo.service.api.params import ExperimentId, RunId
 from softevo.service.db import experiments as db_experiments
 from softevo.service.db import runs as db_runs
 from softevo.service.db.export_stream import MEDIA_TYPES, stream_table
@@ -74,54 +75,55 @@ def _downloads(request: Request) -> Downloads:
     return state.downloads
 
 
-def _stream(request: Request, services, run_ids: list[int], name: str, table: str, fmt: str):
-    downloads = _downloads(request)
-    downloads.enter()
+@dataclass
+class Download:
+    """One download's request: its table and format, and what serves it."""
 
-    def body() -> Iterator[bytes]:
-        try:
-            yield from stream_table(services.engine, table, run_ids, fmt)
-        finally:
-            downloads.leave()
+    request: Request
+    services: ServicesDep
+    table: Table = "individuals"
+    fmt: Format = "csv"
 
-    filename = f"{name}-{table}.{fmt}"
-    return StreamingResponse(
-        body(),
-        media_type=MEDIA_TYPES[fmt],
-        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
-    )
+    def stream(self, run_ids: list[int], name: str) -> StreamingResponse:
+        """The table of ``run_ids`` streamed as ``<name>-<table>.<format>``."""
+        downloads = _downloads(self.request)
+        downloads.enter()
+
+        def body() -> Iterator[bytes]:
+            try:
+                yield from stream_table(self.services.engine, self.table, run_ids, self.fmt)
+            finally:
+                downloads.leave()
+
+        filename = f"{name}-{self.table}.{self.fmt}"
+        return StreamingResponse(
+            body(),
+            media_type=MEDIA_TYPES[self.fmt],
+            headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+        )
+
+
+DownloadDep = Annotated[Download, Depends()]
 
 
 @router.get("/runs/{run_id}/export", response_class=StreamingResponse, responses=RESPONSES)
-def export_run(
-    run_id: Annotated[int, Path(ge=1, le=MAX_INT32, description="run id")],
-    request: Request,
-    services: ServicesDep,
-    table: Table = "individuals",
-    fmt: Format = "csv",
-):
+def export_run(run_id: RunId, download: DownloadDep):
     """One table of the run's export (``softevo export RUN``), streamed."""
-    with services.engine.connect() as conn:
+    with download.services.engine.connect() as conn:
         if db_runs.run_status(conn, run_id) is None:
             raise HTTPException(404, f"no run {run_id}")
-    return _stream(request, services, [run_id], f"run-{run_id}", table, fmt)
+    return download.stream([run_id], f"run-{run_id}")
 
 
 @router.get("/experiments/{experiment_id}/export", response_class=StreamingResponse, responses=RESPONSES)
-def export_experiment(
-    experiment_id: Annotated[int, Path(ge=1, le=MAX_INT32, description="experiment id")],
-    request: Request,
-    services: ServicesDep,
-    table: Table = "individuals",
-    fmt: Format = "csv",
-):
+def export_experiment(experiment_id: ExperimentId, download: DownloadDep):
     """One table of the export of every run of the experiment (``softevo export eID``),
     streamed."""
-    with services.engine.connect() as conn:
+    with download.services.engine.connect() as conn:
         if not db_experiments.experiment_exists(conn, experiment_id):
             raise HTTPException(404, f"no experiment {experiment_id}")
         try:
             run_ids = db_runs.resolve_runs(conn, f"e{experiment_id}")
         except UserError:  # an experiment without runs: the tables' headers alone
             run_ids = []
-    return _stream(request, services, run_ids, f"experiment-{experiment_id}", table, fmt)
+    return download.stream(run_ids, f"experiment-{experiment_id}")

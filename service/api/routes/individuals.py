@@ -4,14 +4,15 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path, Query, Request
+from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
 from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep, client_of
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
-from softevo.service.api.schemas import MAX_INT32, ErrorOut, IndividualOut, LineageEntry, WorldName
+from softevo.service.api.params import IndividualId
+from softevo.service.api.schemas import ErrorOut, IndividualOut, LineageEntry, WorldName
 from softevo.service.db.individuals import individual, individual_context
 from softevo.service.db.rows import finite
 from softevo.service.db.status import lineage_records
@@ -20,7 +21,6 @@ from softevo.worker.tasks import Task
 
 router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
 
-IndividualId = Annotated[int, Path(ge=1, le=MAX_INT32, description="individual id")]
 
 
 def _with_connection(services, function, *args):

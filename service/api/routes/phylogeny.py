@@ -5,28 +5,24 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path, Query
+from fastapi import APIRouter, HTTPException, Query
 
 from softevo.errors import UserError
 from softevo.service.api.deps import COMMON, NOT_FOUND, ConnectionDep
-from softevo.service.api.schemas import MAX_INT32
+from softevo.service.api.params import Offset, RunId, generation_query
 from softevo.service.api.schemas_phylogeny import ExaptationOut, PhylogenyPage
 from softevo.service.db.exaptation import exaptation as run_exaptation
 from softevo.service.db.run_tree import run_phylogeny
 
 router = APIRouter(prefix="/runs", tags=["phylogeny"], responses=COMMON)
 
-RunId = Annotated[int, Path(ge=1, le=MAX_INT32, description="run id")]
-Offset = Annotated[int, Query(ge=0, le=MAX_INT32)]
 
 
 @router.get("/{run_id}/phylogeny", response_model=PhylogenyPage, responses=NOT_FOUND)
 def phylogeny(
     run_id: RunId,
     conn: ConnectionDep,
-    generation: Annotated[
-        int | None, Query(ge=0, le=MAX_INT32, description="the tree as it stood at this generation")
-    ] = None,
+    generation: generation_query("the tree as it stood at this generation") = None,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
     offset: Offset = 0,
 ):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Path, Query
+from fastapi import APIRouter, HTTPException, Query
 
 from softevo.service.api.deps import (
     COMMON,
@@ -15,6 +15,7 @@ from softevo.service.api.deps import (
     ServicesDep,
     WriteAccess,
 )
+from softevo.service.api.params import Offset, RunId, generation_query
 from softevo.service.api.schemas import (
     MAX_INT32,
     BestOut,
@@ -31,7 +32,6 @@ from softevo.service.db.models import RunStatus
 
 router = APIRouter(prefix="/runs", tags=["runs"], responses=COMMON)
 
-RunId = Annotated[int, Path(ge=1, le=MAX_INT32, description="run id")]
 STOPPABLE = (RunStatus.PENDING, RunStatus.RUNNING)
 
 
@@ -41,7 +41,7 @@ def list_runs(
     experiment: Annotated[int | None, Query(ge=1, le=MAX_INT32)] = None,
     status: Annotated[RunStatusName | None, Query()] = None,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 1000,
-    offset: Annotated[int, Query(ge=0, le=MAX_INT32)] = 0,
+    offset: Offset = 0,
 ):
     """Runs in id order, optionally of one experiment and/or with one status."""
     return db_runs.list_runs(conn, experiment, status, limit, offset)
@@ -97,9 +97,7 @@ def generations(run_id: RunId, conn: ConnectionDep):
 def front(
     run_id: RunId,
     conn: ConnectionDep,
-    generation: Annotated[
-        int | None, Query(ge=0, le=MAX_INT32, description="default: the latest stored")
-    ] = None,
+    generation: generation_query("default: the latest stored") = None,
 ):
     """The non-dominated individuals (front rank 0 over distance, active share and voxel
     count) of the population kept at ``generation``."""

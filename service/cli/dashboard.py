@@ -56,7 +56,7 @@ def dashboard(
     import uvicorn
 
     from softevo.service.api.app import create_app
-    from softevo.service.cli_service import _settings
+    from softevo.service.cli.service import _settings
 
     settings = _settings(db=db, host=host, port=port, coordinator=False)
     settings.check_safe()

@@ -28,7 +28,8 @@ import typer
 
 from softevo.errors import UserError
 from softevo.evolution import worlds
-from softevo.service.cli_runs import INDIVIDUAL_HELP, DbOption, one_individual
+from softevo.service.cli.options import INDIVIDUAL_HELP, DbOption, JsonOption
+from softevo.service.cli.runs import one_individual
 
 EnvironmentOption = Annotated[
     str | None,
@@ -158,7 +159,7 @@ def power(
         typer.Option("--study-n", help="the planned study's repetitions (default: the study preset's)"),
     ] = None,
     seed: Annotated[int, typer.Option("--seed", help="seed of the simulated studies")] = 0,
-    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    as_json: JsonOption = False,
     db: DbOption = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:

@@ -22,6 +22,7 @@ from typing import Annotated, Any
 import typer
 
 from softevo.errors import UserError
+from softevo.service.cli.options import device_option, engine_option
 from softevo.sim import worlds
 from softevo.worker.tasks import default_record_every
 
@@ -88,15 +89,8 @@ def simulate(
         Path | None,
         typer.Option("--record", metavar="OUT.npz", help="Write frames (t, positions, voxels)."),
     ] = None,
-    engine: Annotated[
-        str, typer.Option("--engine", help="numba (CPU, default), cuda (NVIDIA GPUs: docs/gpu.md) or "
-                          "sleep (no physics, its time only: docs/cluster.md).")
-    ] = "numba",
-    device: Annotated[
-        str | None,
-        typer.Option("--device", help="CUDA device: cuda:0 (default), cuda:1, ... (--engine cuda); "
-                     "the sleep engine's speed-up x<factor>."),
-    ] = None,
+    engine: engine_option("default numba") = None,
+    device: device_option("default cuda:0 with --engine cuda") = None,
 ) -> None:
     """Simulate one scene and print its result."""
     from softevo import sim
@@ -107,6 +101,7 @@ def simulate(
     if record is not None and "record" not in scene_dict:
         scene_dict = {**scene_dict, "record": {"every": default_record_every(scene_dict)}}
     started = time.perf_counter()
+    engine = engine or "numba"
     if device is not None and engine not in ("cuda", "sleep"):
         raise UserError("--device: only the cuda and sleep engines take a device (add --engine cuda)")
     result = sim.simulate(scene_dict, engine=engine, device=device)

@@ -11,6 +11,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
+from softevo.service.cli.options import device_option, engine_option, redis_url_option
 
 
 def _settings(**overrides):
@@ -31,10 +32,7 @@ def serve(
     host: Annotated[str | None, typer.Option("--host", help="default $SOFTEVO_HOST or 127.0.0.1")] = None,
     port: Annotated[int | None, typer.Option("--port", help="default $SOFTEVO_PORT or 8000")] = None,
     db: Annotated[str | None, typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB)")] = None,
-    redis_url: Annotated[
-        str | None,
-        typer.Option("--redis-url", help="default $SOFTEVO_REDIS_URL; unset: local processes"),
-    ] = None,
+    redis_url: redis_url_option("default $SOFTEVO_REDIS_URL; unset: local processes") = None,
     no_coordinator: Annotated[
         bool, typer.Option("--no-coordinator", help="serve the API only; drive no runs")
     ] = False,
@@ -50,7 +48,7 @@ def serve(
     import uvicorn
 
     from softevo.service.api.app import create_app
-    from softevo.service.cli_dashboard import check_database, check_port
+    from softevo.service.cli.dashboard import check_database, check_port
 
     settings = _settings(
         host=host, port=port, db=db, redis_url=redis_url, coordinator=False if no_coordinator else None
@@ -63,7 +61,7 @@ def serve(
 
 
 def worker(
-    redis_url: Annotated[str | None, typer.Option("--redis-url", help="default $SOFTEVO_REDIS_URL")] = None,
+    redis_url: redis_url_option("default $SOFTEVO_REDIS_URL") = None,
     queue: Annotated[str | None, typer.Option("--queue", help="default $SOFTEVO_QUEUE")] = None,
     name: Annotated[str | None, typer.Option("--name", help="default <host>-<pid>")] = None,
     threads: Annotated[int, typer.Option("--threads", help="numba threads per batch")] = 1,
@@ -82,14 +80,8 @@ def worker(
         float | None,
         typer.Option("--connect-timeout", help="seconds to wait for Redis at the start; default 5"),
     ] = None,
-    engine: Annotated[
-        str | None, typer.Option("--engine", help="numba, cuda or sleep; default $SOFTEVO_ENGINE or numba")
-    ] = None,
-    device: Annotated[
-        str | None,
-        typer.Option("--device", help="CUDA device (cuda:0, cuda:1, ...), or the sleep engine's "
-                     "x<factor>; default $SOFTEVO_DEVICE"),
-    ] = None,
+    engine: engine_option("default $SOFTEVO_ENGINE or numba") = None,
+    device: device_option("default $SOFTEVO_DEVICE") = None,
 ) -> None:
     """Evaluate genomes for a coordinator: an RQ worker on the Redis of $SOFTEVO_REDIS_URL.
 

@@ -15,6 +15,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
+from softevo.service.cli.options import JsonOption
 
 GB = 1e9
 
@@ -65,7 +66,7 @@ def plan(
     coordinators: Annotated[
         int, typer.Option("--coordinators", help="coordinator processes sharing the runs")
     ] = 1,
-    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
     from softevo.service import plan as planner

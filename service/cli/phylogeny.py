@@ -25,7 +25,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.service.cli_runs import RUN_HELP, DbOption
+from softevo.service.cli.options import DbOption, JsonOption, RunArgument
 
 PAGE = 10_000
 PHYLOGENY_COLUMNS = (
@@ -49,11 +49,11 @@ TRAIT_HEADERS = {
 
 
 def phylogeny(
-    reference: Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)],
+    reference: RunArgument,
     generation: Annotated[
         int | None, typer.Option("--generation", help="the tree as it stood at this generation")
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    as_json: JsonOption = False,
     as_csv: Annotated[bool, typer.Option("--csv", help="print CSV")] = False,
     db: DbOption = None,
 ) -> None:
@@ -111,8 +111,8 @@ def _phylogeny_table(run_id: int, rows: list[dict]) -> None:
 
 
 def exaptation(
-    reference: Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)],
-    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    reference: RunArgument,
+    as_json: JsonOption = False,
     db: DbOption = None,
 ) -> None:
     """For a transition run: the founders kept at the switch, which of their lines survive

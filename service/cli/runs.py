@@ -13,6 +13,7 @@ command start without loading SQLAlchemy, pandas, numba or rich.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from typing import Annotated
@@ -21,19 +22,16 @@ import typer
 
 from softevo.errors import UserError
 from softevo.evolution import worlds
+from softevo.service.cli.options import (
+    INDIVIDUAL_HELP,
+    DbOption,
+    JsonOption,
+    QuietOption,
+    RunArgument,
+    WorkersOption,
+)
 from softevo.service.treatments import SCALES, Treatment
 
-DbOption = Annotated[
-    str | None,
-    typer.Option("--db", help="SQLAlchemy URL (default $SOFTEVO_DB or sqlite:///softevo.db)"),
-]
-WorkersOption = Annotated[
-    int | None,
-    typer.Option("--workers", help="evaluation processes (default: all cores; 0: inline)"),
-]
-QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
-RUN_HELP = "5, r5, run-5; or latest, e2, a name: an experiment of one run"
-INDIVIDUAL_HELP = "an individual id (12), or a run (latest, r5, a name) for its best in its last world"
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
 MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
 
@@ -103,7 +101,17 @@ def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
     return sum(r["generations"] for r in rows), sum(r["generation"] + 1 for r in rows)
 
 
+def _treatment_options(params: dict) -> dict:
+    """The options of ``softevo run`` named as a ``Treatment`` field (``--population`` is
+    ``Treatment.population``, ...), as given; ``--name`` names the experiment instead, and
+    ``--workspace`` / ``--stiffness-range`` are parsed apart."""
+    apart = {"environment", "stiffness_mpa", "name", "workspace", "stiffness_range_mpa"}
+    fields = {f.name for f in dataclasses.fields(Treatment)} - apart
+    return {name: value for name, value in params.items() if name in fields}
+
+
 def run(
+    ctx: typer.Context,
     env: Annotated[str, typer.Option("--env", help=" | ".join(worlds.environments()))],
     stiffness: Annotated[
         float | None,
@@ -172,21 +180,9 @@ def run(
     treatment = Treatment(
         env,
         stiffness,
-        population=population,
-        generations=generations,
         workspace=_parse_workspace(workspace),
-        cycles=cycles,
-        max_seconds=max_seconds,
-        seed=seed,
-        switch_at=switch_at,
-        switch_over=switch_over,
-        evolve_stiffness=evolve_stiffness,
-        frequency_per_voxel=frequency_per_voxel,
         stiffness_range_mpa=_parse_range(stiffness_range),
-        algorithm=algorithm,
-        model=model,
-        control_mapping=control_mapping,
-        body_rule=body_rule,
+        **_treatment_options(ctx.params),
     )
     engine = open_database(db)
     if name is not None and not name.strip():
@@ -347,7 +343,7 @@ def one_individual(db: str | None, reference: str):
 
 def lineage(
     individual: Annotated[str, typer.Argument(metavar="INDIVIDUAL", help=INDIVIDUAL_HELP)],
-    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    as_json: JsonOption = False,
     db: DbOption = None,
 ) -> None:
     """An individual's ancestors, newest first, to its root newcomer."""
@@ -376,8 +372,8 @@ def lineage(
 
 
 def best(
-    reference: Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)],
-    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    reference: RunArgument,
+    as_json: JsonOption = False,
     db: DbOption = None,
 ) -> None:
     """A run's best individual in each world it visited (greatest distance), in the order

@@ -1,9 +1,10 @@
 """The ``softevo`` command line.
 
-Each command group lives in its own module and registers itself on the shared Typer app:
-``service.cli_sim`` (simulate), ``service.cli_evolution`` (describe) and ``service.cli_runs``
-(run, experiment, status, resume, export, lineage, ...) and ``service.cli_plan``
-(plan). A user's mistake (bad arguments,
+Each command group lives in its own module of this package and registers itself on the
+shared Typer app: ``sim`` (simulate), ``evolution`` (describe), ``runs`` (run, experiment,
+status, resume, export, lineage, ...), ``service`` (serve, worker), ``dashboard``,
+``analysis`` (report, show, power, VXA files), ``phylogeny`` and ``plan``; ``options`` holds
+the options several of them share. A user's mistake (bad arguments,
 a malformed scene, a database that cannot be written) is reported as one line on stderr with
 exit status 2, never as a traceback.
 """
@@ -65,19 +66,9 @@ def _register() -> None:
     """
     if app.registered_commands or app.registered_groups:
         return
-    from softevo.service import (
-        cli_analysis,
-        cli_dashboard,
-        cli_evolution,
-        cli_phylogeny,
-        cli_plan,
-        cli_runs,
-        cli_service,
-        cli_sim,
-    )
+    from softevo.service.cli import analysis, dashboard, evolution, phylogeny, plan, runs, service, sim
 
-    for module in (cli_sim, cli_evolution, cli_runs, cli_service, cli_analysis, cli_dashboard, cli_phylogeny,
-                   cli_plan):
+    for module in (sim, evolution, runs, service, analysis, dashboard, phylogeny, plan):
         module.register(app)
 
 
@@ -101,6 +92,3 @@ def main(argv: list[str] | None = None) -> None:
             sys.exit(2)
         raise
 
-
-if __name__ == "__main__":
-    main()
