@@ -28,7 +28,7 @@ SLOWEST_FREQUENCY_HZ = 1e-9  # a probe for mappings without a lowest frequency: 
 
 
 def _settings(settings: Settings | None) -> Settings:
-    return settings if settings is not None else Settings()
+    return settings if settings is not None else Settings.load()
 
 
 def check_workspace(workspace: Sequence[int], settings: Settings | None = None) -> None:

@@ -1,50 +1,16 @@
-"""Settings of the distributed service, from ``SOFTEVO_*`` environment variables.
+"""Settings of the service, from ``SOFTEVO_*`` environment variables: the one reader of them.
 
-One pydantic-settings class read by ``softevo serve`` (API + coordinator) and ``softevo
-worker``. Every field is an environment variable named ``SOFTEVO_`` + the field name in
-capitals (``db`` -> ``SOFTEVO_DB``); an empty variable counts as unset.
+One pydantic-settings class read by ``softevo serve`` (API + coordinator), ``softevo worker``,
+``softevo dashboard`` and the commands that open a database or check a limit. Every field is
+an environment variable named ``SOFTEVO_`` + the field name in capitals (``db`` ->
+``SOFTEVO_DB``); an empty variable counts as unset. Each field says what it means, who reads
+it and, where it is not a plain value, how its default reads: ``settings_table()`` writes the
+table of docs/cluster.md ("Settings") from them (``python -m softevo.service.settings``).
 
-========================  ======================================================  ==============
-variable                  meaning                                                 default
-========================  ======================================================  ==============
-SOFTEVO_DB                SQLAlchemy URL of the database (coordinator only)        sqlite:///softevo.db
-SOFTEVO_REDIS_URL         Redis URL; unset: the coordinator evaluates locally      unset
-SOFTEVO_TOKEN             bearer token of the write endpoints                      unset
-SOFTEVO_HOST              address ``softevo serve`` listens on                     127.0.0.1
-SOFTEVO_PORT              port ``softevo serve`` listens on                        8000
-SOFTEVO_QUEUE             RQ queue name shared by coordinator and workers          softevo
-SOFTEVO_WORKERS           local evaluation processes when Redis is unset           all cores
-SOFTEVO_GENOMES_PER_JOB   genomes per RQ job (queue overhead vs balance)           4
-SOFTEVO_JOBS_ACROSS_RUNS  true: one job may hold many runs' genomes (GPU workers)    false
-SOFTEVO_JOB_TIMEOUT       seconds an RQ job may run before it fails                3600
-SOFTEVO_JOB_RETRIES       re-dispatches of a failed or abandoned RQ job            3
-SOFTEVO_RESULT_TTL        seconds Redis keeps a job's result                       600
-SOFTEVO_HEARTBEAT_TTL     a worker silent this long has its job re-dispatched      30
-SOFTEVO_COORDINATOR       ``serve`` also drives runs (false: API only)             true
-SOFTEVO_REPORTS           directory of experiment reports                          reports
-SOFTEVO_READ_TOKEN        bearer token of the expensive reads (frames, report)     unset (open)
-SOFTEVO_BACKGROUND_QUEUE  expensive reads computing or waiting at once; more: 429   4
-SOFTEVO_BACKGROUND_PER_CLIENT  of those, started by one client address; more: 429  2
-SOFTEVO_FRAMES_TIMEOUT    seconds of one frames simulation; then 504, slot freed   300
-SOFTEVO_REPORT_TIMEOUT    seconds of writing one report; then 504, slot freed      900
-SOFTEVO_FRAMES_CACHE_MB   memory kept for recorded frames (LRU)                    128
-SOFTEVO_REPORT_INTERVAL   seconds between rebuilds of a live experiment's report   60
-SOFTEVO_MAX_BODY_BYTES    largest request body; larger: 413                        1000000
-SOFTEVO_MAX_JSON_DEPTH    deepest nesting of a JSON body; deeper: 422              32
-SOFTEVO_MAX_VOXELS        voxels of a workspace or scene body, at most             8000
-SOFTEVO_MAX_VOXEL_STEPS   voxels x steps of one ``softevo simulate``, at most      2000000000
-SOFTEVO_MAX_RUNS_PER_REQUEST  runs one experiment may create, at most           1000
-SOFTEVO_MAX_REQUEST_VOXEL_STEPS  voxel-steps one experiment may ask, at most     1e16
-SOFTEVO_MAX_SERVER_VOXEL_STEPS  voxel-steps of the unfinished runs and a new one  1e17
-SOFTEVO_MAX_RESULT_BYTES  JSON of one RQ job's results; larger: rejected, re-queued 1000000
-SOFTEVO_MAX_CONCURRENT_REQUESTS  requests in the routes at once (others wait)      32
-SOFTEVO_READ_CACHE_SECONDS  a GET's answer is reused this long (0: off)            1
-========================  ======================================================  ==============
-
-The last group bounds what one request or command may cost (``service.limits``): an
-expensive read (recorded frames, the report) runs in one background process, at most once at
-a time per key, its answer cached; when ``SOFTEVO_BACKGROUND_QUEUE`` of them are already
-computing or waiting, a new one is refused with 429 and ``Retry-After``.
+The ``max_*`` and background fields bound what one request or command may cost
+(``service.limits``): an expensive read (recorded frames, the report) runs in one background
+process, at most once at a time per key, its answer cached; when ``background_queue`` of them
+are already computing or waiting, a new one is refused with 429 and ``Retry-After``.
 
 With no token the write endpoints are open, so the server refuses to start on any address
 but the loopback one (``check_safe``), serves only requests naming a loopback host
@@ -56,8 +22,9 @@ from __future__ import annotations
 
 import hashlib
 import ipaddress
+from typing import Any
 
-from pydantic import Field, SecretStr, field_validator
+from pydantic import Field, SecretStr, ValidationError, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from softevo.errors import UserError
@@ -67,45 +34,144 @@ LOOPBACK_HOSTS = ("127.0.0.1", "::1", "[::1]", *LOOPBACK_NAMES)  # Host headers 
 MIN_TOKEN_LENGTH = 16
 
 
+def _field(default: Any, used_by: str, meaning: str, default_text: str = "", **bounds: Any) -> Any:
+    """A setting: its default, who reads it, what it means and how the docs say its default
+    (``default_text``; else the value, or "unset" for None)."""
+    extra = {"used_by": used_by, "default_text": default_text}
+    return Field(default, description=meaning, json_schema_extra=extra, **bounds)
+
+
 class Settings(BaseSettings):
     """Service settings; see the module doc for the environment variables."""
 
     model_config = SettingsConfigDict(env_prefix="SOFTEVO_", extra="ignore")
 
-    db: str = "sqlite:///softevo.db"
-    redis_url: str | None = None
-    token: SecretStr | None = None
-    host: str = "127.0.0.1"
-    port: int = Field(8000, ge=1, le=65535)
-    queue: str = Field("softevo", pattern=r"^[A-Za-z0-9_.-]+$")
-    workers: int | None = Field(None, ge=0)
-    genomes_per_job: int = Field(4, ge=1)
-    jobs_across_runs: bool = False  # GPU workers: one job holds all runs' genomes of a round
-    job_timeout: int = Field(3600, ge=1)
-    job_retries: int = Field(3, ge=1)
-    result_ttl: int = Field(600, ge=10)
-    heartbeat_ttl: int = Field(30, ge=3)
-    coordinator: bool = True
-    reports: str = "reports"
-    read_token: SecretStr | None = None
-    background_queue: int = Field(4, ge=1, le=1000)
-    background_per_client: int = Field(2, ge=1, le=1000)  # of background_queue, per client address
-    frames_timeout: float = Field(300.0, gt=0, le=86400)  # seconds of one frames simulation
-    report_timeout: float = Field(900.0, gt=0, le=86400)  # seconds of writing one report
-    frames_cache_mb: int = Field(128, ge=0)
-    report_interval: float = Field(60.0, ge=0)
-    max_body_bytes: int = Field(1_000_000, ge=1024)
-    max_json_depth: int = Field(32, ge=4, le=1000)
-    max_voxels: int = Field(8000, ge=1)
-    max_voxel_steps: float = Field(2e9, gt=0)
-    max_runs_per_request: int = Field(1000, ge=1)
-    max_request_voxel_steps: float = Field(1e16, gt=0)  # the paper grid at paper scale: 3.3e15
-    max_server_voxel_steps: float = Field(1e17, gt=0)
-    max_result_bytes: int = Field(1_000_000, ge=1024)
-    max_concurrent_requests: int = Field(32, ge=1, le=40)  # below the 40 threads, 50 connections
-    read_cache_seconds: float = Field(1.0, ge=0, le=60)
+    db: str = _field(
+        "sqlite:///softevo.db", "serve, CLI",
+        "SQLAlchemy URL (`postgresql+psycopg://user:pw@host/db` or `sqlite:///file.db`)",
+    )
+    redis_url: str | None = _field(None, "serve, worker", "Redis URL; unset: `serve` evaluates locally")
+    token: SecretStr | None = _field(None, "serve", "bearer token of the write endpoints")
+    host: str = _field("127.0.0.1", "serve, dashboard", "address to listen on")
+    port: int = _field(8000, "serve, dashboard", "port to listen on", ge=1, le=65535)
+    queue: str = _field(
+        "softevo", "serve, worker",
+        "RQ queue name (one per cluster)",
+        pattern=r"^[A-Za-z0-9_.-]+$",
+    )
+    workers: int | None = _field(
+        None, "serve",
+        "local evaluation processes when Redis is unset",
+        "all cores", ge=0,
+    )
+    genomes_per_job: int = _field(4, "serve", "genomes per RQ job (queue overhead against balance)", ge=1)
+    jobs_across_runs: bool = _field(
+        False, "serve",
+        "`true`: a job may hold genomes of many runs (GPU workers)",
+    )
+    engine: str = _field(
+        "numba", "worker",
+        '`numba`, `cuda` (docs/gpu.md) or `sleep` (no physics: "How many workers one coordinator feeds")',
+        pattern=r"^(numba|cuda|sleep)$",
+    )
+    device: str | None = _field(
+        None, "worker",
+        "CUDA device (`cuda:0`, `cuda:1`, ...); the sleep engine's speed-up `x<factor>`",
+        "cuda:0 with cuda",
+    )
+    job_timeout: int = _field(3600, "serve", "seconds a job may run before it fails", ge=1)
+    job_retries: int = _field(3, "serve", "re-dispatches of a failed or abandoned job", ge=1)
+    result_ttl: int = _field(600, "serve", "seconds Redis keeps a job's result", ge=10)
+    heartbeat_ttl: int = _field(30, "worker", "a job whose worker is silent this long is re-dispatched", ge=3)
+    coordinator: bool = _field(True, "serve", "`false`: serve the API only, drive no runs")
+    reports: str = _field("reports", "serve", "directory of the experiment reports")
+    read_token: SecretStr | None = _field(
+        None, "serve",
+        "bearer token of the expensive reads (frames, report); the write token works too",
+        "unset (open)",
+    )
+    background_queue: int = _field(
+        4, "serve",
+        "simulations and reports computing or waiting at once; one more is 429 with `Retry-After`",
+        ge=1, le=1000,
+    )
+    background_per_client: int = _field(
+        2, "serve",
+        "of those, started by one client address; more: 429",
+        ge=1, le=1000,
+    )
+    frames_timeout: float = _field(
+        300.0, "serve",
+        "seconds of one frames simulation; then 504, its slot freed",
+        gt=0, le=86400,
+    )
+    report_timeout: float = _field(
+        900.0, "serve",
+        "seconds of writing one report; then 504, its slot freed",
+        gt=0, le=86400,
+    )
+    frames_cache_mb: int = _field(
+        128, "serve",
+        "memory for recorded frames (least recently used dropped first)",
+        ge=0,
+    )
+    report_interval: float = _field(
+        60.0, "serve",
+        "seconds between rewrites of a live experiment's report",
+        ge=0,
+    )
+    max_body_bytes: int = _field(1_000_000, "serve", "largest request body; larger: 413", ge=1024)
+    max_json_depth: int = _field(
+        32, "serve",
+        "deepest nesting of a JSON body; deeper (or NaN, Infinity, 1e999): 422",
+        ge=4, le=1000,
+    )
+    max_voxels: int = _field(
+        8000, "serve, CLI",
+        "voxels of a workspace (`--workspace`, REST) or a scene body (`simulate`)",
+        ge=1,
+    )
+    max_voxel_steps: float = _field(2e9, "CLI", "voxels x steps of one `softevo simulate`", gt=0)
+    max_runs_per_request: int = _field(1000, "serve", "runs one experiment may create", ge=1)
+    max_request_voxel_steps: float = _field(
+        1e16, "serve",
+        "voxel-steps one experiment may ask (the paper grid at paper scale: 3.3e15)",
+        gt=0,
+    )
+    max_server_voxel_steps: float = _field(
+        1e17, "serve",
+        "voxel-steps of the unfinished runs and a new one together",
+        gt=0,
+    )
+    max_result_bytes: int = _field(
+        1_000_000, "serve",
+        "JSON of one RQ job's results; larger: rejected and re-queued",
+        ge=1024,
+    )
+    max_concurrent_requests: int = _field(
+        32, "serve",
+        "requests in the routes at once; the others wait their turn (at most 40: the thread pool)",
+        ge=1, le=40,
+    )
+    read_cache_seconds: float = _field(
+        1.0, "serve",
+        "a `GET` answered 200 is reused this long for the same URL (writes through the server empty the "
+        "cache; not `/health`, frames, report); `0`: off",
+        ge=0, le=60,
+    )
 
-    @field_validator("redis_url", "token", "read_token", "workers", mode="before")
+    @classmethod
+    def load(cls, **overrides: Any) -> Settings:
+        """The settings from the environment, ``overrides`` that are not None winning; a
+        UserError naming the variable for a bad value."""
+        try:
+            return cls(**{key: value for key, value in overrides.items() if value is not None})
+        except ValidationError as exc:
+            problem = exc.errors()[0]
+            name = ".".join(str(part) for part in problem["loc"])
+            raise UserError(f"setting {name} (SOFTEVO_{name.upper()}): {problem['msg']}") from None
+
+    @field_validator("redis_url", "token", "read_token", "workers", "device", mode="before")
     @classmethod
     def _empty_is_unset(cls, value):
         return None if value == "" else value
@@ -161,3 +227,25 @@ class Settings(BaseSettings):
         except Exception:  # a malformed URL fails later, in make_engine, with a clear message
             text = self.db
         return hashlib.sha1(text.encode()).hexdigest()[:12]
+
+
+def settings_table() -> str:
+    """The Markdown table of every setting (docs/cluster.md, "Settings")."""
+    lines = ["| variable | used by | meaning | default |", "| --- | --- | --- | --- |"]
+    for name, info in Settings.model_fields.items():
+        extra = info.json_schema_extra or {}
+        default = extra.get("default_text") or ("unset" if info.default is None else _plain(info.default))
+        lines.append(f"| `SOFTEVO_{name.upper()}` | {extra['used_by']} | {info.description} | {default} |")
+    return "\n".join(lines) + "\n"
+
+
+def _plain(value: Any) -> str:
+    if isinstance(value, bool):
+        return f"`{str(value).lower()}`"
+    if isinstance(value, float) and value >= 1e6:
+        return f"`{value:.0e}`".replace("e+", "e")
+    return f"`{value}`"
+
+
+if __name__ == "__main__":
+    print(settings_table(), end="")

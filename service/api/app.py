@@ -256,7 +256,7 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
 
     Raises UserError when no token is set and ``settings.host`` is not a loopback address.
     """
-    settings = settings or Settings()
+    settings = settings or Settings.load()
     settings.check_safe()
 
     @asynccontextmanager

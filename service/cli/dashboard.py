@@ -56,9 +56,9 @@ def dashboard(
     import uvicorn
 
     from softevo.service.api.app import create_app
-    from softevo.service.cli.service import _settings
+    from softevo.service.settings import Settings
 
-    settings = _settings(db=db, host=host, port=port, coordinator=False)
+    settings = Settings.load(db=db, host=host, port=port, coordinator=False)
     settings.check_safe()
     check_database(settings.db, create=False)
     check_port(settings.host, settings.port)

@@ -12,20 +12,7 @@ import typer
 
 from softevo.errors import UserError
 from softevo.service.cli.options import device_option, engine_option, redis_url_option
-
-
-def _settings(**overrides):
-    """Settings from the environment, ``overrides`` (options given) winning."""
-    from pydantic import ValidationError
-
-    from softevo.service.settings import Settings
-
-    try:
-        return Settings(**{key: value for key, value in overrides.items() if value is not None})
-    except ValidationError as exc:
-        problem = exc.errors()[0]
-        field = ".".join(str(part) for part in problem["loc"])
-        raise UserError(f"setting {field} (SOFTEVO_{field.upper()}): {problem['msg']}") from exc
+from softevo.service.settings import Settings
 
 
 def serve(
@@ -50,7 +37,7 @@ def serve(
     from softevo.service.api.app import create_app
     from softevo.service.cli.dashboard import check_database, check_port
 
-    settings = _settings(
+    settings = Settings.load(
         host=host, port=port, db=db, redis_url=redis_url, coordinator=False if no_coordinator else None
     )
     settings.check_safe()
@@ -93,12 +80,13 @@ def worker(
     from softevo.worker.evaluate import DEVICE_ENV, ENGINE_ENV
     from softevo.worker.rq_worker import run_worker
 
-    if engine is not None:  # the evaluations of this process read them (evaluate.engine_options)
-        os.environ[ENGINE_ENV] = engine
-    if device is not None:
-        os.environ[DEVICE_ENV] = device
-
-    settings = _settings(redis_url=redis_url, queue=queue, heartbeat_ttl=heartbeat_ttl)
+    settings = Settings.load(
+        redis_url=redis_url, queue=queue, heartbeat_ttl=heartbeat_ttl, engine=engine, device=device
+    )
+    # the evaluations of this process and its job processes read them (evaluate.engine_options)
+    os.environ[ENGINE_ENV] = settings.engine
+    if settings.device is not None:
+        os.environ[DEVICE_ENV] = settings.device
     if not settings.redis_url:
         raise UserError("softevo worker needs a Redis URL: set SOFTEVO_REDIS_URL or --redis-url")
     if threads < 1:

@@ -9,7 +9,6 @@ the health check.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from sqlalchemy import Engine, create_engine, event, text
@@ -19,7 +18,6 @@ from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError
 from softevo.errors import UserError
 from softevo.service.db.migrate import upgrade
 
-DEFAULT_URL = "sqlite:///softevo.db"
 SQLITE_BUSY_TIMEOUT_MS = 30_000
 # connections per engine: the API's thread pool (40 threads) plus the coordinator and its run
 # locks never wait for one (a wait of 30 s would be a 500 under load)
@@ -27,8 +25,12 @@ POOL_SIZE, MAX_OVERFLOW = 10, 40
 
 
 def database_url(url: str | None = None) -> str:
-    """The database URL to use: ``url``, else ``$SOFTEVO_DB``, else ``sqlite:///softevo.db``."""
-    return url or os.environ.get("SOFTEVO_DB") or DEFAULT_URL
+    """The database URL to use: ``url``, else ``Settings.db`` (``$SOFTEVO_DB`` or its default)."""
+    if url:
+        return url
+    from softevo.service.settings import Settings  # pydantic-settings: only when no URL is given
+
+    return Settings.load().db
 
 
 def _check_sqlite_path(database: str | None) -> None:
