@@ -63,6 +63,7 @@ EVENT_BUDGET = 150_000  # jobs the dispatch simulation simulates in all
 # - a local-executor job's round trip: a 1-genome job 36 ms against 22 ms inline.
 COORDINATOR_SECONDS = 0.2
 COORDINATOR_POPULATION = 30
+COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
 WORKER_SECONDS_PER_EVALUATION = 0.015
 JOB_SECONDS = 0.012
 # An H200's rate in the cuda engine: ESTIMATE, NOT MEASURED (a GPU design review's
@@ -153,11 +154,19 @@ class Plan:
     assumptions: list[str] = field(default_factory=list)
     coordinators: int = 1
     coordinator_utilisation: float = 0.0  # the coordinators' busy share: near 1, they limit
+    coordinator_seconds: float = 0.0  # the coordinators' work in all (every run-generation)
+    # the wall time were coordinators never waited on (one per run): what the workers and
+    # each run's own chain of generations allow; the plan's own wall where they do not limit
+    unqueued_wall_seconds: float = 0.0
 
-    def coordinators_needed(self, target: float = 0.8) -> int:
-        """Coordinator processes at which they would be busy at most ``target`` of the time
-        at this plan's pace (more workers than they can feed otherwise wait on them)."""
-        return max(1, math.ceil(self.coordinators * self.coordinator_utilisation / target))
+    def coordinators_needed(self, target: float = COORDINATOR_TARGET) -> int:
+        """Coordinator processes that would be busy at most ``target`` of the time at the pace
+        the workers allow (fewer: the workers wait on them), at most one per run."""
+        runs = sum(t.runs for t in self.treatments)
+        wall = self.unqueued_wall_seconds or self.wall_seconds
+        if wall <= 0:
+            return 1
+        return max(1, min(runs, math.ceil(self.coordinator_seconds / (target * wall))))
 
     @property
     def wall_hours(self) -> float:
@@ -200,15 +209,18 @@ def plan(
     costs = [sample_costs(t, cost, samples, seed) for t in treatments]
     lines = [_treatment_plan(t, c, k) for t, c, k in zip(treatments, counts, costs, strict=True)]
     told = sum(_coordinator(t, coordinator_seconds) * t.repetitions * t.generations for t in treatments)
-    if gpus is not None:
-        share = coordinator_seconds / coordinators
-        wall, busy = _gpu_dispatch(treatments, counts, costs, gpus, gpu_rate, share, rng)
-        workers = gpus
-    else:
-        wall, busy = _cpu_dispatch(
-            treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators
-        )
-        workers = cores
+
+    def dispatch_with(k: int, rng: np.random.Generator) -> tuple[float, float]:
+        if gpus is not None:
+            return _gpu_dispatch(treatments, counts, costs, gpus, gpu_rate, coordinator_seconds / k, rng)
+        return _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, k)
+
+    wall, busy = dispatch_with(coordinators, rng)
+    workers = gpus if gpus is not None else cores
+    unqueued = wall
+    runs = sum(t.repetitions for t in treatments)
+    if wall > 0 and told / (wall * coordinators) > COORDINATOR_TARGET and coordinators < runs:
+        unqueued, _ = dispatch_with(runs, np.random.default_rng(seed))  # they limit: how much?
     return Plan(
         wall_seconds=wall,
         core_hours=wall * cores / 3600 if cores else 0.0,
@@ -217,6 +229,8 @@ def plan(
         utilisation=min(1.0, busy / (wall * workers)) if wall > 0 else 0.0,
         coordinators=coordinators,
         coordinator_utilisation=min(1.0, told / (wall * coordinators)) if wall > 0 else 0.0,
+        coordinator_seconds=told,
+        unqueued_wall_seconds=unqueued,
         evaluations=sum(line.evaluations for line in lines),
         voxel_steps=sum(line.voxel_steps for line in lines),
         cores=cores,

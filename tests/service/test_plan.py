@@ -77,6 +77,20 @@ def test_a_second_coordinator_halves_their_load_and_never_slows_the_plan():
     assert plan(grid, cores=64, coordinator_seconds=5.0, coordinators=4).wall_seconds < slow.wall_seconds
 
 
+def test_coordinators_needed_holds_even_when_one_coordinator_is_saturated():
+    """A saturated coordinator's busy share says nothing of how far behind it is: the count
+    comes from its work over the wall the workers alone allow, and planning with that many
+    keeps each one near the target, the wall no longer waiting on them."""
+    grid = paper_grid("tiny")
+    slow = plan(grid, cores=64, coordinator_seconds=5.0)
+    needed = slow.coordinators_needed()
+    assert slow.coordinator_utilisation > 0.99 and needed > 2
+    enough = plan(grid, cores=64, coordinator_seconds=5.0, coordinators=needed)
+    assert enough.coordinator_utilisation <= 0.9
+    assert enough.wall_seconds < 0.6 * slow.wall_seconds
+    assert enough.wall_seconds <= 1.25 * slow.unqueued_wall_seconds
+
+
 def test_gpus_give_gpu_hours():
     result = plan(paper_grid("tiny"), gpus=2)
     assert result.gpu_hours == pytest.approx(result.wall_seconds * 2 / 3600)
