@@ -72,7 +72,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for label, treatments in chosen:
             for workers in worker_counts:
-                predicted = plan(treatments, cores=workers).wall_seconds
+                predicted = plan(treatments, cores=workers, executor="local").wall_seconds
                 measured = measured_seconds(treatments, workers, Path(folder))
                 error = (predicted - measured) / measured * 100
                 errors.append(abs(error))

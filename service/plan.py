@@ -54,18 +54,22 @@ EXACT_BUDGET = 4_000  # individual-generations driven whole (sum of population x
 PROBE_BREEDS = 3  # bred generations a probe drives before (and after) a switch
 MAX_SIMULATED = 50  # generations of a stretch the dispatch simulation simulates
 EVENT_BUDGET = 150_000  # jobs the dispatch simulation simulates in all
-# Measured here (2 shared cores, loaded), beside the simulation that ``CostModel`` costs:
-# - the coordinator's ask + tell + SQLite transaction of one run-generation: 0.21 s at
-#   population 30 (7^3, paper encoding; docs/benchmarks.md: 69-314 ms), 0.019 s at
-#   population 6; taken in proportion to the population;
-# - a worker's own work per evaluation (developing the genome, descriptors, the result):
-#   22 ms an evaluation of a 5^3 paper-encoding robot against the cost model's 7 ms;
-# - a local-executor job's round trip: a 1-genome job 36 ms against 22 ms inline.
-COORDINATOR_SECONDS = 0.2
+# Measured on the 2-core development machine, quiet, beside the simulation ``CostModel`` costs:
+# - the coordinator's work per run-generation at population 30 (paper settings, 7^3), taken
+#   in proportion to the population:
+#   - "local" (``softevo run``: the process pool, SQLite): ask + tell + the transaction,
+#     31 ms (14 ms at population 6), with instant results;
+#   - "rq" (``softevo serve`` with Redis workers, PostgreSQL): the coordinator process's CPU
+#     per evaluation in bench/scale.py, 2.9-3.1 ms at 300 and 1,000 workers: 90 ms;
+# - a worker's own work per evaluation (developing the genome, descriptors, the result) and
+#   a job's round trip: 3 ms and 8 ms, from bench/plan_check.py's 1-worker runs less their
+#   coordinator's share and the cost model's simulation seconds.
+COORDINATOR_SECONDS = {"local": 0.031, "rq": 0.09}
+EXECUTORS = tuple(COORDINATOR_SECONDS)
 COORDINATOR_POPULATION = 30
 COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
-WORKER_SECONDS_PER_EVALUATION = 0.015
-JOB_SECONDS = 0.012
+WORKER_SECONDS_PER_EVALUATION = 0.003
+JOB_SECONDS = 0.008
 # An H200's rate in the cuda engine: ESTIMATE, NOT MEASURED (a GPU design review's
 # 1.5-2.2e9 voxel-steps/s, docs/gpu.md); replace it once bench/gpu_device_check.sh has run on
 # one.
@@ -192,15 +196,22 @@ def plan(
     dispatch: str | None = None,
     samples: int = SAMPLE_GENOMES,
     seed: int = 0,
-    coordinator_seconds: float = COORDINATOR_SECONDS,
+    coordinator_seconds: float | None = None,
     gpu_rate: float = GPU_VOXEL_STEPS_PER_SECOND,
     coordinators: int = 1,
+    executor: str = "rq",
 ) -> Plan:
     """The plan of ``treatments`` on ``cores`` CPU workers or ``gpus`` GPUs (exactly one),
     driven by ``coordinators`` coordinator processes (``service.driver``: they split the
-    runs); UserError for neither, both, or fewer than 1."""
+    runs) through ``executor``: ``"rq"`` (a cluster: ``softevo serve`` and Redis workers) or
+    ``"local"`` (``softevo run``'s process pool), whose coordinator costs differ
+    (``COORDINATOR_SECONDS``); UserError for neither, both, or fewer than 1."""
     check_devices(cores, gpus)
     check_coordinators(coordinators)
+    if executor not in EXECUTORS:
+        raise UserError(f"executor must be one of {', '.join(EXECUTORS)} (got {executor!r})")
+    if coordinator_seconds is None:
+        coordinator_seconds = COORDINATOR_SECONDS[executor]
     if not treatments:
         raise UserError("nothing to plan: no treatment")
     dispatch = DISPATCH if dispatch is None else dispatch
@@ -238,7 +249,7 @@ def plan(
         dispatch="rounds" if gpus else dispatch,
         treatments=lines,
         cost={**cost.to_dict(), **_gpu_rate(gpu_rate, gpus)},
-        assumptions=_assumptions(gpus is not None, coordinator_seconds),
+        assumptions=_assumptions(gpus is not None, coordinator_seconds, executor),
     )
 
 
@@ -261,14 +272,15 @@ def check_devices(cores: int | None, gpus: int | None) -> None:
             raise UserError(f"{name} must be an integer >= 1 (got {value!r})")
 
 
-def _assumptions(gpu: bool, coordinator_seconds: float) -> list[str]:
+def _assumptions(gpu: bool, coordinator_seconds: float, executor: str) -> list[str]:
     notes = [
         "evaluations counted on the algorithm driven with instant fake results (twins and empty "
         "bodies are not simulated)",
         f"seconds per evaluation from {SAMPLE_GENOMES} random viable genomes per treatment; evolved "
         "bodies may cost more or less",
-        f"coordinator {coordinator_seconds * 1000:.0f} ms per run-generation at population "
-        f"{COORDINATOR_POPULATION}, one generation at a time; {WORKER_SECONDS_PER_EVALUATION * 1000:.0f} ms "
+        f"coordinator ({executor} executor) {coordinator_seconds * 1000:.0f} ms per run-generation at "
+        f"population {COORDINATOR_POPULATION}, one generation at a time; "
+        f"{WORKER_SECONDS_PER_EVALUATION * 1000:.0f} ms "
         f"of a worker's own per evaluation, {JOB_SECONDS * 1000:.0f} ms per job (measured here)",
         "database bytes measured on SQLite for short runs; genomes grow over long runs",
     ]

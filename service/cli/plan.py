@@ -66,6 +66,11 @@ def plan(
     coordinators: Annotated[
         int, typer.Option("--coordinators", help="coordinator processes sharing the runs")
     ] = 1,
+    executor: Annotated[
+        str,
+        typer.Option("--executor", help="rq: a cluster (softevo serve, Redis workers); local: softevo run's "
+                     "process pool on one machine"),
+    ] = "rq",
     as_json: JsonOption = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
@@ -75,11 +80,15 @@ def plan(
 
     planner.check_devices(cores, gpus)
     planner.check_coordinators(coordinators)
+    if executor not in planner.EXECUTORS:
+        raise UserError(f"--executor must be one of {', '.join(planner.EXECUTORS)} (got {executor!r})")
     treatments = treatments_of(preset_or_spec, scale)
     cost = MEASURED
     if measure:
         cost = measure_rates(planner.scenes_for_measure(treatments), repeats=1)
-    result = planner.plan(treatments, cores=cores, gpus=gpus, cost=cost, coordinators=coordinators)
+    result = planner.plan(
+        treatments, cores=cores, gpus=gpus, cost=cost, coordinators=coordinators, executor=executor
+    )
     typer.echo(json.dumps(result.to_json(), indent=2) if as_json else plan_text(result))
 
 

@@ -91,6 +91,14 @@ def test_coordinators_needed_holds_even_when_one_coordinator_is_saturated():
     assert enough.wall_seconds <= 1.25 * slow.unqueued_wall_seconds
 
 
+def test_the_executor_picks_the_coordinators_measured_cost():
+    grid = paper_grid("tiny")
+    local, rq = plan(grid, cores=64, executor="local"), plan(grid, cores=64, executor="rq")
+    assert local.coordinator_seconds < rq.coordinator_seconds
+    assert local.coordinator_utilisation < rq.coordinator_utilisation
+    assert "local executor" in " ".join(local.assumptions) and "rq executor" in " ".join(rq.assumptions)
+
+
 def test_gpus_give_gpu_hours():
     result = plan(paper_grid("tiny"), gpus=2)
     assert result.gpu_hours == pytest.approx(result.wall_seconds * 2 / 3600)
@@ -127,6 +135,7 @@ def test_cli_reads_a_spec_file(capsys, tmp_path):
         ("paper", "--cores", "2", "--coordinators", "0"),
         ("nonsense", "--cores", "2"),
         ("paper", "--scale", "huge", "--cores", "2"),
+        ("paper", "--cores", "2", "--executor", "slurm"),
     ],
 )
 def test_cli_errors_are_one_line_exit_2(capsys, args):
