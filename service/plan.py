@@ -157,6 +157,7 @@ class Plan:
     cost: dict[str, Any]
     assumptions: list[str] = field(default_factory=list)
     coordinators: int = 1
+    executor: str = "rq"  # whose coordinator cost the plan takes (COORDINATOR_SECONDS)
     coordinator_utilisation: float = 0.0  # the coordinators' busy share: near 1, they limit
     coordinator_seconds: float = 0.0  # the coordinators' work in all (every run-generation)
     # the wall time were coordinators never waited on (one per run): what the workers and
@@ -239,6 +240,7 @@ def plan(
         database_bytes=sum(line.database_bytes for line in lines),
         utilisation=min(1.0, busy / (wall * workers)) if wall > 0 else 0.0,
         coordinators=coordinators,
+        executor=executor,
         coordinator_utilisation=min(1.0, told / (wall * coordinators)) if wall > 0 else 0.0,
         coordinator_seconds=told,
         unqueued_wall_seconds=unqueued,

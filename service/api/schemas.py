@@ -23,6 +23,7 @@ from pydantic import (
 from pydantic_core import core_schema
 
 from softevo.evolution import worlds
+from softevo.service.plan import EXECUTORS
 from softevo.service.treatments import SCALES, Treatment
 
 MAX_INT32 = 2**31 - 1
@@ -203,6 +204,9 @@ class Devices(Strict):
     cores: int | None = Field(None, ge=1, le=100_000, description="CPU workers, one core each")
     gpus: int | None = Field(None, ge=1, le=10_000, description="GPUs (their rate: an estimate)")
     coordinators: int = Field(1, ge=1, le=1_000, description="coordinator processes sharing the runs")
+    executor: Literal[EXECUTORS] = Field(  # type: ignore[valid-type]
+        "rq", description="rq: a cluster (softevo serve, Redis workers); local: softevo run's process pool"
+    )
 
 
 class PlanExperimentIn(ExperimentIn, Devices):

@@ -163,10 +163,15 @@ def test_rest_plan_200_and_422(tmp_path):
         two = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
                                                "coordinators": 2}, timeout=120)
         assert two.status_code == 200 and two.json()["coordinators"] == 2, two.text
+        local = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
+                                                 "executor": "local"}, timeout=120)
+        assert local.status_code == 200 and local.json()["executor"] == "local", local.text
+        assert local.json()["coordinator_seconds"] < ok.json()["coordinator_seconds"]
         for bad in ({"preset": "paper", "scale": "tiny"},
                     {"preset": "paper", "cores": 2, "gpus": 1},
                     {"preset": "paper", "cores": 0},
                     {"preset": "paper", "cores": 2, "coordinators": 0},
+                    {"preset": "paper", "cores": 2, "executor": "slurm"},
                     {"treatments": [{"environment": "moon", "stiffness_mpa": 1}], "cores": 2}):
             answer = httpx.post(f"{base}/plan", json=bad, timeout=60)
             assert answer.status_code == 422, (bad, answer.text)

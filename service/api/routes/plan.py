@@ -55,6 +55,11 @@ async def plan_experiment(body: PlanRequest) -> dict[str, Any]:
     check_devices(body.cores, body.gpus)
     treatments = bounded(request_treatments(body))
     result = await run_in_threadpool(
-        plan, treatments, cores=body.cores, gpus=body.gpus, coordinators=body.coordinators
+        plan,
+        treatments,
+        cores=body.cores,
+        gpus=body.gpus,
+        coordinators=body.coordinators,
+        executor=body.executor,
     )
     return result.to_json()
