@@ -1,8 +1,8 @@
 """Checks of the statistics by simulation, at the n the study publishes (docs/analysis.md):
 
 - ``interval_coverage``: the share of simulated samples of n run values whose 95% interval
-  of the mean holds the true mean, for the t interval the report uses and the percentile
-  bootstrap it replaced;
+  of the mean holds the true mean, for the t interval the report uses and, for comparison,
+  the percentile bootstrap;
 - ``power_calibration``: for a known effect (A12, normal run values), the true power of a
   study of ``study_n`` runs per treatment against what ``analysis.power`` estimates from
   simulated pilots of ``pilot_n`` runs: the mean estimate, the share of pilots whose

@@ -417,7 +417,7 @@ def write_report(
 ) -> Report:
     """Write the report of ``data`` into ``out_dir`` (see the module doc). Without ``robots``
     the robot renders, the evaluation settings and the animation are left out. ``seed``
-    is kept for callers (the intervals are t intervals: nothing resamples). ``exaptation``
+    is accepted and unused (the intervals are t intervals: nothing resamples). ``exaptation``
     (``analysis.exaptation``; transition runs' founders and surviving lines) adds the
     exaptation section and ``exaptation.csv``."""
     if data.generations.empty:

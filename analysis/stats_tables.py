@@ -22,8 +22,8 @@
 - Intervals (``interval`` column): Student t intervals of the mean over runs
   (``t_interval``); of a difference, Welch's t for independent samples and the paired t for
   seed-matched runs. Their coverage at n = 7 was checked by simulation
-  (``analysis.calibration``, docs/analysis.md); the percentile bootstrap they replace
-  covered about 90% at that n.
+  (``analysis.calibration``, docs/analysis.md); a percentile bootstrap covers about 90% at
+  that n.
 - Effect sizes: Vargha-Delaney ``A12`` = P(a > b) + P(a = b) / 2 over runs; for paired rows
   the share of seed-matched pairs with a above b (ties half). ``difference`` = mean_a -
   mean_b (the mean of the paired differences) with its 95% interval.

@@ -45,7 +45,7 @@ def create(
 
 def unfinished_cost(conn: Connection) -> float:
     """Voxel-steps the pending and running runs still have to do (``generation_cost`` x the
-    generations each has left); settings that no longer read count nothing."""
+    generations each has left); settings ``Treatment.from_settings`` refuses count nothing."""
     total = 0.0
     for stored, generations_left in unfinished_work(conn):
         try:

@@ -25,14 +25,14 @@ scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz, at most 4 Hz for positive outp
 phase offsets in cycles) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
 workspace full or 10% active are drawn or mutated again). Plain treatments default to AFPO,
 ``voxelyze-2``, the linear 1-5 Hz mapping and any non-empty body, so stored runs and the
-quick start keep their meaning (settings stored before these fields existed read so too);
+quick start keep their meaning (stored settings without these fields read so too);
 the paper presets use the paper's four (``PAPER_CHOICES``).
 
 An evaluation lasts ``cycles`` actuation cycles (the paper's text, footnote 3) and, with
 ``max_seconds``, never more than that many seconds after settling. The presets cap it at the
 scripts' fixed time (``PAPER_MAX_SECONDS``, 4.5 s; the tiny scale at 1 s): under the evosoro
 mapping a robot can actuate at 0.01 Hz, and its cycles alone would last minutes
-(docs/analysis.md). Plain treatments have no cap, as they always had.
+(docs/analysis.md). Plain treatments have no cap.
 
 Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
 Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,

@@ -2,10 +2,10 @@
 
 numba names a cache entry by the source file's name, not by the module's, and unpickles its
 index before it checks that the source is unchanged. An index written when these kernels were
-imported under another module name (an older softevo installed ``sim`` as a top-level package)
-then fails to load with ``ModuleNotFoundError`` instead of being recompiled.
+imported under another module name (e.g. ``sim`` as a top-level package rather than
+``softevo.sim``) fails to load with ``ModuleNotFoundError`` instead of being recompiled.
 ``drop_foreign_entries`` removes such entries; the engine calls it once, before its first
-compilation, so that an upgraded checkout recompiles instead of failing.
+compilation, so that a cache holding them recompiles instead of failing.
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ def cuda_module():
     """numba-cuda's ``cuda`` module; ``EngineUnavailable`` if numba-cuda is missing."""
     try:
         import numba.cuda as cuda
-        from numba.cuda import config  # noqa: F401 (numba-cuda, not numba's old built-in target)
+        from numba.cuda import config  # noqa: F401 (numba-cuda, not numba's deprecated built-in target)
     except ImportError:
         raise EngineUnavailable(
             "the cuda engine needs the numba-cuda package: pip install 'softevo[gpu]'") from None

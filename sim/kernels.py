@@ -180,10 +180,9 @@ def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, vconst, size):
 # One flat buffer per robot holds everything the link loops read and write, in tiles of
 # LINK_TILE places: tile t holds LINK_ROWS rows of LINK_TILE values, row k of the link at
 # place j of the tile at offset (t LINK_ROWS + k) LINK_TILE + j (``place`` and ``at``). Rows are
-# a compile-time constant apart, so LLVM proves the rows of a loop over a tile apart by itself:
-# with rows a run-time stride apart it vectorized the link loops behind some 400 run-time
-# overlap checks per loop and call (the link kernel took 11.6 us a step on the 7^3 cube
-# instead of 10.5). LINK_TILE is 8 values past a multiple of 512 so that the
+# a compile-time constant apart, so LLVM proves the rows of a loop over a tile apart by itself
+# (rows a run-time stride apart would put some 400 run-time overlap checks in front of each
+# link loop: docs/benchmarks.md). LINK_TILE is 8 values past a multiple of 512 so that the
 # rows of a tile start on different cache-line sets (with 1024 every row maps onto the same
 # few sets: over twice as slow). Moving a link to another place (``swap_links``) is one loop
 # over rows. Place m (m links) stays 0 in every row: ``link_sums`` reads it for a face
