@@ -3,7 +3,7 @@ through real Redis and real PostgreSQL, on one machine.
 
     python bench/scale.py [--workers 100,500,1000] [--seconds 60] [--warmup 25]
                           [--speed-up 1] [--processes 4] [--coordinators 1]
-                          [--postgres URL] [--json OUT]
+                          [--generations G --to-end] [--postgres URL] [--json OUT]
 
 Per load level (a number of workers):
 - a fresh PostgreSQL database holds the paper grid at paper scale (180 runs, population 30,
@@ -24,8 +24,13 @@ Per load level (a number of workers):
   and the workers, and what one coordinator process carries per CPU-second (evaluations per
   second at a whole core: the rate at which it becomes the bottleneck); then it names the
   bottleneck.
+With ``--to-end`` a level runs the grid (every treatment cut to ``--generations`` G) to its
+end instead of a window, and sets the wall time from the coordinators' start to the last
+run's end beside what ``softevo plan`` predicts for the same grid, workers, coordinators and
+speed-up (``service.plan.plan`` with the cost model scaled as the sleep engine scales it):
+the planner checked against hundreds of workers.
 Everything stays on 127.0.0.1; every level ends by itself (the processes are stopped, the
-database dropped).
+database dropped; a run to the end gives up after ``--seconds`` x 10).
 """
 
 from __future__ import annotations
@@ -229,7 +234,7 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
     from redis import Redis
 
     from softevo.service.db import open_database
-    from softevo.service.experiments import create_paper
+    from softevo.service.experiments import create
 
     name = f"softevo_scale_{workers}"
     with psycopg.connect(admin_url, autocommit=True) as conn:
@@ -237,7 +242,7 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
         conn.execute(f'CREATE DATABASE "{name}"')
     db_url = with_database(args.postgres, name)
     engine = open_database(db_url)
-    create_paper(engine, "paper", name="scale bench")
+    _, run_ids = create(engine, "scale bench", grid(args.generations))
     engine.dispose()
 
     port = free_port()
@@ -267,8 +272,11 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
         registered = int(client.scard("rq:workers"))
         worker_pids = [p.pid for p in procs]
         role = [sys.executable, __file__, "--role", "coordinator", "--redis", redis_url, "--db", db_url]
+        started = time.time()
         coordinators = [subprocess.Popen(role, env=env) for _ in range(args.coordinators)]
         procs += coordinators
+        if args.to_end:
+            return to_end(workers, args, db_url, run_ids, started, registered)
         time.sleep(args.warmup)
         pg_pids = pids_of_user("postgres")
 
@@ -308,6 +316,71 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
             conn.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
 
 
+def grid(generations: int | None):
+    """The paper's grid at paper scale, each treatment cut to ``generations`` if given."""
+    import dataclasses
+
+    from softevo.service.treatments import preset_grid
+
+    treatments = preset_grid("paper", "paper")
+    if generations is None:
+        return treatments
+    return [dataclasses.replace(t, generations=min(t.generations, generations)) for t in treatments]
+
+
+def to_end(workers: int, args, db_url: str, run_ids: list[int], started: float, registered: int) -> dict:
+    """Wait for every run to finish (at most ``--seconds`` x 10); the measured wall time
+    beside the planner's prediction of the same grid on as many workers."""
+    from softevo.service.db import open_database
+    from softevo.service.db.runs import active_run_ids
+
+    engine = open_database(db_url)
+    deadline = started + 10 * args.seconds
+    try:
+        while time.time() < deadline:
+            with engine.connect() as conn:
+                if not active_run_ids(conn, run_ids):
+                    break
+            time.sleep(0.5)
+        else:
+            raise SystemExit(f"the grid did not end within {10 * args.seconds:g} s")
+    finally:
+        engine.dispose()
+    measured = time.time() - started
+    predicted = planned(workers, args)
+    return {"workers": workers, "coordinators": args.coordinators, "registered": registered,
+            "runs": len(run_ids), "generations": args.generations, "speed_up": args.speed_up,
+            "measured_seconds": measured, "predicted_seconds": predicted["wall_seconds"],
+            "predicted_utilisation": predicted["utilisation"],
+            "error": predicted["wall_seconds"] / measured - 1.0}
+
+
+def planned(workers: int, args) -> dict:
+    """``softevo plan``'s answer for the bench's grid: the cost model the sleep engine sleeps
+    by, divided by its speed-up; the RQ executor's coordinator cost."""
+    import dataclasses
+
+    from softevo.service.plan import plan
+    from softevo.sim.cost import MEASURED
+
+    scaled = dataclasses.replace(
+        MEASURED, rates={k: v * args.speed_up for k, v in MEASURED.rates.items()},
+        default_rate=MEASURED.default_rate * args.speed_up,
+        overhead_seconds=MEASURED.overhead_seconds / args.speed_up)
+    return plan(grid(args.generations), cores=workers, cost=scaled, coordinators=args.coordinators,
+                executor="rq").to_json()
+
+
+def show_to_end(rows: list[dict]) -> None:
+    print("| workers | coordinators | runs x generations | speed-up | measured s | predicted s | "
+          "error | predicted utilisation |")
+    print("| --- | --- | --- | --- | ---: | ---: | ---: | ---: |")
+    for r in rows:
+        print(f"| {r['workers']} | {r['coordinators']} | {r['runs']} x {r['generations']} | "
+              f"x{r['speed_up']:g} | {r['measured_seconds']:.1f} | {r['predicted_seconds']:.1f} | "
+              f"{r['error']:+.0%} | {r['predicted_utilisation']:.2f} |")
+
+
 def show(rows: list[dict]) -> None:
     head = ("workers", "coordinators", "evals/s", "DB writes/s", "commits/s", "queue p50 s", "queue p99 s",
             "utilisation", "CPU coord / redis / pg / workers", "evals per coordinator CPU-s", "bottleneck")
@@ -330,6 +403,9 @@ def main() -> None:
     parser.add_argument("--speed-up", type=float, default=1.0)
     parser.add_argument("--processes", type=int, default=4)
     parser.add_argument("--coordinators", type=int, default=1)
+    parser.add_argument("--generations", type=int, help="cut every treatment to G generations")
+    parser.add_argument("--to-end", action="store_true",
+                        help="run the grid to its end and compare with softevo plan")
     parser.add_argument("--postgres", default=os.environ.get(
         "SOFTEVO_BENCH_POSTGRES", "postgresql+psycopg://postgres:postgres@127.0.0.1:5432/postgres"))
     parser.add_argument("--json", type=Path)
@@ -348,6 +424,8 @@ def main() -> None:
     if shutil.which("redis-server") is None:
         sys.exit("bench/scale.py needs redis-server on PATH")
     admin_url = with_database(args.postgres, "postgres").replace("postgresql+psycopg://", "postgresql://")
+    if args.to_end and args.generations is None:
+        sys.exit("--to-end needs --generations G (the paper's own lengths take days)")
     print(f"paper grid (180 runs, population 30, 7^3) on the sleep engine x{args.speed_up:g}, "
           f"{args.processes} worker processes, {args.coordinators} coordinator(s), {CORES} cores; "
           f"window {args.seconds:g} s after {args.warmup:g} s")
@@ -355,9 +433,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for workers in [int(w) for w in args.workers.split(",")]:
             rows.append(level(workers, args, admin_url, Path(folder)))
-            show(rows[-1:])
+            (show_to_end if args.to_end else show)(rows[-1:])
     print()
-    show(rows)
+    (show_to_end if args.to_end else show)(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
 

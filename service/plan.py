@@ -17,7 +17,8 @@
 - Wall time: ``service.plan_dispatch`` simulates dispatch on the workers, each generation
   split into jobs as ``service.rq_executor.plan_batches`` splits it, job seconds drawn from
   the distribution plus ``JOB_SECONDS`` each, under ``DISPATCH`` (``"rounds"`` or
-  ``"per-run"``), plus the coordinator's ``COORDINATOR_SECONDS`` per run-generation. Long
+  ``"per-run"``), plus the coordinator's ``COORDINATOR_SECONDS`` per run-generation and its
+  ``COORDINATOR_ASK_SECONDS`` per run before a run's first jobs are dispatched. Long
   stretches of like generations are simulated on at most ``MAX_SIMULATED`` generations (and
   ``EVENT_BUDGET`` jobs in all) whose seconds are scaled up to the stretch's length.
 - GPUs: a round's genomes (all runs) are split evenly over the GPUs; a GPU steps its batch in
@@ -65,6 +66,11 @@ EVENT_BUDGET = 150_000  # jobs the dispatch simulation simulates in all
 #   a job's round trip: 3 ms and 8 ms, from bench/plan_check.py's 1-worker runs less their
 #   coordinator's share and the cost model's simulation seconds.
 COORDINATOR_SECONDS = {"local": 0.031, "rq": 0.09}
+# - the coordinator's ask of a run's first population (random viable genomes, drawn until the
+#   body rule holds) and its dispatch, before any of that run's jobs can start; at the start
+#   a coordinator asks its runs one after the other: 66 ms ("rq": ask + RQ submit, measured
+#   over 12 paper treatments at population 30) and 50 ms ("local": the ask alone).
+COORDINATOR_ASK_SECONDS = {"local": 0.05, "rq": 0.066}
 EXECUTORS = tuple(COORDINATOR_SECONDS)
 COORDINATOR_POPULATION = 30
 COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
@@ -201,18 +207,22 @@ def plan(
     gpu_rate: float = GPU_VOXEL_STEPS_PER_SECOND,
     coordinators: int = 1,
     executor: str = "rq",
+    ask_seconds: float | None = None,
 ) -> Plan:
     """The plan of ``treatments`` on ``cores`` CPU workers or ``gpus`` GPUs (exactly one),
     driven by ``coordinators`` coordinator processes (``service.driver``: they split the
     runs) through ``executor``: ``"rq"`` (a cluster: ``softevo serve`` and Redis workers) or
     ``"local"`` (``softevo run``'s process pool), whose coordinator costs differ
-    (``COORDINATOR_SECONDS``); UserError for neither, both, or fewer than 1."""
+    (``COORDINATOR_SECONDS``, ``COORDINATOR_ASK_SECONDS``; ``coordinator_seconds`` and
+    ``ask_seconds`` override them); UserError for neither, both, or fewer than 1."""
     check_devices(cores, gpus)
     check_coordinators(coordinators)
     if executor not in EXECUTORS:
         raise UserError(f"executor must be one of {', '.join(EXECUTORS)} (got {executor!r})")
     if coordinator_seconds is None:
         coordinator_seconds = COORDINATOR_SECONDS[executor]
+    if ask_seconds is None:
+        ask_seconds = COORDINATOR_ASK_SECONDS[executor]
     if not treatments:
         raise UserError("nothing to plan: no treatment")
     dispatch = DISPATCH if dispatch is None else dispatch
@@ -225,7 +235,8 @@ def plan(
     def dispatch_with(k: int, rng: np.random.Generator) -> tuple[float, float]:
         if gpus is not None:
             return _gpu_dispatch(treatments, counts, costs, gpus, gpu_rate, coordinator_seconds / k, rng)
-        return _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, k)
+        return _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, k,
+                             ask_seconds)
 
     wall, busy = dispatch_with(coordinators, rng)
     workers = gpus if gpus is not None else cores
@@ -251,7 +262,7 @@ def plan(
         dispatch="rounds" if gpus else dispatch,
         treatments=lines,
         cost={**cost.to_dict(), **_gpu_rate(gpu_rate, gpus)},
-        assumptions=_assumptions(gpus is not None, coordinator_seconds, executor),
+        assumptions=_assumptions(gpus is not None, coordinator_seconds, ask_seconds, executor),
     )
 
 
@@ -274,14 +285,15 @@ def check_devices(cores: int | None, gpus: int | None) -> None:
             raise UserError(f"{name} must be an integer >= 1 (got {value!r})")
 
 
-def _assumptions(gpu: bool, coordinator_seconds: float, executor: str) -> list[str]:
+def _assumptions(gpu: bool, coordinator_seconds: float, ask_seconds: float, executor: str) -> list[str]:
     notes = [
         "evaluations counted on the algorithm driven with instant fake results (twins and empty "
         "bodies are not simulated)",
         f"seconds per evaluation from {SAMPLE_GENOMES} random viable genomes per treatment; evolved "
         "bodies may cost more or less",
         f"coordinator ({executor} executor) {coordinator_seconds * 1000:.0f} ms per run-generation at "
-        f"population {COORDINATOR_POPULATION}, one generation at a time; "
+        f"population {COORDINATOR_POPULATION}, one generation at a time, and "
+        f"{ask_seconds * 1000:.0f} ms to ask a run's first population; "
         f"{WORKER_SECONDS_PER_EVALUATION * 1000:.0f} ms "
         f"of a worker's own per evaluation, {JOB_SECONDS * 1000:.0f} ms per job (measured here)",
         "database bytes measured on SQLite for short runs; genomes grow over long runs",
@@ -494,7 +506,7 @@ def _timeline(treatments, counts, jobs_of) -> tuple[list[tuple[int, float]], lis
 
 
 def _cpu_dispatch(
-    treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators=1
+    treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators=1, ask_seconds=0.0
 ) -> tuple:
     def size_of(t: Treatment, n: int) -> int:  # plan_batches / executors.chunks
         return max(1, min(t.genomes_per_task, math.ceil(n / cores)))
@@ -513,7 +525,8 @@ def _cpu_dispatch(
             size = size_of(treatment, n) if n else 1
             jobs = np.add.reduceat(draws, np.arange(0, n, size)) + JOB_SECONDS if n else np.zeros(0)
             told = weight * _coordinator(treatment, coordinator_seconds)
-            generations.append(Generation(jobs * weight, told))
+            asked = _coordinator(treatment, ask_seconds) if stretch.kind == "first" else 0.0
+            generations.append(Generation(jobs * weight, told, asked))
         simulated_runs.append(generations)
     return simulate(simulated_runs, cores, dispatch, coordinators)
 

@@ -3,7 +3,9 @@
 Each run is a list of generations; a generation is a set of jobs (seconds each, on one
 worker) and the coordinator's seconds for it (tell, store, ask: a coordinator does one
 generation at a time; with ``coordinators`` K, run ``r``'s generations go to coordinator
-``r mod K``). ``W`` workers take jobs first in, first out. Two policies:
+``r mod K``). A run's first generation can also carry the seconds its coordinator spends
+asking for it before any of its jobs is dispatched (a new population is drawn, not bred):
+at the start each coordinator asks its runs one after the other. ``W`` workers take jobs first in, first out. Two policies:
 
 - ``"rounds"`` (``service.coordinator.Coordinator.round``): every active run's generation is
   dispatched together; the next round starts when the whole round is done and the
@@ -30,11 +32,13 @@ _RELEASE, _FINISH = 0, 1
 
 @dataclass(frozen=True)
 class Generation:
-    """One generation of one run: ``jobs`` (seconds of each job on one worker) and the
-    coordinator's ``coordinator_seconds`` once its jobs are done."""
+    """One generation of one run: ``jobs`` (seconds of each job on one worker), the
+    coordinator's ``coordinator_seconds`` once its jobs are done and, for a run's first
+    generation, ``ask_seconds`` of the coordinator before its jobs are dispatched."""
 
     jobs: np.ndarray
     coordinator_seconds: float = 0.0
+    ask_seconds: float = 0.0
 
 
 def simulate(
@@ -64,8 +68,13 @@ class _Dispatch:
     def run(self) -> tuple[float, float]:
         live = [r for r, generations in enumerate(self.runs) if generations]
         self.waiting = set(live)
+        released = {}
         for r in live:
-            self._push(0.0, _RELEASE, r)
+            coordinator = r % len(self.coordinator_free)
+            self.coordinator_free[coordinator] += self.runs[r][0].ask_seconds
+            released[r] = self.coordinator_free[coordinator]
+        for r in live:  # a round is dispatched once every run of it is asked
+            self._push(max(released.values()) if self.rounds else released[r], _RELEASE, r)
         while True:
             while self.idle and self.ready:
                 r, seconds = self.ready.popleft()

@@ -7,12 +7,14 @@ import json
 import os
 
 import httpx
+import numpy as np
 import pytest
 from sqlalchemy import func, select
 
 from softevo.service.db import open_database
 from softevo.service.db.models import GenerationRow
 from softevo.service.plan import plan
+from softevo.service.plan_dispatch import Generation, simulate
 from softevo.service.treatments import Treatment, paper_grid
 from tests.service.rq_support import Processes, service_env
 from tests.service.tinyrun import TINY, new_run, run_to_end
@@ -97,6 +99,24 @@ def test_the_executor_picks_the_coordinators_measured_cost():
     assert local.coordinator_seconds < rq.coordinator_seconds
     assert local.coordinator_utilisation < rq.coordinator_utilisation
     assert "local executor" in " ".join(local.assumptions) and "rq executor" in " ".join(rq.assumptions)
+
+
+def test_a_coordinator_asks_its_runs_first_populations_one_after_the_other():
+    """Each run's first jobs wait for its coordinator's ask; one coordinator asks the runs in
+    turn, two split them; ``rounds`` dispatches once every run is asked."""
+    runs = [[Generation(np.array([1.0]), 0.0, 0.5)] for _ in range(4)]
+    assert simulate(runs, 4, "per-run") == (pytest.approx(3.0), pytest.approx(4.0))
+    assert simulate(runs, 4, "per-run", coordinators=2)[0] == pytest.approx(2.0)
+    assert simulate(runs, 4, "rounds")[0] == pytest.approx(3.0)
+    no_ask = [[Generation(np.array([1.0]), 0.0)] for _ in range(4)]
+    assert simulate(no_ask, 4, "per-run")[0] == pytest.approx(1.0)
+
+
+def test_the_first_populations_ask_lengthens_a_wide_grid():
+    grid = paper_grid("tiny")
+    asked, free = plan(grid, cores=64), plan(grid, cores=64, ask_seconds=0.0)
+    assert asked.wall_seconds > free.wall_seconds
+    assert "66 ms to ask" in " ".join(asked.assumptions)
 
 
 def test_gpus_give_gpu_hours():
