@@ -383,13 +383,12 @@ class Robots:
     """How the report reaches stored robots; the caller binds these to its database.
 
     phenotypes(ids) -> {id: Phenotype}; scene(id, environment) -> (scene, record) as
-    ``Robots.scene`` (record with treatment, seed, phenotype_object);
-    encoding(treatment, seed) -> EncodingConfig; motion(id, environment) -> Motion.
+    ``analysis.robots.record_scene`` (record with treatment, phenotype_object and task, the
+    ``worker.tasks.Task`` replayed); motion(id, environment) -> Motion.
     """
 
     phenotypes: Callable[[list[int]], dict[int, Any]]
     scene: Callable[[int, str | None], tuple[dict[str, Any], dict[str, Any]]]
-    encoding: Callable[[Any, int], Any]
     motion: Callable[[int, str | None], Any]
 
 
@@ -489,9 +488,9 @@ def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
     if best is None:
         return None
     scene, record = robots.scene(int(best["individual_id"]), best["environment"])
-    parsed, encoding = sim.parse_scene(scene), robots.encoding(record["treatment"], record["seed"])
-    m, low_high = parsed.material, encoding.frequency_range
-    phenotype, modulus = record["phenotype_object"], record["treatment"].stiffness_pa
+    parsed, task = sim.parse_scene(scene), record["task"]
+    m, low_high = parsed.material, task.encoding_config().frequency_range
+    phenotype, modulus = record["phenotype_object"], task.youngs_modulus
     present = {world for env in data.treatments["environment"] for world in env.split(worlds.TRANSITION)}
     settle = ", ".join(
         f"{phenotype.to_scene(world, modulus)['settle_seconds']:g} s {worlds.get(world).label}"

@@ -1,10 +1,12 @@
 """Stored individuals back to robots: genome -> phenotype -> scene, exactly as the workers
-built them (same encoding, stiffness and cycles as the individual's run).
+built them (same encoding, cycles, model, world and stiffness as the evaluation replayed).
 
 The functions take a stored record (``service.db.individuals.individual_record``: the
-individual, its treatment's settings, seed and evaluations; the caller reads it) and go
-through ``worker.tasks``, the path the evaluations took: ``stored_task(record)`` is the task
-of its latest evaluation, ``record_scene(record)`` its scene.
+individual, its treatment, seed and evaluations; the caller reads it) and go through
+``worker.tasks``, the path the evaluations took. ``stored_task(record)`` is the one way from
+a stored individual to a ``Task``: the task of its latest evaluation, as the coordinator built
+it (the REST frames and body, the report, ``softevo show`` and ``export-vxa`` all replay it);
+``record_scene(record)`` is its scene.
 """
 
 from __future__ import annotations
@@ -13,45 +15,44 @@ from typing import Any
 
 from softevo.errors import UserError
 from softevo.evolution import worlds
-from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
-from softevo.worker.tasks import Task, scene_of
-from softevo.worker.tasks import encoding_of as settings_encoding
+from softevo.evolution.genotype import Genotype, Phenotype, develop
+from softevo.worker.tasks import Task, encoding_of, scene_of
 
 
-def encoding_of(treatment, seed: int = 0) -> EncodingConfig:
-    """The encoding the run of ``treatment`` (a ``Treatment``: ``to_settings()``) expressed
-    its genomes with (the same for every seed)."""
-    return settings_encoding(treatment.to_settings())
+def develop_genome(genome: dict[str, Any], treatment) -> Phenotype:
+    """The phenotype of a stored genome (``Genotype.to_dict()`` JSON) in the encoding of its
+    run's ``treatment`` (a ``Treatment``: ``to_settings()``)."""
+    return develop(Genotype.from_dict(genome), encoding_of(treatment.to_settings()))
 
 
-def develop_genome(genome: dict[str, Any], treatment, seed: int = 0) -> Phenotype:
-    """The phenotype of a stored genome (``Genotype.to_dict()`` JSON) in its run's encoding."""
-    return develop(Genotype.from_dict(genome), encoding_of(treatment, seed))
-
-
-def record_environment(record: dict[str, Any], environment: str | None = None) -> str:
-    """``environment``, or that of the record's latest evaluation (after an environment
-    switch, the new one); UserError if there is none or it is unknown."""
+def stored_evaluation(record: dict[str, Any], environment: str | None = None) -> dict[str, Any]:
+    """The record's latest evaluation ({column: value}), its latest in ``environment`` if
+    given; UserError if ``environment`` is not an evolvable world or there is no such
+    evaluation."""
     individual_id, evaluations = record["id"], record["evaluations"]
-    if environment is None:
-        if evaluations.empty:
-            raise UserError(f"individual {individual_id} was never evaluated; give --environment")
-        environment = str(evaluations["environment"].iloc[-1])
-    if environment not in worlds.names(evolve=True):
-        raise UserError(f"environment must be {' or '.join(worlds.names(evolve=True))} (got {environment!r})")
-    return environment
+    if environment is not None:
+        evolvable = worlds.names(evolve=True)
+        if environment not in evolvable:
+            raise UserError(f"environment must be {' or '.join(evolvable)} (got {environment!r})")
+        evaluations = evaluations[evaluations["environment"] == environment]
+    if evaluations.empty:
+        where = f" in {environment}" if environment is not None else ""
+        raise UserError(f"individual {individual_id} was never evaluated{where}")
+    return evaluations.iloc[-1].to_dict()
 
 
 def stored_task(record: dict[str, Any], environment: str | None = None) -> Task:
-    """The ``worker.tasks.Task`` of a stored record in ``environment`` (default: that of its
-    latest evaluation), with its treatment's stiffness and cycles."""
-    treatment = record["treatment"]
+    """The ``worker.tasks.Task`` of the record's latest evaluation (in ``environment`` if
+    given), as the coordinator built it: that evaluation's world and Young's modulus (a run
+    whose stiffness changed replays what was evaluated), its treatment's encoding, cycles,
+    model and cap on seconds. UserError as ``stored_evaluation``."""
+    evaluation = stored_evaluation(record, environment)
     return Task.from_stored(
         record["id"],
         record["genome"],
-        treatment.to_settings(),
-        record_environment(record, environment),
-        treatment.stiffness_pa,
+        record["treatment"].to_settings(),
+        str(evaluation["environment"]),
+        float(evaluation["stiffness"]),
     )
 
 
@@ -69,9 +70,15 @@ def record_scene(
 
     ``environment`` defaults to that of the individual's latest evaluation. ``extra`` scene
     fields (e.g. ``record``) are added. The record returned is the one given plus
-    ``phenotype_object``, ``environment`` (the one used) and ``task``.
+    ``phenotype_object``, ``environment`` (the one used) and ``task``. UserError for an empty
+    body or a compound world (a gradual transition's evaluation is several scenes).
     """
     task = stored_task(record, environment)
+    if worlds.is_compound(task.environment):
+        raise UserError(
+            f"individual {record['id']} was last evaluated in {task.environment}, a world of "
+            "several scenes; give --environment"
+        )
     try:
         phenotype, scene = scene_of(task, **extra)
     except ValueError as exc:
@@ -79,4 +86,3 @@ def record_scene(
             raise
         raise UserError(f"individual {record['id']} has an empty body: nothing to simulate") from exc
     return scene, {**record, "phenotype_object": phenotype, "environment": task.environment, "task": task}
-

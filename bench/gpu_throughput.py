@@ -42,9 +42,10 @@ import numpy as np
 from softevo import sim
 from softevo.evolution.worlds import LAND, PAPER
 from softevo.sim import cuda_engine
+from softevo.sim.cost import voxel_steps as scene_voxel_steps
 from softevo.sim.engines import EngineUnavailable
 from softevo.sim.scene import DEFAULT_CYCLES, parse_scene
-from softevo.sim.system import F_DT, I_STEPS, build_robot
+from softevo.sim.system import build_robot
 
 BATCHES = (1, 10, 100, 1000, 10000)
 POOL = 100  # distinct robots per case; a larger batch repeats them
@@ -67,13 +68,13 @@ def paper_robot(rng: np.random.Generator, world: str, modulus: float, side: int 
 
 def evaluation_cost(scene: dict) -> tuple[int, float]:
     """(voxels, steps) of the whole evaluation of ``scene``."""
-    robot = build_robot(parse_scene(scene))
-    return len(robot.pos), float(robot.iparams[I_STEPS])
+    voxels, steps = scene_voxel_steps(parse_scene(scene))
+    return voxels, float(steps)
 
 
 def shortened(scene: dict, steps: int) -> dict:
     """``scene`` cut to ``steps`` steps of actuation (no settling)."""
-    dt = float(build_robot(parse_scene(scene)).fparams[F_DT])
+    dt = sim.scene_dt(parse_scene(scene))
     return {**scene, "settle_seconds": 0.0, "duration": {"seconds": steps * dt}}
 
 

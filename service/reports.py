@@ -45,7 +45,7 @@ def stored_robots(engine: Engine) -> Robots:
     def phenotypes(individual_ids):
         with engine.connect() as conn:
             stored = stored_genomes(conn, individual_ids)
-        return {i: robots.develop_genome(*stored[i]) for i in stored}
+        return {i: robots.develop_genome(genome, treatment) for i, (genome, treatment) in stored.items()}
 
     def scene(individual_id: int, environment: str | None = None, **extra: Any):
         return robots.record_scene(individual_record(engine, individual_id), environment, **extra)
@@ -53,7 +53,7 @@ def stored_robots(engine: Engine) -> Robots:
     def stored_motion(individual_id: int, environment: str | None = None):
         return motion.stored_motion(individual_record(engine, individual_id), environment)
 
-    return Robots(phenotypes=phenotypes, scene=scene, encoding=robots.encoding_of, motion=stored_motion)
+    return Robots(phenotypes=phenotypes, scene=scene, motion=stored_motion)
 
 
 def exaptation_data(engine: Engine, data) -> ExaptationData:

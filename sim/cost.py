@@ -1,8 +1,8 @@
 """What an evaluation costs: its voxel-steps, and the seconds one CPU core takes for them.
 
 - ``voxel_steps(scene)``: (voxels simulated, steps) of a validated ``Scene``: the engine's
-  own count (``system.scene_steps``), computed without building the robot when every voxel
-  has one stiffness and density (the usual case), else through ``build_robot``.
+  own count (``system.scene_steps``, which builds no robot when every voxel has one stiffness
+  and density, the usual case).
 - ``CostModel``: seconds of one evaluation on one core, ``overhead + voxels * steps / rate``
   with a rate per (physics model, world). ``MEASURED`` holds this project's figures
   (``measure`` re-measures them where it runs: ``softevo plan --measure``).
@@ -13,7 +13,6 @@ from here, and nowhere else.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -21,31 +20,15 @@ import numpy as np
 
 from . import worlds
 from .scene import Scene
-from .system import largest_component, scene_steps, stable_dt
+from .system import largest_component, scene_steps
 
 WORLDS = worlds.KINDS
 
 
 def voxel_steps(scene: Scene) -> tuple[int, int]:
     """(voxels, steps) the engine simulates for ``scene`` (0, 0 for an empty body)."""
-    body = largest_component(scene.body)
-    voxels = int(np.count_nonzero(body))
-    if voxels == 0:
-        return 0, 0
-    if scene.youngs_modulus_field is not None or scene.density_field is not None:
-        return voxels, scene_steps(scene)
-    dt = stable_dt(scene.voxel_size, scene.material.density, scene.material.youngs_modulus,
-                   scene.dt_fraction)
-    active = body == 2
-    if active.any() and scene.options.min_steps_per_cycle > 0:
-        if scene.frequency_field is not None:
-            f_max = float(scene.frequency_field[active].max())
-        else:
-            f_max = float(scene.actuation.frequency)
-        if f_max > 0:
-            dt = min(dt, 1.0 / (f_max * scene.options.min_steps_per_cycle))
-    settle = int(round(scene.settle_seconds / dt))
-    return voxels, settle + int(math.ceil(scene.duration_seconds / dt - 1e-9))
+    voxels = int(np.count_nonzero(largest_component(scene.body)))
+    return (voxels, scene_steps(scene)) if voxels else (0, 0)
 
 
 @dataclass(frozen=True)

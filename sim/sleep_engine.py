@@ -21,7 +21,7 @@ import numpy as np
 from .cost import MEASURED, voxel_steps
 from .engines import EngineUnavailable
 from .scene import Scene, parse_scene
-from .system import largest_component
+from .system import largest_component, scene_dt
 
 MAX_DISTANCE = 5.0  # voxel lengths: the sleep engine's distances lie in [0, MAX_DISTANCE)
 
@@ -62,7 +62,7 @@ def simulate_many(scenes: list[dict | Scene], device: str | None = None) -> list
         com = pos.mean(axis=0) if len(pos) else np.zeros(3)
         distance = body_distance(body)
         move = np.array([distance * scene.voxel_size, 0.0, 0.0])
-        dt = scene.total_seconds / steps if steps else 0.0
+        dt = scene_dt(scene) if steps else 0.0
         results.append(Result(True, None, dt, steps, scene.total_seconds, idx, pos + move, com,
                               com + move, move, distance, {"t": np.zeros(1), "com": com[None]}))
     time.sleep(seconds / factor)

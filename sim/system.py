@@ -288,13 +288,10 @@ def build_robot(scene: Scene) -> Robot:
         dt = scene.dt_fraction / (2.0 * math.pi * math.sqrt(float(rate)))
     active = (flags & FLAG_ACTIVE) > 0
     f_active = freq_v[active]
-    f_max = float(f_active.max()) if active.any() else act.frequency
-    if f_max > 0 and active.any() and opts.min_steps_per_cycle > 0:
-        dt = min(dt, 1.0 / (f_max * opts.min_steps_per_cycle))
+    dt = cycle_capped_dt(dt, f_active, opts.min_steps_per_cycle)
     freq_field = bool(active.any() and not np.all(f_active == f_active[0]))
     f_common = float(f_active[0]) if active.any() else act.frequency
-    settle_steps = int(round(scene.settle_seconds / dt))
-    steps = settle_steps + int(math.ceil(scene.duration_seconds / dt - 1e-9))
+    settle_steps, steps = step_counts(scene, dt)
     gravity = env.gravity
     E_ref = float(E_v.max())
 
@@ -355,15 +352,53 @@ def build_robot(scene: Scene) -> Robot:
                  link_damp, f, i, removed)
 
 
+def cycle_capped_dt(dt: float, active_frequencies: np.ndarray, min_steps_per_cycle: int) -> float:
+    """``dt`` (s) capped at 1 / (n f_max): f_max the highest of ``active_frequencies`` (Hz,
+    one per active voxel) and n ``min_steps_per_cycle`` (0: no cap; no cap without an active
+    voxel or with f_max 0)."""
+    if len(active_frequencies) == 0 or min_steps_per_cycle <= 0:
+        return dt
+    f_max = float(np.max(active_frequencies))
+    return min(dt, 1.0 / (f_max * min_steps_per_cycle)) if f_max > 0 else dt
+
+
+def step_counts(scene: Scene, dt: float) -> tuple[int, int]:
+    """(settling steps, total steps) of ``scene`` at step ``dt`` (s): the settling seconds
+    rounded, then the duration's steps rounded up. OverflowError if the total exceeds an
+    int64 (``duration.cycles: 1e300``): the engine counts its steps in one."""
+    settle = int(round(scene.settle_seconds / dt))
+    total = settle + int(math.ceil(scene.duration_seconds / dt - 1e-9))
+    if total > np.iinfo(np.int64).max:
+        raise OverflowError(f"{total:.3g} steps do not fit an int64")
+    return settle, total
+
+
+def scene_dt(scene: Scene) -> float:
+    """The engine's step for a validated scene, seconds (``build_robot``'s own): the model's
+    stability step from stiffness, density and ``dt_fraction`` (``stable_dt`` when every voxel
+    has one material), capped by its ``min_steps_per_cycle`` (``cycle_capped_dt``). Without
+    stiffness or density fields it is computed from the scalars, without building the robot."""
+    body = largest_component(scene.body)
+    if np.any(body) and (scene.youngs_modulus_field is not None or scene.density_field is not None):
+        return float(build_robot(scene).fparams[F_DT])
+    active = body == 2
+    if scene.frequency_field is not None:
+        frequencies = scene.frequency_field[active]
+    else:
+        frequencies = np.full(int(active.sum()), float(scene.actuation.frequency))
+    dt = stable_dt(scene.voxel_size, scene.material.density, scene.material.youngs_modulus,
+                   scene.dt_fraction)
+    return cycle_capped_dt(dt, frequencies, scene.options.min_steps_per_cycle)
+
+
 def scene_steps(scene: Scene) -> int:
     """Steps the engine takes for a validated scene, settling included (``build_robot``'s own
-    count: the model's step from stiffness, density and ``dt_fraction``, capped by its
-    ``min_steps_per_cycle``); 0 for an empty body. The one step count of the project: the
-    size limits (``service.limits``) and the workers' frame budget read it. OverflowError if
-    the count exceeds an int64 (``duration.cycles: 1e300``)."""
+    count: ``step_counts`` at ``scene_dt``); 0 for an empty body. The one step count of the
+    project: the cost model, the size limits (``service.limits``) and the workers' frame
+    budget read it. OverflowError if the count exceeds an int64 (``duration.cycles: 1e300``)."""
     if not np.any(scene.body):
         return 0
-    return int(build_robot(scene).iparams[I_STEPS])
+    return step_counts(scene, scene_dt(scene))[1]
 
 
 def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:

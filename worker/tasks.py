@@ -367,25 +367,11 @@ def compound_outcome(outcomes: list[Any]) -> Any:
 
 
 def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_FPS) -> int:
-    """Steps between frames for about ``fps`` frames per simulated second of ``scene``.
+    """Steps between frames for about ``fps`` frames per simulated second of ``scene``, at
+    the engine's step (``sim.scene_dt``)."""
+    from softevo.sim import parse_scene, scene_dt
 
-    Uses the stable step of docs/physics.md (dt = dt_fraction L sqrt(rho / E) / (2 pi)) only to
-    pick a frame rate; the engine's own dt stays authoritative (the frames carry their times).
-    """
-    from softevo.sim.scene import parse_scene
-
-    parsed = parse_scene(dict(scene))
-    m = parsed.material
-    dt = parsed.dt_fraction * parsed.voxel_size * math.sqrt(m.density / m.youngs_modulus)
-    dt /= 2.0 * math.pi
-    return max(1, int(round(1.0 / (fps * dt))))
-
-
-def _steps(scene: Mapping[str, Any]) -> int:
-    """Steps the simulation of ``scene`` takes (the engine's own count)."""
-    from softevo.sim import parse_scene, scene_steps
-
-    return max(1, scene_steps(parse_scene(dict(scene))))
+    return max(1, int(round(1.0 / (fps * scene_dt(parse_scene(dict(scene)))))))
 
 
 def replay(
@@ -415,7 +401,7 @@ def replay(
     phenotype, scenes = scenes_of(task)
     every = int(every if every is not None else default_record_every(scenes[0]))
     if max_frames is not None:  # record at most twice the frames kept: bounded memory
-        steps = sum(_steps(scene) for scene in scenes)
+        steps = sum(sim.scene_steps(sim.parse_scene(dict(scene))) for scene in scenes)
         every = max(every, math.ceil(steps / (2 * min(int(max_frames), MAX_FRAMES))))
     for scene in scenes:
         scene["record"] = {"every": every}

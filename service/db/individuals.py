@@ -1,6 +1,7 @@
-"""Individuals: one individual with its evaluations (for the API and, as DataFrames, for
-re-simulation), what re-simulating it needs, the run it belongs to, and the map from an
-algorithm's local ids to database ids.
+"""Individuals: one individual with its evaluations (for the API), its record for
+re-simulation (``individual_record``: the one record ``analysis.robots.stored_task`` turns
+into the task of an evaluation), the run it belongs to, and the map from an algorithm's local
+ids to database ids.
 """
 
 from __future__ import annotations
@@ -88,24 +89,6 @@ def individual(conn: Connection, individual_id: int) -> dict[str, Any] | None:
     return row
 
 
-def individual_context(conn: Connection, individual_id: int) -> dict[str, Any] | None:
-    """What re-simulating an individual needs: genome, its run's treatment settings and seed,
-    and its evaluations (environment, stiffness). None if there is no such individual."""
-    individuals, runs, treatments = IndividualRow.__table__, RunRow.__table__, TreatmentRow.__table__
-    rows = dict_rows(
-        conn,
-        select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
-        .join(runs, individuals.c.run_id == runs.c.id)
-        .join(treatments, runs.c.treatment_id == treatments.c.id)
-        .where(individuals.c.id == individual_id),
-    )
-    if not rows:
-        return None
-    row = rows[0]
-    row["evaluations"] = evaluations_of(conn, individual_id)
-    return row
-
-
 def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
     """The stored individual (id, run_id, genome, generation_born, ...), its run's treatment
     (``service.treatments.Treatment``) and seed, and its evaluations (a DataFrame, oldest
@@ -128,32 +111,30 @@ def individual_record(engine: Engine, individual_id: int) -> dict[str, Any]:
     }
 
 
-def stored_genomes(conn: Connection, individual_ids: Iterable[int]) -> dict[int, tuple[dict, Treatment, int]]:
-    """(genome, treatment, seed) of many stored individuals in one query; unknown ids are
-    left out."""
+def stored_genomes(conn: Connection, individual_ids: Iterable[int]) -> dict[int, tuple[dict, Treatment]]:
+    """(genome, treatment) of many stored individuals in one query; unknown ids are left
+    out."""
     ids = sorted({int(i) for i in individual_ids})
     if not ids:
         return {}
     individuals, runs, treatments = IndividualRow.__table__, RunRow.__table__, TreatmentRow.__table__
     query = (
-        select(individuals.c.id, individuals.c.genome, treatments.c.settings, runs.c.seed)
+        select(individuals.c.id, individuals.c.genome, treatments.c.settings)
         .join(runs, individuals.c.run_id == runs.c.id)
         .join(treatments, runs.c.treatment_id == treatments.c.id)
         .where(individuals.c.id.in_(ids))
     )
-    return {
-        int(i): (genome, Treatment.from_settings(settings), int(seed))
-        for i, genome, settings, seed in conn.execute(query)
-    }
+    rows = conn.execute(query)
+    return {int(i): (genome, Treatment.from_settings(settings)) for i, genome, settings in rows}
 
 
 def evaluation_frame(conn: Connection, individual_id: int) -> pd.DataFrame:
-    """An individual's evaluations as a DataFrame, oldest first."""
+    """An individual's evaluations as a DataFrame, oldest first (as ``evaluations_of``)."""
     table = EvaluationRow.__table__
     columns = ["generation", "age", "environment", "stiffness", *TRAITS, "stable", "error"]
     result = conn.execute(
         select(*[table.c[name] for name in columns])
         .where(table.c.individual_id == individual_id)
-        .order_by(table.c.generation)
+        .order_by(table.c.generation, table.c.id)
     )
     return pd.DataFrame(result.fetchall(), columns=columns)

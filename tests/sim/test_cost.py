@@ -11,7 +11,7 @@ from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.sim import parse_scene, scene_steps
 from softevo.sim.cost import MEASURED, voxel_steps
 from softevo.sim.engines import EngineUnavailable
-from softevo.sim.system import build_robot
+from softevo.sim.system import I_STEPS, build_robot
 from softevo.worker.tasks import Task, scenes_of
 
 
@@ -36,7 +36,8 @@ def test_voxel_steps_are_the_engines_own_count(config):
     """The fast count (no robot built for uniform materials) equals the built robot's."""
     for scene in random_scenes(config, 8, seed=3):
         robot = build_robot(scene)
-        assert voxel_steps(scene) == (len(robot.pos), scene_steps(scene))
+        built = (len(robot.pos), int(robot.iparams[I_STEPS]))
+        assert voxel_steps(scene) == built == (len(robot.pos), scene_steps(scene))
 
 
 def test_the_cost_grows_with_stiffness_and_is_higher_in_water():

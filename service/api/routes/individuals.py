@@ -8,16 +8,15 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
+from softevo.analysis import robots
 from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep, client_of
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
 from softevo.service.api.params import IndividualId
 from softevo.service.api.schemas import ErrorOut, IndividualOut, LineageEntry, WorldName
-from softevo.service.db.individuals import individual, individual_context
+from softevo.service.db.individuals import individual, individual_record
 from softevo.service.db.rows import finite
 from softevo.service.db.status import lineage_records
-from softevo.service.treatments import Treatment
-from softevo.worker.tasks import Task
 
 router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
 
@@ -51,22 +50,12 @@ def lineage(individual_id: IndividualId, services: ServicesDep):
 
 def stored_task(services, individual_id: int, environment: str | None):
     """The ``worker.tasks.Task`` of a stored individual's latest evaluation (in
-    ``environment`` if given), as the coordinator built it; 404 if there is none."""
-
-    context = _with_connection(services, individual_context, individual_id)
-    if context is None:
-        raise HTTPException(404, f"no individual {individual_id}")
-    evaluations = context["evaluations"]
-    if environment is not None:
-        evaluations = [e for e in evaluations if e["environment"] == environment]
-    if not evaluations:
-        where = f" in {environment}" if environment else ""
-        raise HTTPException(404, f"individual {individual_id} was never evaluated{where}")
-    evaluation = evaluations[-1]
-    settings = Treatment.from_settings(context["settings"]).to_settings()
-    return Task.from_stored(
-        individual_id, context["genome"], settings, evaluation["environment"], evaluation["stiffness"]
-    )
+    ``environment`` if given), as the coordinator built it (``analysis.robots.stored_task``);
+    404 if there is no such individual or evaluation."""
+    try:
+        return robots.stored_task(individual_record(services.engine, individual_id), environment)
+    except UserError as exc:
+        raise HTTPException(404, str(exc)) from exc
 
 
 @router.get(
