@@ -84,10 +84,11 @@ def task_motion(task, label: str = "", stored_distance: float | None = None) -> 
 
 def stored_motion(record: dict, environment: str | None = None) -> Motion:
     """The motion of a stored record (``service.db.individuals.individual_record``) in
-    ``environment`` (default: that of its latest evaluation)."""
+    ``environment`` (default: that of its latest evaluation; one it was never evaluated in
+    replays it there, its stored distance None)."""
     from softevo.analysis.robots import stored_distance, stored_task
 
-    task = stored_task(record, environment)
+    task = stored_task(record, environment, elsewhere=True)
     label = f"individual {record['id']} \u00b7 {record['treatment_name']} \u00b7 {task.environment}"
     return task_motion(task, label, stored_distance(record, task.environment))
 

@@ -41,12 +41,20 @@ def stored_evaluation(record: dict[str, Any], environment: str | None = None) ->
     return evaluations.iloc[-1].to_dict()
 
 
-def stored_task(record: dict[str, Any], environment: str | None = None) -> Task:
+def stored_task(record: dict[str, Any], environment: str | None = None, elsewhere: bool = False) -> Task:
     """The ``worker.tasks.Task`` of the record's latest evaluation (in ``environment`` if
     given), as the coordinator built it: that evaluation's world and Young's modulus (a run
     whose stiffness changed replays what was evaluated), its treatment's encoding, cycles,
-    model and cap on seconds. UserError as ``stored_evaluation``."""
-    evaluation = stored_evaluation(record, environment)
+    model and cap on seconds. UserError as ``stored_evaluation``, except that with
+    ``elsewhere`` an individual never evaluated in ``environment`` is put there at its latest
+    evaluation's stiffness (a replay evolution never ran: ``softevo show`` and ``export-vxa``
+    with ``--environment``; its stored distance is None)."""
+    try:
+        evaluation = stored_evaluation(record, environment)
+    except UserError:
+        if not (elsewhere and environment in worlds.names(evolve=True)):
+            raise
+        evaluation = {**stored_evaluation(record), "environment": environment}
     return Task.from_stored(
         record["id"],
         record["genome"],
@@ -71,9 +79,11 @@ def record_scene(
     ``environment`` defaults to that of the individual's latest evaluation. ``extra`` scene
     fields (e.g. ``record``) are added. The record returned is the one given plus
     ``phenotype_object``, ``environment`` (the one used) and ``task``. UserError for an empty
-    body or a compound world (a gradual transition's evaluation is several scenes).
+    body or a compound world (a gradual transition's evaluation is several scenes). An
+    ``environment`` it was never evaluated in replays it there (``stored_task``'s
+    ``elsewhere``).
     """
-    task = stored_task(record, environment)
+    task = stored_task(record, environment, elsewhere=True)
     if worlds.is_compound(task.environment):
         raise UserError(
             f"individual {record['id']} was last evaluated in {task.environment}, a world of "

@@ -59,6 +59,17 @@ def test_without_such_an_evaluation_it_is_a_user_error(best_record):
         stored_task(_record(best_record, [("land", 1e5)]), "moon")
 
 
+def test_elsewhere_puts_it_in_a_world_it_never_ran_in(best_record):
+    """``softevo show --environment water`` of a land robot: its latest stiffness, in water;
+    a world it ran in still replays that evaluation."""
+    record = _record(best_record, [("land", 1e5), ("land", 2e5)])
+    what_if = stored_task(record, "water", elsewhere=True)
+    assert (what_if.environment, what_if.youngs_modulus) == ("water", 2e5)
+    assert stored_task(record, "land", elsewhere=True) == stored_task(record, "land")
+    with pytest.raises(UserError, match="environment must be land or water"):
+        stored_task(record, "moon", elsewhere=True)
+
+
 def test_the_route_and_the_report_build_the_same_task(tiny, tiny_data):
     services = types.SimpleNamespace(engine=tiny.engine)
     report = stored_robots(tiny.engine)
