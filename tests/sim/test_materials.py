@@ -15,7 +15,16 @@ import numpy as np
 import pytest
 
 from softevo import sim
-from tests.sim._support import com_trajectory, frames, line, period_of, report, simulate, voxel_index
+from tests.sim._support import (
+    actuated_scene,
+    com_trajectory,
+    frames,
+    line,
+    period_of,
+    report,
+    simulate,
+    voxel_index,
+)
 
 L_BAR, RHO_BAR, N_BAR = 0.01, 1000.0, 10
 E_STIFF, E_SOFT = 1e7, 2.5e6
@@ -225,17 +234,7 @@ def _random_scene(env: str, seed: int) -> dict:
     rng = np.random.default_rng(seed)
     body = rng.choice([0, 1, 2], size=(4, 4, 3), p=[0.2, 0.3, 0.5])
     body[2, 2, 1] = 2
-    return {
-        "voxel_size": 0.05,
-        "material": {"youngs_modulus": 1e5, "density": 900.0},
-        "environment": {"kind": env},
-        "body": body.tolist(),
-        "phase": rng.uniform(-math.pi, math.pi, body.shape).tolist(),
-        "actuation": {"frequency": 4.0, "amplitude": 0.5},
-        "duration": {"cycles": 2},
-        "self_collisions": True,
-        "record": {"every": 25},
-    }
+    return actuated_scene(body, rng, env, cycles=2, every=25, density=900.0)
 
 
 def _assert_identical(a, b):

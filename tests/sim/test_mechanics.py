@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from tests.sim._support import (
+    actuated_scene,
     com_trajectory,
     frames,
     line,
@@ -306,18 +307,8 @@ def test_centre_of_mass_fixed_in_void_under_actuation(seed):
     """
     rng = np.random.default_rng(seed)
     body = _random_body(rng, 4, 0.6)
-    L = 0.05
-    scene = {
-        "voxel_size": L,
-        "material": {"youngs_modulus": 1e5},
-        "environment": {"kind": "void"},
-        "body": body.tolist(),
-        "phase": rng.uniform(-math.pi, math.pi, body.shape).tolist(),
-        "actuation": {"frequency": 4.0, "amplitude": 0.5},
-        "duration": {"cycles": 3},
-        "self_collisions": True,
-        "record": {"every": 20},
-    }
+    scene = actuated_scene(body, rng, "void", cycles=3, every=20)
+    L = scene["voxel_size"]
     result = simulate(scene)
     t, com = com_trajectory(result)
     _, pos = frames(result)
