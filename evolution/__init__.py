@@ -6,10 +6,14 @@ neither worker/ nor service/; evaluation is a function passed in (see ``runner.r
 Main entry points:
 - ``CPPN``, ``express``: genome data and vectorised expression (``evolution.cppn``);
 - ``Genotype``, ``Phenotype``, ``EncodingConfig``, ``develop`` (``evolution.genotype``);
+- ``evaluation_scenes``, ``compound_outcome``: the one path from a phenotype to the scenes
+  of its evaluation in a pure or compound world, and the outcome of those scenes
+  (``evolution.scenes``; the workers' ``worker.tasks.scenes_of`` goes through it);
 - ``Evolution``, ``EvolutionConfig``: the ask/tell algorithm (``evolution.afpo``);
 - ``Individual``, ``Evaluation`` (``evolution.individual``);
 - ``describe`` (``evolution.descriptors``, needs trimesh; imported lazily);
-- ``run``: a local run loop (``evolution.runner``);
+- ``run``: a local run loop, and ``ask_generation``, the ask and environment switch it
+  shares with the service's coordinator (``evolution.runner``);
 - ``Schedule``: environments by generation, and the switch (``evolution.schedule``).
 """
 
@@ -17,7 +21,8 @@ from softevo.evolution.afpo import Evolution, EvolutionConfig
 from softevo.evolution.cppn import CPPN, express
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
 from softevo.evolution.individual import Evaluation, Individual
-from softevo.evolution.runner import run
+from softevo.evolution.runner import ask_generation, run
+from softevo.evolution.scenes import compound_outcome, evaluation_scenes
 from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import Objective, crowding_distance, non_dominated_sort
 
@@ -32,9 +37,12 @@ __all__ = [
     "Objective",
     "Phenotype",
     "Schedule",
+    "ask_generation",
+    "compound_outcome",
     "crowding_distance",
     "describe",
     "develop",
+    "evaluation_scenes",
     "express",
     "non_dominated_sort",
     "run",

@@ -189,12 +189,6 @@ class Evolution:
         self.not_simulated = {"reused": 0, "empty": 0}
         self._fill_known()
 
-    def scene(self, ind: Individual, **extra: Any) -> dict[str, Any]:
-        """The simulator scene that evaluates ``ind`` in the current environment."""
-        phenotype = ind.phenotype(self.config.encoding)
-        return phenotype.to_scene(self.environment, self.config.youngs_modulus, self.config.cycles,
-                                  model=self.config.model, max_seconds=self.config.max_seconds, **extra)
-
     @property
     def generation_complete(self) -> bool:
         return self.started and not self.pending

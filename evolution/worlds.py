@@ -9,8 +9,8 @@ compound worlds of a gradual switch are named and read by ``compound`` / ``parts
 A gradual transition moves a population from world A to world B over a span of ``G``
 generations (``--switch-over G``). At the ``k``-th generation of the span (``k = 0..G-1``)
 every evaluation runs in the compound world ``A>B@s`` with ``s = (k + 1) / (G + 1)``: a share
-``1 - s`` of its actuation cycles in A, then ``s`` in B (``worker.tasks.scenes_of`` builds the
-two scenes, ``worker.tasks.compound_outcome`` adds their distances). The share is written
+``1 - s`` of its actuation cycles in A, then ``s`` in B (``evolution.scenes.evaluation_scenes``
+builds the two scenes, ``evolution.scenes.compound_outcome`` adds their distances). The share is written
 with three decimals and read back from the name, so the name alone (stored in
 ``evaluations.environment``, at most 20 characters) says exactly what was simulated.
 

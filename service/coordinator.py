@@ -21,7 +21,9 @@ never simulated again in the world they were evaluated in (``Evolution.ask`` ref
 Environment switch: at the first generation of a new environment in the treatment's
 ``Schedule`` the algorithm first breeds as usual, then ``Schedule.switch`` moves survivors
 and offspring into the new environment (``reevaluate_all``), and they are all evaluated
-there in that same generation.
+there in that same generation. ``evolution.runner.ask_generation`` does this for the
+coordinator and for the local run loop (``evolution.runner.run``, ``softevo.evolve``) alike,
+so a local run with the same seed evaluates the same individuals in the same worlds.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
 from softevo.errors import UserError
 from softevo.evolution.afpo import Evolution
+from softevo.evolution.runner import ask_generation
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 from softevo.service.db.generations import GenerationRecord, record_generation
 from softevo.service.db.models import RunStatus
@@ -118,21 +121,16 @@ def unfinished_runs(engine: Engine, run_ids: Sequence[int] | None = None) -> lis
 
 
 def ask(run: ActiveRun) -> list[dict[str, Any]]:
-    """Ask the run's algorithm for its next generation; return the evaluation tasks."""
+    """Ask the run's algorithm for its next generation (``evolution.runner.ask_generation``,
+    as the local run loop asks); return the evaluation tasks."""
     algorithm, generation = run.algorithm, run.next_generation
-    schedule = run.treatment.schedule()
-    environment = schedule.environment_at(generation)
-    asked = algorithm.ask()
-    if schedule.switch(algorithm, generation):
-        asked = algorithm.ask()
-    if algorithm.generation != generation:
-        raise RuntimeError(f"algorithm at generation {algorithm.generation}, run at {generation}")
+    asked = ask_generation(algorithm, run.treatment.schedule(), generation)
     run.pending, run.asked = list(algorithm.pending), asked
     encoding = algorithm.config.encoding.to_dict()
     return [
         Task.from_genome(
             ind.genome,
-            environment,
+            algorithm.environment,  # the schedule's world of the generation, after the switch
             run.treatment.stiffness_pa,
             run.treatment.cycles,
             encoding,

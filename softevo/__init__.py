@@ -68,16 +68,20 @@ def evolve(
     cycles: int = 4,
     seed: int = 0,
     switch_at: int | None = None,
+    switch_over: int = 0,
     objectives: tuple[str, ...] = (),
     progress: bool = False,
 ):
     """A local run in memory (no database) of the treatment ``softevo run`` would store:
-    AFPO over CPPN robots in ``environment`` (``land``, the default, ``water``, or an abrupt transition
-    ``land-water`` / ``water-land`` at ``switch_at``, default half-way) at ``stiffness_mpa``,
-    for ``generations`` generations (0 .. generations - 1), selecting on ``objectives`` (names
-    of registered objectives, ``evolution.selection.OBJECTIVES``; empty: the paper's). The
-    settings are checked as the CLI checks them (``service.treatments.Treatment``,
-    ``service.limits.check_workspace``):
+    AFPO over CPPN robots in ``environment`` (``land``, the default, ``water``, or a transition
+    ``land-water`` / ``water-land`` at ``switch_at``, default half-way: abrupt, or gradual over
+    ``switch_over`` generations of compound worlds such as ``land>water@0.250``) at
+    ``stiffness_mpa``, for ``generations`` generations (0 .. generations - 1), selecting on
+    ``objectives`` (names of registered objectives, ``evolution.selection.OBJECTIVES``; empty:
+    the paper's). It asks, switches and evaluates as the coordinator does
+    (``evolution.runner``): with the same seed, its generations are those ``softevo run``
+    stores. The settings are checked as the CLI checks them
+    (``service.treatments.Treatment``, ``service.limits.check_workspace``):
     a ``softevo.errors.UserError`` says what is wrong. Returns an
     ``evolution.runner.LocalRun``: ``.evolution`` (its ``population`` holds the survivors
     with their objectives) and ``.history`` (one row per generation: world, best and mean
@@ -100,6 +104,7 @@ def evolve(
         cycles=cycles,
         seed=seed,
         switch_at=switch_at,
+        switch_over=switch_over,
         objectives=tuple(objectives),
     )
     check_workspace(treatment.workspace)

@@ -17,7 +17,8 @@ import time
 import traceback
 from typing import Any
 
-from softevo.worker.tasks import Result, Task, compound_outcome, failed, scenes_of
+from softevo.evolution.scenes import compound_outcome
+from softevo.worker.tasks import Result, Task, failed, scenes_of
 
 ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 

@@ -27,8 +27,9 @@
 - ``scene_of(task)``: (phenotype, scene) of a task in a pure world, the scene the evaluation
   simulates; ``scenes_of(task)``: (phenotype, scenes) for any world, one scene per part of a
   compound world (``evolution.worlds``: a gradual transition's ``land>water@0.250`` runs
-  75% of the cycles on land, then 25% in water) and ``compound_outcome(outcomes)``, the
-  evaluation of those parts: distances added, stable if every part is.
+  75% of the cycles on land, then 25% in water). Both develop the genome and hand it to
+  ``evolution.scenes.evaluation_scenes``, the path the local run loop takes too;
+  ``evolution.scenes.compound_outcome`` adds the parts' distances.
 - ``replay(task, every)``: the evaluation simulated again with frames recorded (the
   simulator is deterministic: the motion is the one that was evaluated).
 - ``encoding_of(settings)``: the encoding a treatment's runs express their genomes with;
@@ -317,53 +318,19 @@ def scene_of(task: Task, **extra: Any):
 
 
 def scenes_of(task: Task, **extra: Any):
-    """(phenotype, [scene, ...]): one scene per part of the task's world
-    (``evolution.worlds.parts``), simulated one after the other, each from rest; a part's
-    scene runs its share of the task's cycles (and of its cap on seconds). A pure world gives
-    the one scene of
-    ``scene_of``. ValueError ("empty body") for a genome without voxels."""
-    from softevo.evolution import worlds
-    from softevo.evolution.genotype import Genotype, develop, duration_of
+    """(phenotype, [scene, ...]): the genome developed in its encoding, and one scene per
+    part of the task's world (``evolution.scenes.evaluation_scenes``: a compound world's
+    parts each run their share of the cycles and of the cap on seconds). A pure world gives
+    the one scene of ``scene_of``. ValueError ("empty body") for a genome without voxels."""
+    from softevo.evolution.genotype import Genotype, develop
+    from softevo.evolution.scenes import evaluation_scenes
 
     phenotype = develop(Genotype.from_dict(task.genome), task.encoding_config())
     if phenotype.voxel_count == 0:
         raise ValueError("empty body")
-    parts = worlds.parts(task.environment)
-    scenes = []
-    for world, share in parts:
-        scene = phenotype.to_scene(world, task.youngs_modulus, task.cycles, model=task.model,
-                                   max_seconds=task.max_seconds, **extra)
-        if len(parts) > 1:
-            scene["duration"] = duration_of(task.cycles, task.max_seconds, share)
-        scenes.append(scene)
+    scenes = evaluation_scenes(phenotype, task.environment, task.youngs_modulus, task.cycles,
+                               model=task.model, max_seconds=task.max_seconds, **extra)
     return phenotype, scenes
-
-
-@dataclass(frozen=True)
-class CompoundOutcome:
-    """The evaluation of a compound world's parts, as ``Result.of`` reads a ``sim.Result``."""
-
-    distance: float
-    stable: bool
-    reason: str | None
-
-
-def compound_outcome(outcomes: list[Any]) -> Any:
-    """One outcome from the parts' outcomes (``sim.Result`` or an exception): the first
-    exception if any part raised; else distance = the sum of the parts' distances (each the
-    distance its part travelled in its own world and share of the time), stable if every
-    part is (else the first unstable part's reason). One part is returned as it is."""
-    if len(outcomes) == 1:
-        return outcomes[0]
-    for outcome in outcomes:
-        if isinstance(outcome, BaseException):
-            return outcome
-    unstable = [outcome for outcome in outcomes if not outcome.stable]
-    return CompoundOutcome(
-        distance=float(sum(float(outcome.distance) for outcome in outcomes)),
-        stable=not unstable,
-        reason=unstable[0].reason if unstable else None,
-    )
 
 
 def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_FPS) -> int:
@@ -396,6 +363,7 @@ def replay(
     Raises ValueError for a genome with an empty body.
     """
     from softevo import sim
+    from softevo.evolution.scenes import compound_outcome
 
     task = task if isinstance(task, Task) else Task.from_json(task)
     phenotype, scenes = scenes_of(task)

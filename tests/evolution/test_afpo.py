@@ -5,6 +5,7 @@ import pytest
 
 from softevo.evolution import EncodingConfig, Evolution, EvolutionConfig, run
 from softevo.evolution.individual import Evaluation
+from softevo.evolution.runner import evaluations, individual_scenes
 from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 
@@ -45,14 +46,14 @@ def test_population_size_ids_and_ages():
 
 def test_afpo_generation_keeps_the_first_front():
     algo = Evolution(config(seed=3))
-    algo.tell(fake_evaluate([algo.scene(i) for i in algo.ask()]))
+    algo.tell(evaluations(algo, algo.ask(), fake_evaluate))
     for _ in range(4):
         before = list(algo.population)
         asked = algo.ask()
         assert len(asked) <= 7  # 6 children + 1 newcomer (twins and empties need no sim)
         assert sum(1 for i in algo.pending if i.parent_id is None) == 1
         pending = list(algo.pending)
-        algo.tell(fake_evaluate([algo.scene(i) for i in asked]))
+        algo.tell(evaluations(algo, asked, fake_evaluate))
         combined = before + pending
         F = objective_matrix(
             [{**i.objectives, "age": i.age} for i in combined],
@@ -68,7 +69,7 @@ def test_afpo_generation_keeps_the_first_front():
 
 def test_children_inherit_age_and_newcomers_start_at_zero():
     algo = Evolution(config())
-    algo.tell(fake_evaluate([algo.scene(i) for i in algo.ask()]))
+    algo.tell(evaluations(algo, algo.ask(), fake_evaluate))
     parents = {i.id: i.age for i in algo.population}
     algo.ask()
     for child in algo.pending:
@@ -81,7 +82,7 @@ def test_children_inherit_age_and_newcomers_start_at_zero():
 
 def test_pareto_mode_has_no_newcomer_and_no_age_objective():
     algo = Evolution(config(mode="pareto"))
-    algo.tell(fake_evaluate([algo.scene(i) for i in algo.ask()]))
+    algo.tell(evaluations(algo, algo.ask(), fake_evaluate))
     algo.ask()
     assert all(i.parent_id is not None for i in algo.pending)
     assert [o.name for o in algo.config.selection_objectives] == [
@@ -115,8 +116,8 @@ def test_resume_with_pending_offspring():
     asked = algo.ask()
     restored = Evolution.from_state_json(algo.state_to_json())
     assert [i.id for i in restored.ask()] == [i.id for i in asked]
-    restored.tell(fake_evaluate([restored.scene(i) for i in restored.ask()]))
-    algo.tell(fake_evaluate([algo.scene(i) for i in asked]))
+    restored.tell(evaluations(restored, restored.ask(), fake_evaluate))
+    algo.tell(evaluations(algo, asked, fake_evaluate))
     assert restored.state_to_json() == algo.state_to_json()
 
 
@@ -124,7 +125,7 @@ def test_tell_by_id_in_any_order_and_partial():
     algo = Evolution(config())
     asked = algo.ask()
     results = dict(
-        zip([i.id for i in asked], fake_evaluate([algo.scene(i) for i in asked]), strict=True)
+        zip([i.id for i in asked], evaluations(algo, asked, fake_evaluate), strict=True)
     )
     ids = list(results)[::-1]
     algo.tell({k: results[k] for k in ids[:2]})
@@ -156,27 +157,33 @@ def test_failed_evaluations_get_the_worst_rank_and_the_run_goes_on():
 
 
 def test_environment_switch_reevaluates_everyone():
-    seen = []
+    seen, survivors, empty = [], {}, {}
 
     def record(scenes):
         seen.append([s["environment"]["kind"] for s in scenes])
         return fake_evaluate(scenes)
 
-    algo = run(config(), record, generations=4, schedule=Schedule.from_until([("land", 2), ("water", 10)]))
-    water_batches = [batch for batch in seen if batch and batch[0] == "water"]
-    assert all(set(batch) == {"water"} for batch in water_batches)
-    assert len(seen[0]) == 6 and set(seen[0]) == {"land"}
-    # the first water batch is the whole land population, re-evaluated
-    assert len(water_batches[0]) == 6
+    def done(algo):
+        survivors[algo.generation] = {i.id for i in algo.population}
+        empty[algo.generation] = algo.not_simulated["empty"]
+
+    algo = run(config(), record, generations=4, on_generation=done,
+               schedule=Schedule.from_until([("land", 2), ("water", 10)]))
+    assert [set(batch) for batch in seen] == [{"land"}, {"land"}, {"water"}, {"water"}, {"water"}]
+    assert len(seen[0]) == 6
+    # generation 2, the first in water, breeds first, then evaluates the land survivors and
+    # their offspring there, all in that generation (as the coordinator does)
+    assert len(seen[2]) + empty[2] == 6 + 7
+    assert survivors[2] <= survivors[1] | set(range(13, 20))  # ids 13..19 born in generation 2
     assert all(i.environment == "water" for i in algo.population)
     assert all(i.evaluated_generation >= 2 for i in algo.population)
-    water_scene = algo.scene(algo.population[0])
+    (water_scene,) = individual_scenes(algo, algo.population[0])
     assert water_scene["settle_seconds"] == 0.0
 
 
 def test_known_phenotypes_are_not_simulated_twice():
     algo = Evolution(config())
-    algo.tell(fake_evaluate([algo.scene(i) for i in algo.ask()]))
+    algo.tell(evaluations(algo, algo.ask(), fake_evaluate))
     twin = algo.population[0]
     algo.ask()
     copy = algo.pending[0]

@@ -4,6 +4,7 @@ and each generation counts what it did not simulate (reused twins, empty bodies)
 import pytest
 
 from softevo.evolution import Evolution
+from softevo.evolution.runner import evaluations
 from softevo.evolution.schedule import Schedule
 from tests.evolution.test_afpo import config, fake_evaluate
 
@@ -22,12 +23,12 @@ def test_each_generation_counts_what_it_did_not_simulate():
         assert len(asked) + counts["reused"] + counts["empty"] == len(algo.pending)
         reused = [i for i in algo.pending if i.evaluated and i.error != "empty body"]
         assert counts["reused"] == len(reused)
-        algo.tell(fake_evaluate([algo.scene(ind) for ind in asked]))
+        algo.tell(evaluations(algo, asked, fake_evaluate))
 
 
 def test_a_survivor_handed_out_again_is_refused():
     algo = Evolution(config())
-    algo.tell(fake_evaluate([algo.scene(ind) for ind in algo.ask()]))
+    algo.tell(evaluations(algo, algo.ask(), fake_evaluate))
     algo.ask()
     survivor = algo.population[0]
     survivor.clear_evaluation()  # as if it had to be simulated again in the same world

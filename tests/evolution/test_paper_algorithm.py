@@ -19,6 +19,7 @@ from softevo.evolution.genotype import (
     mutate_genotype,
     random_viable_genotype,
 )
+from softevo.evolution.runner import individual_scenes
 from softevo.evolution.selection import (
     dominance_counts,
     evosoro_survivors,
@@ -205,12 +206,12 @@ def test_scenes_carry_the_model_its_amplitude_and_the_paper_settling(rng):
     config = EvolutionConfig(population_size=2, mode="pareto", encoding=PAPER,
                              environment="water", model="voxcad-land-water")
     algo = Evolution(config)
-    scene = algo.scene(algo.ask()[0])
+    (scene,) = individual_scenes(algo, algo.ask()[0])
     assert scene["model"] == "voxcad-land-water"
     assert scene["actuation"]["amplitude"] == pytest.approx(0.14)
     assert scene["settle_seconds"] == pytest.approx(0.5)
     default = Evolution(EvolutionConfig(population_size=2, environment="water"))
-    plain = default.scene(default.ask()[0])
+    (plain,) = individual_scenes(default, default.ask()[0])
     assert "model" not in plain and plain["actuation"]["amplitude"] == pytest.approx(0.39)
     assert plain["settle_seconds"] == 0.0
     with pytest.raises(ValueError, match="model"):
