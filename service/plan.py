@@ -42,6 +42,7 @@ from softevo.errors import UserError
 from softevo.evolution import worlds
 from softevo.evolution.afpo import Evolution
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
+from softevo.evolution.runner import ask_generation
 from softevo.service.experiments import evolution_config
 from softevo.service.plan_dispatch import Generation, simulate
 from softevo.service.treatments import Treatment
@@ -316,14 +317,13 @@ def kind_of(treatment: Treatment, generation: int) -> str:
 
 def drive(treatment: Treatment, seed: int) -> list[tuple[str, int, int, int]]:
     """Each generation of one run of ``treatment`` with instant fake results: (kind,
-    simulated, stored evaluations, born), as ``service.coordinator.ask`` drives it."""
+    simulated, stored evaluations, born), asked as the coordinator and the local run loop ask
+    (``evolution.runner.ask_generation``)."""
     algorithm = Evolution(evolution_config(treatment, seed))
     schedule, fake = treatment.schedule(), np.random.default_rng(seed)
     out = []
     for generation in range(treatment.generations):
-        asked = algorithm.ask()
-        if schedule.switch(algorithm, generation):
-            asked = algorithm.ask()
+        asked = ask_generation(algorithm, schedule, generation)
         pending = list(algorithm.pending)
         born = sum(1 for ind in pending if ind.generation_born == generation)
         out.append((kind_of(treatment, generation), len(asked), len(pending), born))
