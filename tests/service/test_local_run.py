@@ -76,16 +76,9 @@ def test_a_local_run_is_the_coordinators_run(name, tmp_path):
 def test_softevo_evolve_runs_a_gradual_transition_as_softevo_run_does(tmp_path):
     treatment = TREATMENTS["gradual"]
     stored = stored_survivors(tinyrun.reference_snapshot(tmp_path, treatment))
+    fields = ("population", "generations", "workspace", "cycles", "seed", "switch_at", "switch_over")
     local = softevo.evolve(
-        "land-water",
-        0.1,
-        population=4,
-        generations=5,
-        workspace=(3, 3, 3),
-        cycles=1,
-        seed=3,
-        switch_at=1,
-        switch_over=2,
+        treatment.environment, treatment.stiffness_mpa, **{key: getattr(treatment, key) for key in fields}
     )
     assert [row["environment"] for row in local.history] == [
         "land",

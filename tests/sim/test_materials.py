@@ -15,16 +15,8 @@ import numpy as np
 import pytest
 
 from softevo import sim
-from tests.sim._support import (
-    actuated_scene,
-    com_trajectory,
-    frames,
-    line,
-    period_of,
-    report,
-    simulate,
-    voxel_index,
-)
+from tests.sim._support import com_trajectory, frames, line, period_of, report, simulate, voxel_index
+from tests.sim.scenes import actuated_scene
 
 L_BAR, RHO_BAR, N_BAR = 0.01, 1000.0, 10
 E_STIFF, E_SOFT = 1e7, 2.5e6

@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from tests.sim._support import (
-    actuated_scene,
     com_trajectory,
     frames,
     line,
@@ -23,6 +22,7 @@ from tests.sim._support import (
     simulate,
     voxel_index,
 )
+from tests.sim.scenes import actuated_scene
 
 G = 9.81
 AXES = "xyz"
