@@ -33,7 +33,7 @@ from redis import Redis
 
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.service.executors import LocalExecutor
-from softevo.service.rq_executor import Batch, RQExecutor
+from softevo.service.rq_executor import JobBatch, RQExecutor
 from softevo.sim.worlds import LAND
 
 REPO = Path(__file__).resolve().parents[1]
@@ -157,13 +157,13 @@ def dispatch_rates(redis_url: str, jobs: int) -> tuple[float, float]:
     """(trivial jobs enqueued per second, trivial jobs completed per second with 2 workers)."""
     queue = f"bench-{uuid.uuid4().hex[:6]}"
     executor = RQExecutor(redis_url, queue=queue)
-    batches = [Batch(f"trivial-{queue}-{k}", [], []) for k in range(jobs)]
+    batches = [JobBatch(f"trivial-{queue}-{k}", [], []) for k in range(jobs)]
     start = time.perf_counter()
     for k in range(0, jobs, 100):  # the executor's own submission path, 100 jobs a call
         executor._submit(batches[k : k + 100])
     enqueue_rate = jobs / (time.perf_counter() - start)
     executor.queue.empty()
-    end_to_end_batches = [Batch(f"trivial2-{queue}-{k}", [], []) for k in range(jobs)]
+    end_to_end_batches = [JobBatch(f"trivial2-{queue}-{k}", [], []) for k in range(jobs)]
     workers = start_workers(2, redis_url, queue)
     try:
         while executor.worker_count() < 2:

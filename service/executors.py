@@ -1,7 +1,7 @@
 """Executors: where evaluation tasks run. One small interface, several implementations.
 
 An executor takes a list of JSON tasks (``worker.tasks.Task.to_json``) and returns their
-JSON results (``worker.tasks.Result.to_json``) in the same order. ``InlineExecutor`` runs
+JSON results (``worker.tasks.TaskResult.to_json``) in the same order. ``InlineExecutor`` runs
 them in this process (tests, one core); ``LocalExecutor`` spreads them over a process pool,
 one numba thread per process, many genomes per pool task; ``service.rq_executor`` has an
 RQ executor with the same interface.

@@ -5,7 +5,8 @@ worker) and the coordinator's seconds for it (tell, store, ask: a coordinator do
 generation at a time; with ``coordinators`` K, run ``r``'s generations go to coordinator
 ``r mod K``). A run's first generation can also carry the seconds its coordinator spends
 asking for it before any of its jobs is dispatched (a new population is drawn, not bred):
-at the start each coordinator asks its runs one after the other. ``W`` workers take jobs first in, first out. Two policies:
+at the start each coordinator asks its runs one after the other. ``W`` workers take jobs
+first in, first out. Two policies:
 
 - ``"rounds"`` (``service.coordinator.Coordinator.round``): every active run's generation is
   dispatched together; the next round starts when the whole round is done and the

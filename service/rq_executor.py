@@ -85,7 +85,7 @@ class Ticket:
 
     tasks: list[Task]
     results: list[Task | None]
-    waiting: dict[str, Batch] = field(default_factory=dict)
+    waiting: dict[str, JobBatch] = field(default_factory=dict)
 
     @property
     def done(self) -> bool:
@@ -93,7 +93,7 @@ class Ticket:
 
 
 @dataclass
-class Batch:
+class JobBatch:
     """One job: its id, its tasks and where their results go in the caller's list."""
 
     job_id: str
@@ -124,7 +124,7 @@ def job_id_of(tasks: list[Task], index: int) -> str:
 
 def plan_batches(
     tasks: list[Task], workers: int, genomes_per_job: int, across_runs: bool = False
-) -> list[Batch]:
+) -> list[JobBatch]:
     """Split ``tasks`` into jobs: per (run, generation), at most ``genomes_per_job`` each and at
     least one per worker (as the local executor does). ``across_runs``: one group for all the
     runs' tasks of the round, so a job can be one large batch (GPU workers, docs/cluster.md)."""
@@ -136,7 +136,7 @@ def plan_batches(
     for positions in groups.values():
         for index, part in enumerate(chunks(positions, max(1, workers), genomes_per_job)):
             batch_tasks = [tasks[p] for p in part]
-            batches.append(Batch(job_id_of(batch_tasks, index), batch_tasks, list(part)))
+            batches.append(JobBatch(job_id_of(batch_tasks, index), batch_tasks, list(part)))
     return batches
 
 
@@ -271,7 +271,7 @@ class RQExecutor:
                 self.stop.wait(delay)
                 delay = min(5.0, delay * 2)
 
-    def _submit(self, batches: Iterable[Batch], replace_failed: bool = False) -> None:
+    def _submit(self, batches: Iterable[JobBatch], replace_failed: bool = False) -> None:
         """Enqueue the batches Redis does not hold yet; leave queued, running and finished jobs
         alone (their results will be taken); replace failed or stopped leftovers if asked."""
         batches = list(batches)
@@ -288,7 +288,7 @@ class RQExecutor:
         if fresh:
             self.queue.enqueue_many([self._job_data(b) for b in fresh])
 
-    def _job_data(self, batch: Batch):
+    def _job_data(self, batch: JobBatch):
         return Queue.prepare_data(
             JOB_FUNCTION,
             args=[batch.tasks],
@@ -318,7 +318,7 @@ class RQExecutor:
             raw = pipe.execute()
         return [None if value is None else value.decode() for value in raw]
 
-    def _wait_for_results(self, waiting: dict[str, Batch], timeout: float | None = None) -> set[str]:
+    def _wait_for_results(self, waiting: dict[str, JobBatch], timeout: float | None = None) -> set[str]:
         """Block (up to 0.5 s, or ``timeout``) until the queue's done stream names a job;
         return the ids of ``waiting`` it named. Once something arrived it waits
         ``GATHER_SECONDS`` more, so that one poll settles the jobs ending about together.
@@ -348,8 +348,8 @@ class RQExecutor:
         StartedJobRegistry(queue=self.queue, job_class=EvaluationJob).cleanup()
 
     def _poll(
-        self, waiting: dict[str, Batch], timeout: float | None = None
-    ) -> list[tuple[Batch, list[Task] | dict[str, Batch]]]:
+        self, waiting: dict[str, JobBatch], timeout: float | None = None
+    ) -> list[tuple[JobBatch, list[Task] | dict[str, JobBatch]]]:
         """Wait a little, then settle what finished: (batch, results) for a finished batch,
         (batch, {id: part}) for a batch replaced by one-genome parts. The jobs the done stream
         names are looked at on every poll; every job, for those that failed, were lost or
@@ -366,7 +366,7 @@ class RQExecutor:
         statuses = self._statuses([b.job_id for b in batches])
         finished = [b for b, st in zip(batches, statuses, strict=True) if st == JobStatus.FINISHED.value]
         values = dict(zip((b.job_id for b in finished), self._return_values(finished), strict=True))
-        settled: list[tuple[Batch, list[Task] | dict[str, Batch]]] = []
+        settled: list[tuple[JobBatch, list[Task] | dict[str, JobBatch]]] = []
         lost = []
         for batch, status in zip(batches, statuses, strict=True):
             if status in WAITING:
@@ -389,7 +389,7 @@ class RQExecutor:
             self._submit(lost)
         return settled
 
-    def _return_values(self, batches: list[Batch]) -> list[Any]:
+    def _return_values(self, batches: list[JobBatch]) -> list[Any]:
         """What each batch's job returned (None: no successful result stored), in one round
         trip: the latest entry of each job's RQ result stream."""
         with self.connection.pipeline(transaction=False) as pipe:
@@ -407,7 +407,7 @@ class RQExecutor:
             values.append(result.return_value if ok else None)
         return values
 
-    def _finished(self, batch: Batch, value: Any) -> list[Task] | None:
+    def _finished(self, batch: JobBatch, value: Any) -> list[Task] | None:
         """The batch's results (``value``, what its job returned), or None (and the job
         deleted) if they are missing or wrong."""
         problem = self._problem(batch, value)
@@ -427,7 +427,7 @@ class RQExecutor:
             job.delete()
         return None
 
-    def _problem(self, batch: Batch, value: Any) -> str | None:
+    def _problem(self, batch: JobBatch, value: Any) -> str | None:
         """Why ``value`` is not the batch's results (None: it is)."""
         if value is None:
             return "no result stored"
@@ -442,7 +442,7 @@ class RQExecutor:
                 return problem
         return None
 
-    def _failed(self, batch: Batch) -> list[Task] | dict[str, Batch]:
+    def _failed(self, batch: JobBatch) -> list[Task] | dict[str, JobBatch]:
         """A job that failed for good: split it into one-genome jobs, or fail its genome."""
         if len(batch.tasks) == 1:
             job = self._fetch(batch.job_id)
@@ -450,7 +450,7 @@ class RQExecutor:
             return [failed_result(batch.tasks[0], f"evaluation job failed: {reason}")]
         parts = {}
         for k, (task, position) in enumerate(zip(batch.tasks, batch.positions, strict=True)):
-            part = Batch(f"{batch.job_id}-g{k}", [task], [position], single=True)
+            part = JobBatch(f"{batch.job_id}-g{k}", [task], [position], single=True)
             parts[part.job_id] = part
         log.warning("job %s failed for good; retrying its genomes one by one", batch.job_id)
         self._submit(parts.values(), replace_failed=True)

@@ -18,7 +18,7 @@ import traceback
 from typing import Any
 
 from softevo.evolution.scenes import compound_outcome
-from softevo.worker.tasks import Result, Task, failed, scenes_of
+from softevo.worker.tasks import Task, TaskResult, failed, scenes_of
 
 ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 
@@ -58,7 +58,7 @@ def _simulate(scenes: list[dict], threads: int | None) -> list[Any]:
 
 
 def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> list[dict[str, Any]]:
-    """Evaluate JSON ``tasks`` (``Task.to_json``); JSON results (``Result.to_json``) in the
+    """Evaluate JSON ``tasks`` (``Task.to_json``); JSON results (``TaskResult.to_json``) in the
     same order.
 
     All robots of the batch run in one ``sim.simulate_many`` call (``threads``: numba threads
@@ -66,7 +66,7 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
     descriptors: its workers stand in for the cluster's in benches and spend no CPU.
     """
     describe = engine_options().get("engine") != "sleep"
-    results: list[Result | None] = [None] * len(tasks)
+    results: list[TaskResult | None] = [None] * len(tasks)
     runnable: list[tuple[int, Task, Any, list[dict]]] = []
     for k, data in enumerate(tasks):
         phenotype = None
@@ -85,7 +85,7 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
         for k, task, phenotype, scenes in runnable:
             parts, offset = outcomes[offset : offset + len(scenes)], offset + len(scenes)
             try:
-                results[k] = Result.of(task, phenotype, compound_outcome(parts), seconds, describe)
+                results[k] = TaskResult.of(task, phenotype, compound_outcome(parts), seconds, describe)
             except Exception as exc:
                 results[k] = failed(task, f"{type(exc).__name__}: {exc}")
     return [result.to_json() for result in results]  # type: ignore[union-attr]

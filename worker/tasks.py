@@ -18,7 +18,7 @@
        "encoding": {...},              # optional EncodingConfig.to_dict(); wins over workspace
        "model": "voxcad-land-water"}   # optional sim.scene model; absent: "voxelyze-2"
 
-- ``Result``: what an evaluation returns, ``to_json`` / ``from_json`` with the keys
+- ``TaskResult``: what an evaluation returns, ``to_json`` / ``from_json`` with the keys
   ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
   phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
   not finish (worst fitness, the reason kept); the score of a finished one follows
@@ -196,7 +196,7 @@ class Task:
 
 
 @dataclass(frozen=True)
-class Result:
+class TaskResult:
     """The evaluation of one task; see the module doc for its JSON."""
 
     id: int | None
@@ -218,11 +218,11 @@ class Result:
         return {key: getattr(self, key) for key in self.__dataclass_fields__}  # in field order
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> Result:
+    def from_json(cls, data: Mapping[str, Any]) -> TaskResult:
         return cls(**{key: data[key] for key in cls.__dataclass_fields__ if key in data})
 
     @classmethod
-    def of(cls, task: Task, phenotype, outcome: Any, seconds: float, describe: bool = True) -> Result:
+    def of(cls, task: Task, phenotype, outcome: Any, seconds: float, describe: bool = True) -> TaskResult:
         """The result of ``task`` from the simulator's ``outcome`` (a ``sim.Result`` or an
         exception), scored by ``evolution.individual.score``; ``describe=False`` leaves the
         shape descriptors out (None: the sleep engine's workers, which measure the system
@@ -261,14 +261,14 @@ def result_problem(data: Any, task_id: Any) -> str | None:
     return None
 
 
-def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> Result:
+def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> TaskResult:
     """The result of an evaluation that could not finish (a bad genome, a crash, a lost
     job): ``FAILED_DISTANCE``, unstable, ``reason`` as its error. ``task`` may be a ``Task``
     or its JSON (KeyError without an ``id``)."""
     from softevo.evolution.individual import FAILED_DISTANCE
 
     task_id = task.id if isinstance(task, Task) else task["id"]
-    return Result(task_id, FAILED_DISTANCE, False, reason, **_phenotype_fields(phenotype))
+    return TaskResult(task_id, FAILED_DISTANCE, False, reason, **_phenotype_fields(phenotype))
 
 
 def _phenotype_fields(phenotype, describe: bool = True) -> dict[str, Any]:

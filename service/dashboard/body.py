@@ -16,8 +16,8 @@ from fastapi import APIRouter, HTTPException, Query
 
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.params import IndividualId
-from softevo.service.api.routes.individuals import stored_task
 from softevo.service.api.schemas import WorldName
+from softevo.service.api.stored import stored_task
 from softevo.worker.tasks import scenes_of
 
 router = APIRouter()

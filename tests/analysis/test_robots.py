@@ -12,7 +12,7 @@ from fastapi import HTTPException
 
 from softevo.analysis.robots import stored_task
 from softevo.errors import UserError
-from softevo.service.api.routes import individuals as route
+from softevo.service.api import stored as route
 from softevo.service.db.individuals import individual_record
 from softevo.service.reports import stored_robots
 

@@ -1,11 +1,11 @@
-"""Reprs of results are a line, not their trajectories (``sim.Result``, ``worker.tasks.Result``)."""
+"""Reprs of results are a line, not their trajectories (``sim.Result``, ``worker.tasks.TaskResult``)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from softevo import sim
-from softevo.worker.tasks import Result
+from softevo.worker.tasks import TaskResult
 
 
 def test_a_simulation_result_repr_is_short():
@@ -20,6 +20,6 @@ def test_a_simulation_result_repr_is_short():
 
 def test_a_task_result_repr_leaves_the_phenotype_out():
     body = np.ones((10, 10, 10), int).tolist()
-    result = Result(1, 0.5, True, None, voxel_count=1000, phenotype={"body": body})
+    result = TaskResult(1, 0.5, True, None, voxel_count=1000, phenotype={"body": body})
     assert "phenotype" not in repr(result) and len(repr(result)) < 300
-    assert Result.from_json(result.to_json()) == result
+    assert TaskResult.from_json(result.to_json()) == result

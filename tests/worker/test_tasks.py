@@ -12,7 +12,7 @@ import pytest
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.evolution.individual import FAILED_DISTANCE
 from softevo.worker import evaluate
-from softevo.worker.tasks import Result, Task, failed, plain, replay, scene_of
+from softevo.worker.tasks import Task, TaskResult, failed, plain, replay, scene_of
 
 ENCODING = EncodingConfig(workspace=(4, 4, 4))
 
@@ -40,9 +40,9 @@ def test_task_json_is_the_wire_format_and_round_trips_exactly():
 
 def test_result_json_round_trips_exactly():
     result = evaluate.evaluate_batch([_task().to_json()], threads=1)[0]
-    assert list(result) == list(Result.__dataclass_fields__)
+    assert list(result) == list(TaskResult.__dataclass_fields__)
     wire = json.loads(json.dumps(result))
-    assert Result.from_json(wire).to_json() == wire
+    assert TaskResult.from_json(wire).to_json() == wire
 
 
 def test_failed_is_the_worst_fitness_with_the_reason():
@@ -62,7 +62,7 @@ def test_nan_or_unstable_scores_the_failed_distance():
     nan = types.SimpleNamespace(distance=float("nan"), stable=True, reason=None)
     unstable = types.SimpleNamespace(distance=3.0, stable=False, reason="diverged")
     for outcome, error in ((nan, "non-finite distance"), (unstable, "diverged")):
-        result = Result.of(task, phenotype, outcome, 0.1)
+        result = TaskResult.of(task, phenotype, outcome, 0.1)
         assert (result.distance, result.stable, result.error) == (FAILED_DISTANCE, False, error)
 
 

@@ -8,13 +8,13 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response
 
-from softevo.analysis import robots
 from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAccess, ServicesDep, client_of
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
 from softevo.service.api.params import IndividualId
 from softevo.service.api.schemas import ErrorOut, IndividualOut, LineageEntry, WorldName
-from softevo.service.db.individuals import individual, individual_record
+from softevo.service.api.stored import stored_task
+from softevo.service.db.individuals import individual
 from softevo.service.db.rows import finite
 from softevo.service.db.status import lineage_records
 
@@ -44,16 +44,6 @@ def lineage(individual_id: IndividualId, services: ServicesDep):
 
     try:
         return [finite(record) for record in lineage_records(services.engine, individual_id)]
-    except UserError as exc:
-        raise HTTPException(404, str(exc)) from exc
-
-
-def stored_task(services, individual_id: int, environment: str | None):
-    """The ``worker.tasks.Task`` of a stored individual's latest evaluation (in
-    ``environment`` if given), as the coordinator built it (``analysis.robots.stored_task``);
-    404 if there is no such individual or evaluation."""
-    try:
-        return robots.stored_task(individual_record(services.engine, individual_id), environment)
     except UserError as exc:
         raise HTTPException(404, str(exc)) from exc
 
