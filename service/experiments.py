@@ -26,8 +26,14 @@ def create(
 ) -> tuple[int, list[int]]:
     """Store an experiment with one pending run per repetition; return (id, run ids).
     UserError if it is over the budget (``service.limits.check_experiment``: runs per
-    request, voxel-steps per request and, with the server's unfinished runs, per server) or
-    names an objective not registered in this process."""
+    request, voxel-steps per request and, with the server's unfinished runs, per server),
+    names an objective not registered in this process, or names two treatments alike."""
+    names = [t.name for t in treatments]
+    alike = sorted({name for name in names if names.count(name) > 1})
+    if alike:
+        raise UserError(
+            f"treatment names must differ within an experiment: {', '.join(alike)} (give each a name)"
+        )
     for t in treatments:
         run_objectives(t)
     new = [

@@ -41,7 +41,7 @@ def spec_treatments(body, where: str = "spec"):
     """The treatments of an experiment body (``service.api.schemas.ExperimentRequest``)."""
     from pydantic import TypeAdapter, ValidationError
 
-    from softevo.service.api.routes.experiments import request_treatments
+    from softevo.service.api.requests import request_treatments
     from softevo.service.api.schemas import ExperimentRequest
 
     try:

@@ -82,14 +82,14 @@ def test_bad_options_are_one_line(capsys, tmp_path):
 
 
 def test_rest_treatment_takes_the_options():
-    from softevo.service.api.routes.experiments import _treatments
+    from softevo.service.api.requests import request_treatments
     from softevo.service.api.schemas import ExperimentIn
 
     body = ExperimentIn.model_validate({"name": "m", "treatments": [
         {"environment": "land", "stiffness_mpa": 0.1, "evolve_stiffness": True,
          "frequency_per_voxel": True, "stiffness_range_mpa": [0.01, 1.0]},
         {"environment": "water", "stiffness_mpa": 0.1}]})
-    evolved, plain = _treatments(body)
+    evolved, plain = request_treatments(body)
     assert evolved.evolve_stiffness and evolved.frequency_per_voxel
     assert evolved.stiffness_range_mpa == (0.01, 1.0)
     assert encoding_of(evolved.to_settings()).stiffness_range == (1e4, 1e6)

@@ -25,11 +25,11 @@ from softevo.service.api.deps import (
     client_of,
 )
 from softevo.service.api.params import ExperimentId, Offset
+from softevo.service.api.requests import request_treatments
 from softevo.service.api.schemas import (
     MAX_INT32,
     ErrorOut,
     ExperimentCreated,
-    ExperimentIn,
     ExperimentOut,
     ExperimentRequest,
     PresetIn,
@@ -37,8 +37,6 @@ from softevo.service.api.schemas import (
 from softevo.service.db import experiments as db_experiments
 from softevo.service.db import runs as db_runs
 from softevo.service.experiments import create
-from softevo.service.limits import check_workspace
-from softevo.service.treatments import Treatment, preset_grid
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 log = logging.getLogger("softevo.api")
@@ -54,23 +52,6 @@ MAX_EXPERIMENTS_PAGE = 100
 MAX_LISTED_RUNS_PAGE = 200
 MAX_RUNS_PAGE = 1000
 RUNS_PAGE = db_experiments.RUNS_PAGE
-
-
-def _treatments(body: ExperimentIn):
-    """The request's treatments as ``service.treatments.Treatment`` (their own checks apply:
-    switch_at within the generations and for a transition only)."""
-    treatments = [
-        Treatment.from_settings({**t.model_dump(), "name": t.name or ""}) for t in body.treatments
-    ]
-    for treatment in treatments:
-        check_workspace(treatment.workspace)
-    names = [t.name for t in treatments]
-    duplicates = sorted({name for name in names if names.count(name) > 1})
-    if duplicates:
-        raise UserError(
-            f"treatment names must differ within an experiment: {', '.join(duplicates)} (give each a name)"
-        )
-    return treatments
 
 
 @router.post(
@@ -101,14 +82,6 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     else:
         experiment_id, run_ids = create(services.engine, body.name, treatments, settings=services.settings)
     return ExperimentCreated(id=experiment_id, runs=run_ids)
-
-
-def request_treatments(body: ExperimentIn | PresetIn) -> list[Treatment]:
-    """The treatments an experiment body asks for: a preset's grid, or its own treatments."""
-    if isinstance(body, PresetIn):
-        return preset_grid(body.preset, body.scale, repetitions=body.repetitions, seed=body.seed,
-                           algorithm=body.algorithm, model=body.model)
-    return _treatments(body)
 
 
 RunsLimit = Annotated[

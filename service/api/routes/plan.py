@@ -15,7 +15,7 @@ from fastapi.concurrency import run_in_threadpool
 
 from softevo.errors import UserError
 from softevo.service.api.deps import COMMON
-from softevo.service.api.routes.experiments import request_treatments
+from softevo.service.api.requests import request_treatments
 from softevo.service.api.schemas import ErrorOut, PlanRequest
 from softevo.service.plan import check_devices, plan
 
