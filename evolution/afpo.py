@@ -67,6 +67,7 @@ from softevo.sim import worlds
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 MODES = ("afpo", "pareto")
+PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
 
 
 @dataclass(frozen=True)
@@ -80,7 +81,7 @@ class EvolutionConfig:
     (``selection.Objective``s; age is added in ``mode="afpo"``).
     """
 
-    population_size: int = 12
+    population_size: int = PAPER_POPULATION
     mode: str = "afpo"
     seed: int = 0
     environment: str = worlds.LAND.name

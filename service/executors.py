@@ -18,6 +18,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
+from softevo.service.settings import GENOMES_PER_JOB
 from softevo.sim import worlds
 from softevo.worker.evaluate import ensure_compiled, evaluate_batch, init_pool_process
 from softevo.worker.tasks import failed
@@ -77,7 +78,10 @@ class LocalExecutor:
     """
 
     def __init__(
-        self, workers: int | None = None, genomes_per_task: int = 4, job: Callable[..., list] | None = None
+        self,
+        workers: int | None = None,
+        genomes_per_task: int = GENOMES_PER_JOB,
+        job: Callable[..., list] | None = None,
     ) -> None:
 
         ensure_compiled()  # before the pool: its processes then all load the cached kernels
@@ -187,7 +191,7 @@ class LocalExecutor:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
 
-def make_executor(workers: int | None = None, genomes_per_task: int = 4) -> Executor:
+def make_executor(workers: int | None = None, genomes_per_task: int = GENOMES_PER_JOB) -> Executor:
     """The local executor; ``workers=0`` evaluates inline in this process."""
     if workers == 0:
         return InlineExecutor()

@@ -54,6 +54,7 @@ from rq.worker_registration import clean_worker_registry
 
 from softevo import __version__
 from softevo.service.executors import Task, chunks
+from softevo.service.settings import GENOMES_PER_JOB
 from softevo.worker.rq_worker import JOB_FUNCTION, VERSION_KEY, EvaluationJob, done_stream
 from softevo.worker.tasks import failed, result_problem
 
@@ -158,7 +159,7 @@ class RQExecutor:
         self,
         redis_url: str,
         queue: str = "softevo",
-        genomes_per_job: int = 4,
+        genomes_per_job: int = GENOMES_PER_JOB,
         job_timeout: int = 3600,
         retries: int = 3,
         result_ttl: int = 600,

@@ -29,6 +29,8 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from softevo.errors import UserError
 
+GENOMES_PER_JOB = 4  # genomes per job (RQ) or pool task (local): queue overhead against balance
+
 LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
 LOOPBACK_HOSTS = ("127.0.0.1", "::1", "[::1]", *LOOPBACK_NAMES)  # Host headers served without a token
 MIN_TOKEN_LENGTH = 16
@@ -64,7 +66,9 @@ class Settings(BaseSettings):
         "local evaluation processes when Redis is unset",
         "all cores", ge=0,
     )
-    genomes_per_job: int = _field(4, "serve", "genomes per RQ job (queue overhead against balance)", ge=1)
+    genomes_per_job: int = _field(
+        GENOMES_PER_JOB, "serve", "genomes per RQ job (queue overhead against balance)", ge=1
+    )
     jobs_across_runs: bool = _field(
         False, "serve",
         "`true`: a job may hold genomes of many runs (GPU workers)",

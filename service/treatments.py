@@ -51,8 +51,10 @@ from typing import Any
 
 from softevo.errors import UserError
 from softevo.evolution import worlds
+from softevo.evolution.afpo import PAPER_POPULATION
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
+from softevo.service.settings import GENOMES_PER_JOB
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 ALGORITHMS = ("afpo", "pareto")
@@ -80,14 +82,14 @@ class Treatment:
     name: str = ""
     switch_at: int | None = None
     switch_over: int = 0
-    population: int = 30
+    population: int = PAPER_POPULATION
     generations: int = 100
     workspace: tuple[int, int, int] = EncodingConfig.workspace
     cycles: int = DEFAULT_CYCLES
     repetitions: int = 1
     seed: int = 0
     algorithm: str = "afpo"
-    genomes_per_task: int = 4
+    genomes_per_task: int = GENOMES_PER_JOB
     evolve_stiffness: bool = False
     frequency_per_voxel: bool = False
     stiffness_range_mpa: tuple[float, float] = STIFFNESS_RANGE_MPA

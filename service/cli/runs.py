@@ -30,6 +30,7 @@ from softevo.service.cli.options import (
     RunArgument,
     WorkersOption,
 )
+from softevo.service.settings import GENOMES_PER_JOB
 from softevo.service.treatments import SCALES, Treatment
 
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
@@ -70,7 +71,9 @@ def _workers(workers: int | None) -> int:
     return workers
 
 
-def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = 4) -> None:
+def _execute(
+    engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = GENOMES_PER_JOB
+) -> None:
     """Advance ``run_ids`` to their end with a progress bar; print a summary line per run."""
     from softevo.service.coordinator import Coordinator, unfinished_runs
     from softevo.service.executors import make_executor
