@@ -218,6 +218,8 @@ def bottleneck(row: dict) -> str:
         return f"{name}: {share:.0%} of a core"
     if row["cpu_machine"] >= 0.9:
         return f"this machine's {CORES} cores ({row['cpu_machine']:.0%} busy)"
+    if row["queue_p50_s"] > 1.0:  # jobs wait while workers idle: the time between a worker's jobs
+        return "the workers' turnaround between jobs (jobs queue while workers are idle)"
     return "the barriers: runs waiting on their slowest evaluations"
 
 
@@ -276,7 +278,7 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
         coordinators = [subprocess.Popen(role, env=env) for _ in range(args.coordinators)]
         procs += coordinators
         if args.to_end:
-            return to_end(workers, args, db_url, run_ids, started, registered)
+            return to_end(workers, args, db_url, redis_url, run_ids, started, registered)
         time.sleep(args.warmup)
         pg_pids = pids_of_user("postgres")
 
@@ -328,7 +330,9 @@ def grid(generations: int | None):
     return [dataclasses.replace(t, generations=min(t.generations, generations)) for t in treatments]
 
 
-def to_end(workers: int, args, db_url: str, run_ids: list[int], started: float, registered: int) -> dict:
+def to_end(
+    workers: int, args, db_url: str, redis_url: str, run_ids: list[int], started: float, registered: int
+) -> dict:
     """Wait for every run to finish (at most ``--seconds`` x 10); the measured wall time
     beside the planner's prediction of the same grid on as many workers."""
     from softevo.service.db import open_database
@@ -346,12 +350,14 @@ def to_end(workers: int, args, db_url: str, run_ids: list[int], started: float, 
             raise SystemExit(f"the grid did not end within {10 * args.seconds:g} s")
     finally:
         engine.dispose()
-    measured = time.time() - started
+    ended = time.time()
+    measured = ended - started
+    utilisation = window_figures(job_times(redis_url), started, ended, workers)["utilisation"]
     predicted = planned(workers, args)
     return {"workers": workers, "coordinators": args.coordinators, "registered": registered,
             "runs": len(run_ids), "generations": args.generations, "speed_up": args.speed_up,
             "measured_seconds": measured, "predicted_seconds": predicted["wall_seconds"],
-            "predicted_utilisation": predicted["utilisation"],
+            "predicted_utilisation": predicted["utilisation"], "utilisation": utilisation,
             "error": predicted["wall_seconds"] / measured - 1.0}
 
 
@@ -373,12 +379,12 @@ def planned(workers: int, args) -> dict:
 
 def show_to_end(rows: list[dict]) -> None:
     print("| workers | coordinators | runs x generations | speed-up | measured s | predicted s | "
-          "error | predicted utilisation |")
+          "error | utilisation measured / predicted |")
     print("| --- | --- | --- | --- | ---: | ---: | ---: | ---: |")
     for r in rows:
         print(f"| {r['workers']} | {r['coordinators']} | {r['runs']} x {r['generations']} | "
               f"x{r['speed_up']:g} | {r['measured_seconds']:.1f} | {r['predicted_seconds']:.1f} | "
-              f"{r['error']:+.0%} | {r['predicted_utilisation']:.2f} |")
+              f"{r['error']:+.0%} | {r['utilisation']:.2f} / {r['predicted_utilisation']:.2f} |")
 
 
 def show(rows: list[dict]) -> None:

@@ -159,7 +159,8 @@ class CoordinatorLoop:
         with the coordinators alive now (``RunLocks.peers``), so several coordinators on one
         database split its runs between them, and take over a stopped one's runs."""
         unfinished = unfinished_runs(self.engine)
-        self.share = math.ceil(len(unfinished) / self.locks.peers())
+        peers = self.locks.peers()
+        self.share = math.ceil(len(unfinished) / peers)
         lost, self.lost = self.lost, set()  # swapped, not cleared: the renew thread adds to it
         keep = set(unfinished) - lost
         dropped = [run.run_id for run in self.active if run.run_id not in keep]
@@ -172,7 +173,7 @@ class CoordinatorLoop:
             if len(self.active) >= self.share:  # the others' share
                 break
             if not self.locks.acquire(run_id):
-                self._waits_for(run_id)
+                self._waits_for(run_id, shared=peers > 1)
                 continue
             self.waiting.discard(run_id)
             try:
@@ -187,8 +188,9 @@ class CoordinatorLoop:
             self.active.append(run)
             self.driven.add(run_id)
 
-    def _waits_for(self, run_id: int) -> None:
-        """Say once why a run is not driven here."""
+    def _waits_for(self, run_id: int, shared: bool = False) -> None:
+        """Say once why a run is not driven here: a warning when this coordinator is alone (a
+        stopped one's lock has yet to expire), news when peers split the runs by design."""
         if run_id in self.waiting:
             return
         self.waiting.add(run_id)
@@ -197,7 +199,8 @@ class CoordinatorLoop:
             who = describe(run_id) if describe else "its lock is taken"
         except Exception as exc:  # the description must not stop the loop
             who = f"its lock is taken ({exc})"
-        log.warning("run %d is driven by another coordinator: %s; waiting for its lock", run_id, who)
+        level = logging.INFO if shared else logging.WARNING
+        log.log(level, "run %d is driven by another coordinator: %s; waiting for its lock", run_id, who)
 
     def _reset(self) -> None:
         self.locks.release([run.run_id for run in self.active])

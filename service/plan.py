@@ -215,7 +215,9 @@ def plan(
     runs) through ``executor``: ``"rq"`` (a cluster: ``softevo serve`` and Redis workers) or
     ``"local"`` (``softevo run``'s process pool), whose coordinator costs differ
     (``COORDINATOR_SECONDS``, ``COORDINATOR_ASK_SECONDS``; ``coordinator_seconds`` and
-    ``ask_seconds`` override them); UserError for neither, both, or fewer than 1."""
+    ``ask_seconds`` override them) and whose dispatch differs (``dispatch``, default
+    ``DISPATCH`` with ``rq``, ``"rounds"`` with ``local``); UserError for neither, both, or
+    fewer than 1."""
     check_devices(cores, gpus)
     check_coordinators(coordinators)
     if executor not in EXECUTORS:
@@ -226,7 +228,8 @@ def plan(
         ask_seconds = COORDINATOR_ASK_SECONDS[executor]
     if not treatments:
         raise UserError("nothing to plan: no treatment")
-    dispatch = DISPATCH if dispatch is None else dispatch
+    if dispatch is None:  # the local executors advance every run together
+        dispatch = "rounds" if executor == "local" else DISPATCH
     rng = np.random.default_rng(seed)
     counts = [count_evaluations(t) for t in treatments]
     costs = [sample_costs(t, cost, samples, seed) for t in treatments]

@@ -97,6 +97,7 @@ def test_the_executor_picks_the_coordinators_measured_cost():
     grid = paper_grid("tiny")
     local, rq = plan(grid, cores=64, executor="local"), plan(grid, cores=64, executor="rq")
     assert local.coordinator_seconds < rq.coordinator_seconds
+    assert (local.dispatch, rq.dispatch) == ("rounds", "per-run")  # as each executor advances runs
     assert local.coordinator_utilisation < rq.coordinator_utilisation
     assert "local executor" in " ".join(local.assumptions) and "rq executor" in " ".join(rq.assumptions)
 
