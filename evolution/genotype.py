@@ -231,7 +231,7 @@ class Phenotype:
         (``duration_of``).
 
         ``model`` is the physics model (``sim.scene.MODELS``); the scene names it unless it is
-        the default, so scenes of the default model are as they always were. ``amplitude``
+        the default (a scene without ``model`` is the default model's). ``amplitude``
         defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to the
         world's (``sim.worlds``: 0.5 on a floor, 0 elsewhere), and to the paper scripts'
         INIT_TIME 0.5 in every world under

@@ -27,7 +27,7 @@ def engine_options() -> dict[str, Any]:
     """The engine this process evaluates on, as keyword arguments of ``sim.simulate_many``:
     ``$SOFTEVO_ENGINE`` (``numba``, the default, ``cuda`` or ``sleep``) and ``$SOFTEVO_DEVICE``
     (the CUDA device, e.g. ``cuda:0``, or the sleep engine's ``x<factor>``). Empty for the
-    default engine, so its calls are exactly as they were."""
+    default engine: ``simulate_many`` is then called with its own defaults."""
     engine = os.environ.get(ENGINE_ENV) or "numba"
     if engine == "numba":
         return {}
@@ -108,9 +108,7 @@ def ensure_compiled() -> None:
 
     On a cold cache the kernels are then compiled once, not by every pool process at the
     same time, and every process (a resumed run's included) runs the same cached machine
-    code. (A kernel compiled fresh once rounded differently from the cached one; the
-    simulator has since dropped the fastmath flags that allowed it, and this stays as a
-    guard.)
+    code, whichever process compiled it.
     """
     global _CACHE_READY
     if _CACHE_READY:
