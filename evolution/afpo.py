@@ -49,8 +49,8 @@ import numpy as np
 from softevo.evolution.genotype import (
     EncodingConfig,
     is_viable,
-    mutate_genotype,
-    random_viable_genotype,
+    mutate_developed,
+    random_viable,
 )
 from softevo.evolution.individual import FAILED_DISTANCE, Evaluation, Individual
 from softevo.evolution.selection import (
@@ -200,19 +200,24 @@ class Evolution:
         return self.next_id - 1
 
     def _newcomer(self) -> Individual:
-        genome = random_viable_genotype(self.rng, self.config.encoding)
-        return Individual(self._new_id(), None, self.generation, 0, genome)
+        encoding = self.config.encoding
+        genome, phenotype = random_viable(self.rng, encoding)
+        newcomer = Individual(self._new_id(), None, self.generation, 0, genome)
+        newcomer.developed(encoding, phenotype)
+        return newcomer
 
     def _breed(self) -> None:
         self.generation += 1
         for ind in self.population:
             ind.age += 1
-        offspring = []
+        offspring, encoding = [], self.config.encoding
         for parent in self.population:
-            genome, ops, _ = mutate_genotype(parent.genome, self.rng, self.config.encoding)
-            offspring.append(
-                Individual(self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops)
+            genome, ops, _, phenotype = mutate_developed(
+                parent.genome, parent.phenotype(encoding), self.rng, encoding
             )
+            child = Individual(self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops)
+            child.developed(encoding, phenotype)
+            offspring.append(child)
         if self.config.mode == "afpo" or not self.population:
             offspring.append(self._newcomer())
         self.pending = offspring

@@ -176,6 +176,13 @@ class CPPN:
 
     # ---- JSON ------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
+        """``{"nodes": [[id, role, activation, name], ...], "links": [[source, target,
+        weight], ...]}``: the same dict at every call (a CPPN never changes; the run's state,
+        its tasks and its rows all write it), so read it, do not change it."""
+        return self._plain
+
+    @cached_property
+    def _plain(self) -> dict[str, Any]:
         return {
             "nodes": [[n.id, n.role, n.activation, n.name] for n in self.nodes],
             "links": [[lk.source, lk.target, lk.weight] for lk in self.links],

@@ -395,11 +395,21 @@ def random_viable_genotype(
     max_tries: int = MAX_NEWCOMER_TRIES,
 ) -> Genotype:
     """A random genotype whose phenotype ``is_viable`` (the last try if none is)."""
+    return random_viable(rng, config, max_tries)[0]
+
+
+def random_viable(
+    rng: np.random.Generator, config: EncodingConfig = EncodingConfig(),
+    max_tries: int = MAX_NEWCOMER_TRIES,
+) -> tuple[Genotype, Phenotype]:
+    """``random_viable_genotype`` with the phenotype it was judged by (developed in
+    ``config``), so that the caller need not develop it again."""
     for _ in range(max_tries):
         genotype = random_genotype(rng, config)
-        if is_viable(develop(genotype, config), config):
-            return genotype
-    return genotype
+        phenotype = develop(genotype, config)
+        if is_viable(phenotype, config):
+            return genotype, phenotype
+    return genotype, phenotype
 
 
 MAX_MUTATION_TRIES = 100
@@ -424,7 +434,22 @@ def mutate_genotype(
     itself is returned with ``changed=False``, as evosoro keeps the unmutated clone
     (tools/mutation.py:129-135).
     """
-    parent_hash = develop(parent, config).phenotype_hash()
+    child, ops, changed, _ = mutate_developed(parent, develop(parent, config), rng, config, max_tries)
+    return child, ops, changed
+
+
+def mutate_developed(
+    parent: Genotype,
+    parent_phenotype: Phenotype,
+    rng: np.random.Generator,
+    config: EncodingConfig = EncodingConfig(),
+    max_tries: int = MAX_MUTATION_TRIES,
+) -> tuple[Genotype, list[str], bool, Phenotype]:
+    """``mutate_genotype`` of a parent already developed in ``config``
+    (``parent_phenotype``), returning the child's phenotype as well: (child, applied
+    operators, phenotype changed, the child's phenotype in ``config``). The same random
+    draws and the same child as ``mutate_genotype``."""
+    parent_hash = parent_phenotype.phenotype_hash()
     for attempt in range(max_tries):
         which = "body" if rng.random() < 0.5 else "control"
         cppn = getattr(parent, which)
@@ -437,7 +462,7 @@ def mutate_genotype(
         if phenotype.phenotype_hash() != parent_hash and (
             not config.rejects_invalid or is_viable(phenotype, config)
         ):
-            return child, ops, True
-    if config.rejects_invalid:
-        return parent, [], False
-    return child, ops, False
+            return child, ops, True, phenotype
+    if config.rejects_invalid or max_tries < 1:
+        return parent, [], False, parent_phenotype
+    return child, ops, False, phenotype

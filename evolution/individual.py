@@ -102,7 +102,11 @@ class Individual:
         cached = self._developed
         if cached is not None and cached[0] is self.genome and cached[1] == encoding:
             return cached[2]
-        phenotype = develop(self.genome, encoding)
+        return self.developed(encoding, develop(self.genome, encoding))
+
+    def developed(self, encoding: EncodingConfig, phenotype: Phenotype) -> Phenotype:
+        """Keep ``phenotype`` as the genome's in ``encoding`` (developed already, e.g. while
+        breeding judged it) for ``phenotype`` to return; returns it."""
         self._developed = (self.genome, encoding, phenotype)
         return phenotype
 

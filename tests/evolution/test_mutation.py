@@ -4,8 +4,10 @@ from softevo.evolution.cppn import CPPN, express
 from softevo.evolution.genotype import (
     EncodingConfig,
     develop,
+    mutate_developed,
     mutate_genotype,
     random_cppn,
+    random_viable,
     random_viable_genotype,
 )
 from softevo.evolution.mutation import OPERATORS, add_link, add_node, candidate_links, mutate_cppn
@@ -69,3 +71,28 @@ def test_mutation_depends_only_on_the_generator():
     assert child_a == child_b
     out = express(child_a[0].body, (3, 3, 3))
     assert set(out) == {"present", "active"}
+
+
+def _same_phenotype(a, b) -> bool:
+    return a.phenotype_hash() == b.phenotype_hash() and np.array_equal(a.phase, b.phase)
+
+
+def test_breeding_with_the_phenotypes_in_hand_draws_and_returns_what_developing_again_does():
+    """``mutate_developed`` (the parent's phenotype given, the child's returned) and
+    ``random_viable`` make the same children from the same generator as ``mutate_genotype``
+    and ``random_viable_genotype``, and their phenotypes are those ``develop`` gives."""
+    for config in (EncodingConfig(workspace=(5, 5, 5)),
+                   EncodingConfig(workspace=(6, 6, 6), control_mapping="evosoro", body_rule="evosoro")):
+        rng_a, rng_b = np.random.default_rng(21), np.random.default_rng(21)
+        for _ in range(12):
+            parent = random_viable_genotype(rng_a, config)
+            same_parent, parent_phenotype = random_viable(rng_b, config)
+            assert same_parent == parent and _same_phenotype(parent_phenotype, develop(parent, config))
+            child, ops, changed = mutate_genotype(parent, rng_a, config)
+            assert mutate_developed(parent, parent_phenotype, rng_b, config)[:3] == (child, ops, changed)
+            rng_c = np.random.default_rng(int(rng_a.integers(1 << 30)))
+            rng_b.integers(1 << 30)
+            given_up = mutate_developed(parent, parent_phenotype, rng_c, config, max_tries=0)
+            assert given_up == (parent, [], False, parent_phenotype)
+        returned = mutate_developed(parent, parent_phenotype, np.random.default_rng(3), config)
+        assert _same_phenotype(returned[3], develop(returned[0], config))
