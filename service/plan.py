@@ -60,18 +60,19 @@ EVENT_BUDGET = 150_000  # jobs the dispatch simulation simulates in all
 # - the coordinator's work per run-generation at population 30 (paper settings, 7^3), taken
 #   in proportion to the population:
 #   - "local" (``softevo run``: the process pool, SQLite): ask + tell + the transaction,
-#     31 ms (14 ms at population 6), with instant results;
+#     23 ms, with instant results (bench/coordinator_overhead.py);
 #   - "rq" (``softevo serve`` with Redis workers, PostgreSQL): the coordinator process's CPU
-#     per evaluation in bench/scale.py, 2.9-3.1 ms at 300 and 1,000 workers: 90 ms;
+#     per evaluation in bench/scale.py, 1.65 ms (604-607 evaluations per CPU-second at 100
+#     workers): 50 ms;
 # - a worker's own work per evaluation (developing the genome, descriptors, the result) and
 #   a job's round trip: 3 ms and 8 ms, from bench/plan_check.py's 1-worker runs less their
 #   coordinator's share and the cost model's simulation seconds.
-COORDINATOR_SECONDS = {"local": 0.031, "rq": 0.09}
+COORDINATOR_SECONDS = {"local": 0.023, "rq": 0.05}
 # - the coordinator's ask of a run's first population (random viable genomes, drawn until the
 #   body rule holds) and its dispatch, before any of that run's jobs can start; at the start
-#   a coordinator asks its runs one after the other: 66 ms ("rq": ask + RQ submit, measured
-#   over 12 paper treatments at population 30) and 50 ms ("local": the ask alone).
-COORDINATOR_ASK_SECONDS = {"local": 0.05, "rq": 0.066}
+#   a coordinator asks its runs one after the other: 50 ms ("rq": ask + RQ submit) and 41 ms
+#   ("local": the ask alone), medians over the paper's 12 treatments at population 30.
+COORDINATOR_ASK_SECONDS = {"local": 0.041, "rq": 0.05}
 EXECUTORS = tuple(COORDINATOR_SECONDS)
 COORDINATOR_POPULATION = 30
 COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
