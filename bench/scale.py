@@ -36,6 +36,7 @@ database dropped; a run to the end gives up after ``--seconds`` x 10).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import shutil
@@ -320,8 +321,6 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
 
 def grid(generations: int | None):
     """The paper's grid at paper scale, each treatment cut to ``generations`` if given."""
-    import dataclasses
-
     from softevo.service.treatments import preset_grid
 
     treatments = preset_grid("paper", "paper")
@@ -364,8 +363,6 @@ def to_end(
 def planned(workers: int, args) -> dict:
     """``softevo plan``'s answer for the bench's grid: the cost model the sleep engine sleeps
     by, divided by its speed-up; the RQ executor's coordinator cost."""
-    import dataclasses
-
     from softevo.service.plan import plan
     from softevo.sim.cost import MEASURED
 
