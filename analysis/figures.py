@@ -32,6 +32,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
+from softevo.analysis.matching import arrival_generation  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
 from softevo.analysis.stats_tables import ALPHA, ci_table  # noqa: E402
 from softevo.evolution import worlds  # noqa: E402
@@ -388,8 +389,8 @@ def transitions_figure(
     data: ExperimentData, curves: pd.DataFrame, tests: pd.DataFrame, out_dir: Path
 ) -> FigureFile | None:
     """Per transition treatment: its fitness curve against its static controls, and its
-    runs' distance and active share (population means) against theirs at the generation
-    they are compared at. None without a transition treatment."""
+    runs' best distance (the primary measure) and active share (population mean) against
+    theirs at the generation they are compared at. None without a transition treatment."""
     controls = transition_controls(data.treatments)
     if not controls:
         return None
@@ -409,7 +410,7 @@ def transitions_figure(
         row[0].legend(fontsize=8, loc="upper left")
         row[0].grid(alpha=0.3)
         at = {m: data.end_generation(name) if m == name else data.pair_generation(name, m) for m in group}
-        for ax, metric in zip(row[1:], ("distance", "active_share"), strict=True):
+        for ax, metric in zip(row[1:], ("best_distance", "active_share"), strict=True):
             samples = []
             for m in group:
                 values = data.run_values(at[m]) if at[m] is not None else data.run_values(-1)
@@ -433,8 +434,10 @@ def transitions_figure(
         "transitions",
         "Each transition treatment against the static treatments of the same stiffness "
         "in its first and second environment: best distance over generations (mean, "
-        "95% CI; dashed line: the switch) and each run's population mean of distance and "
-        "active share at the generation the pair is compared at (the last both stored).",
+        "95% CI; dashed line: the switch) and each run's best distance (the primary measure) "
+        "and population mean of active share at the generation the pair is compared at (the "
+        "last both stored). Stars: the pairwise tests (secondary; the findings table holds "
+        "the headline tests).",
     )
 
 
@@ -517,11 +520,21 @@ def _material_legend(fig: Figure) -> None:
 # ---- start vs end of evolution -----------------------------------------------------------------
 def _end_values(data: ExperimentData) -> pd.DataFrame:
     """Each treatment's run values at its end generation."""
+    return _values_at(data, {name: data.end_generation(name) for name in data.treatment_names})
+
+
+def _start_values(data: ExperimentData) -> pd.DataFrame:
+    """Each treatment's run values at its first generation wholly in its final world (0; a
+    transition's arrival): start and end in one world."""
+    arrivals = {row["name"]: arrival_generation(row) for _, row in data.treatments.iterrows()}
+    return _values_at(data, arrivals)
+
+
+def _values_at(data: ExperimentData, generations: dict[str, int | None]) -> pd.DataFrame:
     parts = [data.run_values(-1)]
-    for name in data.treatment_names:
-        end = data.end_generation(name)
-        if end is not None:
-            values = data.run_values(end)
+    for name, generation in generations.items():
+        if generation is not None:
+            values = data.run_values(generation)
             parts.append(values[values["treatment"] == name])
     return pd.concat(parts, ignore_index=True)
 
@@ -533,7 +546,7 @@ def start_end_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -
     axes = _grid(fig, len(TRAITS), 4)
     names = data.treatment_names
     colors = treatment_colors(data.treatments)
-    start, end = data.run_values(0), _end_values(data)
+    start, end = _start_values(data), _end_values(data)
     x = np.arange(len(names))
     for ax, trait in zip(axes, TRAITS, strict=True):
         for frame, offset, label, filled in ((start, -0.15, "start", False), (end, 0.15, "end", True)):
@@ -566,8 +579,9 @@ def start_end_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -
         fig,
         out_dir,
         "start_end",
-        "Each descriptor at the start (open markers, generation 0) and at the end "
-        "(filled, last generation) of evolution: mean of the per-run population means "
+        "Each descriptor at the start (open markers, generation 0; a transition's first "
+        "generation in its final world) and at the end (filled, last generation) of "
+        "evolution: mean of the per-run population means "
         "with 95% t intervals. Stars: Bonferroni-adjusted Wilcoxon signed-rank p (each run "
         "against itself) "
         "between start and end below 0.05.",

@@ -57,10 +57,10 @@ import numpy as np
 import pandas as pd
 
 from softevo.analysis.data import ExperimentData
-from softevo.analysis.matching import last_common_generation
+from softevo.analysis.matching import arrival_generation, last_common_generation
 from softevo.analysis.power import detectable_a12, treatment_named
 from softevo.analysis.rank_tests import RankTest, holm, jonckheere_terpstra, mann_whitney
-from softevo.analysis.run_summary import arrival_generation, best_distance_at
+from softevo.analysis.run_summary import best_distance_at
 from softevo.analysis.stats_tables import ALPHA, POWER
 from softevo.evolution import worlds
 from softevo.evolution.stats import vargha_delaney

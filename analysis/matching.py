@@ -12,8 +12,9 @@ compared at the same generation). Functions of the ``treatments`` and ``runs`` f
   to 9000.
 - A pair with a transition treatment is compared at the last generation that every run of
   both treatments has stored (the paper: 9000, a transition against the static S3 runs).
-- Start vs end: generation 0 against the treatment's *end generation*, the last one all its
-  runs have stored.
+- Start vs end: the first generation wholly in the treatment's final world (0; a
+  transition's *arrival*, ``arrival_generation``) against the treatment's *end generation*,
+  the last one all its runs have stored.
 - A treatment is shown (its summary row, its box in the descriptor figure, its Pareto
   front) at its *display generation*: the static generation for a static treatment, its
   end generation for a transition.
@@ -135,10 +136,18 @@ def display_generation(treatments: pd.DataFrame, runs: pd.DataFrame, name: str) 
     return end_generation(runs, name)
 
 
+def arrival_generation(treatment: pd.Series) -> int:
+    """The first generation wholly in the treatment's final world (a row of ``treatments``):
+    0 for a static treatment, switch_at + switch_over for a transition."""
+    if pd.isna(treatment.get("switch_at")):
+        return 0
+    return int(treatment["switch_at"]) + int(treatment.get("switch_over", 0) or 0)
+
+
 def analysis_generations(treatments: pd.DataFrame, runs: pd.DataFrame) -> list[int]:
-    """Every generation an analysis compares or shows: 0, each pair's, each end and display
-    generation (sorted, without None)."""
-    found = {0}
+    """Every generation an analysis compares or shows: 0, each transition's arrival in its
+    final world, each pair's, each end and display generation (sorted, without None)."""
+    found = {0, *(arrival_generation(row) for _, row in treatments.iterrows())}
     for a, b in comparison_pairs(treatments):
         found.add(pair_generation(treatments, runs, a, b))
     for name in treatments["name"]:

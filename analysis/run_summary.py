@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from softevo.analysis.data import ExperimentData
+from softevo.analysis.matching import arrival_generation
 
 SUMMARY_COLUMNS = [
     "treatment", "run_id", "repetition", "seed", "status", "final_generation", "world_final",
@@ -56,14 +57,6 @@ def capped(frequency, cycles: float, max_seconds: float | None) -> np.ndarray:
     if max_seconds is None or pd.isna(max_seconds):
         return np.zeros(frequency.shape, bool)
     return frequency * float(max_seconds) < cycles
-
-
-def arrival_generation(treatment: pd.Series) -> int:
-    """The first generation wholly in the treatment's final world: 0 for a static
-    treatment, switch_at + switch_over for a transition."""
-    if pd.isna(treatment.get("switch_at")):
-        return 0
-    return int(treatment["switch_at"]) + int(treatment.get("switch_over", 0) or 0)
 
 
 def best_distance_at(data: ExperimentData, generation: int) -> pd.Series:

@@ -6,7 +6,9 @@
 - Matched generations (``analysis.matching``): each comparison names its generation, the
   ``generation`` column. Static treatments are compared at the static treatments' common
   last generation, a transition against a static treatment at the last generation both
-  have stored; start vs end is generation 0 against the treatment's end generation.
+  have stored; start vs end is the first generation wholly in the treatment's final world
+  (0; a transition's arrival) against its end generation: never a land start against a
+  water end.
 - Families (``analysis.matching.families``): each pair answers one question (stiffness
   within one world; a transition against the static control of its final world); the
   ``family`` column names it with the metric, ``family_size`` counts its tests, and
@@ -33,7 +35,11 @@
 - Descriptors over active robots: a robot with no active voxel moves nothing, so its
   frequency means nothing. ``frequency_active`` is the population mean over robots with an
   active voxel; ``passive_share`` the share of robots with none (flagged in the summary).
-  Both frequencies are reported, the paper's choice being unclear.
+  Both frequencies are reported, the paper's choice being unclear, unless they are the
+  same: a metric whose run values are constant or identical to another's is left out of
+  the tables (``distinct_metrics``).
+- The headline questions, one test each with Holm across them, are ``analysis.findings``;
+  the pairwise tests here are secondary.
 
 Which treatments are compared: those that differ in exactly one factor, environment
 schedule or stiffness (``comparison_pairs``).
@@ -49,7 +55,7 @@ import pandas as pd
 from scipy import stats
 
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData
-from softevo.analysis.matching import comparison_pairs, families
+from softevo.analysis.matching import arrival_generation, comparison_pairs, families
 from softevo.analysis.power import detectable_a12
 from softevo.evolution.stats import bonferroni, mann_whitney, vargha_delaney
 
@@ -72,6 +78,7 @@ STAT_COLUMNS = [
     "a",
     "b",
     "generation",
+    "start_generation",
     "n_a",
     "n_b",
     "mean_a",
@@ -291,9 +298,11 @@ def best_distance_per_run(data: ExperimentData) -> pd.DataFrame:
     return values[["run_id", "treatment", "repetition", "generation", "best_distance"]]
 
 
-def treatment_comparisons(data: ExperimentData, metrics: Sequence[str] = METRICS) -> pd.DataFrame:
-    """Every treatment pair (``analysis.matching.families``) at its generation, per metric:
-    tested within its family by the design's test, or described (cross-world)."""
+def treatment_comparisons(data: ExperimentData, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """Every treatment pair (``analysis.matching.families``) at its generation, per metric
+    (default: ``distinct_metrics``): tested within its family by the design's test, or
+    described (cross-world)."""
+    metrics = distinct_metrics(data) if metrics is None else metrics
     values = _Values(data)
     rows = []
     for metric in metrics:
@@ -308,26 +317,54 @@ def treatment_comparisons(data: ExperimentData, metrics: Sequence[str] = METRICS
     return _finish(rows)
 
 
-def start_end_comparisons(data: ExperimentData, metrics: Sequence[str] = (*TRAITS, *DERIVED)) -> pd.DataFrame:
-    """Each trait between generation 0 (a = start) and the treatment's end generation (b =
-    end, named in ``generation``) over its runs, each run paired with itself (signed-rank);
-    one family per metric across treatments."""
+def start_end_comparisons(data: ExperimentData, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """Each metric (default ``distinct_metrics``, best distance among them: the evolved
+    gain) between the start (a) and the treatment's end generation (b, named in
+    ``generation``) over its runs, each run paired with itself (signed-rank); one family per
+    metric across treatments. The start is the first generation wholly in the world the
+    treatment ends in (``start_generation``: 0, or a transition's arrival), so that start
+    and end are measured in one world."""
+    metrics = distinct_metrics(data) if metrics is None else metrics
     values = _Values(data)
     rows = []
     for metric in metrics:
-        for name in data.treatment_names:
+        for _, treatment in data.treatments.iterrows():
+            name, start = treatment["name"], arrival_generation(treatment)
             end = data.end_generation(name)
             names = (f"{name} start", f"{name} end")
-            a, b = values(0, name, metric), values(end, name, metric)
-            rows.append(_comparison_row("start vs end", "start vs end", metric, end, names, a, b, RUN_PAIRED))
+            a, b = values(start, name, metric), values(end, name, metric)
+            row = _comparison_row("start vs end", "start vs end", metric, end, names, a, b, RUN_PAIRED)
+            rows.append(row | {"start_generation": start})
     return _finish(rows)
+
+
+def distinct_metrics(data: ExperimentData, metrics: Sequence[str] = METRICS) -> tuple[str, ...]:
+    """``metrics`` less those whose run values (at generation 0 and at every generation a
+    treatment is shown or compared at) are constant, or identical to an earlier metric's
+    (e.g. ``frequency_active`` when every robot has an active voxel, ``passive_share`` when
+    it is always 0): they would repeat another metric's tests or test nothing."""
+    values = _Values(data)
+    generations = sorted({0, *(g for _, g in shown_generations(data))})
+    frames = [values.frame(g) for g in generations]
+    kept, seen = [], []
+    for metric in metrics:
+        vector = np.concatenate([f[metric].to_numpy(float) for f in frames]) if frames else np.array([])
+        finite = vector[np.isfinite(vector)]
+        if finite.size == 0 or finite.min() == finite.max():
+            continue
+        if any(np.array_equal(vector, other, equal_nan=True) for other in seen):
+            continue
+        kept.append(metric)
+        seen.append(vector)
+    return tuple(kept)
 
 
 def _finish(rows: list[dict]) -> pd.DataFrame:
     table = pd.DataFrame(
         rows, columns=[c for c in STAT_COLUMNS if c not in ("p_bonferroni", "significance", "family_size")]
     )
-    table["generation"] = table["generation"].astype("Int64")
+    for column in ("generation", "start_generation"):
+        table[column] = table[column].astype("Int64")
     adjust_families(table)
     table["detectable_A12"] = [
         _detectable(r.test, r.n_a, r.n_b, r.family_size) for r in table.itertuples(index=False)
@@ -362,14 +399,16 @@ def shown_generations(data: ExperimentData) -> list[tuple[str, int]]:
 
 
 def summary_table(data: ExperimentData) -> pd.DataFrame:
-    """Per metric, treatment and generation (``shown_generations``): repetitions, mean and
+    """Per metric (``distinct_metrics``), treatment and generation (``shown_generations``):
+    repetitions, mean and
     t interval over runs of the run values (best distance, a population mean of a trait,
     ``frequency_active``, or ``passive_share``: the share of robots without an active
     voxel)."""
     values = _Values(data)
+    metrics = distinct_metrics(data)
     parts = []
     for name, generation in shown_generations(data):
-        for metric in METRICS:
+        for metric in metrics:
             series = values(generation, name, metric).reset_index(drop=True)
             parts.append(
                 pd.DataFrame({"metric": metric, "treatment": name, "generation": generation, "value": series})

@@ -7,7 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from softevo.analysis.stats_tables import statistics_table, summary_table
+from softevo.analysis.stats_tables import (
+    distinct_metrics,
+    start_end_comparisons,
+    statistics_table,
+    summary_table,
+    treatment_comparisons,
+)
 from softevo.service.db import open_database
 from softevo.service.db.experiments import load_experiment
 from tests.analysis import matched
@@ -34,7 +40,7 @@ def _row(table, metric, a, b, kind="between treatments"):
 
 
 def test_stiffness_comparisons_are_at_the_static_common_generation(data):
-    table = statistics_table(data)
+    table = treatment_comparisons(data, ("best_distance", "distance", "voxel_count", "frequency"))
     for metric in ("best_distance", "distance", "voxel_count", "frequency"):
         row = _row(table, metric, "land S1", "land S3")
         # S3 at generation 2 (20, 21), not at its last, 4 (40, 41); one value per run
@@ -56,14 +62,25 @@ def test_transitions_are_compared_with_static_s3_at_their_own_generation(data):
     # S1 and the transition differ in two factors: not compared
     pairs = set(zip(table["a"], table["b"], strict=True))
     assert ("land S1", "land-water S3") not in pairs
-    ends = table[(table["comparison"] == "start vs end") & (table["metric"] == "distance")]
-    ends = ends.set_index("a")["generation"]
-    assert ends["land S1 start"] == 2 and ends["land S3 start"] == 4
+    ends = start_end_comparisons(data, ("distance",)).set_index("a")
+    assert ends.loc["land S1 start", "generation"] == 2 and ends.loc["land S3 start", "generation"] == 4
+    # the transition's start is its arrival in water (generation 3), not its land start
+    assert ends.loc["land-water S3 start", "start_generation"] == 3
+    assert ends.loc["land S1 start", "start_generation"] == 0
+
+
+def test_metrics_identical_to_another_or_constant_are_left_out(data):
+    # distance, voxel count and frequency equal the best distance here; active share,
+    # symmetry, branching and shape entropy are constant; every robot has an active voxel
+    assert distinct_metrics(data) == ("best_distance",)
+    table = statistics_table(data)
+    assert set(table["metric"]) == {"best_distance"}
+    assert set(summary_table(data)["metric"]) == {"best_distance"}
 
 
 def test_the_loader_reads_the_compared_generations_and_any_other(hand, data):
     static_s3 = data.populations[data.populations["treatment"] == "land S3"]
-    assert sorted(static_s3["generation"].unique()) == [0, 2, 4]
+    assert sorted(static_s3["generation"].unique()) == [0, 2, 3, 4]  # 3: land-water's arrival
     assert data.static_generation == 2 and data.pair_generation("land S3", "land-water S3") == 4
     values = data.run_values(2)
     s3 = values[values["treatment"] == "land S3"]
