@@ -28,9 +28,11 @@ so a local run with the same seed evaluates the same individuals in the same wor
 
 from __future__ import annotations
 
+import logging
 import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -48,6 +50,8 @@ from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task
+
+log = logging.getLogger("softevo.coordinator")
 
 SQLITE_UNAVAILABLE = ("disk", "full", "readonly", "read-only", "locked", "unable to open", "i/o")
 
@@ -69,6 +73,25 @@ def database_unavailable(exc: BaseException) -> bool:
     if type(exc.orig).__module__.startswith("sqlite3"):  # sqlite3 says OperationalError for bugs too
         return any(word in str(exc.orig).lower() for word in SQLITE_UNAVAILABLE)
     return True
+
+
+def first_line(exc: BaseException | None) -> str:
+    """The first line of what an exception says (a driver's own, where SQLAlchemy wraps
+    one: its message without SQLAlchemy's SQL and links)."""
+    inner = getattr(exc, "orig", None) or exc
+    lines = str(inner).strip().splitlines()
+    return lines[0] if lines else type(inner).__name__
+
+
+def failure_words(exc: BaseException, doing: str) -> str:
+    """What went wrong, in words, for a run's stored error: what the coordinator was doing,
+    the exception, and where it was raised (the traceback goes to the log)."""
+    where = ""
+    frames = traceback.extract_tb(exc.__traceback__)
+    if frames:
+        last = frames[-1]
+        where = f" (in {last.name}, {Path(last.filename).name} line {last.lineno})"
+    return f"{doing} failed: {type(exc).__name__}: {first_line(exc)}{where}"
 
 
 @dataclass(frozen=True)
@@ -304,10 +327,13 @@ class Coordinator:
         commit those; return the runs that go on (those still in flight among them). Runs
         left out of ``runs`` are forgotten (``forget``)."""
         self.forget(set(self.in_flight) - {run.run_id for run in runs})
+        # a run loaded again (another object) asks its generation anew: the old one's
+        # generation in flight is not its own (the same jobs: their results are taken)
+        self.forget([run.run_id for run in runs if self.in_flight.get(run.run_id, (run,))[0] is not run])
         going_on = []
         for run in runs:
             if run.run_id not in self.in_flight:
-                tasks = self._guard(run, ask, run)
+                tasks = self._guard(run, f"breeding generation {run.next_generation}", ask, run)
                 if tasks is None:  # failed: marked so by _guard
                     continue
                 self.in_flight[run.run_id] = (run, self.executor.submit(tasks))
@@ -322,7 +348,9 @@ class Coordinator:
                 going_on.remove(run)
                 continue
             results = ticket.results
-            if not self._guard(run, self._finish, run, results, evaluation_seconds(results)) or run.done:
+            storing = f"storing generation {run.next_generation}"
+            stored = self._guard(run, storing, self._finish, run, results, evaluation_seconds(results))
+            if not stored or run.done:
                 going_on.remove(run)
         return going_on
 
@@ -337,7 +365,7 @@ class Coordinator:
         """One generation of every run; returns the runs that go on."""
         asked: list[tuple[ActiveRun, list[dict]]] = []
         for run in runs:
-            tasks = self._guard(run, ask, run)
+            tasks = self._guard(run, f"breeding generation {run.next_generation}", ask, run)
             if tasks is not None:
                 asked.append((run, tasks))
         tasks = [task for _, run_tasks in asked for task in run_tasks]
@@ -349,7 +377,8 @@ class Coordinator:
             offset += len(run_tasks)
             if run.run_id not in live:  # cancelled while in flight: its generation is dropped
                 continue
-            if self._guard(run, self._finish, run, run_results, evaluation_seconds(run_results)):
+            storing = f"storing generation {run.next_generation}"
+            if self._guard(run, storing, self._finish, run, run_results, evaluation_seconds(run_results)):
                 going_on.append(run)
         return [run for run in going_on if not run.done]
 
@@ -384,21 +413,25 @@ class Coordinator:
             )
         return True
 
-    def _guard(self, run: ActiveRun, function, *args):
-        """Call ``function``; a bug in one run marks it failed and the others go on. A
-        database that cannot be reached or written fails no run: ``DatabaseUnavailable``."""
+    def _guard(self, run: ActiveRun, doing: str, function, *args):
+        """Call ``function`` (``doing``, in words); a bug in one run marks it failed, logged
+        in one line with the traceback after it, and the others go on. A database that
+        cannot be reached or written fails no run: ``DatabaseUnavailable``."""
         try:
             return function(*args)
         except Exception as exc:
             if database_unavailable(exc):
-                reason = str(getattr(exc, "orig", None) or exc).strip().splitlines()[0]
+                reason = first_line(exc)
                 raise DatabaseUnavailable(
                     f"the database cannot be written or reached ({reason}); run {run.run_id} is "
                     f"paused after generation {run.next_generation - 1}, every generation before "
                     f"is stored: free space or restart the database, then softevo resume r{run.run_id}"
                 ) from exc
+            words = failure_words(exc, doing)
+            log.error("run %d failed: %s", run.run_id, words, exc_info=True)
+            error = f"{words}; the traceback is in the coordinator's log"
             with self.engine.begin() as conn:
-                set_run_status(conn, run.run_id, RunStatus.FAILED, traceback.format_exc())
+                set_run_status(conn, run.run_id, RunStatus.FAILED, error)
             return None
 
     def _still_active(self, runs: list[ActiveRun]) -> list[ActiveRun]:

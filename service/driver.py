@@ -8,6 +8,13 @@ before the next is dispatched. Runs submitted meanwhile join at the next round; 
 runs leave at the next round. A coordinator restarted (or another one taking over a lock
 that expired) resumes every run from its last stored generation.
 
+Faults heal themselves: a round that fails (the database, Redis or the disk away, or a bug
+in the loop's own housekeeping) is logged, everything this coordinator held in memory for
+its runs (the runs, their generations in flight, their locks) is dropped, and the next
+round reloads the runs from the database once it answers. Only a run's own robots or
+settings fail a run (``Coordinator._guard``). A cancel is the run's status in the database:
+every coordinator honours it, and a resume (status running again) undoes it.
+
 Locks (``service.locks``): with Redis, a key per run renewed by a thread (``RedisLocks``);
 without Redis, the database holds them (``service.db.locks.DatabaseLocks``). A coordinator
 that finds a run locked by another logs once who holds it and waits: it takes the run over
@@ -35,6 +42,7 @@ from softevo.service.coordinator import (
     DatabaseUnavailable,
     GenerationReport,
     database_unavailable,
+    first_line,
     load_run,
     unfinished_runs,
 )
@@ -64,7 +72,6 @@ class CoordinatorLoop:
         self.renew_seconds = renew_seconds
         self.stop_event = stop or threading.Event()
         self.active: list[ActiveRun] = []
-        self.cancelled: set[int] = set()
         self.lost: set[int] = set()
         self.waiting: set[int] = set()  # runs locked by another coordinator (logged once)
         self.coordinator = Coordinator(engine, executor, on_generation=self._on_generation)
@@ -92,11 +99,16 @@ class CoordinatorLoop:
         except Exception as exc:  # Redis away: the others count this one out within the ttl
             log.warning("cannot leave the coordinators' count: %s", exc)
 
+    @property
+    def alive(self) -> bool:
+        """Whether the loop's thread runs (for /health: a dead loop drives nothing)."""
+        return bool(self._threads) and self._threads[0].is_alive()
+
     def request_cancel(self, run_id: int) -> None:
-        """Keep ``run_id`` cancelled even if a generation in flight commits after the cancel,
-        and have the executor drop its evaluations in flight where it can
-        (``LocalExecutor.drop_runs``)."""
-        self.cancelled.add(run_id)
+        """Have the executor drop the cancelled run's evaluations in flight where it can
+        (``LocalExecutor.drop_runs``). The cancel itself is the run's status, set by the
+        caller; a generation in flight that commits after it keeps it
+        (``service.db.generations``), and the next round leaves the run."""
         drop = getattr(self.executor, "drop_runs", None)
         if drop is not None:
             drop([run_id])
@@ -113,15 +125,34 @@ class CoordinatorLoop:
                     self.stop_event.wait(self.poll_seconds)
             except ExecutorStopped:
                 break
-            except Exception as exc:
-                if isinstance(exc, DatabaseUnavailable) or database_unavailable(exc):
-                    log.warning("%s; retrying in %.0f s", exc, self.poll_seconds * 5)
-                    self._reset()
-                    self.stop_event.wait(self.poll_seconds * 5)
-                    continue
-                log.exception("coordinator round failed; reloading runs from the database")
-                self._reset()
-                self.stop_event.wait(self.poll_seconds * 5)
+            except Exception as exc:  # the loop outlives any failed round
+                self._recover(exc)
+
+    def _recover(self, exc: Exception) -> None:
+        """After a failed round: say why in one line, drop what this coordinator held for
+        its runs (``_reset``) and wait; the next round reloads them from the database.
+        Never raises: the database or Redis may still be away."""
+        retry = self.poll_seconds * 5
+        try:
+            runs = ", ".join(f"r{run.run_id}" for run in self.active) or "none driven now"
+            if isinstance(exc, DatabaseUnavailable) or database_unavailable(exc):
+                cause = exc.__cause__ if isinstance(exc, DatabaseUnavailable) else exc
+                log.warning(
+                    "the database cannot be reached or written (%s); runs paused at their last "
+                    "stored generation (%s); retrying every %.0f s, they go on by themselves",
+                    first_line(cause), runs, retry,
+                )  # fmt: skip
+            elif _redis_error(exc):
+                log.warning(
+                    "Redis cannot be reached (%s); runs paused (%s); retrying every %.0f s",
+                    first_line(exc), runs, retry,
+                )  # fmt: skip
+            else:
+                log.exception("coordinator round failed (runs %s); reloading them from the database", runs)
+        except Exception:  # noqa: BLE001 - logging must not end the loop
+            pass
+        self._reset()
+        self.stop_event.wait(retry)
 
     def step(self) -> bool:
         """Claim new runs, drop finished, cancelled or lost ones, advance the rest one
@@ -165,8 +196,11 @@ class CoordinatorLoop:
         keep = set(unfinished) - lost
         dropped = [run.run_id for run in self.active if run.run_id not in keep]
         self.active = [run for run in self.active if run.run_id in keep]
-        self.locks.release(dropped)
         held = {run.run_id for run in self.active}
+        # a run dropped (finished, cancelled, lock lost) and loaded again later asks its
+        # generation anew: nothing of its old generation in flight may be told to it
+        self.coordinator.forget(set(self.coordinator.in_flight) - held)
+        self.locks.release(dropped)
         for run_id in unfinished:
             if run_id in held:
                 continue
@@ -178,12 +212,17 @@ class CoordinatorLoop:
             self.waiting.discard(run_id)
             try:
                 run = load_run(self.engine, run_id)
+                self._mark_running(run_id)
             except Exception as exc:
-                log.exception("run %d cannot be loaded; marking it failed", run_id)
-                self._set_status(run_id, RunStatus.FAILED, f"cannot load the run: {exc}")
                 self.locks.release([run_id])
+                if database_unavailable(exc):
+                    raise  # paused: _recover, then loaded again
+                log.exception("run %d failed: its stored state cannot be loaded", run_id)
+                self._set_status(run_id, RunStatus.FAILED, f"its stored state cannot be loaded: {exc}")
                 continue
-            self._mark_running(run_id)
+            keep = getattr(self.executor, "keep_runs", None)
+            if keep is not None:  # resumed after a cancel: evaluate its tasks again
+                keep([run_id])
             log.info("driving run %d from generation %d", run_id, run.next_generation)
             self.active.append(run)
             self.driven.add(run_id)
@@ -203,8 +242,15 @@ class CoordinatorLoop:
         log.log(level, "run %d is driven by another coordinator: %s; waiting for its lock", run_id, who)
 
     def _reset(self) -> None:
-        self.locks.release([run.run_id for run in self.active])
+        """Forget the runs driven, their generations in flight and their locks (which
+        expire by themselves if Redis or the database cannot be told now)."""
+        held = [run.run_id for run in self.active]
         self.active = []
+        self.coordinator.forget(list(self.coordinator.in_flight))
+        try:
+            self.locks.release(held)
+        except Exception as exc:  # noqa: BLE001 - Redis or the database away
+            log.warning("cannot release the locks of run(s) %s now (%s); they expire", held, first_line(exc))
 
     def _renew_loop(self) -> None:
         while not self.stop_event.wait(self.renew_seconds):
@@ -227,8 +273,6 @@ class CoordinatorLoop:
             report.evaluations,
             report.evaluation_seconds,
         )
-        if report.run_id in self.cancelled and not report.finished:
-            self._set_status(report.run_id, RunStatus.CANCELLED)
 
     def _mark_running(self, run_id: int) -> None:
         """pending -> running (a run cancelled meanwhile stays cancelled)."""
@@ -238,3 +282,8 @@ class CoordinatorLoop:
     def _set_status(self, run_id: int, status: RunStatus, error: str | None = None) -> None:
         with self.engine.begin() as conn:
             set_run_status(conn, run_id, status, error)
+
+
+def _redis_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is Redis's (without importing redis where it is not installed)."""
+    return any(cls.__module__.startswith("redis") for cls in type(exc).__mro__)

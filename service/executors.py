@@ -108,6 +108,11 @@ class LocalExecutor:
         with self._drop_lock:
             self._dropped.update(int(run_id) for run_id in run_ids)
 
+    def keep_runs(self, run_ids: Iterable[int]) -> None:
+        """Evaluate the tasks of ``run_ids`` again (runs resumed after a cancel)."""
+        with self._drop_lock:
+            self._dropped.difference_update(int(run_id) for run_id in run_ids)
+
     def evaluate(self, tasks: list[Task]) -> list[Task]:
         """Results in order. A process that dies (a crash inside compiled code) breaks the
         pool: it is restarted and the unfinished genomes are evaluated one per job, so the

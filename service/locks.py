@@ -88,10 +88,12 @@ class RedisLocks:
         self.connection.zrem(f"softevo:{self.namespace}:coordinators", self.token)
 
     def acquire(self, run_id: int) -> bool:
+        """Take the run's key if nobody holds it, or if this coordinator still does (a
+        release that Redis missed while it was away)."""
         with self._mutex:
             if run_id in self.held:
                 return False
-            if self.connection.set(self.key(run_id), self.token, nx=True, px=self.ttl_ms):
+            if self._renew(keys=[self.key(run_id)], args=[self.token, self.ttl_ms]):
                 self.held.add(run_id)
                 return True
             return False
@@ -107,11 +109,13 @@ class RedisLocks:
             return lost
 
     def release(self, run_ids: Iterable[int]) -> None:
+        """Stop holding the runs (and renewing them) first, then delete their keys: with
+        Redis away the keys expire within ``ttl`` (or ``acquire`` takes them back)."""
         with self._mutex:
-            for run_id in list(run_ids):
-                if run_id in self.held:
-                    self.held.discard(run_id)
-                    self._release(keys=[self.key(run_id)], args=[self.token])
+            released = self.held & set(run_ids)
+            self.held -= released
+            for run_id in sorted(released):
+                self._release(keys=[self.key(run_id)], args=[self.token])
 
     def owner(self, run_id: int) -> str | None:
         """The token of the coordinator holding the run (None: nobody)."""

@@ -1,0 +1,321 @@
+"""Faults heal themselves (issue 50): no run is failed by the infrastructure, and the
+coordinator loop outlives its own housekeeping's errors. Each fault is injected against a
+coordinator loop (``service.driver.CoordinatorLoop``, as ``softevo serve`` runs it) on real
+servers on loopback: PostgreSQL (a private cluster), Redis (a private server), real
+``softevo worker`` processes, SQLite files; the finished run must equal an undisturbed one
+with the same seed (``tinyrun.snapshot``).
+
+- PostgreSQL down while a generation is in flight on RQ workers: the run pauses and goes on
+  when the server is back (it was failed with "'NoneType' object is not iterable": the run
+  loaded again was told its old self's results).
+- A SQLite database full (no page may be added) while two runs store a generation: both
+  pause, and go on when space returns.
+- A run cancelled while its generation is in flight, then resumed while the same coordinator
+  runs: it finishes (it was failed, or cancelled again after each generation).
+- Redis emptied under a coordinator, whose run another coordinator then takes and gives back
+  when it stops: the first one finishes it.
+- Redis away while the loop drives a run: the loop's thread survives (releasing its locks
+  through a dead Redis ended it) and finishes the run once Redis is back.
+
+Each test prints the time from the fault's end to the next stored generation (docs/cluster.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import threading
+import time
+import uuid
+from contextlib import contextmanager
+
+import pytest
+from redis import Redis
+from sqlalchemy import event, select
+
+from softevo.service.db import open_database
+from softevo.service.db.locks import DatabaseLocks
+from softevo.service.db.models import RunRow, RunStatus
+from softevo.service.db.runs import reopen_runs, set_run_status
+from softevo.service.driver import CoordinatorLoop
+from softevo.service.executors import InlineExecutor
+from softevo.service.locks import RedisLocks
+from softevo.service.rq_executor import RQExecutor
+from tests.service import tinyrun
+from tests.service.pg_support import PostgresServer
+from tests.service.rq_support import Processes, RedisServer, service_env, wait_for
+
+OUTAGE = 3.0  # seconds each outage lasts
+POLL = 0.2  # the loops' poll, seconds (serve: 1 s)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The undisturbed run (SQLite, in this process)."""
+    return tinyrun.reference_snapshot(tmp_path_factory.mktemp("ref"))
+
+
+@pytest.fixture
+def redis_server():
+    server = RedisServer()  # private: a test may stop or empty it
+    yield server
+    server.stop()
+
+
+@pytest.fixture
+def rq_worker(tmp_path, redis_server):
+    """A ``softevo worker`` on a queue of this test: (queue, worker process)."""
+    queue = f"test-{uuid.uuid4().hex[:8]}"
+    group = Processes(tmp_path, service_env("sqlite://", redis_server.url, SOFTEVO_QUEUE=queue))
+    worker = group.worker("w1")
+    probe = RQExecutor(redis_server.url, queue=queue)
+    wait_for(lambda: probe.worker_count() == 1, 90, "the worker to register")
+    probe.close()
+    yield queue, worker
+    if worker.poll() is None:
+        os.kill(worker.pid, signal.SIGCONT)
+    group.stop_all()
+
+
+class Stored:
+    """The loop's stored generations as they come: (run, generation, monotonic time)."""
+
+    def __init__(self, loop: CoordinatorLoop) -> None:
+        self.rows: list[tuple[int, int, float]] = []
+        self._inner = loop.coordinator.on_generation
+        loop.coordinator.on_generation = self
+
+    def __call__(self, report) -> None:
+        self.rows.append((report.run_id, report.generation, time.monotonic()))
+        self._inner(report)
+
+    def first_after(self, moment: float) -> float:
+        """Seconds from ``moment`` to the first generation stored after it."""
+        return min(t for _, _, t in self.rows if t >= moment) - moment
+
+
+class FaultAt:
+    """Calls ``fault`` once, right after generation ``at``'s tasks are dispatched (the
+    generation is then in flight), wrapping an executor's ``submit`` or ``evaluate``."""
+
+    def __init__(self, executor, at: int, fault) -> None:
+        self.at, self.fault, self.fired = at, fault, threading.Event()
+        name = "submit" if hasattr(executor, "submit") else "evaluate"
+        inner = getattr(executor, name)
+
+        def wrapped(tasks):
+            if self.fired.is_set() or not tasks or tasks[0]["generation"] != self.at:
+                return inner(tasks)
+            if name == "evaluate":
+                self.fired.set()
+                self.fault()
+                return inner(tasks)
+            ticket = inner(tasks)
+            self.fired.set()
+            self.fault()
+            return ticket
+
+        setattr(executor, name, wrapped)
+
+
+def status_of(engine, run_id: int) -> tuple[str, str | None] | None:
+    try:
+        with engine.connect() as conn:
+            row = conn.execute(
+                select(RunRow.__table__.c.status, RunRow.__table__.c.error).where(
+                    RunRow.__table__.c.id == run_id
+                )
+            ).one()
+    except Exception:  # the database away
+        return None
+    return tuple(row)
+
+
+def wait_finished(engine, run_ids, timeout: float = 120) -> None:
+    def finished():
+        statuses = [status_of(engine, run_id) for run_id in run_ids]
+        for run_id, status in zip(run_ids, statuses, strict=True):
+            if status is not None and status[0] in ("failed", "cancelled"):
+                pytest.fail(f"run {run_id} {status[0]}: {status[1]}")
+        return all(status is not None and status[0] == "finished" for status in statuses)
+
+    wait_for(finished, timeout, f"runs {run_ids} to finish", every=0.1)
+
+
+@contextmanager
+def running(loop: CoordinatorLoop):
+    loop.start()
+    try:
+        yield loop
+    finally:
+        loop.stop()
+        loop.executor.close()
+
+
+def rq_loop(engine, redis_url: str, queue: str, namespace: str = "test", **kwargs) -> CoordinatorLoop:
+    """A coordinator loop as ``softevo serve`` with Redis builds it (faster polls)."""
+    stop = threading.Event()
+    executor = RQExecutor(redis_url, queue=queue, genomes_per_job=2, maintenance_seconds=0.5, stop=stop)
+    locks = RedisLocks(redis_url, namespace, ttl=kwargs.pop("ttl", 3.0))
+    return CoordinatorLoop(engine, executor, locks, poll_seconds=POLL, stop=stop, **kwargs)
+
+
+# -- the four outages of issue 50's first item -----------------------------------------------
+
+
+@pytest.mark.postgres
+@pytest.mark.redis
+def test_postgres_outage_with_a_generation_in_flight_pauses_the_run(
+    rq_worker, redis_server, reference, caplog
+):
+    queue, worker = rq_worker
+    server = PostgresServer()
+    try:
+        engine = open_database(server.url)
+        run_id = tinyrun.new_run(engine)
+        loop = rq_loop(engine, redis_server.url, queue, renew_seconds=1.0)
+        stored, back = Stored(loop), []
+
+        def outage() -> None:  # the worker held, so that the generation stays in flight
+            os.kill(worker.pid, signal.SIGSTOP)
+            server.stop()
+            threading.Timer(OUTAGE, restore).start()
+
+        def restore() -> None:
+            server.start()
+            back.append(time.monotonic())
+            os.kill(worker.pid, signal.SIGCONT)
+
+        fault = FaultAt(loop.executor, 2, outage)
+        caplog.set_level(logging.INFO, logger="softevo.coordinator")
+        with running(loop):
+            wait_finished(engine, [run_id])
+        assert fault.fired.is_set() and back
+        print(f"\nPostgreSQL back -> next generation stored: {stored.first_after(back[0]):.2f} s")
+        assert "the database cannot be reached or written" in caplog.text
+        assert "runs paused" in caplog.text and "go on by themselves" in caplog.text
+        assert tinyrun.snapshot(engine, run_id) == reference
+        engine.dispose()
+    finally:
+        server.close()
+
+
+def test_sqlite_full_while_two_runs_store_pauses_both(tmp_path, reference, caplog):
+    url = f"sqlite:///{tmp_path / 'full.db'}"
+    engine = open_database(url)
+    run_ids = [tinyrun.new_run(engine), tinyrun.new_run(engine)]
+    full = threading.Event()
+
+    @event.listens_for(engine, "checkout")
+    def pages(dbapi_connection, record, proxy) -> None:  # a full disk: no page may be added
+        limit = 1 if full.is_set() else 1_073_741_823  # 1: as many pages as the file has now
+        dbapi_connection.execute(f"PRAGMA max_page_count = {limit}")
+
+    back = []
+
+    def outage() -> None:
+        full.set()
+        threading.Timer(OUTAGE, lambda: (full.clear(), back.append(time.monotonic()))).start()
+
+    loop = CoordinatorLoop(engine, InlineExecutor(), DatabaseLocks(engine), poll_seconds=POLL)
+    stored = Stored(loop)
+    fault = FaultAt(loop.executor, 2, outage)
+    caplog.set_level(logging.INFO, logger="softevo.coordinator")
+    with running(loop):
+        wait_finished(engine, run_ids)
+    assert fault.fired.is_set() and back
+    print(f"\nspace back -> next generation stored: {stored.first_after(back[0]):.2f} s")
+    assert "database or disk is full" in caplog.text and "runs paused" in caplog.text
+    for run_id in run_ids:
+        snap = tinyrun.snapshot(engine, run_id)
+        assert snap == {**reference, "run": snap["run"]} and snap["run"][:2] == reference["run"][:2]
+    engine.dispose()
+
+
+@pytest.mark.redis
+def test_cancel_in_flight_then_resume_under_the_same_coordinator(
+    rq_worker, redis_server, tmp_path, reference
+):
+    queue, worker = rq_worker
+    engine = open_database(f"sqlite:///{tmp_path / 'cancel.db'}")
+    run_id = tinyrun.new_run(engine)
+    loop = rq_loop(engine, redis_server.url, queue)
+    stored = Stored(loop)
+
+    def cancel() -> None:  # what POST /runs/{id}/cancel does, its generation 2 in flight
+        os.kill(worker.pid, signal.SIGSTOP)
+        with engine.begin() as conn:
+            set_run_status(
+                conn, run_id, RunStatus.CANCELLED, only_from=(RunStatus.PENDING, RunStatus.RUNNING)
+            )
+        loop.request_cancel(run_id)
+
+    fault = FaultAt(loop.executor, 2, cancel)
+    with running(loop):
+        wait_for(
+            lambda: fault.fired.is_set() and run_id not in loop.locks.held, 60, "the loop to leave the run"
+        )
+        os.kill(worker.pid, signal.SIGCONT)
+        time.sleep(4 * POLL)  # the cancelled generation's jobs end meanwhile
+        assert status_of(engine, run_id)[0] == "cancelled"
+        with engine.begin() as conn:  # what softevo resume r1 does to the run
+            reopen_runs(conn, [run_id])
+        resumed = time.monotonic()
+        wait_finished(engine, [run_id])
+    print(f"\nresumed -> next generation stored: {stored.first_after(resumed):.2f} s")
+    assert tinyrun.snapshot(engine, run_id) == reference
+    engine.dispose()
+
+
+@pytest.mark.redis
+def test_redis_emptied_and_the_run_handed_back_by_another_coordinator(
+    rq_worker, redis_server, tmp_path, reference
+):
+    queue, worker = rq_worker
+    engine = open_database(f"sqlite:///{tmp_path / 'two.db'}")
+    run_id = tinyrun.new_run(engine)
+    first = rq_loop(engine, redis_server.url, queue, renew_seconds=1.0)
+    second = rq_loop(engine, redis_server.url, queue, renew_seconds=1.0)
+    stored = Stored(first)
+    fault = FaultAt(first.executor, 2, lambda: os.kill(worker.pid, signal.SIGSTOP))
+    with running(first):
+        wait_for(fault.fired.is_set, 60, "generation 2 in flight")
+        with running(second):
+            wait_for(lambda: second.waiting, 30, "the second coordinator to wait for the run")
+            Redis.from_url(redis_server.url).flushdb()  # Redis restarted empty
+            wait_for(lambda: run_id in second.locks.held, 30, "the second coordinator to take the run")
+            wait_for(lambda: run_id not in first.locks.held, 30, "the first to see its lock lost")
+        handed = time.monotonic()  # the second stopped, its lock released, before it stored anything
+        os.kill(worker.pid, signal.SIGCONT)
+        wait_finished(engine, [run_id])  # by the first coordinator, which took it back
+    print(f"\nhanded back -> next generation stored: {stored.first_after(handed):.2f} s")
+    assert tinyrun.snapshot(engine, run_id) == reference
+    engine.dispose()
+
+
+# -- the loop outlives its housekeeping ------------------------------------------------------
+
+
+@pytest.mark.redis
+def test_loop_survives_redis_away_during_its_lock_calls(redis_server, tmp_path, reference, caplog):
+    engine = open_database(f"sqlite:///{tmp_path / 'redis.db'}")
+    run_id = tinyrun.new_run(engine)
+    locks = RedisLocks(redis_server.url, "test", ttl=3.0)
+    loop = CoordinatorLoop(engine, InlineExecutor(), locks, poll_seconds=POLL, renew_seconds=1.0)
+    stored, back = Stored(loop), []
+
+    def outage() -> None:  # Redis gone before the loop's next lock calls (peers, release)
+        redis_server.stop()
+        threading.Timer(OUTAGE, lambda: (redis_server.start(), back.append(time.monotonic()))).start()
+
+    FaultAt(loop.executor, 2, outage)
+    caplog.set_level(logging.INFO, logger="softevo.coordinator")
+    with running(loop):
+        wait_for(lambda: back, 30, "Redis to be back")
+        assert loop.alive, "the coordinator thread died"
+        wait_finished(engine, [run_id])
+    print(f"\nRedis back -> next generation stored: {stored.first_after(back[0]):.2f} s")
+    assert "Redis cannot be reached" in caplog.text
+    assert tinyrun.snapshot(engine, run_id) == reference
+    engine.dispose()
