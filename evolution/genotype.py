@@ -24,20 +24,28 @@ Options beyond the paper, off by default (``EncodingConfig``):
   ``Phenotype.frequency`` stays the mapped mean output over present voxels (a descriptor).
 
 The paper's own choices, named and off by default (what the paper presets use):
-- ``control_mapping="evosoro"``: the control outputs as the paper-era evosoro scripts read
-  them (examples/swimming_complex.py:67-71,101-104 and land_continuous.py:67-70,94-97 of
-  skriegman/evosoro; tools/read_write_voxelyze.py:48,151; the fork's
-  _voxcad_land_water/Voxelyze/VXS_Voxel.cpp:230). With s the ``frequency`` output (in
-  (-1, 1)) at *every* voxel of the workspace, empty ones included:
-  f = 4 * 2.5 / (mean(1 / s) + 1.5) Hz (the fork's TempPeriod is 1 / f): s = 1 everywhere
-  gives the 4 Hz of ``MAX_FREQUENCY``, s = 0.5 gives 2.86 Hz, s -> 0+ gives f -> 0, and
-  negative outputs can give more than 4 Hz or a negative f. The ``phase`` output s becomes
-  PhaseOffset p = pi (1 + s) (``rescaled_positive_sigmoid`` onto (0, 2 pi)), which the fork
-  reads in *cycles*: sin(2 pi (t / TempPeriod + p)), so the phase in radians is 2 pi p
-  (stored modulo 2 pi). A negative f is the fork's sine run backwards:
-  sin(-2 pi |f| t + 2 pi p) = sin(2 pi |f| t + pi - 2 pi p), so the phenotype actuates at |f|
-  with phase pi - 2 pi p. A frequency of 0 or not finite (an output exactly 0) has no
-  period: the body is invalid (see ``is_viable``).
+- ``control_mapping="evosoro-bounded"`` (what the paper presets run) and its variants: the
+  control outputs as the paper-era evosoro scripts read them (examples/swimming_complex.py:67-71,
+  101-104 and land_continuous.py:67-70,94-97 of skriegman/evosoro;
+  tools/read_write_voxelyze.py:48,151; the fork's _voxcad_land_water/Voxelyze/VXS_Voxel.cpp:230).
+  With s the ``frequency`` output (in (-1, 1): evosoro's bipolar sigmoid) at *every* voxel of
+  the workspace, empty ones included: f = 4 * 2.5 / (mean(1 / s) + 1.5) Hz (the fork's
+  TempPeriod is 1 / f): s = 1 everywhere gives the 4 Hz of ``MAX_FREQUENCY``, s = 0.5 gives
+  2.86 Hz, s -> 0+ gives f -> 0, and negative outputs can give more than 4 Hz (s = -1
+  everywhere: 20 Hz; a uniform s = -2/3 is a pole) or a negative f. The ``phase`` output s
+  becomes PhaseOffset p = pi (1 + s) (``rescaled_positive_sigmoid`` onto (0, 2 pi)), which the
+  fork reads in *cycles*: sin(2 pi (t / TempPeriod + p)), so the phase in radians is 2 pi p
+  (stored modulo 2 pi). The four mappings differ in two choices the scripts leave open
+  (``EVOSORO_MAPPINGS``):
+  - bounded or not: ``-bounded`` clips the frequency at ``EVOSORO_MAX_FREQUENCY`` (4 Hz). An
+    inference, not the scripts' text (their formula is unbounded under a bipolar sigmoid):
+    the constant is named a maximum, and the paper's own sample robots run at 2.4-4.0 Hz
+    (docs/algorithm.md);
+  - a negative f: run at |f| (the fork's sine run backwards: sin(-2 pi |f| t + 2 pi p) =
+    sin(2 pi |f| t + pi - 2 pi p), so the phenotype actuates at |f| with phase pi - 2 pi p),
+    or, with ``-positive``, an invalid body (``is_viable``).
+  ``evosoro`` is the unbounded |f| mapping of the earlier study. A frequency of 0 or not
+  finite (an output exactly 0) has no period: the body is invalid under all four.
 - ``body_rule="evosoro"``: the scripts' ``MyPhenotype.is_valid`` (swimming_complex.py:138-151,
   land_continuous.py:131-144, also basic.py and swimming_basic.py): a body is valid when at
   least 30% of the workspace's voxels are full and at least 10% of them are active (counted
@@ -63,13 +71,18 @@ from softevo.sim import worlds
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, Material, Scene, model_defaults
 from softevo.sim.system import largest_component
 
-CONTROL_MAPPINGS = ("linear", "evosoro")
+EVOSORO_MAPPINGS: dict[str, tuple[bool, bool]] = {  # name: (bounded at 4 Hz, negative f invalid)
+    "evosoro": (False, False),
+    "evosoro-bounded": (True, False),
+    "evosoro-positive": (False, True),
+    "evosoro-bounded-positive": (True, True),
+}
+CONTROL_MAPPINGS = ("linear", *EVOSORO_MAPPINGS)
 BODY_RULES: dict[str, tuple[float, float]] = {  # (min full, min active) shares of the workspace
     "any": (0.0, 0.0),
     "evosoro": (0.3, 0.1),
 }
 EVOSORO_MAX_FREQUENCY = 4.0  # Hz, the scripts' MAX_FREQUENCY
-PAPER_SETTLE_SECONDS = 0.5  # the scripts' INIT_TIME (InitCmTime), land and water alike
 
 
 @dataclass(frozen=True)
@@ -83,7 +96,7 @@ class EncodingConfig:
     frequency_per_voxel: bool = False
     initial_hidden_nodes: int = 4  # add_node mutations applied to a newcomer
     initial_links: int = 6  # add_link mutations applied to a newcomer
-    control_mapping: str = "linear"  # or "evosoro" (the paper's; module doc)
+    control_mapping: str = "linear"  # or one of EVOSORO_MAPPINGS (the paper's; module doc)
     body_rule: str = "any"  # or "evosoro" (the paper's; module doc)
 
     def __post_init__(self) -> None:
@@ -92,8 +105,8 @@ class EncodingConfig:
                              f"(got {self.control_mapping!r})")
         if self.body_rule not in BODY_RULES:
             raise ValueError(f"body_rule must be one of {tuple(BODY_RULES)} (got {self.body_rule!r})")
-        if self.control_mapping == "evosoro" and self.frequency_per_voxel:
-            raise ValueError("control_mapping 'evosoro' gives one frequency per robot: "
+        if self.control_mapping in EVOSORO_MAPPINGS and self.frequency_per_voxel:
+            raise ValueError(f"control_mapping {self.control_mapping!r} gives one frequency per robot: "
                              "it cannot be combined with frequency_per_voxel")
 
     @property
@@ -233,10 +246,9 @@ class Phenotype:
         ``model`` is the physics model (``sim.scene.MODELS``); the scene names it unless it is
         the default (a scene without ``model`` is the default model's). ``amplitude``
         defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to the
-        world's (``sim.worlds``: 0.5 on a floor, 0 elsewhere), and to the paper scripts'
-        INIT_TIME 0.5 in every world under
-        "voxcad-land-water" (examples/swimming_complex.py:55: the fork's InitCmTime, from which
-        its distance counts). ``extra`` fields are copied into the scene as given (e.g.
+        world's (``sim.worlds``: 0.5 on a floor, 0 elsewhere), which is also the paper's engine's
+        InitCmTime in the fork's own sample robots (``_voxcad_land_water/sample_vxa/*.vxa``:
+        0.5 s on land, 0 s in water; its distance counts from there). ``extra`` fields are copied into the scene as given (e.g.
         ``record``). An evolved stiffness field enters as ``youngs_modulus_field`` (Pa; it
         overrides ``youngs_modulus``), a per-voxel frequency field as ``frequency_field`` (Hz;
         it overrides the robot frequency, and ``cycles`` count at the mean frequency of the
@@ -247,8 +259,7 @@ class Phenotype:
             amplitude = defaults["amplitude"]
         world = worlds.get(environment)
         if settle_seconds is None:
-            paper = model == "voxcad-land-water"
-            settle_seconds = PAPER_SETTLE_SECONDS if paper else world.settle_seconds
+            settle_seconds = world.settle_seconds
         scene = {
             "voxel_size": voxel_size,
             "material": {
@@ -304,15 +315,22 @@ def evosoro_phase_cycles(output: np.ndarray) -> np.ndarray:
     return np.pi * (1.0 + np.asarray(output, dtype=np.float64))
 
 
-def _evosoro_control(control_out: dict[str, np.ndarray], kept: np.ndarray) -> tuple[np.ndarray, float]:
-    """(phase in radians, frequency in Hz) of the evosoro mapping: a negative frequency runs
-    at |f| with phase pi - 2 pi p (module doc)."""
+def _evosoro_control(
+    control_out: dict[str, np.ndarray], kept: np.ndarray, mapping: str
+) -> tuple[np.ndarray, float]:
+    """(phase in radians, frequency in Hz) of the evosoro ``mapping`` (``EVOSORO_MAPPINGS``):
+    a negative frequency runs at |f| with phase pi - 2 pi p, or is returned as it is (an
+    invalid body) under a ``-positive`` mapping; a ``-bounded`` one clips at 4 Hz (module doc)."""
+    bounded, positive_only = EVOSORO_MAPPINGS[mapping]
     signed = evosoro_frequency(control_out["frequency"])
     angle = 2.0 * np.pi * evosoro_phase_cycles(control_out["phase"])
-    if signed < 0:
+    if signed < 0 and not positive_only:
         angle = np.pi - angle
     phase = np.where(kept, np.mod(angle, 2.0 * np.pi), 0.0)
-    return phase, abs(signed)
+    frequency = signed if positive_only else abs(signed)
+    if bounded and frequency > EVOSORO_MAX_FREQUENCY:
+        frequency = EVOSORO_MAX_FREQUENCY
+    return phase, frequency
 
 
 def develop(genotype: Genotype, config: EncodingConfig = EncodingConfig()) -> Phenotype:
@@ -322,8 +340,8 @@ def develop(genotype: Genotype, config: EncodingConfig = EncodingConfig()) -> Ph
     full = body_out["present"] >= 0.0
     kept = largest_component(full)
     body = np.where(kept, np.where(body_out["active"] >= 0.0, 2, 1), 0).astype(np.int8)
-    if config.control_mapping == "evosoro":
-        phase, frequency = _evosoro_control(control_out, kept)
+    if config.control_mapping in EVOSORO_MAPPINGS:
+        phase, frequency = _evosoro_control(control_out, kept, config.control_mapping)
     else:
         phase = np.where(kept, control_out["phase"] * np.pi, 0.0)
         mean_output = float(control_out["frequency"][kept].mean()) if kept.any() else 0.0

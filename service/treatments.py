@@ -20,19 +20,22 @@ Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
 names for its algorithm's loss of diversity); ``model`` is the physics model of every
 evaluation's scene (``sim.scene.MODELS``: ``voxelyze-2``, or ``voxcad-land-water``, the
 paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
-encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro`` (the
-scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz, at most 4 Hz for positive outputs, and
-phase offsets in cycles) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
+encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-bounded`` (the
+scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz bounded at their MAX_FREQUENCY of 4 Hz, a
+negative f run at |f|, and phase offsets in cycles; ``evosoro`` is the unbounded variant) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
 workspace full or 10% active are drawn or mutated again). Plain treatments default to AFPO,
 ``voxelyze-2``, the linear 1-5 Hz mapping and any non-empty body, so stored runs and the
 quick start keep their meaning (stored settings without these fields read so too);
 the paper presets use the paper's four (``PAPER_CHOICES``).
 
-An evaluation lasts ``cycles`` actuation cycles (the paper's text, footnote 3) and, with
-``max_seconds``, never more than that many seconds after settling. The presets cap it at the
-scripts' fixed time (``PAPER_MAX_SECONDS``, 4.5 s; the tiny scale at 1 s): under the evosoro
-mapping a robot can actuate at 0.01 Hz, and its cycles alone would last minutes
-(docs/analysis.md). Plain treatments have no cap.
+An evaluation lasts ``cycles`` actuation cycles (the paper's text, footnote 3; the fork's own
+sample robots stop after InitCmTime + 50 / f: 50 cycles) after settling (the world's: 0.5 s
+on land, 0 s in water, the fork files' InitCmTime; ``settle_seconds`` in the stored settings).
+``max_seconds`` is a guard against runaway robots, not a protocol: with it an evaluation never
+lasts more than that many seconds after settling. The presets set it at 50 cycles of
+``GUARD_FREQUENCY_HZ`` (0.1 Hz: 500 s), which binds on about 1% of random robots (the
+bounded mapping can go as low as it likes, 50 cycles of 0.01 Hz would last 83 minutes); the
+report counts the evaluations it cut. Plain treatments have no cap.
 
 Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
 Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,
@@ -52,9 +55,10 @@ from typing import Any
 from softevo.errors import UserError
 from softevo.evolution import worlds
 from softevo.evolution.afpo import PAPER_POPULATION
-from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EncodingConfig
+from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EVOSORO_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
 from softevo.service.settings import GENOMES_PER_JOB
+from softevo.sim import worlds as sim_worlds
 from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
 
 ALGORITHMS = ("afpo", "pareto")
@@ -63,12 +67,11 @@ PAPER_TRANSITIONS = tuple(worlds.TRANSITION.join(pair) for pair in (PAPER_WORLDS
 PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
     "algorithm": "pareto",
     "model": "voxcad-land-water",
-    "control_mapping": "evosoro",
+    "control_mapping": "evosoro-bounded",
     "body_rule": "evosoro",
 }
-# The scripts' evaluation time: SIM_TIME 5 s less INIT_TIME 0.5 s of settling
-# (examples/land_continuous.py:54-55, swimming_complex.py:54-55 of skriegman/evosoro).
-PAPER_MAX_SECONDS = 4.5
+PAPER_CYCLES = 50  # the fork's sample robots: InitCmTime + 50 / f (docs/algorithm.md)
+GUARD_FREQUENCY_HZ = 0.1  # the presets' guard on seconds: their cycles at this frequency
 STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 
@@ -135,8 +138,8 @@ class Treatment:
                               ("body_rule", tuple(BODY_RULES))):
             if getattr(self, name) not in choices:
                 raise UserError(f"unknown {name} {getattr(self, name)!r}; choose {' or '.join(choices)}")
-        if self.control_mapping == "evosoro" and self.frequency_per_voxel:
-            raise UserError("control_mapping evosoro gives one frequency per robot: "
+        if self.control_mapping in EVOSORO_MAPPINGS and self.frequency_per_voxel:
+            raise UserError(f"control_mapping {self.control_mapping} gives one frequency per robot: "
                             "it cannot be combined with frequency_per_voxel")
         for flag in ("evolve_stiffness", "frequency_per_voxel"):
             if not isinstance(getattr(self, flag), bool):
@@ -214,9 +217,18 @@ class Treatment:
         """Seed of repetition ``repetition`` (0-based)."""
         return self.seed + repetition
 
+    def settle_seconds(self) -> dict[str, float]:
+        """The settling time of an evaluation in each world the treatment visits (seconds;
+        ``sim.worlds``: 0.5 on a floor, 0 elsewhere), recorded in the stored settings."""
+        names = worlds.transition(self.environment) if worlds.is_transition(self.environment) else (
+            self.environment,)
+        return {name: float(sim_worlds.get(name).settle_seconds) for name in names}
+
     def to_settings(self) -> dict[str, Any]:
-        """Plain JSON settings (stored in ``treatments.settings``)."""
+        """Plain JSON settings (stored in ``treatments.settings``), with the derived
+        ``settle_seconds`` of each world for the record (``from_settings`` ignores it)."""
         settings = dataclasses.asdict(self)
+        settings["settle_seconds"] = self.settle_seconds()
         settings["workspace"] = list(self.workspace)
         settings["stiffness_range_mpa"] = list(self.stiffness_range_mpa)
         if self.objectives:
@@ -228,11 +240,11 @@ class Treatment:
     @classmethod
     def from_settings(cls, settings: dict[str, Any]) -> Treatment:
         """Inverse of ``to_settings``; unknown keys are a UserError."""
-        known = {f.name for f in dataclasses.fields(cls)}
+        known = {f.name for f in dataclasses.fields(cls)} | set(DERIVED_SETTINGS)
         unknown = sorted(set(settings) - known)
         if unknown:
             raise UserError(f"unknown treatment field(s): {', '.join(unknown)}")
-        values = dict(settings)
+        values = {key: value for key, value in settings.items() if key not in DERIVED_SETTINGS}
         if "workspace" in values:
             values["workspace"] = tuple(int(n) for n in values["workspace"])
         if "stiffness_range_mpa" in values:
@@ -242,6 +254,9 @@ class Treatment:
         return cls(**values)
 
 
+DERIVED_SETTINGS = ("settle_seconds",)  # written by to_settings for the record, never read
+
+
 def _positive(name: str, value: int, minimum: int = 1) -> None:
     if not isinstance(value, int) or value < minimum:
         raise UserError(f"{name} must be an integer >= {minimum} (got {value!r})")
@@ -249,7 +264,8 @@ def _positive(name: str, value: int, minimum: int = 1) -> None:
 
 @dataclass(frozen=True)
 class Scale:
-    """Sizes of a preset scale."""
+    """Sizes of a preset scale. The static S3 treatments run ``transition_generations``, as
+    long as the transitions (their controls); the other static ones ``generations``."""
 
     population: int
     generations: int
@@ -259,23 +275,31 @@ class Scale:
     repetitions: int
     switch_over: int = 0  # the gradual preset's span (generations of compound worlds)
     first_seed: int = 0  # each treatment's first seed past its block's start
-    max_seconds: float = PAPER_MAX_SECONDS  # the cap on an evaluation's seconds
+    max_seconds: float | None = None  # the guard on an evaluation's seconds (None: cycles/0.1 Hz)
+
+    def guard_seconds(self) -> float:
+        """The cap on an evaluation's seconds: ``max_seconds``, or ``cycles`` cycles at
+        ``GUARD_FREQUENCY_HZ``."""
+        return self.max_seconds if self.max_seconds is not None else self.cycles / GUARD_FREQUENCY_HZ
 
 
-# tiny: the whole grid in minutes on 2 cores (CI); pilot: 3 repetitions of a short run, for
-# ``softevo power`` (7 minutes on 2 cores on the paper's model, capped at 4.5 s); study: the
-# pilot's sizes with the repetitions that ``softevo power`` asked of that pilot (18: the most
-# any comparison it could power needed; docs/analysis.md), on seeds past the pilot's
-# (docs/results); small: about an hour on 2 cores;
-# paper: the paper's 5000 / 9000 generations and 15 repetitions (a cluster job).
-PILOT = Scale(8, 10, 10, (6, 6, 6), 8, 3, switch_over=2)
-STUDY_REPETITIONS = 18
+# tiny: the whole grid in minutes on 2 cores (CI: 2 cycles, capped at 1 s);
+# pilot: 3 repetitions on the paper's protocol (50 cycles, the bounded mapping), the grid 10
+# generations and the S3 runs 40 (the knee of their fitness curves; docs/results), for
+# ``softevo power``; study: the pilot's sizes with the transitions switching after the knee,
+# and the repetitions that fit about 2 hours of a 2-core machine, on seeds past the pilot's
+# (docs/results); small: longer runs of the same; paper: the paper's 5000 / 9000 generations
+# and 15 repetitions (a cluster job).
+PILOT = Scale(8, 10, 40, (5, 5, 5), PAPER_CYCLES, 3, switch_over=4)
+STUDY_REPETITIONS = 8
+STUDY_SWITCH_GENERATIONS = 30  # 15 + 15: the switch after the pilot's knee (docs/results)
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
     "pilot": PILOT,
-    "study": dataclasses.replace(PILOT, repetitions=STUDY_REPETITIONS, first_seed=PILOT.repetitions),
-    "small": Scale(8, 20, 20, (6, 6, 6), 8, 2, switch_over=4),
-    "paper": Scale(30, 5000, 9000, (7, 7, 7), 50, 15, switch_over=1000),
+    "study": dataclasses.replace(PILOT, transition_generations=STUDY_SWITCH_GENERATIONS,
+                                 repetitions=STUDY_REPETITIONS, first_seed=PILOT.repetitions),
+    "small": Scale(8, 40, 40, (6, 6, 6), PAPER_CYCLES, 2, switch_over=4),
+    "paper": Scale(30, 5000, 9000, (7, 7, 7), PAPER_CYCLES, 15, switch_over=1000),
 }
 SCALES = tuple(PRESET_SCALES)
 SEED_STRIDE = 1_000  # seeds per treatment of a preset
@@ -295,8 +319,8 @@ def paper_grid(
     with the paper's algorithm, model and encoding (``PAPER_CHOICES``; ``choices`` override
     any of them, e.g. ``algorithm="afpo"``).
 
-    At paper scale the S3 static treatments run as long as the transitions (9000
-    generations), as in the paper, for a fair comparison.
+    The S3 static treatments run as long as the transitions (at paper scale 9000
+    generations), as in the paper, for a fair comparison: they are the transitions' controls.
     """
     sizes = preset_scale(scale)
     reps = sizes.repetitions if repetitions is None else repetitions
@@ -304,7 +328,7 @@ def paper_grid(
         "population": sizes.population,
         "workspace": sizes.workspace,
         "cycles": sizes.cycles,
-        "max_seconds": sizes.max_seconds,
+        "max_seconds": sizes.guard_seconds(),
         "repetitions": reps,
         "seed": seed,
         **_paper_choices(choices),
@@ -312,7 +336,7 @@ def paper_grid(
     treatments = []
     for environment in PAPER_WORLDS:
         for index, stiffness in enumerate(PAPER_STIFFNESSES_MPA, start=1):
-            long = stiffness == 0.1 and scale == "paper"
+            long = stiffness == 0.1
             generations = sizes.transition_generations if long else sizes.generations
             treatments.append(
                 Treatment(
@@ -358,7 +382,7 @@ def gradual_grid(
         "population": sizes.population,
         "workspace": sizes.workspace,
         "cycles": sizes.cycles,
-        "max_seconds": sizes.max_seconds,
+        "max_seconds": sizes.guard_seconds(),
         "repetitions": sizes.repetitions if repetitions is None else repetitions,
         "seed": seed,
         "generations": sizes.transition_generations,

@@ -25,9 +25,11 @@ from .system import (
     I_N_FRAMES,
     I_RECORD,
     I_STEPS,
+    MIN_RESOLVED_STEPS_PER_CYCLE,
     Robot,
     build_robot,
     pack,
+    steps_per_cycle,
 )
 
 drop_foreign_entries(Path(kernels.__file__).parent / "__pycache__")
@@ -88,6 +90,10 @@ class Result:
 
 
 def _budget_reason(scene: Scene, robot: Robot) -> str | None:
+    per_cycle = steps_per_cycle(robot)
+    if per_cycle < MIN_RESOLVED_STEPS_PER_CYCLE:
+        return (f"actuation too fast to resolve: {per_cycle:.3g} steps per cycle (dt "
+                f"{robot.fparams[F_DT]:.3g} s), fewer than {MIN_RESOLVED_STEPS_PER_CYCLE}")
     steps = int(robot.iparams[I_STEPS])
     if steps > scene.max_steps:
         return (f"step budget exceeded: needs {steps} steps (dt {robot.fparams[F_DT]:.3g} s), "

@@ -362,6 +362,22 @@ def cycle_capped_dt(dt: float, active_frequencies: np.ndarray, min_steps_per_cyc
     return min(dt, 1.0 / (f_max * min_steps_per_cycle)) if f_max > 0 else dt
 
 
+MIN_RESOLVED_STEPS_PER_CYCLE = 20
+"""The fewest steps per actuation cycle the engine simulates: a faster robot is aliased (at
+11,804 Hz the fork's step of a stiff robot sees less than one step per cycle), and every engine
+refuses it unrun (``sim.engine``), whatever its model's ``min_steps_per_cycle``."""
+
+
+def steps_per_cycle(robot: Robot) -> float:
+    """Steps of ``robot``'s step ``dt`` per cycle of its fastest active voxel (inf without an
+    active voxel or with a frequency of 0)."""
+    active = (robot.flags & FLAG_ACTIVE) > 0
+    if not active.any():
+        return math.inf
+    omega = float(np.max(robot.vconst[active, V_OMEGA]))
+    return math.inf if omega <= 0 else 2.0 * math.pi / (omega * float(robot.fparams[F_DT]))
+
+
 def step_counts(scene: Scene, dt: float) -> tuple[int, int]:
     """(settling steps, total steps) of ``scene`` at step ``dt`` (s): the settling seconds
     rounded, then the duration's steps rounded up. OverflowError if the total exceeds an

@@ -68,7 +68,8 @@ class WorldName(RegistryEnum):
 
 Algorithm = Literal["afpo", "pareto"]
 Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.scene.MODELS
-ControlMapping = Literal["linear", "evosoro"]  # evolution.genotype.CONTROL_MAPPINGS
+ControlMapping = Literal["linear", "evosoro", "evosoro-bounded", "evosoro-positive",
+                         "evosoro-bounded-positive"]  # evolution.genotype.CONTROL_MAPPINGS
 BodyRule = Literal["any", "evosoro"]  # evolution.genotype.BODY_RULES
 RunStatusName = Literal["pending", "running", "finished", "failed", "cancelled"]
 
@@ -247,7 +248,8 @@ class HealthOut(BaseModel):
     queued: int = Field(description="evaluation jobs waiting in the queue")
     executor: Literal["rq", "local", "none"]
     database: Literal["ok", "unreachable"]
-    coordinator: bool = Field(description="whether this process drives runs")
+    coordinator: bool = Field(description="whether this process drives runs (its coordinator loop is alive)")
+    reasons: list[str] = Field(default_factory=list, description="why the status is degraded, in words")
 
 
 class ExperimentCreated(BaseModel):

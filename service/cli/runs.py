@@ -35,6 +35,8 @@ from softevo.service.treatments import SCALES, Treatment
 
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
 MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
+CONTROL_MAPPING_HELP = ("linear (1-5 Hz) | evosoro-bounded (the paper scripts', at most 4 Hz) | evosoro "
+                        "(unbounded) | evosoro-positive, evosoro-bounded-positive (a negative f invalid)")
 
 
 def _parse_workspace(text: str) -> tuple[int, int, int]:
@@ -157,7 +159,7 @@ def run(
     algorithm: Annotated[str, typer.Option("--algorithm", help=ALGORITHM_HELP)] = Treatment.algorithm,
     model: Annotated[str, typer.Option("--model", help=MODEL_HELP)] = Treatment.model,
     control_mapping: Annotated[
-        str, typer.Option("--control-mapping", help="linear (1-5 Hz) | evosoro (the paper scripts')")
+        str, typer.Option("--control-mapping", help=CONTROL_MAPPING_HELP)
     ] = Treatment.control_mapping,
     body_rule: Annotated[
         str, typer.Option("--body-rule", help="any | evosoro (>= 30% full, >= 10% active)")
@@ -212,6 +214,10 @@ def experiment(
     model: Annotated[
         str | None, typer.Option("--model", help=f"{MODEL_HELP} (default voxcad-land-water)")
     ] = None,
+    control_mapping: Annotated[
+        str | None,
+        typer.Option("--control-mapping", help=f"{CONTROL_MAPPING_HELP} (default evosoro-bounded)"),
+    ] = None,
     treatments: Annotated[
         str | None,
         typer.Option("--treatments", help="only these treatments, comma-separated, e.g. "
@@ -233,7 +239,7 @@ def experiment(
 
     if repetitions is not None and repetitions < 1:
         raise UserError(f"--repetitions must be >= 1 (got {repetitions})")
-    choices = {"algorithm": algorithm, "model": model}
+    choices = {"algorithm": algorithm, "model": model, "control_mapping": control_mapping}
     only = None if treatments is None else treatments.split(",")
     grid = preset_grid(preset, scale, **choices)  # validates everything before touching the database
     if only is not None:

@@ -3,6 +3,7 @@ and its body rule (evolution/selection.py, evolution/genotype.py module docs).""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 
 from softevo.evolution.afpo import Evolution, EvolutionConfig
 from softevo.evolution.genotype import (
+    EVOSORO_MAPPINGS,
     EncodingConfig,
     Genotype,
     Phenotype,
@@ -135,6 +137,36 @@ def test_develop_maps_frequency_and_phase_as_evosoro(weight):
     assert np.allclose(phenotype.phase, angle % (2 * math.pi))
 
 
+@pytest.mark.parametrize("weight", [3.0, 1.0, 0.2, 0.05, -3.0, -1.0, -0.6])
+@pytest.mark.parametrize("mapping", ["evosoro", "evosoro-bounded", "evosoro-positive",
+                                     "evosoro-bounded-positive"])
+def test_the_four_evosoro_mappings_bound_and_sign_as_named(mapping, weight):
+    """bounded: never above the scripts' MAX_FREQUENCY of 4 Hz; positive: a negative f is
+    an invalid body, never simulated; otherwise |f|. Below 4 Hz all four agree."""
+    config = dataclasses.replace(PAPER, control_mapping=mapping)
+    s_f = math.tanh(weight / 2)
+    signed = 10.0 / (1.0 / s_f + 1.5)
+    phenotype = develop(Genotype(full_body(), control(weight, 0.3)), config)
+    bounded, positive_only = EVOSORO_MAPPINGS[mapping]
+    if positive_only and signed < 0:
+        assert not is_viable(phenotype, config)
+        return
+    expected = min(abs(signed), 4.0) if bounded else abs(signed)
+    assert phenotype.frequency == pytest.approx(expected) and is_viable(phenotype, config)
+    if bounded:
+        assert phenotype.frequency <= 4.0
+    if 0 < signed <= 4.0:
+        assert phenotype.frequency == pytest.approx(signed)
+
+
+def test_bounded_mapping_keeps_every_random_robot_at_or_below_4_hz(rng):
+    config = dataclasses.replace(PAPER, control_mapping="evosoro-bounded")
+    frequencies = [develop(random_viable_genotype(rng, config), config).frequency for _ in range(60)]
+    assert max(frequencies) <= 4.0 and min(frequencies) > 0
+    unbounded = [develop(random_viable_genotype(rng, PAPER), PAPER).frequency for _ in range(60)]
+    assert max(unbounded) > 4.0  # the earlier mapping runs away (about 40% of random robots)
+
+
 def test_linear_mapping_is_unchanged_by_default():
     phenotype = develop(Genotype(full_body(), control(1.0, 0.3)), EncodingConfig(workspace=(3, 3, 3)))
     assert phenotype.frequency == pytest.approx(1.0 + (math.tanh(0.5) + 1) / 2 * 4.0)
@@ -202,14 +234,16 @@ def test_pareto_keeps_mu_plus_mu_without_newcomers_and_valid_bodies():
     assert resumed.config == config
 
 
-def test_scenes_carry_the_model_its_amplitude_and_the_paper_settling(rng):
+@pytest.mark.parametrize(("world", "settle"), [("water", 0.0), ("land", 0.5)])
+def test_scenes_carry_the_model_its_amplitude_and_the_fork_files_settling(rng, world, settle):
+    """The fork's sample robots: InitCmTime 0.5 s on land, 0 s in water."""
     config = EvolutionConfig(population_size=2, mode="pareto", encoding=PAPER,
-                             environment="water", model="voxcad-land-water")
+                             environment=world, model="voxcad-land-water")
     algo = Evolution(config)
     (scene,) = individual_scenes(algo, algo.ask()[0])
     assert scene["model"] == "voxcad-land-water"
     assert scene["actuation"]["amplitude"] == pytest.approx(0.14)
-    assert scene["settle_seconds"] == pytest.approx(0.5)
+    assert scene["settle_seconds"] == pytest.approx(settle)
     default = Evolution(EvolutionConfig(population_size=2, environment="water"))
     (plain,) = individual_scenes(default, default.ask()[0])
     assert "model" not in plain and plain["actuation"]["amplitude"] == pytest.approx(0.39)

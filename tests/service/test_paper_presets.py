@@ -15,7 +15,7 @@ from softevo.evolution.genotype import random_viable_genotype
 from softevo.service.db import open_database
 from softevo.service.experiments import evolution_config
 from softevo.service.limits import evaluation_steps
-from softevo.service.treatments import PAPER_CHOICES, PAPER_MAX_SECONDS, Treatment, preset_grid
+from softevo.service.treatments import PAPER_CHOICES, PAPER_CYCLES, Treatment, preset_grid
 from softevo.worker.tasks import Task, scene_of, scenes_of
 from tests.service.rq_support import Processes, auth, service_env
 from tests.support import softevo
@@ -28,7 +28,7 @@ def choices(treatment: Treatment) -> tuple[str, str, str, str]:
 @pytest.mark.parametrize("preset", ["paper", "gradual"])
 def test_presets_run_the_papers_choices_unless_told_otherwise(preset):
     paper = tuple(PAPER_CHOICES.values())
-    assert paper == ("pareto", "voxcad-land-water", "evosoro", "evosoro")
+    assert paper == ("pareto", "voxcad-land-water", "evosoro-bounded", "evosoro")
     assert {choices(t) for t in preset_grid(preset, "tiny")} == {paper}
     afpo = {choices(t) for t in preset_grid(preset, "tiny", algorithm="afpo")}
     assert afpo == {("afpo", *paper[1:])}
@@ -75,14 +75,22 @@ def test_cli_experiment_takes_algorithm_and_model(capsys, tmp_path):
     assert code == 2 and "unknown model" in err
 
 
-@pytest.mark.parametrize(("scale", "cap"), [("tiny", 1.0), ("pilot", PAPER_MAX_SECONDS),
-                                           ("paper", PAPER_MAX_SECONDS)])
-def test_paper_presets_cap_every_evaluation_at_the_scripts_time(scale, cap):
-    """The scripts stop an evaluation at SIM_TIME 5 s (INIT_TIME 0.5 s of it settling); the
-    presets cap their cycles there, the cap reaching every scene (split over a compound
-    world's parts) and the cost bound, and settings stored before it read as uncapped."""
+@pytest.mark.parametrize(("scale", "cycles", "cap"), [("tiny", 2, 1.0), ("pilot", PAPER_CYCLES, 500.0),
+                                                     ("study", PAPER_CYCLES, 500.0),
+                                                     ("paper", PAPER_CYCLES, 500.0)])
+def test_paper_presets_run_50_cycles_guarded_in_seconds(scale, cycles, cap):
+    """The fork's sample robots run 50 cycles after InitCmTime; the presets do (the tiny scale,
+    CI's, 2), guarded at 50 cycles of 0.1 Hz, the guard reaching every scene (split over a
+    compound world's parts) and the cost bound, and settings stored before it read as
+    uncapped. Settling is the world's (0.5 s on land, 0 s in water), in the stored settings."""
     grid = preset_grid("paper", scale) + preset_grid("gradual", scale)
-    assert {t.max_seconds for t in grid} == {cap}
+    assert {t.max_seconds for t in grid} == {cap} and {t.cycles for t in grid} == {cycles}
+    assert {t.control_mapping for t in grid} == {"evosoro-bounded"}
+    settings = {t.name: t.to_settings() for t in grid}
+    assert settings["water S1"]["settle_seconds"] == {"water": 0.0}
+    assert settings["land S1"]["settle_seconds"] == {"land": 0.5}
+    assert settings["land-water S3"]["settle_seconds"] == {"land": 0.5, "water": 0.0}
+    assert Treatment.from_settings(settings["land-water S3"]) == grid[10]
     treatment = grid[5]  # water S1
     assert evolution_config(treatment, seed=0).max_seconds == cap
     genome = random_viable_genotype(np.random.default_rng(4), evolution_config(treatment, 0).encoding)
@@ -90,13 +98,15 @@ def test_paper_presets_cap_every_evaluation_at_the_scripts_time(scale, cap):
     assert Task.from_json(task.to_json()) == task and task.to_json()["max_seconds"] == cap
     _, scene = scene_of(task)
     assert scene["duration"] == {"cycles": treatment.cycles, "max_seconds": cap}
+    assert scene["settle_seconds"] == 0.0 and scene_of(dataclasses.replace(task, environment="land"))[1][
+        "settle_seconds"] == 0.5
     _, parts = scenes_of(dataclasses.replace(task, environment="land>water@0.250"))
     assert [p["duration"]["max_seconds"] for p in parts] == pytest.approx([0.75 * cap, 0.25 * cap])
     old = {k: v for k, v in treatment.to_settings().items() if k != "max_seconds"}
     assert Task.from_stored(7, genome.to_dict(), old, "water", 1e3).max_seconds is None
-    # the evosoro mapping has no lowest frequency: uncapped, only max_steps bounds the cost
-    uncapped = dataclasses.replace(treatment, max_seconds=None)
-    assert evaluation_steps(treatment) < evaluation_steps(uncapped)
+    # the evosoro mapping has no lowest frequency: the guard bounds the cost
+    tighter = dataclasses.replace(treatment, max_seconds=cap / 10)
+    assert evaluation_steps(tighter) < evaluation_steps(treatment)
     assert Treatment("land", 0.1).max_seconds is None
     for bad in (0, -1.0, float("inf"), "4.5", True):
         with pytest.raises(UserError, match="max_seconds"):
@@ -130,7 +140,7 @@ def test_rest_presets_and_treatments_take_algorithm_and_model(server):
     assert created.status_code == 201, created.text
     settings = settings_of(server, created.json()["runs"][0])
     assert (settings["algorithm"], settings["model"]) == ("pareto", "voxcad-land-water")
-    assert (settings["control_mapping"], settings["body_rule"]) == ("evosoro", "evosoro")
+    assert (settings["control_mapping"], settings["body_rule"]) == ("evosoro-bounded", "evosoro")
     body = {"preset": "gradual", "algorithm": "afpo", "model": "voxelyze-2", "name": "g"}
     created = httpx.post(f"{server}/experiments", json=body, headers=auth())
     settings = settings_of(server, created.json()["runs"][0])
