@@ -263,9 +263,14 @@ def _not_detected(row: dict) -> str:
     return "not detected"
 
 
+def findings_frame(findings: Sequence[Finding]) -> pd.DataFrame:
+    """The rows of ``findings`` as a table (``FINDING_COLUMNS``)."""
+    return pd.DataFrame([f.row for f in findings], columns=FINDING_COLUMNS)
+
+
 def findings_table(data: ExperimentData) -> pd.DataFrame:
     """The findings table (``FINDING_COLUMNS``): headline rows then secondary ones."""
-    return pd.DataFrame([f.row for f in headline_findings(data)], columns=FINDING_COLUMNS)
+    return findings_frame(headline_findings(data))
 
 
 # ---- the report's view: each finding beside its start and its gain ----------------------------

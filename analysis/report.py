@@ -10,9 +10,13 @@ service) reads the data and binds the robots. ``out_dir`` receives::
     report.md            the same content; figures linked from figures/
     figures/NAME.png     and NAME.svg, one pair per figure (see analysis.figures)
     figures/best.gif     the best robot's motion (unless animation=False)
-    statistics.csv       every comparison: its family, test, p, A12, detectable A12 and interval
-                         (analysis.stats_tables.statistics_table)
-    summary.csv          means and t intervals over repetitions per treatment and metric
+    findings.csv         one row per headline finding, one test each, Holm across them
+                         (analysis.findings.findings_table)
+    summary.csv          one row per run: best distance final and at generation 0, gain,
+                         frequencies, distance per cycle and per second (analysis.run_summary)
+    statistics.csv       every pairwise comparison (secondary): its family, test, p, A12,
+                         detectable A12 and interval (analysis.stats_tables.statistics_table)
+    treatment_summary.csv  means and t intervals over repetitions per treatment and metric
 """
 
 from __future__ import annotations
@@ -39,7 +43,10 @@ from softevo import sim
 from softevo.analysis import figures as fig
 from softevo.analysis.data import ExperimentData
 from softevo.analysis.exaptation import ExaptationData, exaptation_figure, run_statistics, treatment_summary
+from softevo.analysis.findings import Finding, findings_display, findings_frame, headline_findings
+from softevo.analysis.methods import evaluation_methods, methods_text
 from softevo.analysis.motion import animate
+from softevo.analysis.run_summary import run_summary
 from softevo.analysis.stats_tables import (
     INTERVAL,
     MANN_WHITNEY,
@@ -52,7 +59,6 @@ from softevo.analysis.stats_tables import (
     summary_table,
 )
 from softevo.errors import UserError
-from softevo.evolution import worlds
 from softevo.evolution.selection import Objective, objectives_named
 
 METHODS = (
@@ -240,8 +246,10 @@ def settings_table(data: ExperimentData) -> pd.DataFrame:
             "population": t["population"],
             "generations": t["generations"],
             "workspace": t["workspace"],
-            "cycles": [_cycles_text(c, cap) for c, cap in
-                       zip(t["cycles"], t.get("max_seconds", [None] * len(t)), strict=True)],
+            "cycles": [
+                _cycles_text(c, cap)
+                for c, cap in zip(t["cycles"], t.get("max_seconds", [None] * len(t)), strict=True)
+            ],
             "repetitions": t["repetitions"],
             "seeds": seeds,
             "algorithm": t["algorithm"],
@@ -276,13 +284,15 @@ def objectives_table(data: ExperimentData) -> pd.DataFrame:
         for objective in treatment_objectives(treatment):
             values = _objective_column(mine, objective.name)
             best = values.max() if objective.direction == "max" else values.min()
-            rows.append({
-                "treatment": treatment["name"],
-                "objective": objective.name,
-                "direction": {"max": "maximised", "min": "minimised"}.get(objective.direction, "?"),
-                "mean": float(values.mean()) if len(values) else math.nan,
-                "best": float(best) if len(values) else math.nan,
-            })
+            rows.append(
+                {
+                    "treatment": treatment["name"],
+                    "objective": objective.name,
+                    "direction": {"max": "maximised", "min": "minimised"}.get(objective.direction, "?"),
+                    "mean": float(values.mean()) if len(values) else math.nan,
+                    "best": float(best) if len(values) else math.nan,
+                }
+            )
     return pd.DataFrame(rows, columns=["treatment", "objective", "direction", "mean", "best"])
 
 
@@ -292,8 +302,10 @@ def _objective_column(members: pd.DataFrame, name: str) -> pd.Series:
     stored = members["objectives"] if "objectives" in members.columns else pd.Series(dtype=object)
     values = [o.get(name) if isinstance(o, dict) else None for o in stored]
     if name in members.columns:
-        values = [v if v is not None else c for v, c in zip(values or [None] * len(members),
-                                                             members[name], strict=True)]
+        values = [
+            v if v is not None else c
+            for v, c in zip(values or [None] * len(members), members[name], strict=True)
+        ]
     return pd.Series(values, dtype=float).dropna()
 
 
@@ -376,6 +388,8 @@ class Report:
     statistics: Path
     summary: Path
     animation: Path | None
+    findings: Path | None = None
+    treatment_summary: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -430,6 +444,7 @@ def write_report(
     with _steps(9 if animation else 8, progress) as step:
         step("statistics")
         stats, summary = statistics_table(data), summary_table(data)
+        findings, runs = headline_findings(data), run_summary(data)
         curves = fitness_curves(data)
         figures = []
         for name, make in _figure_makers(data, robots, stats, curves, figures_dir):
@@ -449,15 +464,20 @@ def write_report(
             step("animation of the best robot")
             gif = _best_animation(robots, data, figures_dir)
         step("writing the report")
-        stats_path, summary_path = out / "statistics.csv", out / "summary.csv"
-        stats.to_csv(stats_path, index=False)
-        summary.to_csv(summary_path, index=False)
+        paths = {
+            name: out / f"{name}.csv" for name in ("findings", "summary", "statistics", "treatment_summary")
+        }
+        findings_frame(findings).to_csv(paths["findings"], index=False)
+        runs.to_csv(paths["summary"], index=False)
+        stats.to_csv(paths["statistics"], index=False)
+        summary.to_csv(paths["treatment_summary"], index=False)
         evaluation = None if robots is None else evaluation_text(robots, data)
-        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats)
+        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats, findings)
         markdown, page = out / "report.md", out / "report.html"
         markdown.write_text(to_markdown(doc, out), encoding="utf-8")
         page.write_text(to_html(doc), encoding="utf-8")
-    return Report(page, markdown, figures, stats_path, summary_path, gif)
+    return Report(page, markdown, figures, paths["statistics"], paths["summary"], gif, paths["findings"],
+                  paths["treatment_summary"])  # fmt: skip
 
 
 def _output_dir(out_dir: str | Path) -> Path:
@@ -482,31 +502,27 @@ def _figure_makers(data, robots, stats, curves, figures_dir):
 
 
 def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
-    """The physics and encoding every evaluation used, read from one stored individual's
-    scene (the same for all but stiffness, cycles and environment, given per treatment)."""
+    """The physics every evaluation used, read from one stored individual's scene (the
+    same for all treatments but stiffness and world), and per treatment, from its own
+    stored settings, its model, frequency mapping, settling, cycles and cap
+    (``analysis.methods``)."""
     best = best_individual(data)
     if best is None:
         return None
     scene, record = robots.scene(int(best["individual_id"]), best["environment"])
-    parsed, task = sim.parse_scene(scene), record["task"]
-    m, low_high = parsed.material, task.encoding_config().frequency_range
-    phenotype, modulus = record["phenotype_object"], task.youngs_modulus
-    present = {world for env in data.treatments["environment"] for world in env.split(worlds.TRANSITION)}
-    settle = ", ".join(
-        f"{phenotype.to_scene(world, modulus)['settle_seconds']:g} s {worlds.get(world).label}"
-        for world in worlds.names() if world in worlds.PAPER or world in present
-    )
+    parsed, phenotype = sim.parse_scene(scene), record["phenotype_object"]
+    m = parsed.material
+    methods = evaluation_methods(data.treatments, data.evaluations, phenotype)
     algorithms = set(data.treatments["algorithm"])
     selection = "with age (AFPO)" if algorithms == {"afpo"} else f"algorithm {', '.join(sorted(algorithms))}"
     return (
         f"Evaluation: voxel edge {parsed.voxel_size:g} m, density {m.density:g} kg/m\u00b3, "
         f"Poisson ratio {m.poisson_ratio:g}, friction {m.friction_static:g} static / "
         f"{m.friction_kinetic:g} kinetic, actuation {parsed.actuation.waveform} of linear strain "
-        f"amplitude {parsed.actuation.amplitude:g} at one evolved frequency in "
-        f"{low_high[0]:g}-{low_high[1]:g} Hz with evolved per-voxel phases; each evaluation runs "
-        f"the treatment's number of cycles (at most its seconds, where capped) after settling "
-        f"({settle}). Objectives: distance (max), active share (min), voxel "
-        f"count (min), {selection}."
+        f"amplitude {parsed.actuation.amplitude:g} at the robot's evolved frequency with "
+        f"evolved per-voxel phases; distance counts from the end of settling. Per treatment, "
+        f"from its stored settings: {methods_text(methods)} Objectives: distance (max), "
+        f"active share (min), voxel count (min), {selection}."
     )
 
 
@@ -538,9 +554,11 @@ def build_document(
     gif: Path | None,
     evaluation: str | None = None,
     exaptation: pd.DataFrame | None = None,
+    findings: list[Finding] | None = None,
 ) -> Document:
     """The report's content, in order; ``evaluation`` is ``evaluation_text``; ``exaptation``
-    the per-run statistics of ``analysis.exaptation.run_statistics``."""
+    the per-run statistics of ``analysis.exaptation.run_statistics``; ``findings`` those of
+    ``analysis.findings.headline_findings`` (computed here when not given)."""
     experiment = data.experiment
     doc = Document(f"softevo report: experiment e{experiment['id']} \u201c{experiment['name']}\u201d")
     created = _as_utc(experiment.get("created_at"))
@@ -551,6 +569,7 @@ def build_document(
         if created
         else f"Report generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC."
     )
+    findings_block(doc, headline_findings(data) if findings is None else findings)
     doc.heading("Run settings")
     doc.table(settings_table(data))
     doc.paragraph(timing_text(data))
@@ -589,6 +608,41 @@ def build_document(
     doc.paragraph(METHODS)
     doc.table(_statistics_display(stats))
     return doc
+
+
+FINDINGS_METHODS = (
+    "One test per hypothesis, on the primary measure: each run's best distance in its final "
+    "generation (one value per run, as the paper); frequency: each run's mean actuation "
+    "frequency over its final population. Stiffness trends: Jonckheere-Terpstra, one-sided in "
+    "the paper's direction, over S2..S5 on land (the paper calls S1 on land non-functional) "
+    "and S1..S5 in water, at the last generation all their runs stored; exact p without ties, "
+    "the tie-corrected normal approximation with them. Transitions: two-sided Mann-Whitney U "
+    "(exact without ties) against the static control of the final world at the same "
+    "stiffness, at equal total generations (the paper's contrast) and, secondary, at equal "
+    "time in the final world (the control at the transition's final generation less its "
+    "arrival generation). p_holm: Holm across the headline rows (the four trends and each "
+    "transition's paper contrast), and apart across the secondary rows. a12: Vargha-Delaney "
+    "A12 of the stiffness level the hypothesis puts highest over the one it puts lowest "
+    "(above 0.5: the paper's direction), or of the transition over its control; a12 at "
+    "start: the same on the same runs at generation 0 (random robots), for a transition its "
+    "first generation in the final world against the control's generation 0. An effect "
+    "already there at the start was not evolved: gain is each group's mean at the end less "
+    "its mean at the start. detectable a12: the smallest A12 a Mann-Whitney test of those two "
+    "groups detects with 80% power at 0.05 / (tests in the family) (one-sided for trends; "
+    "the trend test uses the middle levels too, so it can detect somewhat less). No test "
+    "pairs runs of different worlds. The pairwise tests under Statistics are secondary. "
+    "Columns as in findings.csv; per-run values in summary.csv."
+)
+
+
+def findings_block(doc: Document, findings: list[Finding]) -> None:
+    """The findings table with each finding's start and gain (``analysis.findings``)."""
+    doc.heading("Findings")
+    if not findings:
+        doc.paragraph("This experiment holds none of the paper's headline comparisons.")
+        return
+    doc.paragraph(FINDINGS_METHODS)
+    doc.table(findings_display(findings))
 
 
 def _animation_block(doc: Document, data: ExperimentData, gif: Path | None) -> None:

@@ -139,3 +139,30 @@ def test_a_report_of_single_runs_warns_that_its_statistics_say_nothing(capsys, t
     code, _, err = softevo(capsys, "report", f"e{tiny.experiment_id}", "--out", str(tmp_path / "two"),
                            "--db", tiny.url, "--no-animation", "-q")  # fmt: skip
     assert code == 0 and "warning" not in err  # 2 repetitions: no warning
+
+
+def test_the_report_writes_the_findings_and_one_summary_row_per_run(report, tiny):
+    import pandas as pd
+
+    from softevo.analysis.findings import FINDING_COLUMNS
+    from softevo.analysis.run_summary import SUMMARY_COLUMNS
+
+    result, out = report
+    findings = pd.read_csv(result.findings)
+    assert list(findings.columns) == FINDING_COLUMNS
+    # the tiny experiment holds one transition and its final world's control: its two contrasts
+    assert len(findings) == 2 and findings["question"].str.startswith("water-land S3 vs land S3").all()
+    summary = pd.read_csv(result.summary)
+    assert list(summary.columns) == SUMMARY_COLUMNS and sorted(summary["run_id"]) == sorted(tiny.run_ids)
+    assert (out / "treatment_summary.csv").read_text().startswith("metric,treatment,generation,n,mean")
+    page = result.html.read_text(encoding="utf-8")
+    assert page.index("<h2>Findings</h2>") < page.index("<h2>Run settings</h2>")
+    assert "Jonckheere-Terpstra" in page and "p_holm" in page
+
+
+def test_the_methods_paragraph_comes_from_each_treatments_settings(report):
+    page = report[0].html.read_text(encoding="utf-8")
+    # the tiny experiment's treatments: the default model and the linear 1-5 Hz mapping, no cap
+    assert "physics model voxelyze-2; frequency: one evolved frequency mapped linearly onto 1-5 Hz" in page
+    assert "land S3: physics model" in page and "water-land S3: physics model" in page
+    assert "2 actuation cycles per evaluation, no cap on seconds" in page

@@ -1,0 +1,117 @@
+"""What each treatment's evaluations were, in words, from its own stored settings (the
+report's methods paragraph): physics model, frequency mapping, settling, cycles and the cap
+on seconds, and how many evaluations the cap cut.
+
+Settling is read from the scenes the treatment's evaluations build (``evolution.scenes.
+evaluation_scenes`` with the treatment's model, cycles and cap, in each world of its
+schedule), not written here: it depends on the model and the world. The mappings are
+described from ``evolution.genotype`` (``CONTROL_MAPPINGS``, and per evosoro variant
+whether it is bounded at ``EVOSORO_MAX_FREQUENCY`` and whether a negative frequency is
+invalid); a name this module does not know is named as it is stored.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pandas as pd
+
+from softevo.analysis.run_summary import capped
+from softevo.evolution import genotype, worlds
+from softevo.evolution.scenes import evaluation_scenes
+
+METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "capped", "counted"]
+
+
+def mapping_text(name: str, frequency_range: tuple[float, float] = (1.0, 5.0)) -> str:
+    """The control mapping ``name`` in words (``evolution.genotype``)."""
+    if name == "linear":
+        low, high = frequency_range
+        return f"one evolved frequency mapped linearly onto {low:g}-{high:g} Hz"
+    variants = getattr(genotype, "EVOSORO_MAPPINGS", {"evosoro": (False, False)})
+    if name in variants:
+        bounded, positive_only = variants[name]
+        bound = f"at most {genotype.EVOSORO_MAX_FREQUENCY:g} Hz" if bounded else "unbounded"
+        negative = "a negative f makes the robot invalid" if positive_only else "a negative f runs at |f|"
+        return f"the evosoro scripts' frequency 10 / (mean(1/s) + 1.5) Hz, {bound}; {negative}"
+    known = "" if name in genotype.CONTROL_MAPPINGS else " (unknown to this version)"
+    return f"control mapping {name!r}{known}"
+
+
+def settling_text(treatment: pd.Series, phenotype) -> str:
+    """Seconds of settling before distance counts, per world of the treatment's schedule,
+    read from the scene its evaluations build with ``phenotype`` (any robot: settling does
+    not depend on the body)."""
+    parts = []
+    for world in worlds.transition(treatment["environment"]):
+        scene = evaluation_scenes(
+            phenotype,
+            world,
+            float(treatment["stiffness_mpa"]) * 1e6,
+            int(treatment["cycles"]),
+            model=str(treatment.get("model", "voxelyze-2")),
+            max_seconds=_cap(treatment),
+        )[0]
+        parts.append(f"{float(scene['settle_seconds']):g} s {worlds.get(world).label}")
+    return ", ".join(parts)
+
+
+def _cap(treatment: pd.Series) -> float | None:
+    cap = treatment.get("max_seconds")
+    return None if cap is None or pd.isna(cap) else float(cap)
+
+
+def cap_cuts(treatment: pd.Series, evaluations: pd.DataFrame) -> tuple[int, int]:
+    """(evaluations the cap on seconds cut short, evaluations counted) among ``evaluations``
+    of the treatment: their stored ``capped`` flag where the data have it, else cycles /
+    |frequency| > max_seconds."""
+    mine = evaluations[evaluations["treatment"] == treatment["name"]]
+    if "capped" in mine.columns and mine["capped"].notna().any():
+        flags = mine["capped"].dropna().astype(bool)
+    else:
+        mine = mine.dropna(subset=["frequency"])
+        flags = pd.Series(capped(mine["frequency"], float(treatment["cycles"]), _cap(treatment)))
+    return int(flags.sum()), int(flags.size)
+
+
+def evaluation_methods(treatments: pd.DataFrame, evaluations: pd.DataFrame, phenotype) -> pd.DataFrame:
+    """One row per treatment (``METHOD_COLUMNS``): its model, mapping, settling, cycles, cap
+    and the evaluations the cap cut (``capped``) of those counted in ``evaluations``."""
+    rows = []
+    for _, t in treatments.iterrows():
+        cap = _cap(t)
+        cut, counted = cap_cuts(t, evaluations)
+        rows.append(
+            {
+                "treatment": t["name"],
+                "model": t.get("model", "voxelyze-2"),
+                "frequency": mapping_text(str(t.get("control_mapping", "linear"))),
+                "settling": settling_text(t, phenotype),
+                "cycles": int(t["cycles"]),
+                "cap": "none" if cap is None else f"{cap:g} s",
+                "capped": cut,
+                "counted": counted,
+            }
+        )
+    return pd.DataFrame(rows, columns=METHOD_COLUMNS)
+
+
+def methods_text(methods: pd.DataFrame) -> str:
+    """The methods as sentences, treatments with the same evaluation grouped."""
+    keys = [c for c in METHOD_COLUMNS if c not in ("treatment", "capped", "counted")]
+    sentences = []
+    for values, group in methods.groupby(keys, sort=False):
+        setting: dict[str, Any] = dict(zip(keys, values, strict=True))
+        cap = setting["cap"]
+        capped_text = (
+            f", at most {cap} after settling (the cap cut {group['capped'].sum()} of the "
+            f"{group['counted'].sum()} evaluations read)"
+            if cap != "none"
+            else ", no cap on seconds"
+        )
+        sentences.append(
+            f"{', '.join(group['treatment'])}: physics model {setting['model']}; frequency: "
+            f"{setting['frequency']}; settling {setting['settling']}; {setting['cycles']} "
+            f"actuation cycles per evaluation{capped_text}."
+        )
+    return " ".join(sentences)
