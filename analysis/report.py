@@ -62,14 +62,19 @@ from softevo.errors import UserError
 from softevo.evolution.selection import Objective, objectives_named
 
 METHODS = (
+    "These pairwise tests are secondary: the headline questions, one test each, are in the "
+    "Findings section. A metric whose run values are constant or identical to another's "
+    "(frequency over active robots when every robot has an active voxel, a passive share "
+    "always 0) is left out. "
     f"Intervals: {INTERVAL} of the mean over repetitions, and of a difference of means "
     "(Welch's t for independent samples, the paired t for seed-matched runs); their coverage "
     "at n = 7 was checked by simulation (docs/analysis.md). The unit is the run: every test "
     "compares one value per run (its population's best distance, or its population's mean of "
     "a descriptor), n = repetitions. Every comparison names its generation: static "
     "treatments are compared at their common last generation, a transition against a static "
-    "treatment at the last generation both stored, start vs end at generation 0 against the "
-    "treatment's last. Families (the family column; family_size its tests): stiffness "
+    "treatment at the last generation both stored, start vs end at the first generation in the "
+    "treatment's final world (0; a transition's arrival) against its last. Families (the "
+    "family column; family_size its tests): stiffness "
     "within one world, per metric; each transition against the static control of its final "
     "world, per metric; start vs end per metric. Bonferroni runs within the family: "
     "p_bonferroni = min(1, p x family_size); * p<0.05, ** p<0.01, *** p<0.001 after "
@@ -364,6 +369,26 @@ def summary_pivot(summary: pd.DataFrame, names: list[str]) -> pd.DataFrame:
     return table.reset_index()
 
 
+PER_RUN_SHOWN = {
+    "best_distance_final": "best distance, final",
+    "best_distance_generation0": "best distance, generation 0",
+    "gain": "gain",
+    "distance_per_cycle": "best robot: distance per cycle",
+    "distance_per_second": "distance per second",
+    "best_frequency": "its frequency (Hz)",
+    "frequency_final": "population frequency, final (Hz)",
+}
+
+
+def per_run_means(runs: pd.DataFrame) -> pd.DataFrame:
+    """Per treatment: the number of runs and the mean over its runs of the per-run summary's
+    main columns (``analysis.run_summary``)."""
+    grouped = runs.groupby("treatment", sort=False)
+    table = grouped[list(PER_RUN_SHOWN)].mean().rename(columns=PER_RUN_SHOWN)
+    table.insert(0, "runs", grouped.size())
+    return table.reset_index()
+
+
 def _statistics_display(stats: pd.DataFrame) -> pd.DataFrame:
     dropped = ["median_a", "median_b", "difference", "difference_low", "difference_high", "unit"]
     shown = stats.drop(columns=dropped)
@@ -472,7 +497,7 @@ def write_report(
         stats.to_csv(paths["statistics"], index=False)
         summary.to_csv(paths["treatment_summary"], index=False)
         evaluation = None if robots is None else evaluation_text(robots, data)
-        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats, findings)
+        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats, findings, runs)
         markdown, page = out / "report.md", out / "report.html"
         markdown.write_text(to_markdown(doc, out), encoding="utf-8")
         page.write_text(to_html(doc), encoding="utf-8")
@@ -555,10 +580,12 @@ def build_document(
     evaluation: str | None = None,
     exaptation: pd.DataFrame | None = None,
     findings: list[Finding] | None = None,
+    runs: pd.DataFrame | None = None,
 ) -> Document:
     """The report's content, in order; ``evaluation`` is ``evaluation_text``; ``exaptation``
     the per-run statistics of ``analysis.exaptation.run_statistics``; ``findings`` those of
-    ``analysis.findings.headline_findings`` (computed here when not given)."""
+    ``analysis.findings.headline_findings`` (computed here when not given); ``runs`` the
+    per-run summary (``analysis.run_summary``)."""
     experiment = data.experiment
     doc = Document(f"softevo report: experiment e{experiment['id']} \u201c{experiment['name']}\u201d")
     created = _as_utc(experiment.get("created_at"))
@@ -593,6 +620,15 @@ def build_document(
         "the population with no active voxel (their frequency moves nothing)."
     )
     doc.table(summary_pivot(summary, data.treatment_names))
+    if runs is not None and not runs.empty:
+        doc.paragraph(
+            "Per run (summary.csv; here the mean over each treatment's runs): the primary "
+            "measure, each run's best distance in its final generation, at generation 0 and "
+            "the gain (empty where the two are in different worlds); the best robot's distance "
+            "per cycle and per second (its evaluation's seconds after settling: cycles / "
+            "frequency, at most the cap) and its frequency."
+        )
+        doc.table(per_run_means(runs))
     doc.heading("Figures")
     for figure in figures:
         doc.heading(figure.title, 3)
