@@ -30,21 +30,26 @@ import time
 import uuid
 from contextlib import contextmanager
 
+import httpx
 import pytest
+from fastapi.testclient import TestClient
 from redis import Redis
 from sqlalchemy import event, select
 
+from softevo.service.api.app import create_app
 from softevo.service.db import open_database
 from softevo.service.db.locks import DatabaseLocks
 from softevo.service.db.models import RunRow, RunStatus
 from softevo.service.db.runs import reopen_runs, set_run_status
 from softevo.service.driver import CoordinatorLoop
-from softevo.service.executors import InlineExecutor
+from softevo.service.executors import InlineExecutor, LocalExecutor
 from softevo.service.locks import RedisLocks
 from softevo.service.rq_executor import RQExecutor
+from softevo.service.settings import Settings
 from tests.service import tinyrun
 from tests.service.pg_support import PostgresServer
-from tests.service.rq_support import Processes, RedisServer, service_env, wait_for
+from tests.service.rq_support import TOKEN, Processes, RedisServer, auth, service_env, wait_for
+from tests.service.test_faults import TINY_BODY
 
 OUTAGE = 3.0  # seconds each outage lasts
 POLL = 0.2  # the loops' poll, seconds (serve: 1 s)
@@ -319,3 +324,108 @@ def test_loop_survives_redis_away_during_its_lock_calls(redis_server, tmp_path, 
     assert "Redis cannot be reached" in caplog.text
     assert tinyrun.snapshot(engine, run_id) == reference
     engine.dispose()
+
+
+def test_a_cancel_is_the_runs_status_and_resume_undoes_it(tmp_path, reference):
+    """Local processes (``softevo serve`` without Redis): the run cancelled mid-generation
+    and resumed while the same coordinator lives finishes as if never cancelled (it was
+    cancelled again after each generation, and its evaluations read as cancelled)."""
+    engine = open_database(f"sqlite:///{tmp_path / 'local.db'}")
+    run_id = tinyrun.new_run(engine)
+    loop = CoordinatorLoop(engine, LocalExecutor(workers=1), DatabaseLocks(engine), poll_seconds=POLL)
+
+    def cancel() -> None:  # what POST /runs/{id}/cancel does
+        with engine.begin() as conn:
+            set_run_status(conn, run_id, RunStatus.CANCELLED, only_from=(RunStatus.RUNNING,))
+        loop.request_cancel(run_id)
+
+    fault = FaultAt(loop.executor, 2, cancel)
+    with running(loop):
+        wait_for(lambda: fault.fired.is_set() and not loop.active, 60, "the loop to leave the run")
+        assert status_of(engine, run_id)[0] == "cancelled"
+        with engine.begin() as conn:  # what softevo resume r1 does to the run
+            reopen_runs(conn, [run_id])
+        wait_finished(engine, [run_id])
+    assert tinyrun.snapshot(engine, run_id) == reference
+    engine.dispose()
+
+
+class LosesAResult(InlineExecutor):
+    """Answers one task of run ``run_id``'s generation 1 with another id: a bug of that run."""
+
+    def __init__(self, run_id: int) -> None:
+        super().__init__()
+        self.run_id = run_id
+
+    def evaluate(self, tasks):
+        results = super().evaluate(tasks)
+        mine = [
+            i for i, task in enumerate(tasks) if task["run_id"] == self.run_id and task["generation"] == 1
+        ]
+        for i in mine[-1:]:
+            results[i] = {**results[i], "id": -1}
+        return results
+
+
+def test_a_failed_run_says_why_in_one_line(tmp_path, reference, caplog):
+    engine = open_database(f"sqlite:///{tmp_path / 'bug.db'}")
+    broken, sound = tinyrun.new_run(engine), tinyrun.new_run(engine)
+    loop = CoordinatorLoop(engine, LosesAResult(broken), DatabaseLocks(engine), poll_seconds=POLL)
+    caplog.set_level(logging.INFO, logger="softevo.coordinator")
+    with running(loop):
+        wait_finished(engine, [sound])
+    status, error = status_of(engine, broken)
+    assert status == "failed"
+    assert error.startswith("storing generation 1 failed: KeyError") and "Traceback" not in error, error
+    assert "tell" in error and "the traceback is in the coordinator's log" in error, error
+    failed = [r for r in caplog.records if r.levelno == logging.ERROR and "failed" in r.getMessage()]
+    assert len(failed) == 1 and failed[0].exc_info is not None, [r.getMessage() for r in failed]
+    assert failed[0].getMessage() == f"run {broken} failed: {error.split('; the traceback')[0]}"
+    assert tinyrun.snapshot(engine, sound) == reference  # the other run went on
+    engine.dispose()
+
+
+# -- /health tells the truth ----------------------------------------------------------------
+
+
+def test_health_says_when_the_coordinator_loop_has_stopped(tmp_path):
+    url = f"sqlite:///{tmp_path / 'health.db'}"
+    settings = Settings(db=url, token=TOKEN, workers=0, reports=str(tmp_path / "reports"))
+    with TestClient(create_app(settings)) as client:
+        assert client.get("/health").json()["status"] == "ok"
+        loop = client.app.state.services.loop
+        loop.stop_event.set()  # the thread ends as a thread killed by a bug would
+        coordinator = next(thread for thread in loop._threads if thread.name == "coordinator")
+        coordinator.join(10)
+        response = client.get("/health")
+    assert response.status_code == 503
+    body = response.json()
+    assert body["status"] == "degraded" and body["coordinator"] is False
+    assert any("coordinator loop has stopped" in reason for reason in body["reasons"]), body
+
+
+@pytest.mark.redis
+def test_health_says_when_jobs_wait_with_no_worker_or_redis_is_away(tmp_path, redis_server):
+    env = service_env(f"sqlite:///{tmp_path / 'serve.db'}", redis_server.url)
+    group = Processes(tmp_path, env)
+    try:
+        _, base = group.serve()
+        assert httpx.get(f"{base}/health").json()["reasons"] == []
+        body = {"name": "waits", "treatments": [{**TINY_BODY}]}
+        assert httpx.post(f"{base}/experiments", json=body, headers=auth()).status_code == 201
+
+        def degraded():
+            response = httpx.get(f"{base}/health", timeout=5)
+            return response.status_code == 503 and response.json()
+
+        health = wait_for(degraded, 30, "/health to say the jobs wait")
+        assert health["workers"] == 0 and health["queued"] > 0 and health["coordinator"] is True
+        assert health["reasons"] == [
+            f"{health['queued']} job(s) wait and no worker is alive: start softevo worker"
+        ]
+        redis_server.stop()
+        health = wait_for(degraded, 30, "/health to say Redis is away")
+        assert "Redis cannot be reached" in health["reasons"], health
+        redis_server.start()
+    finally:
+        group.stop_all()
