@@ -14,8 +14,11 @@ by the same ``analysis`` functions on the same ``ExperimentData``.
   even sample; the front is always whole);
 - ``descriptors``: one value per run (its population's mean of the trait, or its best
   distance) per treatment at its display generation (``ExperimentData.display_run_values``);
+- ``findings``: the headline findings, one test each (``analysis.findings.findings_table``:
+  question, measure, test, n, statistic, p, p_holm, a12, a12_generation0, detectable_a12,
+  verdict);
 - ``statistics``: every row of ``analysis.stats_tables.statistics_table`` (family, test, p,
-  Bonferroni-adjusted p, A12, difference with its interval).
+  Bonferroni-adjusted p, A12, difference with its interval), the secondary pairwise tests.
 
 Floats that are not finite become null. ``analysis_json(db, id)`` is what the API runs in its
 background process (``service.api.expensive``).
@@ -32,6 +35,7 @@ from sqlalchemy import Engine
 
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData
 from softevo.analysis.figures import pareto_front, treatment_colors
+from softevo.analysis.findings import FINDING_COLUMNS, findings_table
 from softevo.analysis.stats_tables import INTERVAL, METRIC_LABELS, ci_table, fitness_curves, statistics_table
 from softevo.service.db.experiments import load_experiment
 from softevo.service.db.rows import finite
@@ -41,7 +45,8 @@ MAX_POINTS = 2000  # population members drawn per treatment's front panel
 DESCRIPTORS = ("best_distance", *TRAITS)
 POINT_COLUMNS = ("individual_id", "run_id", "distance", "active_share", "voxel_count")
 STAT_FIELDS = (
-    "comparison", "family", "family_size", "test", "metric", "a", "b", "generation", "n_a", "n_b",
+    "comparison", "family", "family_size", "test", "metric", "a", "b", "generation", "start_generation",
+    "n_a", "n_b",
     "mean_a", "mean_b", "median_a", "median_b", "p", "p_bonferroni", "significance", "A12",
     "detectable_A12", "difference", "difference_low", "difference_high", "interval",
 )  # fmt: skip
@@ -60,6 +65,7 @@ def experiment_analysis(source: str | Engine, experiment_id: int) -> dict[str, A
             "curves": curves(data),
             "fronts": fronts(data),
             "descriptors": descriptors(data),
+            "findings": _records(findings_table(data), FINDING_COLUMNS),
             "statistics": statistics(data),
         }
     )
