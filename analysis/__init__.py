@@ -8,8 +8,12 @@ Modules:
   ``INDIVIDUAL_COLUMNS``);
 - ``analysis.data``: ``ExperimentData`` (pandas frames of the settings, runs,
   per-generation summaries and the initial and final populations);
-- ``analysis.stats_tables``: bootstrap CIs over repetitions, Mann-Whitney U between
-  treatments and between start and end, Bonferroni per family (``evolution.stats`` inside);
+- ``analysis.findings``: the headline findings, one test per hypothesis, Holm across them
+  (``findings.csv``); ``analysis.rank_tests`` the Jonckheere-Terpstra and Mann-Whitney
+  tests with exact p and Holm; ``analysis.run_summary`` one row per run (``summary.csv``);
+  ``analysis.methods`` each treatment's evaluation in words;
+- ``analysis.stats_tables``: t intervals over repetitions, the secondary pairwise tests
+  between treatments and between start and end, Bonferroni per family;
 - ``analysis.figures``: the report's figures as PNG + SVG (``FIGURES``);
 - ``analysis.render``: 3-D voxel renders (active red, passive cyan);
 - ``analysis.robots``: a stored record -> ``worker.tasks.Task`` -> phenotype and scene, as
