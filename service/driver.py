@@ -138,7 +138,7 @@ class CoordinatorLoop:
             if isinstance(exc, DatabaseUnavailable) or database_unavailable(exc):
                 cause = exc.__cause__ if isinstance(exc, DatabaseUnavailable) else exc
                 log.warning(
-                    "the database cannot be reached or written (%s); runs paused at their last "
+                    "the database cannot be written or reached (%s); runs paused at their last "
                     "stored generation (%s); retrying every %.0f s, they go on by themselves",
                     first_line(cause), runs, retry,
                 )  # fmt: skip

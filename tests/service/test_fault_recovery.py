@@ -198,7 +198,7 @@ def test_postgres_outage_with_a_generation_in_flight_pauses_the_run(
             wait_finished(engine, [run_id])
         assert fault.fired.is_set() and back
         print(f"\nPostgreSQL back -> next generation stored: {stored.first_after(back[0]):.2f} s")
-        assert "the database cannot be reached or written" in caplog.text
+        assert "the database cannot be written or reached" in caplog.text
         assert "runs paused" in caplog.text and "go on by themselves" in caplog.text
         assert tinyrun.snapshot(engine, run_id) == reference
         engine.dispose()
