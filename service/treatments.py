@@ -291,8 +291,8 @@ class Scale:
 # (docs/results); small: longer runs of the same; paper: the paper's 5000 / 9000 generations
 # and 15 repetitions (a cluster job).
 PILOT = Scale(8, 10, 40, (5, 5, 5), PAPER_CYCLES, 3, switch_over=4)
-STUDY_REPETITIONS = 8
-STUDY_SWITCH_GENERATIONS = 30  # 15 + 15: the switch after the pilot's knee (docs/results)
+STUDY_REPETITIONS = 6  # what fits about 2 hours of a 2-core machine (softevo plan; docs/results)
+STUDY_SWITCH_GENERATIONS = 50  # 25 + 25: the switch at the pilot's knee, 24-26 (docs/results)
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
     "pilot": PILOT,
