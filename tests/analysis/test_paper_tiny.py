@@ -51,3 +51,18 @@ def test_report_on_the_tiny_paper_grid(capsys, tmp_path, paper_tiny):
         assert treatment in page
     markdown = (out / "report.md").read_text(encoding="utf-8")
     assert markdown.count("](figures/") == 2 * len(FIGURES) + 1  # PNG and SVG links, + the GIF
+
+
+@pytest.mark.slow
+def test_findings_and_per_run_summary_on_the_tiny_paper_grid(capsys, tmp_path, paper_tiny):
+    out = tmp_path / "report"
+    code, _, err = softevo(
+        capsys, "report", "paper-tiny", "--out", str(out), "--db", paper_tiny, "--quiet", "--no-animation"
+    )
+    assert code == 0, err
+    findings = pd.read_csv(out / "findings.csv")
+    assert len(findings) == 4 + 2 + 2  # four trends, each transition's two contrasts
+    assert findings["p_holm"].iloc[:6].notna().all() and findings["verdict"].notna().all()
+    summary = pd.read_csv(out / "summary.csv")
+    assert len(summary) == 12 and summary["run_id"].is_unique
+    assert summary["distance_per_second"].notna().all()
