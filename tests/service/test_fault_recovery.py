@@ -8,8 +8,9 @@ with the same seed (``tinyrun.snapshot``).
 - PostgreSQL down while a generation is in flight on RQ workers: the run pauses and goes on
   when the server is back (it was failed with "'NoneType' object is not iterable": the run
   loaded again was told its old self's results).
-- A SQLite database full (no page may be added) while two runs store a generation: both
-  pause, and go on when space returns.
+- SQLite's disk full under ``softevo serve`` with an RQ worker, two runs: both pause and go
+  on when space returns (one was failed, as above); and, in-process with local evaluation,
+  a database full while two runs store a generation: both pause, said in one line.
 - A run cancelled while its generation is in flight, then resumed while the same coordinator
   runs: it finishes (it was failed, or cancelled again after each generation).
 - Redis emptied under a coordinator, whose run another coordinator then takes and gives back
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import os
+import resource
 import signal
 import threading
 import time
@@ -429,3 +431,49 @@ def test_health_says_when_jobs_wait_with_no_worker_or_redis_is_away(tmp_path, re
         redis_server.start()
     finally:
         group.stop_all()
+
+
+@pytest.mark.redis
+def test_sqlite_disk_full_under_softevo_serve(rq_worker, redis_server, tmp_path, reference):
+    """``softevo serve`` with an RQ worker on a SQLite file, two runs; the server's writes
+    refused (``RLIMIT_FSIZE`` of 1 byte: every file it writes is "full") after a stored
+    generation, for ``OUTAGE`` seconds: both runs pause, then finish as if undisturbed (one
+    was failed: its generation in flight was told to it once loaded again)."""
+    queue, _ = rq_worker
+    url = f"sqlite:///{tmp_path / 'serve.db'}"
+    group = Processes(tmp_path, service_env(url, redis_server.url, SOFTEVO_QUEUE=queue))
+    try:
+        process, base = group.serve()
+        body = {"name": "full", "treatments": [{**TINY_BODY, "name": name} for name in ("a", "b")]}
+        created = httpx.post(f"{base}/experiments", json=body, headers=auth())
+        assert created.status_code == 201, created.text
+        run_ids = created.json()["runs"]
+        engine = open_database(url)
+
+        def generation() -> int:
+            """The runs' least stored generation (a failed run fails the test)."""
+            with engine.connect() as conn:
+                rows = conn.execute(select(RunRow.__table__.c.status, RunRow.__table__.c.generation))
+                rows = rows.all()
+            if any(status == "failed" for status, _ in rows):
+                pytest.fail(f"a run failed: {[status_of(engine, run_id) for run_id in run_ids]}")
+            return min(generation for _, generation in rows)
+
+        wait_for(lambda: generation() >= 1, 60, "a stored generation")
+        resource.prlimit(process.pid, resource.RLIMIT_FSIZE, (1, resource.RLIM_INFINITY))
+        stuck = generation()
+        time.sleep(OUTAGE)
+        assert generation() == stuck, "the server stored a generation on a full disk"
+        resource.prlimit(process.pid, resource.RLIMIT_FSIZE, (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
+        back = time.monotonic()
+        wait_for(lambda: generation() > stuck, 60, "both runs to store a generation once space is back")
+        print(
+            f"\nspace back -> both runs stored a generation (softevo serve): {time.monotonic() - back:.2f} s"
+        )
+        wait_finished(engine, run_ids)
+    finally:
+        group.stop_all()
+    for run_id in run_ids:
+        snap = tinyrun.snapshot(engine, run_id)
+        assert snap == {**reference, "run": snap["run"]} and snap["run"][:2] == reference["run"][:2]
+    engine.dispose()
