@@ -62,6 +62,10 @@ class DatabaseUnavailable(UserError):
     retries, ``softevo run``/``resume`` stop with this one line (exit status 2)."""
 
 
+class LockLost(RuntimeError):
+    """This coordinator no longer holds the run's lock: another one drives it."""
+
+
 def database_unavailable(exc: BaseException) -> bool:
     """Whether ``exc`` says the database is away or cannot be written (not a bug in a run)."""
     if isinstance(exc, DBAPIError) and exc.connection_invalidated:
@@ -291,10 +295,14 @@ class Coordinator:
         engine: Engine,
         executor: Executor,
         on_generation: Callable[[GenerationReport], None] | None = None,
+        holds: Callable[[int], bool] | None = None,
     ) -> None:
         self.engine = engine
         self.executor = executor
         self.on_generation = on_generation
+        # whether this coordinator still holds a run's lock, asked before each commit (None:
+        # always): one that lost it (Redis emptied, another took the run) stores nothing more
+        self.holds = holds
 
         self.in_flight: dict[int, tuple[ActiveRun, Any]] = {}  # run id -> (run, executor ticket)
 
@@ -395,6 +403,8 @@ class Coordinator:
             return set(ids)
 
     def _finish(self, run: ActiveRun, results: list[dict], seconds: float) -> bool:
+        if self.holds is not None and not self.holds(run.run_id):
+            raise LockLost(run.run_id)
         record = tell(run, results, seconds)
         with self.engine.begin() as conn:
             record_generation(conn, record)
@@ -419,6 +429,12 @@ class Coordinator:
         cannot be reached or written fails no run: ``DatabaseUnavailable``."""
         try:
             return function(*args)
+        except LockLost:
+            log.warning(
+                "run %d is driven by another coordinator now (its lock was lost): this one "
+                "drops its generation %d and leaves the run", run.run_id, run.next_generation,
+            )  # fmt: skip
+            return None
         except Exception as exc:
             if database_unavailable(exc):
                 reason = first_line(exc)

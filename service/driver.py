@@ -74,7 +74,9 @@ class CoordinatorLoop:
         self.active: list[ActiveRun] = []
         self.lost: set[int] = set()
         self.waiting: set[int] = set()  # runs locked by another coordinator (logged once)
-        self.coordinator = Coordinator(engine, executor, on_generation=self._on_generation)
+        self.coordinator = Coordinator(
+            engine, executor, on_generation=self._on_generation, holds=getattr(locks, "holds", None)
+        )
         self.share = 0  # runs this coordinator drives at most (``_claim``)
         self.driven: set[int] = set()  # every run this coordinator has driven
         self._threads: list[threading.Thread] = []

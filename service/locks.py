@@ -108,6 +108,21 @@ class RedisLocks:
             self.held -= lost
             return lost
 
+    def holds(self, run_id: int) -> bool:
+        """Whether this coordinator holds the run's lock now, renewed (or taken again if
+        nobody holds it: Redis emptied); asked before each generation's commit, as the renew
+        thread may not know yet that another coordinator took the run. Redis away: as far
+        as this coordinator knows (the commit itself needs no Redis)."""
+        try:
+            with self._mutex:
+                key = self.key(run_id)
+                if run_id in self.held and self._renew(keys=[key], args=[self.token, self.ttl_ms]):
+                    return True
+                self.held.discard(run_id)
+                return False
+        except Exception:  # noqa: BLE001
+            return run_id in self.held
+
     def release(self, run_ids: Iterable[int]) -> None:
         """Stop holding the runs (and renewing them) first, then delete their keys: with
         Redis away the keys expire within ``ttl`` (or ``acquire`` takes them back)."""

@@ -301,6 +301,36 @@ def test_redis_emptied_and_the_run_handed_back_by_another_coordinator(
     engine.dispose()
 
 
+@pytest.mark.redis
+def test_a_coordinator_that_lost_its_lock_stores_nothing_more(
+    rq_worker, redis_server, tmp_path, reference, caplog
+):
+    """Redis emptied with a generation in flight; another coordinator takes the run before
+    the first one's renew notices: the first stores nothing more (both stored the same
+    generations until its renew, harmless only by determinism)."""
+    queue, worker = rq_worker
+    engine = open_database(f"sqlite:///{tmp_path / 'both.db'}")
+    run_id = tinyrun.new_run(engine)
+    first = rq_loop(engine, redis_server.url, queue, renew_seconds=30.0, ttl=90.0)  # renews late
+    second = rq_loop(engine, redis_server.url, queue, renew_seconds=1.0)
+    by_first, by_second = Stored(first), Stored(second)
+    fault = FaultAt(first.executor, 2, lambda: os.kill(worker.pid, signal.SIGSTOP))
+    caplog.set_level(logging.WARNING, logger="softevo.coordinator")
+    with running(first), running(second):
+        wait_for(fault.fired.is_set, 60, "generation 2 in flight")
+        wait_for(lambda: second.waiting, 30, "the second coordinator to wait for the run")
+        Redis.from_url(redis_server.url).flushdb()  # Redis restarted empty
+        wait_for(lambda: run_id in second.locks.held, 30, "the second coordinator to take the run")
+        os.kill(worker.pid, signal.SIGCONT)
+        wait_finished(engine, [run_id])
+    first_stored = {(run, generation) for run, generation, _ in by_first.rows}
+    second_stored = {(run, generation) for run, generation, _ in by_second.rows}
+    assert (run_id, 2) in second_stored and not first_stored & second_stored, (first_stored, second_stored)
+    assert f"run {run_id} is driven by another coordinator now (its lock was lost)" in caplog.text
+    assert tinyrun.snapshot(engine, run_id) == reference
+    engine.dispose()
+
+
 # -- the loop outlives its housekeeping ------------------------------------------------------
 
 
