@@ -118,17 +118,37 @@ def ensure_compiled() -> None:
     _CACHE_READY = True
 
 
+PARENT_POLL_SECONDS = 1.0  # how often a pool process looks whether its parent still lives
+
+
+def end_with_parent(parent_pid: int, every: float = PARENT_POLL_SECONDS) -> None:
+    """End this process (a pool's evaluator) within ``every`` seconds of its parent's death,
+    whatever killed the parent (SIGKILL included): a daemon thread watches ``os.getppid()``,
+    which changes when the orphan is re-parented. Without it an evaluator of a killed
+    ``softevo run`` or ``serve`` waited for work for ever (and Python's resource tracker,
+    which ends when they do)."""
+    import threading
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(every)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()
+
+
 def init_pool_process(added_worlds: tuple = ()) -> None:
-    """Process-pool initializer: register the parent's added worlds (``sim.worlds.added``: a
-    spawned process knows only the built-in ones), ignore Ctrl-C, one numba thread per process
-    (the pool is the parallelism), then warm the simulator so the first real batch pays no
-    compilation."""
+    """Process-pool initializer: end with the parent (``end_with_parent``), register the
+    parent's added worlds (``sim.worlds.added``: a spawned process knows only the built-in
+    ones), ignore Ctrl-C, one numba thread per process (the pool is the parallelism), then
+    warm the simulator so the first real batch pays no compilation."""
     import signal
 
     import numba
 
     from softevo.sim import worlds
 
+    end_with_parent(os.getppid())
     worlds.register_missing(added_worlds)
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's to handle

@@ -23,6 +23,7 @@ Each test prints the time from the fault's end to the next stored generation (do
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import resource
@@ -137,6 +138,13 @@ def status_of(engine, run_id: int) -> tuple[str, str | None] | None:
     except Exception:  # the database away
         return None
     return tuple(row)
+
+
+def generation_of(engine, run_id: int) -> int:
+    with engine.connect() as conn:
+        return conn.execute(
+            select(RunRow.__table__.c.generation).where(RunRow.__table__.c.id == run_id)
+        ).scalar_one()
 
 
 def wait_finished(engine, run_ids, timeout: float = 120) -> None:
@@ -507,3 +515,46 @@ def test_sqlite_disk_full_under_softevo_serve(rq_worker, redis_server, tmp_path,
         snap = tinyrun.snapshot(engine, run_id)
         assert snap == {**reference, "run": snap["run"]} and snap["run"][:2] == reference["run"][:2]
     engine.dispose()
+
+
+# -- nothing outlives a killed process ------------------------------------------------------
+
+
+def session_processes(session: int) -> list[int]:
+    """Pids of the live processes of ``session`` (Linux's /proc), zombies left out."""
+    pids = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+        except OSError:  # ended meanwhile
+            continue
+        if int(fields[3]) == session and fields[0] != "Z":
+            pids.append(int(entry))
+    return pids
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads Linux's /proc")
+def test_evaluator_processes_end_with_a_killed_softevo_run(tmp_path):
+    url = f"sqlite:///{tmp_path / 'killed.db'}"
+    engine = open_database(url)
+    run_id = tinyrun.new_run(engine, dataclasses.replace(tinyrun.TINY, generations=500))
+    group = Processes(tmp_path, {})
+    parent = group.start("resume", f"r{run_id}", "--db", url, "--workers", "2", "-q", log="resume")
+    try:
+        # the pool's processes are up once a generation is stored
+        wait_for(lambda: generation_of(engine, run_id) >= 0, 120, "a stored generation")
+        evaluators = [pid for pid in session_processes(parent.pid) if pid != parent.pid]
+        assert len(evaluators) >= 2, evaluators  # two evaluators (and the resource tracker)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(10)
+        killed = time.monotonic()
+        wait_for(lambda: not session_processes(parent.pid), 15, "the evaluators to end with their parent")
+        print(f"\nsoftevo run SIGKILLed -> its evaluators ended: {time.monotonic() - killed:.2f} s")
+    finally:
+        for pid in session_processes(parent.pid):
+            os.kill(pid, signal.SIGKILL)
+        group.stop_all()
+        engine.dispose()
