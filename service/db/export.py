@@ -40,6 +40,15 @@ RUN_COLUMNS = [
     "population",
     "generations",
     "status",
+    "workspace",
+    "switch_at",
+    "cycles",
+    "max_seconds",
+    "settle_seconds",
+    "model",
+    "control_mapping",
+    "body_rule",
+    "algorithm",
 ]
 POPULATION_COLUMNS = ["run_id", "generation", "individual_id", "front_rank"]
 TABLES = ("runs", "individuals", "populations")
@@ -52,13 +61,23 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 
 
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
-    """One row per run: treatment settings flattened to the export columns."""
+    """One row per run: treatment settings flattened to the export columns (the evaluation's
+    protocol included: cycles, the cap on seconds, settling per world as ``land:0.5``, model,
+    control mapping, body rule, algorithm, and the switch generation of a transition)."""
     query = run_summary_select().add_columns(TreatmentRow.__table__.c.settings)
     frame = _read(conn, query.where(RunRow.__table__.c.id.in_(list(run_ids))))
     settings = [Treatment.from_settings(s) for s in frame.pop("settings")]
     frame["environment_schedule"] = [t.schedule_text() for t in settings]
     frame["stiffness_pa"] = [t.stiffness_pa for t in settings]
     frame["population"] = [t.population for t in settings]
+    frame["workspace"] = ["x".join(map(str, t.workspace)) for t in settings]
+    frame["switch_at"] = pd.array([t.switch_generation() for t in settings], dtype="Int64")
+    frame["cycles"] = [t.cycles for t in settings]
+    frame["max_seconds"] = pd.array([t.max_seconds for t in settings], dtype="Float64")
+    frame["settle_seconds"] = [",".join(f"{world}:{seconds:g}" for world, seconds in t.settle_seconds().items())
+                               for t in settings]
+    for name in ("model", "control_mapping", "body_rule", "algorithm"):
+        frame[name] = [getattr(t, name) for t in settings]
     return frame[RUN_COLUMNS]
 
 

@@ -30,6 +30,10 @@ def test_csv_export(engine, tmp_path):
     row = runs.iloc[0]
     assert row["environment_schedule"] == "land:0,water:2"
     assert row["stiffness_pa"] == 1e5 and row["population"] == 3 and row["status"] == "finished"
+    # the evaluation's protocol travels with the data: a reader recomputes what the guard cut
+    assert row["switch_at"] == 2 and row["settle_seconds"] == "land:0.5,water:0"
+    assert row["cycles"] >= 1 and row["model"] in ("voxelyze-2", "voxcad-land-water")
+    assert row["control_mapping"] and row["algorithm"] in ("afpo", "pareto")
     assert len(individuals) == 15  # 12 births + 3 re-evaluations at the switch
     # newcomers 1, 2, 3, 6, 9, 12; newcomer 1 was evaluated twice (land, then water)
     assert individuals["parent_id"].isna().sum() == 7
