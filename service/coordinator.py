@@ -48,6 +48,7 @@ from softevo.service.db.models import RunStatus
 from softevo.service.db.runs import active_run_ids, run_row, set_run_status
 from softevo.service.executors import Executor
 from softevo.service.experiments import evolution_config
+from softevo.service.locks import RunLocks, holding, locks_for
 from softevo.service.treatments import Treatment
 from softevo.worker.tasks import Task
 
@@ -314,10 +315,23 @@ class Coordinator:
         in_flight = hasattr(self.executor, "submit") and hasattr(self.executor, "wait")
         return in_flight and not getattr(self.executor, "across_runs", False)
 
-    def run(self, run_ids: Sequence[int], max_rounds: int | None = None) -> None:
+    def run(
+        self, run_ids: Sequence[int], max_rounds: int | None = None, locks: RunLocks | None = None
+    ) -> None:
         """Advance the unfinished runs among ``run_ids`` until all are done (or cancelled,
-        or failed), or for at most ``max_rounds`` more generations each."""
-        runs = [load_run(self.engine, run_id) for run_id in unfinished_runs(self.engine, run_ids)]
+        or failed), or for at most ``max_rounds`` more generations each (``softevo run`` and
+        ``resume``). Each run's lock is taken first, as ``softevo serve`` takes it
+        (``service.locks.locks_for``): a run a server drives is left to it, said in one line."""
+        locks = locks_for(self.engine) if locks is None else locks
+        with holding(locks, unfinished_runs(self.engine, run_ids)) as held:
+            holds, self.holds = self.holds, getattr(locks, "holds", None)
+            try:
+                self._run(held, max_rounds)
+            finally:
+                self.holds = holds
+
+    def _run(self, run_ids: list[int], max_rounds: int | None) -> None:
+        runs = [load_run(self.engine, run_id) for run_id in run_ids]
         if self.pipelined:
             limit = {run.run_id: run.next_generation + (max_rounds or run.generations) for run in runs}
             while runs:

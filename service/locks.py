@@ -6,16 +6,26 @@
   coordinator that dies lets its locks expire within ``ttl``. ``RedisLocks.peers`` counts the
   coordinators alive now;
 - without Redis the database holds the locks: ``service.db.locks.DatabaseLocks``
-  (PostgreSQL advisory locks, a lock file beside a SQLite file, else within the process).
+  (PostgreSQL advisory locks, a lock file beside a SQLite file, else within the process);
+- ``locks_for`` and ``holding``: the same locks for ``softevo run`` and ``resume``
+  (``service.coordinator.Coordinator.run``), which so never drive a run a server drives.
 """
 
 from __future__ import annotations
 
+import logging
+import os
 import threading
 import time
 import uuid
-from collections.abc import Iterable
-from typing import Protocol
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from sqlalchemy import Engine
+
+log = logging.getLogger("softevo.coordinator")
 
 RENEW_SCRIPT = """
 local owner = redis.call('GET', KEYS[1])
@@ -141,3 +151,55 @@ class RedisLocks:
         """Who holds ``run_id``'s lock, in words."""
         owner = self.owner(run_id)
         return f"Redis key {self.key(run_id)} is held by coordinator {owner or '(expired just now)'}"
+
+
+def locks_for(engine: Engine) -> RunLocks:
+    """The run locks ``softevo serve`` takes on ``engine``'s database: Redis's when
+    ``SOFTEVO_REDIS_URL`` is set (the key of ``Settings.database_namespace``), else the
+    database's own (``service.db.locks.DatabaseLocks``)."""
+    from softevo.service.db.locks import DatabaseLocks
+
+    redis_url = os.environ.get("SOFTEVO_REDIS_URL", "").strip()
+    if redis_url:
+        from softevo.service.settings import Settings
+
+        url = engine.url.render_as_string(hide_password=False)
+        return RedisLocks(redis_url, Settings(db=url, redis_url=redis_url).database_namespace())
+    return DatabaseLocks(engine)
+
+
+@contextmanager
+def holding(locks: RunLocks, run_ids: Iterable[int], renew_seconds: float = 10.0) -> Iterator[list[int]]:
+    """Take each run's lock; yield the runs held (a run held by another coordinator is left
+    to it, said in one line); renew the locks in a thread meanwhile; release them at the
+    end (they expire by themselves if Redis or the database is away then)."""
+    held = []
+    for run_id in run_ids:
+        if locks.acquire(run_id):
+            held.append(run_id)
+            continue
+        describe = getattr(locks, "holder", None)
+        who = describe(run_id) if describe else "its lock is taken"
+        log.warning(
+            "run %d is driven by a softevo serve (%s): it goes on there by itself; "
+            "follow it with softevo status r%d", run_id, who, run_id,
+        )  # fmt: skip
+    stop = threading.Event()
+
+    def renew() -> None:
+        while not stop.wait(renew_seconds):
+            try:
+                locks.renew()
+            except Exception as exc:  # noqa: BLE001 - Redis away: re-taken once it is back
+                log.warning("cannot renew run locks: %s", exc)
+
+    thread = threading.Thread(target=renew, name="run-locks", daemon=True)
+    thread.start()
+    try:
+        yield held
+    finally:
+        stop.set()
+        try:
+            locks.release(held)
+        except Exception as exc:  # noqa: BLE001
+            log.warning("cannot release the locks of run(s) %s now (%s); they expire", held, exc)

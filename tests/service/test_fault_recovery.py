@@ -28,6 +28,8 @@ import logging
 import os
 import resource
 import signal
+import subprocess
+import sys
 import threading
 import time
 import uuid
@@ -51,7 +53,7 @@ from softevo.service.rq_executor import RQExecutor
 from softevo.service.settings import Settings
 from tests.service import tinyrun
 from tests.service.pg_support import PostgresServer
-from tests.service.rq_support import TOKEN, Processes, RedisServer, auth, service_env, wait_for
+from tests.service.rq_support import REPO, TOKEN, Processes, RedisServer, auth, service_env, wait_for
 from tests.service.test_faults import TINY_BODY
 
 OUTAGE = 3.0  # seconds each outage lasts
@@ -422,6 +424,27 @@ def test_a_failed_run_says_why_in_one_line(tmp_path, reference, caplog):
     assert len(failed) == 1 and failed[0].exc_info is not None, [r.getMessage() for r in failed]
     assert failed[0].getMessage() == f"run {broken} failed: {error.split('; the traceback')[0]}"
     assert tinyrun.snapshot(engine, sound) == reference  # the other run went on
+    engine.dispose()
+
+
+def test_softevo_resume_leaves_a_run_to_the_server_that_drives_it(tmp_path):
+    """``softevo resume`` takes the run's lock as ``softevo serve`` does: while a server's
+    coordinator drives the run it says so in one line and drives nothing (both drove it)."""
+    url = f"sqlite:///{tmp_path / 'shared.db'}"
+    engine = open_database(url)
+    run_id = tinyrun.new_run(engine, dataclasses.replace(tinyrun.TINY, generations=500))
+    loop = CoordinatorLoop(engine, InlineExecutor(), DatabaseLocks(engine), poll_seconds=POLL)
+    with running(loop):
+        wait_for(lambda: generation_of(engine, run_id) >= 0, 60, "the server to drive the run")
+        resume = ["resume", f"r{run_id}", "--db", url, "--workers", "0", "-q"]
+        done = subprocess.run(
+            [sys.executable, "-m", "softevo.service.cli", *resume],
+            cwd=REPO, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert status_of(engine, run_id)[0] == "running" and run_id in loop.locks.held
+    assert done.returncode == 0, done.stderr
+    assert f"run {run_id} is driven by a softevo serve (the lock file" in done.stderr, done.stderr
+    assert f"goes on there by itself; follow it with softevo status r{run_id}" in done.stderr
     engine.dispose()
 
 
