@@ -49,7 +49,7 @@ from softevo.service.coordinator import (
 from softevo.service.db.models import RunStatus
 from softevo.service.db.runs import set_run_status
 from softevo.service.executors import Executor
-from softevo.service.locks import RunLocks
+from softevo.service.locks import RunLocks, redis_error
 
 log = logging.getLogger("softevo.coordinator")
 
@@ -144,7 +144,7 @@ class CoordinatorLoop:
                     "stored generation (%s); retrying every %.0f s, they go on by themselves",
                     first_line(cause), runs, retry,
                 )  # fmt: skip
-            elif _redis_error(exc):
+            elif redis_error(exc):
                 log.warning(
                     "Redis cannot be reached (%s); runs paused (%s); retrying every %.0f s",
                     first_line(exc), runs, retry,
@@ -284,8 +284,3 @@ class CoordinatorLoop:
     def _set_status(self, run_id: int, status: RunStatus, error: str | None = None) -> None:
         with self.engine.begin() as conn:
             set_run_status(conn, run_id, status, error)
-
-
-def _redis_error(exc: BaseException) -> bool:
-    """Whether ``exc`` is Redis's (without importing redis where it is not installed)."""
-    return any(cls.__module__.startswith("redis") for cls in type(exc).__mro__)

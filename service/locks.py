@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 import threading
 import time
 import uuid
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Protocol
+
+from softevo.errors import UserError
 
 if TYPE_CHECKING:
     from sqlalchemy import Engine
@@ -33,6 +36,12 @@ if owner == ARGV[1] then
   return redis.call('PEXPIRE', KEYS[1], ARGV[2])
 elseif not owner then
   return redis.call('SET', KEYS[1], ARGV[1], 'NX', 'PX', ARGV[2]) and 1 or 0
+end
+return 0
+"""
+TAKEOVER_SCRIPT = """
+if redis.call('GET', KEYS[1]) == ARGV[1] then
+  return redis.call('SET', KEYS[1], ARGV[2], 'PX', ARGV[3]) and 1 or 0
 end
 return 0
 """
@@ -71,9 +80,12 @@ class RedisLocks:
         self.connection = connect(redis_url)
         self.namespace = namespace
         self.ttl_ms = int(ttl * 1000)
-        self.token = uuid.uuid4().hex
+        # host:pid:random: a coordinator restarted on the same host takes over at once the
+        # locks of the dead process it replaces (``_dead_here``) instead of waiting ``ttl``
+        self.token = f"{socket.gethostname()}:{os.getpid()}:{uuid.uuid4().hex[:16]}"
         self.held: set[int] = set()
         self._renew = self.connection.register_script(RENEW_SCRIPT)
+        self._takeover = self.connection.register_script(TAKEOVER_SCRIPT)
         self._release = self.connection.register_script(RELEASE_SCRIPT)
         self._mutex = threading.Lock()
 
@@ -89,10 +101,13 @@ class RedisLocks:
         with self.connection.pipeline(transaction=True) as pipe:
             pipe.zadd(key, {self.token: now_ms + self.ttl_ms})
             pipe.zremrangebyscore(key, "-inf", now_ms)
-            pipe.zcard(key)
+            pipe.zrange(key, 0, -1)
             pipe.pexpire(key, self.ttl_ms)
-            count = pipe.execute()[2]
-        return max(1, int(count))
+            tokens = [token.decode() for token in pipe.execute()[2]]
+        dead = [token for token in tokens if _dead_here(token)]
+        if dead:
+            self.connection.zrem(key, *dead)
+        return max(1, len(tokens) - len(dead))
 
     def leave(self) -> None:
         self.connection.zrem(f"softevo:{self.namespace}:coordinators", self.token)
@@ -103,10 +118,18 @@ class RedisLocks:
         with self._mutex:
             if run_id in self.held:
                 return False
-            if self._renew(keys=[self.key(run_id)], args=[self.token, self.ttl_ms]):
+            key = self.key(run_id)
+            if self._renew(keys=[key], args=[self.token, self.ttl_ms]) or self._take_from_dead(key):
                 self.held.add(run_id)
                 return True
             return False
+
+    def _take_from_dead(self, key: str) -> bool:
+        """Take the key from a coordinator of this host whose process has ended."""
+        owner = self.connection.get(key)
+        if owner is None or not _dead_here(owner.decode()):
+            return False
+        return bool(self._takeover(keys=[key], args=[owner, self.token, self.ttl_ms]))
 
     def renew(self) -> set[int]:
         with self._mutex:
@@ -153,6 +176,27 @@ class RedisLocks:
         return f"Redis key {self.key(run_id)} is held by coordinator {owner or '(expired just now)'}"
 
 
+def redis_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is Redis's (without importing redis where it is not installed)."""
+    return any(cls.__module__.startswith("redis") for cls in type(exc).__mro__)
+
+
+def _dead_here(token: str) -> bool:
+    """Whether ``token`` (``host:pid:random``) is a coordinator of this host whose process
+    has ended."""
+    host, _, rest = token.partition(":")
+    pid = rest.partition(":")[0]
+    if host != socket.gethostname() or not pid.isdigit() or int(pid) == os.getpid():
+        return False
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # alive, another user's
+        return False
+    return False
+
+
 def locks_for(engine: Engine) -> RunLocks:
     """The run locks ``softevo serve`` takes on ``engine``'s database: Redis's when
     ``SOFTEVO_REDIS_URL`` is set (the key of ``Settings.database_namespace``), else the
@@ -175,7 +219,16 @@ def holding(locks: RunLocks, run_ids: Iterable[int], renew_seconds: float = 10.0
     end (they expire by themselves if Redis or the database is away then)."""
     held = []
     for run_id in run_ids:
-        if locks.acquire(run_id):
+        try:
+            taken = locks.acquire(run_id)
+        except Exception as exc:
+            if not redis_error(exc):
+                raise
+            raise UserError(
+                f"Redis cannot be reached to take run {run_id}'s lock ({exc}): start it, or unset "
+                "SOFTEVO_REDIS_URL if no softevo serve drives this database"
+            ) from exc
+        if taken:
             held.append(run_id)
             continue
         describe = getattr(locks, "holder", None)

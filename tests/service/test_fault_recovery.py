@@ -448,6 +448,32 @@ def test_softevo_resume_leaves_a_run_to_the_server_that_drives_it(tmp_path):
     engine.dispose()
 
 
+@pytest.mark.redis
+def test_a_restarted_server_takes_its_dead_predecessors_runs_at_once(tmp_path, redis_server):
+    """``softevo serve`` SIGKILLed and started again on the same host: the new one takes the
+    run at once (it warned "driven by another coordinator" until the dead one's lock expired,
+    30 s)."""
+    group = Processes(tmp_path, service_env(f"sqlite:///{tmp_path / 'restart.db'}", redis_server.url))
+
+    def log_of(process) -> str:
+        return next(path.read_text() for started, path in group.started if started is process)
+
+    try:
+        first, base = group.serve()
+        body = {"name": "restart", "treatments": [TINY_BODY]}
+        (run_id,) = httpx.post(f"{base}/experiments", json=body, headers=auth()).json()["runs"]
+        wait_for(lambda: f"driving run {run_id}" in log_of(first), 30, "the first server to drive the run")
+        os.killpg(first.pid, signal.SIGKILL)  # no worker: its jobs wait in the queue
+        first.wait(10)
+        killed = time.monotonic()
+        second, _ = group.serve()
+        wait_for(lambda: f"driving run {run_id}" in log_of(second), 20, "the second server to take the run")
+        print(f"\nserve SIGKILLed -> restarted one drives the run: {time.monotonic() - killed:.2f} s")
+        assert "driven by another coordinator" not in log_of(second)
+    finally:
+        group.stop_all()
+
+
 # -- /health tells the truth ----------------------------------------------------------------
 
 
