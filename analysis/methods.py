@@ -105,7 +105,7 @@ def methods_text(methods: pd.DataFrame) -> str:
         cap = setting["cap"]
         capped_text = (
             f", at most {cap} after settling (the cap cut {group['capped'].sum()} of the "
-            f"{group['counted'].sum()} evaluations read)"
+            f"{group['counted'].sum()} evaluations counted)"
             if cap != "none"
             else ", no cap on seconds"
         )

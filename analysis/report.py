@@ -423,12 +423,15 @@ class Robots:
 
     phenotypes(ids) -> {id: Phenotype}; scene(id, environment) -> (scene, record) as
     ``analysis.robots.record_scene`` (record with treatment, phenotype_object and task, the
-    ``worker.tasks.Task`` replayed); motion(id, environment) -> Motion.
+    ``worker.tasks.Task`` replayed); motion(id, environment) -> Motion; evaluations() ->
+    every evaluation of the experiment (columns treatment, frequency) or None: the methods
+    count the cap's cuts over them (else over the evaluations ``data`` holds).
     """
 
     phenotypes: Callable[[list[int]], dict[int, Any]]
     scene: Callable[[int, str | None], tuple[dict[str, Any], dict[str, Any]]]
     motion: Callable[[int, str | None], Any]
+    evaluations: Callable[[], pd.DataFrame | None] = lambda: None
 
 
 @contextmanager
@@ -537,7 +540,8 @@ def evaluation_text(robots: Robots, data: ExperimentData) -> str | None:
     scene, record = robots.scene(int(best["individual_id"]), best["environment"])
     parsed, phenotype = sim.parse_scene(scene), record["phenotype_object"]
     m = parsed.material
-    methods = evaluation_methods(data.treatments, data.evaluations, phenotype)
+    every = robots.evaluations()
+    methods = evaluation_methods(data.treatments, data.evaluations if every is None else every, phenotype)
     algorithms = set(data.treatments["algorithm"])
     selection = "with age (AFPO)" if algorithms == {"afpo"} else f"algorithm {', '.join(sorted(algorithms))}"
     return (

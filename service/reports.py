@@ -19,7 +19,7 @@ from softevo.analysis.exaptation import LINE_TRAITS, ExaptationData
 from softevo.analysis.report import Report, Robots
 from softevo.service.db import open_database
 from softevo.service.db.exaptation import exaptation
-from softevo.service.db.experiments import load_experiment, resolve_experiment
+from softevo.service.db.experiments import evaluation_frequencies, load_experiment, resolve_experiment
 from softevo.service.db.individuals import individual_record, stored_genomes
 
 
@@ -37,7 +37,7 @@ def engine_of(source: str | Engine | Connection | Any | None) -> Engine:
     raise TypeError(f"expected a database URL, Engine, Connection or Session, got {source!r}")
 
 
-def stored_robots(engine: Engine) -> Robots:
+def stored_robots(engine: Engine, experiment_id: int | None = None) -> Robots:
     """The report's access to the robots stored in ``engine``'s database: each reads the
     individual's record (``service.db.individuals.individual_record``) and hands it to
     ``analysis.robots`` / ``analysis.motion``."""
@@ -53,7 +53,10 @@ def stored_robots(engine: Engine) -> Robots:
     def stored_motion(individual_id: int, environment: str | None = None):
         return motion.stored_motion(individual_record(engine, individual_id), environment)
 
-    return Robots(phenotypes=phenotypes, scene=scene, motion=stored_motion)
+    def frequencies():
+        return None if experiment_id is None else evaluation_frequencies(engine, experiment_id)
+
+    return Robots(phenotypes=phenotypes, scene=scene, motion=stored_motion, evaluations=frequencies)
 
 
 def exaptation_data(engine: Engine, data) -> ExaptationData:
@@ -131,10 +134,12 @@ def write_report(
     (animation, progress, seed)."""
     engine, data = _load(source, experiment)
     options.setdefault("exaptation", exaptation_data(engine, data))
-    return analysis_report.write_report(data, out_dir, robots=stored_robots(engine), **options)
+    robots_of = stored_robots(engine, int(data.experiment["id"]))
+    return analysis_report.write_report(data, out_dir, robots=robots_of, **options)
 
 
 def report_html(source: str | Engine | Connection | Any | None, experiment: int | str) -> str:
     """The report page of ``experiment`` as a string, built in a temporary directory."""
     engine, data = _load(source, experiment)
-    return analysis_report.report_html(data, stored_robots(engine), exaptation=exaptation_data(engine, data))
+    robots_of = stored_robots(engine, int(data.experiment["id"]))
+    return analysis_report.report_html(data, robots_of, exaptation=exaptation_data(engine, data))

@@ -138,12 +138,13 @@ class Settings(BaseSettings):
     max_voxel_steps: float = _field(2e9, "CLI", "voxels x steps of one `softevo simulate`", gt=0)
     max_runs_per_request: int = _field(1000, "serve", "runs one experiment may create", ge=1)
     max_request_voxel_steps: float = _field(
-        1e16, "serve",
-        "voxel-steps one experiment may ask (the paper grid at paper scale: 3.3e15)",
+        5e16, "serve",
+        "voxel-steps one experiment may ask, an upper bound: every evaluation at the guard on "
+        "seconds (the paper grid at paper scale: 2.2e16)",
         gt=0,
     )
     max_server_voxel_steps: float = _field(
-        1e17, "serve",
+        5e17, "serve",
         "voxel-steps of the unfinished runs and a new one together",
         gt=0,
     )

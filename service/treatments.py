@@ -286,17 +286,19 @@ class Scale:
 # tiny: the whole grid in minutes on 2 cores (CI: 2 cycles, capped at 1 s);
 # pilot: 3 repetitions on the paper's protocol (50 cycles, the bounded mapping), the grid 10
 # generations and the S3 runs 40 (the knee of their fitness curves; docs/results), for
-# ``softevo power``; study: the pilot's sizes with the transitions switching after the knee,
-# and the repetitions that fit about 2 hours of a 2-core machine, on seeds past the pilot's
-# (docs/results); small: longer runs of the same; paper: the paper's 5000 / 9000 generations
+# ``softevo power``; study: the pilot's sizes with the transitions switching at the knee, and
+# the repetitions and grid generations that fit about 2 hours of a 2-core machine, on seeds
+# past the pilot's (docs/results); small: longer runs of the same; paper: the paper's 5000 / 9000 generations
 # and 15 repetitions (a cluster job).
 PILOT = Scale(8, 10, 40, (5, 5, 5), PAPER_CYCLES, 3, switch_over=4)
 STUDY_REPETITIONS = 6  # what fits about 2 hours of a 2-core machine (softevo plan; docs/results)
 STUDY_SWITCH_GENERATIONS = 50  # 25 + 25: the switch at the pilot's knee, 24-26 (docs/results)
+STUDY_GRID_GENERATIONS = 6  # the grid's other treatments: what 2 hours allow beside the transitions
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
     "pilot": PILOT,
-    "study": dataclasses.replace(PILOT, transition_generations=STUDY_SWITCH_GENERATIONS,
+    "study": dataclasses.replace(PILOT, generations=STUDY_GRID_GENERATIONS,
+                                 transition_generations=STUDY_SWITCH_GENERATIONS,
                                  repetitions=STUDY_REPETITIONS, first_seed=PILOT.repetitions),
     "small": Scale(8, 40, 40, (6, 6, 6), PAPER_CYCLES, 2, switch_over=4),
     "paper": Scale(30, 5000, 9000, (7, 7, 7), PAPER_CYCLES, 15, switch_over=1000),

@@ -362,6 +362,22 @@ def _end_members(conn: Connection, run_ids: list[int], wanted: list[int] | None)
     return pd.DataFrame(result.fetchall(), columns=columns)
 
 
+def evaluation_frequencies(engine: Engine, experiment_id: int) -> pd.DataFrame:
+    """Every evaluation of the experiment's runs, two columns read: ``treatment`` (its name)
+    and ``frequency`` (Hz): what the report counts the cap's cuts over (not only the
+    members it loads)."""
+    evaluations, runs, treatments = EvaluationRow.__table__, RunRow.__table__, TreatmentRow.__table__
+    query = (
+        select(treatments.c.name.label("treatment"), evaluations.c.frequency)
+        .join(runs, evaluations.c.run_id == runs.c.id)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(treatments.c.experiment_id == experiment_id)
+    )
+    with engine.connect() as conn:
+        result = conn.execute(query)
+        return pd.DataFrame(result.fetchall(), columns=["treatment", "frequency"])
+
+
 def _member_evaluations(conn: Connection, run_ids: list[int], wanted: list[int] | None) -> pd.DataFrame:
     """Every evaluation of the individuals in ``_end_members`` (of every individual of the
     runs when ``wanted`` is None), with the export's individuals columns
