@@ -202,13 +202,11 @@ def locks_for(engine: Engine) -> RunLocks:
     ``SOFTEVO_REDIS_URL`` is set (the key of ``Settings.database_namespace``), else the
     database's own (``service.db.locks.DatabaseLocks``)."""
     from softevo.service.db.locks import DatabaseLocks
+    from softevo.service.settings import Settings
 
-    redis_url = os.environ.get("SOFTEVO_REDIS_URL", "").strip()
-    if redis_url:
-        from softevo.service.settings import Settings
-
-        url = engine.url.render_as_string(hide_password=False)
-        return RedisLocks(redis_url, Settings(db=url, redis_url=redis_url).database_namespace())
+    settings = Settings(db=engine.url.render_as_string(hide_password=False))  # the one reader of SOFTEVO_*
+    if settings.redis_url:
+        return RedisLocks(settings.redis_url, settings.database_namespace())
     return DatabaseLocks(engine)
 
 
