@@ -123,6 +123,21 @@ def treatment_means(export: Path) -> pd.DataFrame:
     return end.merge(start, left_index=True, right_index=True, suffixes=("", "_generation0"))
 
 
+def per_second(export: Path) -> pd.Series:
+    """Per treatment, the mean over runs of the final best robot's distance per second: its
+    distance over its evaluation's seconds after settling (cycles / frequency, at most the
+    guard), as summary.csv's ``distance_per_second``."""
+    runs, evaluations, members = load(export)
+    latest = evaluations.rename(columns={"generation": "evaluated_at"})
+    final = members[members["generation"] == members.groupby("run_id")["generation"].transform("max")]
+    joined = final.merge(latest, on=["run_id", "individual_id"])
+    joined = joined[joined["evaluated_at"] <= joined["generation"]].sort_values("evaluated_at")
+    joined = joined.groupby(["run_id", "individual_id"]).last().reset_index()
+    best = joined.loc[joined.groupby("run_id")["distance"].idxmax()].merge(runs, on="run_id")
+    seconds = np.minimum(best["cycles"] / best["frequency"].abs(), best["max_seconds"])
+    return (best["distance"] / seconds).groupby(best["treatment"], sort=False).mean()
+
+
 def guard(export: Path) -> tuple[int, int, float]:
     """(evaluations the guard on seconds cut, evaluations, the highest frequency)."""
     runs, evaluations, _ = load(export)
@@ -153,6 +168,8 @@ def main(results: Path) -> int:
         print(f"secondary: {row['question']}: J {row['statistic']:g}, one-sided p {row['p']:.3g}, "
               f"A12 of the gains {row['a12']:.2f}; mean gains {row['gains']}")
     print(treatment_means(results / "export").to_string(float_format=lambda v: f"{v:.3g}"))
+    speeds = per_second(results / "export")
+    print("best robot's distance per second: " + ", ".join(f"{t} {v:.3g}" for t, v in speeds.items()))
     cut, total, highest = guard(results / "export")
     print(f"the guard on seconds cut {cut} of {total} evaluations ({100 * cut / total:.2f}%); "
           f"the highest frequency evaluated: {highest:.4g} Hz")
