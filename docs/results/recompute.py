@@ -147,6 +147,52 @@ def guard(export: Path) -> tuple[int, int, float]:
     return int(cut.sum()), len(merged), float(frequency.max())
 
 
+SENSITIVITY_CONTRASTS = (  # sensitivity.py's: (measure, the level put higher, the one put lower)
+    ("distance", "land S4", "land S2"),
+    ("distance", "water S1", "water S4"),
+    ("frequency", "land S2", "land S4"),
+    ("frequency", "water S4", "water S1"),
+)
+
+
+def sensitivity(results: Path) -> int:
+    """sensitivity.csv's A12s and means recomputed from the exports in sensitivity/MAPPING/;
+    the number of values that differ."""
+    table = pd.read_csv(results / "sensitivity.csv")
+    differ = 0
+    for mapping in table["mapping"].unique():
+        runs, evaluations, members = load(results / "sensitivity" / mapping)
+        values = population_values(runs, evaluations, members)
+        last = int(values.groupby("run_id")["generation"].max().min())
+        stored = table[table["mapping"] == mapping].reset_index(drop=True)
+        for k, (measure, high, low) in enumerate(SENSITIVITY_CONTRASTS):
+            a, b = values_of(values, high, last, measure), values_of(values, low, last, measure)
+            a0, b0 = values_of(values, high, 0, measure), values_of(values, low, 0, measure)
+            for key, value in (("a12", vargha_delaney(a, b)), ("a12_generation0", vargha_delaney(a0, b0)),
+                               ("mean_high", a.mean()), ("mean_low", b.mean())):
+                differ += int(not math.isclose(value, float(stored.loc[k, key]), rel_tol=1e-3))
+    print(f"sensitivity.csv: {4 * len(SENSITIVITY_CONTRASTS) * table['mapping'].nunique() - differ} of "
+          f"{4 * len(SENSITIVITY_CONTRASTS) * table['mapping'].nunique()} values recomputed from sensitivity/")
+    return differ
+
+
+def knees(results: Path) -> int:
+    """pilot/knee.csv's knees recomputed from pilot/export (knee.py's rule); the number that differ."""
+    from knee import knee  # docs/results/knee.py, beside this script
+
+    table = pd.read_csv(results / "pilot" / "knee.csv")
+    values = population_values(*load(results / "pilot" / "export"))
+    differ = 0
+    for (treatment, run_id), run in values.groupby(["treatment", "run_id"]):
+        repetition = sorted(values.loc[values["treatment"] == treatment, "run_id"].unique()).index(run_id)
+        at, ninety = knee(run["generation"].to_numpy(float), run["distance"].to_numpy(float))
+        row = table[(table["treatment"] == treatment) & (table["curve"] == f"run {repetition}")].iloc[0]
+        differ += int(at != row["knee"]) + int(ninety != row["gain_90"])
+    print(f"pilot/knee.csv: {2 * len(table) - 4 - differ} of {2 * len(table) - 4} per-run knees recomputed "
+          "from pilot/export")
+    return differ
+
+
 def main(results: Path) -> int:
     findings = pd.read_csv(results / "findings.csv")
     rows = recompute(results / "export")
@@ -171,6 +217,10 @@ def main(results: Path) -> int:
     speeds = per_second(results / "export")
     print("best robot's distance per second: " + ", ".join(f"{t} {v:.3g}" for t, v in speeds.items()))
     cut, total, highest = guard(results / "export")
+    if (results / "pilot" / "export").is_dir():
+        status |= int(knees(results) > 0)
+    if (results / "sensitivity").is_dir():
+        status |= int(sensitivity(results) > 0)
     print(f"the guard on seconds cut {cut} of {total} evaluations ({100 * cut / total:.2f}%); "
           f"the highest frequency evaluated: {highest:.4g} Hz")
     return status
