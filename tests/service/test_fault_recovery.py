@@ -329,13 +329,15 @@ def test_a_coordinator_that_lost_its_lock_stores_nothing_more(
     by_first, by_second = Stored(first), Stored(second)
     fault = FaultAt(first.executor, 2, lambda: os.kill(worker.pid, signal.SIGSTOP))
     caplog.set_level(logging.WARNING, logger="softevo.coordinator")
-    with running(first), running(second):
-        wait_for(fault.fired.is_set, 60, "generation 2 in flight")
-        wait_for(lambda: second.waiting, 30, "the second coordinator to wait for the run")
-        Redis.from_url(redis_server.url).flushdb()  # Redis restarted empty
-        wait_for(lambda: run_id in second.locks.held, 30, "the second coordinator to take the run")
-        os.kill(worker.pid, signal.SIGCONT)
-        wait_finished(engine, [run_id])
+    with running(first):  # the first takes the run before the second starts (no race for it)
+        wait_for(lambda: run_id in first.locks.held, 30, "the first coordinator to take the run")
+        with running(second):
+            wait_for(fault.fired.is_set, 60, "generation 2 in flight")
+            wait_for(lambda: second.waiting, 30, "the second coordinator to wait for the run")
+            Redis.from_url(redis_server.url).flushdb()  # Redis restarted empty
+            wait_for(lambda: run_id in second.locks.held, 30, "the second coordinator to take the run")
+            os.kill(worker.pid, signal.SIGCONT)
+            wait_finished(engine, [run_id])
     first_stored = {(run, generation) for run, generation, _ in by_first.rows}
     second_stored = {(run, generation) for run, generation, _ in by_second.rows}
     assert (run_id, 2) in second_stored and not first_stored & second_stored, (first_stored, second_stored)
