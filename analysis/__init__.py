@@ -1,11 +1,9 @@
 """Analyses of experiments: statistics, figures, motion, report, VoxCAD export.
 
 Computes on data it is given and opens no database: ``service`` reads the database into an
-``ExperimentData`` (``service.db.experiments.load_experiment``) and calls these modules.
+``ExperimentData`` (``service.reports.data.load_experiment``) and calls these modules.
 Modules:
 
-- ``analysis.columns``: the column names shared with ``service.db`` (``TRAITS``,
-  ``INDIVIDUAL_COLUMNS``);
 - ``analysis.data``: ``ExperimentData`` (pandas frames of the settings, runs,
   per-generation summaries and the initial and final populations);
 - ``analysis.findings``: the headline findings, one test per hypothesis, Holm across them
@@ -21,7 +19,7 @@ Modules:
 - ``analysis.motion``: re-simulate a task or a stored record with frames
   (``worker.tasks.replay``) and animate it (GIF, MP4);
 - ``analysis.report``: ``write_report(data, out_dir, robots=...)`` and ``report_html``
-  (``service.reports`` binds them to a database);
+  (``service.reports.report`` binds them to a database);
 - ``analysis.vxa``: ``scene_to_vxa(scene)`` / ``record_vxa(record)``, VoxCAD files.
 
 Command line (``service/cli_analysis.py``)::

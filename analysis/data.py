@@ -1,6 +1,6 @@
 """An experiment as pandas DataFrames, the input of every analysis.
 
-``ExperimentData`` holds, for all runs of one experiment (``service.db.experiments.
+``ExperimentData`` holds, for all runs of one experiment (``service.storage.experiments.
 load_experiment(engine, id)`` reads it from the database; ``experiment_data`` assembles it
 from the frames read):
 
@@ -39,27 +39,13 @@ from typing import Any
 import pandas as pd
 
 from softevo.analysis import matching
-from softevo.analysis.columns import INDIVIDUAL_COLUMNS, TRAITS
+from softevo.evolution import traits
 
 __all__ = [
-    "INDIVIDUAL_COLUMNS",
-    "TRAITS",
-    "TRAIT_LABELS",
     "ExperimentData",
     "experiment_data",
     "member_traits",
 ]
-
-TRAIT_LABELS = {
-    "distance": "distance (voxel lengths)",
-    "best_distance": "best distance (voxel lengths)",
-    "active_share": "active share",
-    "voxel_count": "voxel count",
-    "frequency": "frequency (Hz)",
-    "branching": "branching index",
-    "shape_entropy": "shape entropy (bits)",
-    "symmetry": "symmetry index",
-}
 
 
 @dataclass(frozen=True)
@@ -94,11 +80,11 @@ class ExperimentData:
     def run_values(self, generation: int) -> pd.DataFrame:
         """One row per run that stored ``generation``: run_id, treatment, repetition,
         generation, ``best_distance`` (its population's best, from the generation summary)
-        and each trait's mean over its population then (``TRAITS``)."""
+        and each trait's mean over its population then (``evolution.traits.names()``)."""
         summary = self.generations[self.generations["generation"] == generation]
         rows = summary[["run_id", "treatment", "repetition", "generation", "best_distance"]]
         members = self.populations_at(generation)
-        means = members.groupby("run_id")[list(TRAITS)].mean().reset_index()
+        means = members.groupby("run_id")[list(traits.names())].mean().reset_index()
         merged = rows.merge(means, on="run_id", how="left")
         return merged.sort_values("run_id", kind="stable").reset_index(drop=True)
 
@@ -161,15 +147,15 @@ def experiment_data(
 
 def member_traits(members: pd.DataFrame, evaluations: pd.DataFrame) -> pd.DataFrame:
     """Members with the traits of their latest evaluation at or before the member's
-    generation (``evaluation_generation``, ``environment``, ``stable``, ``TRAITS``, and
+    generation (``evaluation_generation``, ``environment``, ``stable``, every trait, and
     ``objectives``, {name: value}, where the evaluations have it)."""
     extra = ["objectives"] if "objectives" in evaluations.columns else []
-    traits = evaluations[["individual_id", "generation", "environment", "stable", *TRAITS, *extra]]
-    traits = traits.rename(columns={"generation": "evaluation_generation"})
+    latest = evaluations[["individual_id", "generation", "environment", "stable", *traits.names(), *extra]]
+    latest = latest.rename(columns={"generation": "evaluation_generation"})
     if members.empty:  # nothing stored yet: merge_asof cannot type empty keys
-        return pd.DataFrame(columns=[*members.columns, *traits.columns.drop("individual_id")])
+        return pd.DataFrame(columns=[*members.columns, *latest.columns.drop("individual_id")])
     left = members.sort_values("generation", kind="stable").reset_index(drop=True)
-    right = traits.sort_values("evaluation_generation", kind="stable").reset_index(drop=True)
+    right = latest.sort_values("evaluation_generation", kind="stable").reset_index(drop=True)
     merged = pd.merge_asof(
         left,
         right,

@@ -1,14 +1,14 @@
 """Exaptation across environment transitions, per run: which founders' lines survived the
 switch and which pre-switch traits the survivors carried.
 
-Input (``ExaptationData``, built by ``service.reports.exaptation_data`` from
-``service.db.exaptation``; see ``docs/sql.md`` for the definitions):
+Input (``ExaptationData``, built by ``service.reports.report.exaptation_data`` from
+``service.storage.exaptation``; see ``docs/sql.md`` for the definitions):
 
 - ``runs``: one row per transition run: run_id, switch_at, switch_over, arrival, generation
   (last stored), founders, founders_surviving, final_population, from_founders, lines;
 - ``founders``: one row per founder (the population kept at ``switch_at - 1``): run_id,
   founder_id, lines (final members descending from it), front_lines, surviving (lines > 0)
-  and its traits at birth (``LINE_TRAITS``);
+  and its traits at birth (``evolution.traits.along_lines()``);
 - ``lines``: one row per surviving line (founder, final member): run_id, founder_id,
   individual_id and, per trait, ``<trait>_founder``, ``<trait>_switch``, ``<trait>_end``,
   ``<trait>_changed`` (birth generation of the first change, NaN: never).
@@ -26,9 +26,9 @@ import numpy as np
 import pandas as pd
 
 from softevo.analysis import figures as fig
-from softevo.analysis.data import TRAIT_LABELS, ExperimentData
+from softevo.analysis.data import ExperimentData
+from softevo.evolution import traits
 
-LINE_TRAITS = ("voxel_count", "active_share", "frequency", "symmetry", "branching", "shape_entropy")
 NAME = "exaptation"  # its title is figures.TITLES[NAME]
 
 
@@ -64,7 +64,7 @@ def run_statistics(data: ExperimentData, exaptation: ExaptationData) -> pd.DataF
             else np.nan,
             "lines": run.lines,
         }
-        for trait in LINE_TRAITS:
+        for trait in traits.along_lines():
             kept = pd.to_numeric(survivors[trait], errors="coerce").mean()
             every = pd.to_numeric(founders[trait], errors="coerce").mean()
             row |= {f"{trait}_survivors": kept, f"{trait}_all": every, f"{trait}_shift": kept - every}
@@ -80,7 +80,7 @@ def treatment_summary(stats: pd.DataFrame) -> pd.DataFrame:
     if stats.empty:
         return stats
     columns = ["founders_surviving", "surviving_share", "final_from_founders"] + [
-        f"{trait}_shift" for trait in LINE_TRAITS
+        f"{trait}_shift" for trait in traits.along_lines()
     ]
     summary = stats.groupby("treatment", sort=False)[columns].mean().reset_index()
     summary.insert(1, "runs", stats.groupby("treatment", sort=False).size().to_numpy())
@@ -96,7 +96,7 @@ def exaptation_figure(
     if exaptation.empty or stats.empty:
         return None
     colors = fig.treatment_colors(data.treatments)
-    figure, (counts, traits) = plt.subplots(
+    figure, (counts, shares) = plt.subplots(
         1, 2, figsize=fig.figure_size(NAME, len(data.treatments)), dpi=fig.DPI, layout="constrained"
     )
     x = np.arange(len(stats))
@@ -118,13 +118,13 @@ def exaptation_figure(
     lines = exaptation.lines
     for row in lines.itertuples(index=False):
         values = [getattr(row, f"active_share_{stage}") for stage in ("founder", "switch", "end")]
-        traits.plot([0, 1, 2], values, "-o", color=colors[treatment_of[row.run_id]], alpha=0.5, markersize=3)
+        shares.plot([0, 1, 2], values, "-o", color=colors[treatment_of[row.run_id]], alpha=0.5, markersize=3)
     for name in dict.fromkeys(treatment_of.values()):
-        traits.plot([], [], "-o", color=colors[name], label=name)
-    traits.set_xticks([0, 1, 2], ["founder", "arrival in the new world", "end"])
-    traits.set(ylabel=TRAIT_LABELS["active_share"], title="active share along each surviving line")
-    traits.legend(fontsize=8)
-    traits.grid(alpha=0.3)
+        shares.plot([], [], "-o", color=colors[name], label=name)
+    shares.set_xticks([0, 1, 2], ["founder", "arrival in the new world", "end"])
+    shares.set(ylabel=traits.labels()["active_share"], title="active share along each surviving line")
+    shares.legend(fontsize=8)
+    shares.grid(alpha=0.3)
     caption = (
         "Left: per transition run, the founders (the population kept just before the switch) and "
         "those whose lines reach the last generation. Right: each surviving line's active share "

@@ -31,11 +31,11 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
+from softevo.analysis.data import ExperimentData  # noqa: E402
 from softevo.analysis.matching import arrival_generation  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
 from softevo.analysis.stats_tables import ALPHA, ci_table  # noqa: E402
-from softevo.evolution import worlds  # noqa: E402
+from softevo.evolution import environments, traits  # noqa: E402
 from softevo.evolution.selection import non_dominated_sort  # noqa: E402
 
 DPI = 100
@@ -122,9 +122,9 @@ def treatment_colors(treatments: pd.DataFrame) -> dict[str, tuple]:
 def environment_cmap(environment: str) -> str:
     """The colormap of a treatment environment: a world's own (``sim.worlds``), the
     transitions' in the registry's order of them, grey for an unknown one."""
-    if environment in worlds.names():
-        return worlds.get(environment).colormap
-    transitions = [e for e in worlds.environments() if worlds.is_transition(e)]
+    if environment in environments.names():
+        return environments.get(environment).colormap
+    transitions = [e for e in environments.environments() if environments.is_transition(e)]
     if environment in transitions:
         return TRANSITION_CMAPS[transitions.index(environment) % len(TRANSITION_CMAPS)]
     return "Greys"
@@ -132,12 +132,12 @@ def environment_cmap(environment: str) -> str:
 
 def environment_title(environment: str) -> str:
     """``land``; ``land \u2192 water`` for a transition."""
-    return " \u2192 ".join(environment.split(worlds.TRANSITION))
+    return " \u2192 ".join(environment.split(environments.TRANSITION))
 
 
 def _environments(data: ExperimentData) -> list[str]:
     present = list(dict.fromkeys(data.treatments["environment"]))
-    order = worlds.environments()
+    order = environments.environments()
     return sorted(present, key=lambda e: order.index(e) if e in order else len(order))
 
 
@@ -173,10 +173,10 @@ def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) ->
     """Best distance over generations per treatment: mean over repetitions, 95% CI band;
     one panel per environment schedule."""
     fig = _new_figure("fitness", data)
-    environments = _environments(data)
-    axes = _grid(fig, len(environments), min(2, len(environments)), sharey=True)
+    shown = _environments(data)
+    axes = _grid(fig, len(shown), min(2, len(shown)), sharey=True)
     colors = treatment_colors(data.treatments)
-    for ax, env in zip(axes, environments, strict=True):
+    for ax, env in zip(axes, shown, strict=True):
         rows = data.treatments[data.treatments["environment"] == env]
         for name in rows["name"]:
             _curve(ax, curves[curves["treatment"] == name], colors[name], name)
@@ -257,17 +257,18 @@ def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path)
     its display generation, with brackets over significantly different pairs compared at
     that generation; the last panel is the best distance of each run."""
     fig = _new_figure("descriptors", data)
-    axes = _grid(fig, len(TRAITS) + 1, 4)
+    axes = _grid(fig, len(traits.names()) + 1, 4)
     names = data.treatment_names
     colors = treatment_colors(data.treatments)
     position = {name: k for k, name in enumerate(names)}
     shown = {name: data.display_generation(name) for name in names}
     values = data.display_run_values()
-    for ax, metric in zip(axes, [*TRAITS, "best_distance"], strict=True):
+    labels = traits.labels()
+    for ax, metric in zip(axes, [*traits.names(), "best_distance"], strict=True):
         samples = [values.loc[values["treatment"] == n, metric].dropna().to_numpy(float) for n in names]
         _boxes(ax, samples, [colors[n] for n in names])
         ax.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
-        ax.set_title(TRAIT_LABELS[metric] + " (per run)", fontsize=10)
+        ax.set_title(labels[metric] + " (per run)", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
         chosen = tests[(tests["metric"] == metric) & (tests["comparison"] == "between treatments")]
         matched = np.array(
@@ -417,7 +418,7 @@ def transitions_figure(
                 samples.append(values.loc[values["treatment"] == m, metric].dropna().to_numpy(float))
             _boxes(ax, samples, [colors[m] for m in group])
             ax.set_xticks(range(len(group)), group, rotation=20, ha="right", fontsize=8)
-            ax.set_title(f"{TRAIT_LABELS[metric]} per run, generation {at[name]}", fontsize=10)
+            ax.set_title(f"{traits.labels()[metric]} per run, generation {at[name]}", fontsize=10)
             ax.grid(axis="y", alpha=0.3)
             chosen = tests[
                 (tests["metric"] == metric)
@@ -461,7 +462,7 @@ def robots_figure(
 ) -> FigureFile:
     """3-D renders of robots sampled from each treatment's aggregated front (active voxels
     red, passive cyan), with their distance and active share. ``phenotypes(ids)`` gives the
-    stored individuals' phenotypes (``Robots.phenotypes``, which ``service.reports`` binds to
+    stored individuals' phenotypes (``Robots.phenotypes``, which ``service.reports.report`` binds to
     a database)."""
     final = data.display_populations()
     names = data.treatment_names
@@ -543,12 +544,12 @@ def start_end_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -
     """Each trait at generation 0 and at the treatment's end generation: mean of the per-run
     population means with 95% t intervals, stars where start and end differ."""
     fig = _new_figure("start_end", data)
-    axes = _grid(fig, len(TRAITS), 4)
+    axes = _grid(fig, len(traits.names()), 4)
     names = data.treatment_names
     colors = treatment_colors(data.treatments)
     start, end = _start_values(data), _end_values(data)
     x = np.arange(len(names))
-    for ax, trait in zip(axes, TRAITS, strict=True):
+    for ax, trait in zip(axes, traits.names(), strict=True):
         for frame, offset, label, filled in ((start, -0.15, "start", False), (end, 0.15, "end", True)):
             table = ci_table(frame, trait, "treatment")
             table = table.set_index("treatment").reindex(names)
@@ -568,7 +569,7 @@ def start_end_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -
         chosen = tests[(tests["metric"] == trait) & (tests["comparison"] == "start vs end")]
         _start_end_marks(ax, chosen, names)
         ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
-        ax.set_title(TRAIT_LABELS[trait], fontsize=10)
+        ax.set_title(traits.labels()[trait], fontsize=10)
         ax.grid(axis="y", alpha=0.3)
     axes[0].legend(fontsize=8, loc="best")
     fig.suptitle(

@@ -62,7 +62,7 @@ from softevo.analysis.power import detectable_a12, treatment_named
 from softevo.analysis.rank_tests import RankTest, holm, jonckheere_terpstra, mann_whitney
 from softevo.analysis.run_summary import best_distance_at
 from softevo.analysis.stats_tables import ALPHA, POWER
-from softevo.evolution import worlds
+from softevo.evolution import environments
 from softevo.evolution.stats import vargha_delaney
 
 FINDING_COLUMNS = [
@@ -77,7 +77,7 @@ MEASURES = {
 JT = "Jonckheere-Terpstra, one-sided"
 MW = "Mann-Whitney U, two-sided"
 SECONDARY = "(secondary)"
-_LAND, _WATER = worlds.PAPER
+_LAND, _WATER = environments.PAPER
 
 
 @dataclass(frozen=True)
@@ -165,7 +165,7 @@ def transition_findings(data: ExperimentData) -> list[tuple[Finding, Finding]]:
     (the paper's contrast, the contrast at equal time in the final world)."""
     found = []
     for _, treatment in data.treatments[data.treatments["switch_at"].notna()].iterrows():
-        world = worlds.final(treatment["environment"])
+        world = environments.final(treatment["environment"])
         control = treatment_named(data.treatments, world, float(treatment["stiffness_mpa"]))
         end = data.end_generation(treatment["name"])
         if control is None or end is None:
@@ -186,7 +186,7 @@ def _contrast(data, treatment, control: str, at: tuple[int, int], control_at: tu
     )
     test, start_test = mann_whitney(*final), mann_whitney(*start)
     question = f"{name} vs {control}, {how}: generation {at[0]} vs {control_at[0]}"
-    expected_above = worlds.final(treatment["environment"]) == _LAND  # the paper: water->land better
+    expected_above = environments.final(treatment["environment"]) == _LAND  # the paper: water->land better
     row = _row(question, MEASURES["best_distance"], f"{MW} ({test.method})", final, test,
                _a12(*final), _a12(*start))  # fmt: skip
     return Finding(row, (name, control), final, start, (at, control_at), one_sided=False,

@@ -2,7 +2,7 @@
 report's methods paragraph): physics model, frequency mapping, settling, cycles and the cap
 on seconds, and how many evaluations the cap cut.
 
-Settling is read from the scenes the treatment's evaluations build (``evolution.scenes.
+Settling is read from the scenes the treatment's evaluations build (``evolution.evaluation.
 evaluation_scenes`` with the treatment's model, cycles and cap, in each world of its
 schedule), not written here: it depends on the model and the world. The mappings are
 described from ``evolution.genotype`` (``CONTROL_MAPPINGS``, and per evosoro variant
@@ -17,8 +17,8 @@ from typing import Any
 import pandas as pd
 
 from softevo.analysis.run_summary import capped
-from softevo.evolution import genotype, worlds
-from softevo.evolution.scenes import evaluation_scenes
+from softevo.evolution import environments, genotype
+from softevo.evolution.evaluation import evaluation_scenes
 
 METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "capped", "counted"]
 
@@ -43,7 +43,7 @@ def settling_text(treatment: pd.Series, phenotype) -> str:
     read from the scene its evaluations build with ``phenotype`` (any robot: settling does
     not depend on the body)."""
     parts = []
-    for world in worlds.transition(treatment["environment"]):
+    for world in environments.transition(treatment["environment"]):
         scene = evaluation_scenes(
             phenotype,
             world,
@@ -52,7 +52,7 @@ def settling_text(treatment: pd.Series, phenotype) -> str:
             model=str(treatment.get("model", "voxelyze-2")),
             max_seconds=_cap(treatment),
         )[0]
-        parts.append(f"{float(scene['settle_seconds']):g} s {worlds.get(world).label}")
+        parts.append(f"{float(scene['settle_seconds']):g} s {environments.get(world).label}")
     return ", ".join(parts)
 
 

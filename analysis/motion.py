@@ -83,7 +83,7 @@ def task_motion(task, label: str = "", stored_distance: float | None = None) -> 
 
 
 def stored_motion(record: dict, environment: str | None = None) -> Motion:
-    """The motion of a stored record (``service.db.individuals.individual_record``) in
+    """The motion of a stored record (``service.storage.individuals.individual_record``) in
     ``environment`` (default: that of its latest evaluation; one it was never evaluated in
     replays it there, its stored distance None)."""
     from softevo.analysis.robots import stored_distance, stored_task

@@ -37,7 +37,7 @@ the report compares it at:
    comparison's generation, as a count (index + 1); None when the last is below it.
 
 The study must not reuse the pilot's runs: the ``study`` preset starts its seeds past the
-pilot's (``service.treatments``), and every treatment of a preset has seeds of its own.
+pilot's (``evolution.treatments``), and every treatment of a preset has seeds of its own.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ from scipy import optimize, stats
 from softevo.analysis.data import ExperimentData
 from softevo.analysis.matching import families, family_size
 from softevo.errors import UserError
-from softevo.evolution import worlds
+from softevo.evolution import environments
 from softevo.evolution.stats import mann_whitney, vargha_delaney
 
 RESAMPLES = 2_000
@@ -77,8 +77,8 @@ class PaperComparison:
     b: tuple[str, float]
 
 
-_LAND, _WATER = worlds.PAPER
-_LAND_WATER, _WATER_LAND = worlds.TRANSITION.join(worlds.PAPER), worlds.TRANSITION.join(worlds.PAPER[::-1])
+_LAND, _WATER = environments.PAPER
+_LAND_WATER, _WATER_LAND = environments.TRANSITION.join(environments.PAPER), environments.TRANSITION.join(environments.PAPER[::-1])
 PAPER_COMPARISONS = (
     PaperComparison(f"{_LAND} fitness, S4 vs S1", "best_distance", (_LAND, 1.0), (_LAND, 0.001)),
     PaperComparison(f"{_WATER} fitness, S1 vs S5", "best_distance", (_WATER, 0.001), (_WATER, 10.0)),
@@ -90,9 +90,9 @@ PAPER_COMPARISONS = (
     ),
     *(
         PaperComparison(
-            f"frequency vs stiffness {worlds.get(w).label}, S1 vs S5", "frequency", (w, 0.001), (w, 10.0)
+            f"frequency vs stiffness {environments.get(w).label}, S1 vs S5", "frequency", (w, 0.001), (w, 10.0)
         )
-        for w in worlds.PAPER
+        for w in environments.PAPER
     ),
 )
 
@@ -481,8 +481,3 @@ def estimate_steps(data: ExperimentData, settings: PowerSettings) -> int:
     """An upper bound of the power evaluations ``estimate_power`` makes (for a progress bar)."""
     per = int(np.ceil(np.log2(max(2, settings.max_n)))) + 3
     return sum(per + len(_checked(data, a, b)) for _, _, a, b in contained(data))
-
-
-def power_table(estimates: list[PowerEstimate]) -> pd.DataFrame:
-    """The estimates as a DataFrame (one row each)."""
-    return pd.DataFrame([e.to_dict() for e in estimates])

@@ -6,13 +6,10 @@ voxels red, passive voxels cyan.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 
@@ -53,20 +50,3 @@ def draw_body(ax: Axes, body: np.ndarray, title: str | None = None, side: int | 
     ax.set_axis_off()
     if title:
         ax.set_title(title, fontsize=8, pad=0)
-
-
-def render_body(
-    body: np.ndarray,
-    out: str | Path,
-    title: str | None = None,
-    size_inches: float = 4.0,
-    dpi: int = 100,
-) -> Path:
-    """Write a render of ``body`` to ``out`` (format from the suffix: .png, .svg, ...)."""
-    fig = plt.figure(figsize=(size_inches, size_inches))
-    ax = fig.add_subplot(projection="3d")
-    draw_body(ax, body, title)
-    out = Path(out)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-    return out

@@ -3,7 +3,7 @@ self-contained HTML page (figures embedded as base64 PNG) and a Markdown file be
 
 ``write_report(data, out_dir, robots=...)`` writes it from an ``ExperimentData``; ``robots``
 (a ``Robots``) reaches the stored robots for the renders, the evaluation settings and the
-animation. The database side (``service.reports``, behind ``softevo report`` and the REST
+animation. The database side (``service.reports.report``, behind ``softevo report`` and the REST
 service) reads the data and binds the robots. ``out_dir`` receives::
 
     report.html          self-contained page
@@ -50,11 +50,11 @@ from softevo.analysis.run_summary import run_summary
 from softevo.analysis.stats_tables import (
     INTERVAL,
     MANN_WHITNEY,
-    METRIC_LABELS,
     NOT_TESTED,
     RUN_PAIRED,
     SEED_PAIRED,
     fitness_curves,
+    metric_labels,
     statistics_table,
     summary_table,
 )
@@ -361,11 +361,12 @@ def summary_pivot(summary: pd.DataFrame, names: list[str]) -> pd.DataFrame:
         ]
     )
     table = cells.pivot(index=["treatment", "generation"], columns="metric", values="cell")
-    metrics = [m for m in METRIC_LABELS if m in table.columns]
+    labels = metric_labels()
+    metrics = [m for m in labels if m in table.columns]
     order = {name: k for k, name in enumerate(names)}
     table = table.reindex(columns=list(dict.fromkeys(metrics)))
     table = table.sort_index(key=lambda col: col.map(order) if col.name == "treatment" else col)
-    table.columns = [METRIC_LABELS[m] for m in table.columns]
+    table.columns = [labels[m] for m in table.columns]
     return table.reset_index()
 
 
@@ -392,7 +393,8 @@ def per_run_means(runs: pd.DataFrame) -> pd.DataFrame:
 def _statistics_display(stats: pd.DataFrame) -> pd.DataFrame:
     dropped = ["median_a", "median_b", "difference", "difference_low", "difference_high", "unit"]
     shown = stats.drop(columns=dropped)
-    shown["metric"] = [METRIC_LABELS.get(m, m) for m in shown["metric"]]
+    labels = metric_labels()
+    shown["metric"] = [labels.get(m, m) for m in shown["metric"]]
     shown["a - b [95% CI]"] = [
         f"{d:.3g} [{lo:.3g}, {hi:.3g}]" if np.isfinite(d) else ""
         for d, lo, hi in zip(

@@ -1,7 +1,7 @@
 """Stored individuals back to robots: genome -> phenotype -> scene, exactly as the workers
 built them (same encoding, cycles, model, world and stiffness as the evaluation replayed).
 
-The functions take a stored record (``service.db.individuals.individual_record``: the
+The functions take a stored record (``service.storage.individuals.individual_record``: the
 individual, its treatment, seed and evaluations; the caller reads it) and go through
 ``worker.tasks``, the path the evaluations took. ``stored_task(record)`` is the one way from
 a stored individual to a ``Task``: the task of its latest evaluation, as the coordinator built
@@ -14,15 +14,15 @@ from __future__ import annotations
 from typing import Any
 
 from softevo.errors import UserError
-from softevo.evolution import worlds
+from softevo.evolution import environments
 from softevo.evolution.genotype import Genotype, Phenotype, develop
-from softevo.worker.tasks import Task, encoding_of, scene_of
+from softevo.worker.tasks import EmptyBody, Task, scene_of
 
 
 def develop_genome(genome: dict[str, Any], treatment) -> Phenotype:
     """The phenotype of a stored genome (``Genotype.to_dict()`` JSON) in the encoding of its
     run's ``treatment`` (a ``Treatment``: ``to_settings()``)."""
-    return develop(Genotype.from_dict(genome), encoding_of(treatment.to_settings()))
+    return develop(Genotype.from_dict(genome), treatment.encoding)
 
 
 def stored_evaluation(record: dict[str, Any], environment: str | None = None) -> dict[str, Any]:
@@ -31,7 +31,7 @@ def stored_evaluation(record: dict[str, Any], environment: str | None = None) ->
     evaluation."""
     individual_id, evaluations = record["id"], record["evaluations"]
     if environment is not None:
-        evolvable = worlds.names(evolve=True)
+        evolvable = environments.names(evolve=True)
         if environment not in evolvable:
             raise UserError(f"environment must be {' or '.join(evolvable)} (got {environment!r})")
         evaluations = evaluations[evaluations["environment"] == environment]
@@ -52,7 +52,7 @@ def stored_task(record: dict[str, Any], environment: str | None = None, elsewher
     try:
         evaluation = stored_evaluation(record, environment)
     except UserError:
-        if not (elsewhere and environment in worlds.names(evolve=True)):
+        if not (elsewhere and environment in environments.names(evolve=True)):
             raise
         evaluation = {**stored_evaluation(record), "environment": environment}
     return Task.from_stored(
@@ -84,15 +84,13 @@ def record_scene(
     ``elsewhere``).
     """
     task = stored_task(record, environment, elsewhere=True)
-    if worlds.is_compound(task.environment):
+    if environments.is_compound(task.environment):
         raise UserError(
             f"individual {record['id']} was last evaluated in {task.environment}, a world of "
             "several scenes; give --environment"
         )
     try:
         phenotype, scene = scene_of(task, **extra)
-    except ValueError as exc:
-        if str(exc) != "empty body":
-            raise
+    except EmptyBody as exc:
         raise UserError(f"individual {record['id']} has an empty body: nothing to simulate") from exc
     return scene, {**record, "phenotype_object": phenotype, "environment": task.environment, "task": task}

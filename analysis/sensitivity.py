@@ -26,8 +26,9 @@ import time
 from dataclasses import replace
 
 from softevo import sim
-from softevo.evolution import worlds
-from softevo.evolution.afpo import EvolutionConfig
+from softevo.evolution import environments
+from softevo.evolution.algorithm import EvolutionConfig
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig
 from softevo.evolution.runner import best_distance, run
 
@@ -53,17 +54,18 @@ def with_damping(damping: float):
 def one_run(variant: str, environment: str, mpa: float, seed: int, args) -> float:
     """The best distance after ``args.generations`` generations of one run."""
     config = EvolutionConfig(
-        population_size=args.population, seed=seed, environment=environment,
-        youngs_modulus=mpa * 1e6, cycles=args.cycles,
-        encoding=EncodingConfig(workspace=(args.workspace,) * 3),
+        population_size=args.population, seed=seed,
+        evaluation=EvaluationSpec(environment, mpa * 1e6, cycles=args.cycles,
+                                  encoding=EncodingConfig(workspace=(args.workspace,) * 3)),
     )  # fmt: skip
     simulate = sim.simulate_many
     if variant == "damping":
         simulate = with_damping(LOW_DAMPING)
     elif variant == "cycles":
-        config = replace(config, cycles=2 * args.cycles)
+        config = replace(config, evaluation=replace(config.evaluation, cycles=2 * args.cycles))
     elif variant == "frequency":
-        config = replace(config, encoding=replace(config.encoding, frequency_range=(1.0, 3.0)))
+        config = replace(config, evaluation=replace(config.evaluation, encoding=replace(
+            config.encoding, frequency_range=(1.0, 3.0))))
     return best_distance(run(config, simulate, args.generations))
 
 
@@ -97,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     rows, started = [], time.monotonic()
     total = len(variants) * 2 * len(stiffnesses) * args.repetitions
     for variant in variants:
-        for environment in worlds.PAPER:
+        for environment in environments.PAPER:
             for mpa in stiffnesses:
                 for seed in range(args.repetitions):
                     d = one_run(variant, environment, mpa, seed, args)
@@ -116,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
           + " | best stiffness | S-first to S-last |")
     print("| --- | --- | " + " | ".join("---:" for _ in stiffnesses) + " | --- | --- |")
     for variant in variants:
-        for environment in worlds.PAPER:
+        for environment in environments.PAPER:
             means = []
             for mpa in stiffnesses:
                 values = [r["best_distance"] for r in rows if r["variant"] == variant

@@ -18,7 +18,7 @@
 - Tests follow the design. Runs of two treatments that share seeds start from the same
   generation-0 population: they are paired by seed and tested with the two-sided Wilcoxon
   signed-rank test on the seed-matched differences (runs without a partner left out).
-  Treatments with seeds of their own (the presets, ``service.treatments``) are
+  Treatments with seeds of their own (the presets, ``evolution.treatments``) are
   independent samples: two-sided Mann-Whitney U. Start vs end pairs each run with itself
   (signed-rank). The ``test`` column names the test.
 - Intervals (``interval`` column): Student t intervals of the mean over runs
@@ -54,9 +54,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData
+from softevo.analysis.data import ExperimentData
 from softevo.analysis.matching import arrival_generation, comparison_pairs, families
 from softevo.analysis.power import detectable_a12
+from softevo.evolution import traits
 from softevo.evolution.stats import bonferroni, mann_whitney, vargha_delaney
 
 CONFIDENCE = 0.95
@@ -97,13 +98,21 @@ STAT_COLUMNS = [
     "interval",
 ]
 DERIVED = ("frequency_active", "passive_share")
-METRICS = ("best_distance", *TRAITS, *DERIVED)
-METRIC_LABELS = {
-    "best_distance": TRAIT_LABELS["best_distance"],
-    **{trait: TRAIT_LABELS[trait] for trait in TRAITS},
+DERIVED_LABELS = {
     "frequency_active": "frequency, active robots (Hz)",
     "passive_share": "passive robots (share)",
 }
+
+
+def all_metrics() -> tuple[str, ...]:
+    """The measures of a run the tables compare: best distance, every trait
+    (``evolution.traits``, the registered ones included) and the derived ones."""
+    return ("best_distance", *traits.names(), *DERIVED)
+
+
+def metric_labels() -> dict[str, str]:
+    """{metric: label} of ``all_metrics()``."""
+    return {**traits.labels(), **DERIVED_LABELS}
 
 
 def significance_mark(p: float, alpha: float = ALPHA) -> str:
@@ -338,11 +347,12 @@ def start_end_comparisons(data: ExperimentData, metrics: Sequence[str] | None = 
     return _finish(rows)
 
 
-def distinct_metrics(data: ExperimentData, metrics: Sequence[str] = METRICS) -> tuple[str, ...]:
+def distinct_metrics(data: ExperimentData, metrics: Sequence[str] | None = None) -> tuple[str, ...]:
     """``metrics`` less those whose run values (at generation 0 and at every generation a
     treatment is shown or compared at) are constant, or identical to an earlier metric's
     (e.g. ``frequency_active`` when every robot has an active voxel, ``passive_share`` when
     it is always 0): they would repeat another metric's tests or test nothing."""
+    metrics = all_metrics() if metrics is None else metrics
     values = _Values(data)
     generations = sorted({0, *(g for _, g in shown_generations(data))})
     frames = [values.frame(g) for g in generations]
@@ -420,7 +430,7 @@ def summary_table(data: ExperimentData) -> pd.DataFrame:
     frame = pd.concat(parts, ignore_index=True)
     table = ci_table(frame, "value", ["metric", "treatment", "generation"])
     order = {name: k for k, name in enumerate(data.treatment_names)}
-    metric_order = {m: k for k, m in enumerate(METRICS)}
+    metric_order = {m: k for k, m in enumerate(all_metrics())}
     table["generation"] = table["generation"].astype("Int64")
     table = table.sort_values(
         ["metric", "treatment", "generation"],

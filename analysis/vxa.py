@@ -383,7 +383,7 @@ def write_vxa(scene: dict[str, Any], out: str | Path) -> Path:
 
 
 def record_vxa(record: dict[str, Any], environment: str | None = None) -> str:
-    """The ``.vxa`` document of a stored record (``service.db.individuals.individual_record``), in
+    """The ``.vxa`` document of a stored record (``service.storage.individuals.individual_record``), in
     the environment of its latest evaluation unless ``environment`` is given."""
     from softevo.analysis.robots import record_scene
 

@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from softevo.service.coordinator import Coordinator, ask, load_run
-from softevo.service.db import open_database
-from softevo.service.executors import LocalExecutor
-from softevo.service.experiments import create
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.runs.coordinator import Coordinator, ask, load_run
+from softevo.service.runs.executors import LocalExecutor
+from softevo.service.runs.submit import create
+from softevo.service.storage import open_database
 from softevo.sim.worlds import LAND
 
 

@@ -40,7 +40,7 @@ import numba
 import numpy as np
 
 from softevo import sim
-from softevo.evolution.worlds import LAND, PAPER
+from softevo.evolution.environments import LAND, PAPER
 from softevo.sim import cuda_engine
 from softevo.sim.cost import voxel_steps as scene_voxel_steps
 from softevo.sim.engines import EngineUnavailable

@@ -45,8 +45,8 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-from softevo.evolution.worlds import LAND
-from softevo.service.loopback import free_port, wait_healthy
+from softevo.evolution.environments import LAND
+from softevo.service.api.loopback import free_port, wait_healthy
 
 REPO = Path(__file__).resolve().parents[1]
 TOKEN = "bench-load-token"

@@ -1,9 +1,9 @@
 """Check ``softevo plan`` against real runs here: predicted vs measured wall time.
 
 Each case is a small experiment (several stiffnesses, land and water) run to the end by the
-coordinator on the local executor (``softevo run``'s path: ``service.executors.make_executor``)
+coordinator on the local executor (``softevo run``'s path: ``service.runs.executors.make_executor``)
 with 1 or 2 worker processes, on a fresh SQLite file; its wall time (pool started and warm,
-so numba's compilation is not counted) is compared with ``service.plan.plan`` on as many
+so numba's compilation is not counted) is compared with ``service.plan.model.plan`` on as many
 cores. Every run lasts well under a minute. Run it on a quiet machine:
 
     python bench/plan_check.py            # every case
@@ -20,12 +20,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from softevo.service.coordinator import Coordinator
-from softevo.service.db import open_database
-from softevo.service.executors import make_executor
-from softevo.service.experiments import create
-from softevo.service.plan import plan
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.plan.model import plan
+from softevo.service.runs.coordinator import Coordinator
+from softevo.service.runs.executors import make_executor
+from softevo.service.runs.submit import create
+from softevo.service.storage import open_database
 from softevo.sim.worlds import LAND, WATER
 
 COMMON = {"population": 6, "workspace": (5, 5, 5), "cycles": 2, "max_seconds": 1.0,

@@ -32,8 +32,8 @@ import numpy as np
 from redis import Redis
 
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
-from softevo.service.executors import LocalExecutor
-from softevo.service.rq_executor import JobBatch, RQExecutor
+from softevo.service.runs.executors import LocalExecutor
+from softevo.service.runs.rq_executor import JobBatch, RQExecutor
 from softevo.sim.worlds import LAND
 
 REPO = Path(__file__).resolve().parents[1]

@@ -13,7 +13,7 @@ Per load level (a number of workers):
   on the sleep engine (``sim.sleep_engine``: each evaluation sleeps its modelled cost, by
   voxel count, stiffness and world, divided by ``--speed-up``), as threads of ``--processes``
   processes: a sleeping worker uses no CPU, so hundreds fit on 2 cores;
-- the coordinator is ``softevo serve``'s loop (``service.driver.CoordinatorLoop`` with the RQ
+- the coordinator is ``softevo serve``'s loop (``service.runs.driver.CoordinatorLoop`` with the RQ
   executor and Redis run locks), in a process of its own; ``--coordinators K`` starts K, which
   split the runs between them;
 - after ``--warmup`` seconds, for ``--seconds`` seconds it measures: evaluations per second
@@ -27,7 +27,7 @@ Per load level (a number of workers):
 With ``--to-end`` a level runs the grid (every treatment cut to ``--generations`` G) to its
 end instead of a window, and sets the wall time from the coordinators' start to the last
 run's end beside what ``softevo plan`` predicts for the same grid, workers, coordinators and
-speed-up (``service.plan.plan`` with the cost model scaled as the sleep engine scales it):
+speed-up (``service.plan.model.plan`` with the cost model scaled as the sleep engine scales it):
 the planner checked against hundreds of workers.
 Everything stays on 127.0.0.1; every level ends by itself (the processes are stopped, the
 database dropped; a run to the end gives up after ``--seconds`` x 10).
@@ -52,7 +52,7 @@ from urllib.parse import urlsplit, urlunsplit
 
 import numpy as np
 
-from softevo.service.loopback import free_port
+from softevo.service.api.loopback import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 QUEUE = "softevo-scale"
@@ -96,10 +96,10 @@ def workers_role(redis_url: str, count: int, first: int) -> None:
 def coordinator_role(db_url: str, redis_url: str) -> None:
     """``softevo serve``'s coordinator loop on the database's runs, until terminated: with
     ``--coordinators K`` there are K of these, sharing the runs through Redis locks."""
-    from softevo.service.db import open_database
-    from softevo.service.driver import CoordinatorLoop
-    from softevo.service.locks import RedisLocks
-    from softevo.service.rq_executor import RQExecutor
+    from softevo.service.runs.driver import CoordinatorLoop
+    from softevo.service.runs.locks import RedisLocks
+    from softevo.service.runs.rq_executor import RQExecutor
+    from softevo.service.storage import open_database
 
     stop = threading.Event()
     engine = open_database(db_url)
@@ -236,8 +236,8 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
     import psycopg
     from redis import Redis
 
-    from softevo.service.db import open_database
-    from softevo.service.experiments import create
+    from softevo.service.runs.submit import create
+    from softevo.service.storage import open_database
 
     name = f"softevo_scale_{workers}"
     with psycopg.connect(admin_url, autocommit=True) as conn:
@@ -321,7 +321,7 @@ def level(workers: int, args, admin_url: str, folder: Path) -> dict:
 
 def grid(generations: int | None):
     """The paper's grid at paper scale, each treatment cut to ``generations`` if given."""
-    from softevo.service.treatments import preset_grid
+    from softevo.evolution.treatments import preset_grid
 
     treatments = preset_grid("paper", "paper")
     if generations is None:
@@ -334,8 +334,8 @@ def to_end(
 ) -> dict:
     """Wait for every run to finish (at most ``--seconds`` x 10); the measured wall time
     beside the planner's prediction of the same grid on as many workers."""
-    from softevo.service.db import open_database
-    from softevo.service.db.runs import active_run_ids
+    from softevo.service.storage import open_database
+    from softevo.service.storage.runs import active_run_ids
 
     engine = open_database(db_url)
     deadline = started + 10 * args.seconds
@@ -363,7 +363,7 @@ def to_end(
 def planned(workers: int, args) -> dict:
     """``softevo plan``'s answer for the bench's grid: the cost model the sleep engine sleeps
     by, divided by its speed-up; the RQ executor's coordinator cost."""
-    from softevo.service.plan import plan
+    from softevo.service.plan.model import plan
     from softevo.sim.cost import MEASURED
 
     scaled = dataclasses.replace(

@@ -47,21 +47,33 @@ import numpy as np
 from coordinator_overhead import InstantExecutor  # bench/: the instant results of the other benches
 from sqlalchemy import Connection, Engine, func, select, text
 
+from softevo.evolution.environments import PAPER, between
 from softevo.evolution.selection import non_dominated_sort
-from softevo.evolution.worlds import PAPER, between
-from softevo.service.coordinator import ask, load_run, tell
-from softevo.service.db import open_database
-from softevo.service.db.exaptation import exaptation
-from softevo.service.db.experiments import list_experiments, load_experiment
-from softevo.service.db.export import export_runs
-from softevo.service.db.generations import GenerationRecord, generations, insert_ignore, record_generation
-from softevo.service.db.individuals import local_to_db_ids
-from softevo.service.db.models import EvaluationRow, GenerationRow, IndividualRow, PopulationMemberRow, RunRow
-from softevo.service.db.phylogeny import ancestors
-from softevo.service.db.run_tree import run_phylogeny, tree_sample
-from softevo.service.db.runs import list_runs
-from softevo.service.experiments import create
-from softevo.service.treatments import Treatment, paper_grid
+from softevo.evolution.treatments import Treatment, paper_grid
+from softevo.service.reports.data import load_experiment
+from softevo.service.runs.coordinator import ask, load_run, tell
+from softevo.service.runs.submit import create
+from softevo.service.storage import open_database
+from softevo.service.storage.exaptation import exaptation
+from softevo.service.storage.experiments import list_experiments
+from softevo.service.storage.export import export_runs
+from softevo.service.storage.generations import (
+    GenerationRecord,
+    generations,
+    insert_ignore,
+    record_generation,
+)
+from softevo.service.storage.individuals import local_to_db_ids
+from softevo.service.storage.models import (
+    EvaluationRow,
+    GenerationRow,
+    IndividualRow,
+    PopulationMemberRow,
+    RunRow,
+)
+from softevo.service.storage.phylogeny import ancestors
+from softevo.service.storage.run_tree import run_phylogeny, tree_sample
+from softevo.service.storage.runs import list_runs
 
 PAPER_LONGEST = 9000  # the paper's longest runs (S3 and the transitions), generations
 FULL_RUN = (f"{between(*PAPER)} S3", 0)  # the run stored in full: a transition, for exaptation

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from softevo.evolution.worlds import PAPER, WATER
+from softevo.evolution.environments import PAPER, WATER
 
 HERE = Path(__file__).resolve().parent
 SPEC = importlib.util.spec_from_file_location("voxcad_reference", HERE / "voxcad_reference.py")

@@ -45,7 +45,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from softevo.evolution.worlds import LAND, WATER
+from softevo.evolution.environments import LAND, WATER
 
 BENCH = Path(__file__).resolve().parent
 REFERENCE = BENCH.parent / "tests" / "sim" / "reference" / "voxcad"

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softevo.evolution.worlds import LAND, PAPER, WATER
+from softevo.evolution.environments import LAND, PAPER, WATER
 
 REPO = Path(__file__).resolve().parents[1]
 DRIVER = Path(__file__).with_name("voxcad") / "driver.cpp"

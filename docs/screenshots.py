@@ -9,7 +9,7 @@ Starts ``softevo dashboard`` on the database (read-only, a free loopback port), 
 the comparison (``GET /experiments/{id}/analysis`` is computed on the first request: on a
 paper-sized study that takes a while, hence ``--timeout`` seconds), and saves the whole page
 as a PNG. ``REF`` is an experiment id, ``e3``, ``latest`` or a name
-(``service.db.experiments.resolve_experiment``). Prints the PNG's path and size.
+(``service.storage.experiments.resolve_experiment``). Prints the PNG's path and size.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from softevo.service.loopback import free_port, wait_healthy
+from softevo.service.api.loopback import free_port, wait_healthy
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
@@ -31,8 +31,8 @@ DEFAULT_OUT = Path(__file__).resolve().parent / "experiment-page.png"
 
 
 def experiment_id(db: str, reference: str) -> int:
-    from softevo.service.db import open_database
-    from softevo.service.db.experiments import resolve_experiment
+    from softevo.service.storage import open_database
+    from softevo.service.storage.experiments import resolve_experiment
 
     engine = open_database(db, create=False)
     try:

@@ -8,8 +8,8 @@ Main entry points:
 - ``Genotype``, ``Phenotype``, ``EncodingConfig``, ``develop`` (``evolution.genotype``);
 - ``evaluation_scenes``, ``compound_outcome``: the one path from a phenotype to the scenes
   of its evaluation in a pure or compound world, and the outcome of those scenes
-  (``evolution.scenes``; the workers' ``worker.tasks.scenes_of`` goes through it);
-- ``Evolution``, ``EvolutionConfig``: the ask/tell algorithm (``evolution.afpo``);
+  (``evolution.evaluation``; the workers' ``worker.tasks.scenes_of`` goes through it);
+- ``Evolution``, ``EvolutionConfig``: the ask/tell algorithm (``evolution.algorithm``);
 - ``Individual``, ``Evaluation`` (``evolution.individual``);
 - ``describe`` (``evolution.descriptors``, needs trimesh; imported lazily);
 - ``run``: a local run loop, and ``ask_generation``, the ask and environment switch it
@@ -17,12 +17,12 @@ Main entry points:
 - ``Schedule``: environments by generation, and the switch (``evolution.schedule``).
 """
 
-from softevo.evolution.afpo import Evolution, EvolutionConfig
+from softevo.evolution.algorithm import Evolution, EvolutionConfig
 from softevo.evolution.cppn import CPPN, express
+from softevo.evolution.evaluation import compound_outcome, evaluation_scenes
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
 from softevo.evolution.individual import Evaluation, Individual
 from softevo.evolution.runner import ask_generation, run
-from softevo.evolution.scenes import compound_outcome, evaluation_scenes
 from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import Objective, crowding_distance, non_dominated_sort
 

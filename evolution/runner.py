@@ -1,14 +1,14 @@
 """A local run: ask/evaluate/tell over generations with any evaluate function.
 
-A generation, here as in the coordinator (``service.coordinator``), which asks through the
+A generation, here as in the coordinator (``service.runs.coordinator``), which asks through the
 same ``ask_generation``:
 1. ``ask_generation``: the algorithm breeds (``Evolution.ask``); at the first generation of
    a new environment of the ``Schedule``, ``Schedule.switch`` then moves survivors and
    offspring there (``reevaluate_all``) and all of them are asked again, to be evaluated in
    that same generation;
-2. ``evaluations``: each asked individual's scenes (``evolution.scenes.evaluation_scenes``,
+2. ``evaluations``: each asked individual's scenes (``evolution.evaluation.evaluation_scenes``,
    one per part of a compound world such as ``land>water@0.250``) go to ``evaluate`` in one
-   call, and the parts' outcomes are joined (``evolution.scenes.compound_outcome``);
+   call, and the parts' outcomes are joined (``evolution.evaluation.compound_outcome``);
 3. ``Evolution.tell``; then ``on_generation`` sees the completed generation.
 
 ``evaluate`` receives a list of scene dicts (docs/spec.md section 1) and returns one result per
@@ -19,16 +19,18 @@ fits as is. Nothing here touches processes, queues or databases.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
-from softevo.evolution.afpo import Evolution, EvolutionConfig
+from softevo.evolution import environments, traits
+from softevo.evolution.algorithm import Evolution, EvolutionConfig
+from softevo.evolution.evaluation import compound_outcome
 from softevo.evolution.individual import Individual
-from softevo.evolution.scenes import compound_outcome, evaluation_scenes
 from softevo.evolution.schedule import Schedule
 
 Evaluate = Callable[[list[dict[str, Any]]], Sequence[Any]]
+EvaluateGeneration = Callable[[Evolution, list[Individual], int], Mapping[int, Any]]
 OnGeneration = Callable[[Evolution], None]
 
 
@@ -48,15 +50,8 @@ def ask_generation(algorithm: Evolution, schedule: Schedule, generation: int) ->
 def individual_scenes(algorithm: Evolution, ind: Individual) -> list[dict[str, Any]]:
     """The scenes that evaluate ``ind`` in the algorithm's current world (one per part of a
     compound world), with the run's stiffness, cycles, model and cap on seconds."""
-    config = algorithm.config
-    return evaluation_scenes(
-        ind.phenotype(config.encoding),
-        algorithm.environment,
-        config.youngs_modulus,
-        config.cycles,
-        model=config.model,
-        max_seconds=config.max_seconds,
-    )
+    spec = algorithm.config.evaluation.in_world(algorithm.environment)
+    return spec.scenes(ind.phenotype(spec.encoding))
 
 
 def evaluations(algorithm: Evolution, asked: Sequence[Individual], evaluate: Evaluate) -> list[Any]:
@@ -76,6 +71,31 @@ def evaluations(algorithm: Evolution, asked: Sequence[Individual], evaluate: Eva
     return joined
 
 
+def scene_evaluator(evaluate: Evaluate) -> EvaluateGeneration:
+    """An ``EvaluateGeneration`` of a function over scenes (``evaluations``)."""
+
+    def evaluate_generation(algorithm: Evolution, asked: list[Individual], generation: int):
+        return {ind.id: outcome for ind, outcome in zip(asked, evaluations(algorithm, asked, evaluate),
+                                                        strict=True)}
+
+    return evaluate_generation
+
+
+def tell_generation(algorithm: Evolution, asked: Sequence[Individual], results: Mapping[int, Any]) -> None:
+    """Tell the algorithm the results of the asked individuals ({id: result}); a result that
+    is a dict with ``descriptors`` (a worker's ``TaskResult`` JSON) gives its individual
+    those, and each registered trait (``evolution.traits.computed``) joins them."""
+    for ind in asked:
+        result = results.get(ind.id)
+        if isinstance(result, Mapping) and "descriptors" in result:
+            ind.descriptors = result["descriptors"]
+    algorithm.tell({ind.id: results.get(ind.id) for ind in asked})
+    for ind in asked:  # the registered traits (evolution.traits), measured on the phenotype
+        extra = traits.computed(ind.phenotype(algorithm.config.encoding))
+        if extra:
+            ind.descriptors = {**(ind.descriptors or {}), **extra}
+
+
 def best_distance(algo: Evolution) -> float:
     """Largest distance among the current survivors (0 if none)."""
     distances = [ind.objectives["distance"] for ind in algo.population if ind.evaluated]
@@ -84,7 +104,8 @@ def best_distance(algo: Evolution) -> float:
 
 def generation_summary(algo: Evolution) -> dict[str, Any]:
     """One row of a run's history, after a completed generation: its number and world, the
-    survivors' best and mean distance, how many survived and how many of those failed."""
+    survivors' best and mean distance, how many survived and how many of those failed, and
+    ``members``: each survivor's id and distance, by id (``softevo run`` stores the same)."""
     distances = [ind.objectives["distance"] for ind in algo.population if ind.evaluated]
     return {
         "generation": algo.generation,
@@ -93,17 +114,42 @@ def generation_summary(algo: Evolution) -> dict[str, Any]:
         "mean_distance": float(sum(distances) / len(distances)) if distances else 0.0,
         "survivors": len(algo.population),
         "failed": sum(ind.failed for ind in algo.population),
+        "members": sorted((ind.id, float(ind.objectives["distance"])) for ind in algo.population
+                          if ind.evaluated),
     }
+
+
+@dataclass(frozen=True)
+class Best:
+    """The best individual of a run in one pure world: ``distance`` (voxel lengths) and the
+    ``scene`` (a dict ``softevo.simulate`` runs) that reproduces it, its ``individual``,
+    the ``generation`` it was best at and its ``world``."""
+
+    world: str
+    generation: int
+    distance: float
+    individual: Individual = field(repr=False)
+    scene: dict[str, Any] = field(repr=False)
 
 
 @dataclass(frozen=True, repr=False)
 class LocalRun:
     """A finished local run: the algorithm at its end (``evolution.population``: the
-    survivors with their objectives) and ``history``, one ``generation_summary`` row per
-    generation."""
+    survivors with their objectives), ``history``, one ``generation_summary`` row per
+    generation, and ``best(world)``: the best individual seen in each pure world."""
 
     evolution: Evolution
     history: list[dict[str, Any]]
+    bests: dict[str, Best] = field(default_factory=dict)
+
+    def best(self, world: str | None = None) -> Best:
+        """The best individual evaluated in ``world`` (default: the last world of the run),
+        with its ``distance`` and ``scene``; KeyError naming the worlds seen for another."""
+        world = world if world is not None else self.history[-1]["environment"] if self.history else None
+        if world not in self.bests:
+            seen = ", ".join(self.bests) or "none"
+            raise KeyError(f"no individual evaluated in {world!r}; worlds seen: {seen}")
+        return self.bests[world]
 
     def __repr__(self) -> str:
         last = self.history[-1] if self.history else {}
@@ -111,6 +157,24 @@ class LocalRun:
             f"LocalRun(generations={len(self.history)}, environment={last.get('environment')!r}, "
             f"best_distance={last.get('best_distance', 0.0):.4g}, survivors={last.get('survivors', 0)})"
         )
+
+
+def record_best(bests: dict[str, Best], algorithm: Evolution) -> None:
+    """Keep in ``bests`` the best survivor of the algorithm's current pure world if it beats
+    the one kept (the first found wins ties)."""
+    world = algorithm.environment
+    if environments.is_compound(world):
+        return
+    scored = [ind for ind in algorithm.population if ind.evaluated and not ind.failed]
+    if not scored:
+        return
+    top = max(scored, key=lambda ind: ind.objectives["distance"])
+    distance = float(top.objectives["distance"])
+    if world in bests and bests[world].distance >= distance:
+        return
+    spec = algorithm.config.evaluation.in_world(world)
+    (scene,) = spec.scenes(top.phenotype(spec.encoding))
+    bests[world] = Best(world, algorithm.generation, distance, top, scene)
 
 
 def next_generation(algorithm: Evolution) -> int:
@@ -121,25 +185,32 @@ def next_generation(algorithm: Evolution) -> int:
 
 def run(
     config: EvolutionConfig,
-    evaluate: Evaluate,
+    evaluate: Evaluate | None,
     generations: int,
     *,
     schedule: Schedule | None = None,
     algo: Evolution | None = None,
     on_generation: OnGeneration | None = None,
     progress: bool = False,
+    evaluate_generation: EvaluateGeneration | None = None,
 ) -> Evolution:
     """Run (or continue ``algo``) until ``generations`` generations after generation 0 are
-    complete; returns the algorithm. ``schedule`` (default: ``config.environment`` for
-    every generation) gives each generation's world, pure or compound; a generation that
-    starts a new one is evaluated there whole, survivors included (``ask_generation``).
-    ``on_generation`` is called after each completed generation."""
+    complete; returns the algorithm. Each generation's individuals go to ``evaluate`` (a
+    function over scenes, ``scene_evaluator``) or, given instead, ``evaluate_generation``
+    (e.g. the workers' ``worker.evaluate.evaluate_generation``). ``schedule`` (default:
+    the config's world for every generation) gives each generation's world, pure or
+    compound; a generation that starts a new one is evaluated there whole, survivors
+    included (``ask_generation``). ``on_generation`` is called after each completed
+    generation."""
+    if (evaluate is None) == (evaluate_generation is None):
+        raise TypeError("give one of evaluate and evaluate_generation")
+    evaluate_generation = evaluate_generation or scene_evaluator(evaluate)
     algo = algo if algo is not None else Evolution(config)
-    schedule = schedule or Schedule.static(config.environment)
+    schedule = schedule or Schedule.static(config.evaluation.environment)
     bar = _ProgressBar(generations + 1 - next_generation(algo)) if progress else None
     for generation in range(next_generation(algo), generations + 1):
         asked = ask_generation(algo, schedule, generation)
-        algo.tell(evaluations(algo, asked, evaluate))
+        tell_generation(algo, asked, evaluate_generation(algo, asked, generation))
         if on_generation is not None:
             on_generation(algo)
         if bar is not None:

@@ -9,7 +9,7 @@ population is evaluated again in the new world).
 
 A world may be entered gradually: ``Schedule([("land", 0), ("water", 50)], spans=[0, 10])``
 (text ``land:0,water:50+10``) spends generations 50..59 in compound worlds
-(``evolution.worlds``: ``land>water@0.091`` .. ``land>water@0.909``, the water share rising
+(``evolution.environments``: ``land>water@0.091`` .. ``land>water@0.909``, the water share rising
 linearly) and is in pure water from generation 60. Each generation of the span is another
 world, so ``switch`` moves the population (re-evaluates it) at every one of them.
 """
@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from typing import Any
 
-from softevo.evolution import worlds
+from softevo.evolution import environments
 
 
 class Schedule:
@@ -85,9 +85,9 @@ class Schedule:
 
     @classmethod
     def parse(cls, text: str) -> Schedule:
-        """From the text form ``env:first,env:first,...`` (``evolution.worlds.schedule_entries``);
+        """From the text form ``env:first,env:first,...`` (``evolution.environments.schedule_entries``);
         ValueError naming the problem."""
-        return cls(*worlds.schedule_entries(text))
+        return cls(*environments.schedule_entries(text))
 
     def format(self) -> str:
         """The text form, e.g. ``land:0,water:50`` (``water:50+10`` with a switch-over)."""
@@ -98,7 +98,7 @@ class Schedule:
 
     def environment_at(self, generation: int) -> str:
         """The world individuals are evaluated in at ``generation`` (a compound world's name
-        within a switch-over, ``evolution.worlds``)."""
+        within a switch-over, ``evolution.environments``)."""
         index = 0
         for position, (_, first) in enumerate(self.entries):
             if generation >= first:
@@ -106,8 +106,8 @@ class Schedule:
         environment, first = self.entries[index]
         span = self.spans[index]
         if span and generation < first + span:
-            share = worlds.share_at(generation - first, span)
-            return worlds.compound(self.entries[index - 1][0], environment, share)
+            share = environments.share_at(generation - first, span)
+            return environments.compound(self.entries[index - 1][0], environment, share)
         return environment
 
     def switches_at(self, generation: int) -> bool:

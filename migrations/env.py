@@ -1,4 +1,4 @@
-"""Alembic environment: migrates the engine handed over by ``service.db.migrate``.
+"""Alembic environment: migrates the engine handed over by ``service.storage.migrate``.
 
 Run from the command line (``alembic -c migrations/alembic.ini upgrade head``) it builds
 the engine from ``SOFTEVO_DB`` like the CLI does.
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from alembic import context
 
-from softevo.service.db.models import Base
+from softevo.service.storage.models import Base
 
 config = context.config
 target_metadata = Base.metadata
@@ -17,7 +17,7 @@ target_metadata = Base.metadata
 def _engine():
     engine = config.attributes.get("engine")
     if engine is None:
-        from softevo.service.db.engine import make_engine
+        from softevo.service.storage.engine import make_engine
 
         engine = make_engine(config.get_main_option("sqlalchemy.url") or None)
     return engine

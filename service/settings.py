@@ -8,7 +8,7 @@ it and, where it is not a plain value, how its default reads: ``settings_table()
 table of docs/cluster.md ("Settings") from them (``python -m softevo.service.settings``).
 
 The ``max_*`` and background fields bound what one request or command may cost
-(``service.limits``): an expensive read (recorded frames, the report) runs in one background
+(``service.runs.limits``): an expensive read (recorded frames, the report) runs in one background
 process, at most once at a time per key, its answer cached; when ``background_queue`` of them
 are already computing or waiting, a new one is refused with 429 and ``Retry-After``.
 
@@ -28,8 +28,7 @@ from pydantic import Field, SecretStr, ValidationError, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from softevo.errors import UserError
-
-GENOMES_PER_JOB = 4  # genomes per job (RQ) or pool task (local): queue overhead against balance
+from softevo.evolution.treatments import GENOMES_PER_TASK
 
 LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
 LOOPBACK_HOSTS = ("127.0.0.1", "::1", "[::1]", *LOOPBACK_NAMES)  # Host headers served without a token
@@ -67,7 +66,7 @@ class Settings(BaseSettings):
         "all cores", ge=0,
     )
     genomes_per_job: int = _field(
-        GENOMES_PER_JOB, "serve", "genomes per RQ job (queue overhead against balance)", ge=1
+        GENOMES_PER_TASK, "serve", "genomes per RQ job (queue overhead against balance)", ge=1
     )
     jobs_across_runs: bool = _field(
         False, "serve",

@@ -7,7 +7,7 @@
   with a rate per (physics model, world). ``MEASURED`` holds this project's figures
   (``measure`` re-measures them where it runs: ``softevo plan --measure``).
 
-The sleep engine (``sim.sleep_engine``) and the planner (``service.plan``) read the cost
+The sleep engine (``sim.sleep_engine``) and the planner (``service.plan.model``) read the cost
 from here, and nowhere else.
 """
 

@@ -410,7 +410,7 @@ def scene_dt(scene: Scene) -> float:
 def scene_steps(scene: Scene) -> int:
     """Steps the engine takes for a validated scene, settling included (``build_robot``'s own
     count: ``step_counts`` at ``scene_dt``); 0 for an empty body. The one step count of the
-    project: the cost model, the size limits (``service.limits``) and the workers' frame
+    project: the cost model, the size limits (``service.runs.limits``) and the workers' frame
     budget read it. OverflowError if the count exceeds an int64 (``duration.cycles: 1e300``)."""
     if not np.any(scene.body):
         return 0

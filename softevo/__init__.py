@@ -10,7 +10,7 @@ For notebooks and scripts, five functions cover the common uses::
     import softevo
     result = softevo.simulate(scene)                 # a scene dict (docs/contracts.md) -> Result
     softevo.describe(body)                           # shape descriptors of a voxel array
-    local = softevo.evolve("water", 0.1, generations=10)  # in memory: .evolution, .history
+    local = softevo.evolve("water", 0.1, generations=10)  # in memory: .best().scene, .history
     data = softevo.load_experiment("sqlite:///softevo.db", "latest")   # DataFrames
     scene = softevo.import_vxa("robot.vxa")          # a VoxCAD / evosoro file -> scene dict
 
@@ -22,7 +22,18 @@ from __future__ import annotations
 
 from typing import Any
 
-__version__ = "0.1.0"
+
+def _installed_version() -> str:
+    """The version of the installed package (pyproject.toml's, read from its metadata)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("softevo")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "0+unknown"
+
+
+__version__ = _installed_version()
 __all__ = ["describe", "evolve", "import_vxa", "load_experiment", "simulate", "simulate_many"]
 
 
@@ -60,12 +71,12 @@ def import_vxa(path) -> dict[str, Any]:
 
 def evolve(
     environment: str | None = None,
-    stiffness_mpa: float = 1.0,
+    stiffness_mpa: float | None = None,
     *,
-    population: int = 8,
-    generations: int = 8,
-    workspace: tuple[int, int, int] = (5, 5, 5),
-    cycles: int = 4,
+    population: int | None = None,
+    generations: int | None = None,
+    workspace: tuple[int, int, int] | None = None,
+    cycles: int | None = None,
     seed: int = 0,
     switch_at: int | None = None,
     switch_over: int = 0,
@@ -73,52 +84,51 @@ def evolve(
     progress: bool = False,
 ):
     """A local run in memory (no database) of the treatment ``softevo run`` would store:
-    AFPO over CPPN robots in ``environment`` (``land``, the default, ``water``, or a transition
+    AFPO over CPPN robots in ``environment`` (``land``, ``water``, or a transition
     ``land-water`` / ``water-land`` at ``switch_at``, default half-way: abrupt, or gradual over
     ``switch_over`` generations of compound worlds such as ``land>water@0.250``) at
     ``stiffness_mpa``, for ``generations`` generations (0 .. generations - 1), selecting on
     ``objectives`` (names of registered objectives, ``evolution.selection.OBJECTIVES``; empty:
-    the paper's). It asks, switches and evaluates as the coordinator does
-    (``evolution.runner``): with the same seed, its generations are those ``softevo run``
-    stores. The settings are checked as the CLI checks them
-    (``service.treatments.Treatment``, ``service.limits.check_workspace``):
-    a ``softevo.errors.UserError`` says what is wrong. Returns an
-    ``evolution.runner.LocalRun``: ``.evolution`` (its ``population`` holds the survivors
-    with their objectives) and ``.history`` (one row per generation: world, best and mean
-    distance, survivors, failed). For stored, resumable runs use ``softevo run``."""
-    import dataclasses
+    the paper's). Unset sizes are the quick start's (``evolution.treatments.QUICK_START``:
+    land, 1 MPa, 8 robots of 5x5x5 for 8 generations of 4 cycles).
 
-    from softevo import sim
-    from softevo.evolution.runner import LocalRun, generation_summary, run
-    from softevo.service.experiments import evolution_config
-    from softevo.service.limits import check_workspace
-    from softevo.service.treatments import Treatment
-    from softevo.sim.worlds import LAND
+    It asks, evaluates and tells as ``softevo run`` does: the tasks go through the workers'
+    job function (``worker.evaluate.evaluate_generation``: each genome's failure its own,
+    shape descriptors included), so with the same seed its generations are those ``softevo
+    run`` stores. A ``softevo.errors.UserError`` says what is wrong with a setting.
 
-    treatment = Treatment(
-        environment or LAND.name,
-        stiffness_mpa,
-        population=population,
-        generations=generations,
-        workspace=tuple(workspace),
-        cycles=cycles,
-        seed=seed,
-        switch_at=switch_at,
-        switch_over=switch_over,
-        objectives=tuple(objectives),
-    )
-    check_workspace(treatment.workspace)
-    config = dataclasses.replace(evolution_config(treatment, seed), descriptors=True)
+    Returns an ``evolution.runner.LocalRun``: ``.best(world=None)`` (the best individual in
+    a world, default the last: ``.distance`` and ``.scene``, a dict ``softevo.simulate``
+    runs), ``.evolution`` (its ``population`` holds the survivors with their objectives) and
+    ``.history`` (one row per generation: world, best and mean distance, survivors, failed).
+    For stored, resumable runs use ``softevo run``."""
+    from softevo.evolution.runner import LocalRun, generation_summary, record_best, run
+    from softevo.evolution.treatments import QUICK_START, Treatment
+    from softevo.worker.evaluate import evaluate_generation
+
+    given = {"environment": environment, "stiffness_mpa": stiffness_mpa, "population": population,
+             "generations": generations, "workspace": workspace, "cycles": cycles}
+    sizes = {key: QUICK_START[key] if value is None else value for key, value in given.items()}
+    sizes["workspace"] = tuple(sizes["workspace"])
+    treatment = Treatment(**sizes, seed=seed, switch_at=switch_at, switch_over=switch_over,
+                          objectives=tuple(objectives))
     history: list[dict[str, Any]] = []
+    bests: dict = {}
+
+    def on_generation(done) -> None:
+        history.append(generation_summary(done))
+        record_best(bests, done)
+
     algo = run(
-        config,
-        sim.simulate_many,
-        generations - 1,
+        treatment.evolution_config(seed),
+        None,
+        treatment.generations - 1,
         schedule=treatment.schedule(),
-        on_generation=lambda done: history.append(generation_summary(done)),
+        on_generation=on_generation,
         progress=progress,
+        evaluate_generation=evaluate_generation,
     )
-    return LocalRun(algo, history)
+    return LocalRun(algo, history, bests)
 
 
 def load_experiment(db: str | None = None, experiment: str = "latest", generations=None):
@@ -129,9 +139,9 @@ def load_experiment(db: str | None = None, experiment: str = "latest", generatio
     ``softevo export``); ``generations`` (a list) reads less, for experiments too large to
     read whole: the populations at those generations, at 0, at each run's last and at those
     the analyses use, and only their members' evaluations."""
-    from softevo.service.db import open_database
-    from softevo.service.db.experiments import load_experiment as load
-    from softevo.service.db.experiments import resolve_experiment
+    from softevo.service.reports.data import load_experiment as load
+    from softevo.service.storage import open_database
+    from softevo.service.storage.experiments import resolve_experiment
 
     engine = open_database(db, create=False)
     try:

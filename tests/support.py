@@ -1,6 +1,6 @@
 """Helpers every test package shares: the ``softevo`` command line run in this process (fast)
 or as a user runs it (a fresh interpreter); a free loopback port and the wait for a server
-(``service.loopback``)."""
+(``service.api.loopback``)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from softevo.service.api.loopback import free_port, wait_healthy  # noqa: F401  (the tests' own)
 from softevo.service.cli import main
-from softevo.service.loopback import free_port, wait_healthy  # noqa: F401  (the tests' own)
 
 
 def exit_code(*args: str) -> int:

@@ -79,7 +79,7 @@ def test_the_readme_names_the_scale_and_model_of_docs_results():
     runs = (ROOT / "docs" / "results" / "export" / "runs.csv").read_text(encoding="utf-8").splitlines()
     assert runs[1].split(",")[1] == f"paper-{scale}"
     # the export is the preset as it stands: every treatment with the scale's repetitions
-    from softevo.service.treatments import preset_grid
+    from softevo.evolution.treatments import preset_grid
 
     grid = preset_grid("paper", scale)
     assert len(runs) - 1 == sum(t.repetitions for t in grid)

@@ -1,8 +1,17 @@
 """The import graph between softevo's packages, read from the sources (ast: nothing is
-imported to check it): each package imports only the packages below it (no cycle), and no
-module imports a ``_private`` name from another package. ``softevo.errors`` and the version
-in ``softevo/__init__.py`` are leaves every package may use; the facade (``softevo``'s
-functions) sits on top of everything."""
+imported to check it), against the rules of shared/STYLE.md ("Which way imports point"):
+
+- each package imports only the packages below it (no cycle): sim imports none of the
+  others; evolution only sim; worker evolution and sim; the service evolution, worker and
+  analysis, and never sim (it reaches physics only through the worker: ``worker.physics``,
+  ``worker.evaluate``); analysis computes on what it is given (evolution, sim, and the
+  worker's replay of a stored robot);
+- storage (``service.storage``) imports no analysis, and the domain (evolution) nothing of
+  the service; the worker never touches SQL or HTTP (no sqlalchemy, fastapi, httpx);
+- no module imports a ``_private`` name from another package.
+
+``softevo.errors`` and the version in ``softevo/__init__.py`` are leaves every package may
+use; the facade (``softevo``'s functions) sits on top of everything."""
 
 from __future__ import annotations
 
@@ -17,7 +26,7 @@ ALLOWED = {  # package -> the softevo packages it may import
     "evolution": {"sim"},
     "worker": {"evolution", "sim"},
     "analysis": {"worker", "evolution", "sim"},
-    "service": {"analysis", "worker", "evolution", "sim"},
+    "service": {"analysis", "worker", "evolution"},
     "migrations": {"service"},
 }
 LEAVES = {"softevo", "softevo.errors"}
@@ -97,7 +106,7 @@ def test_the_check_sees_upward_and_private_imports(tmp_path, monkeypatch):
     fake.mkdir()
     module = fake / "example.py"
     module.write_text(
-        "from softevo.service.db import open_database\n"
+        "from softevo.service.storage import open_database\n"
         "def f():\n    from softevo import service\n"
         "from softevo.evolution.stats import _private\n"
         "from softevo.analysis.data import _internal\n"
@@ -107,7 +116,7 @@ def test_the_check_sees_upward_and_private_imports(tmp_path, monkeypatch):
     monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
     assert sorted(problems(module, "analysis")) == [
         "analysis imports service (softevo)",
-        "analysis imports service (softevo.service.db)",
+        "analysis imports service (softevo.service.storage)",
         "imports the private softevo.evolution.stats._private",
     ]
 
@@ -130,3 +139,41 @@ def test_only_sim_imports_numba_cuda(package, path):
                if module == GPU_ONLY or module.startswith(GPU_ONLY + ".")
                or (module == "numba" and "cuda" in names)}
     assert package == "sim" or not reached, f"{package} imports {sorted(reached)}: only sim may"
+
+
+# Subpackages held to a narrower rule than their package: prefix -> the softevo packages they
+# must not import.
+NARROWER = {"softevo.service.storage": {"analysis"}}
+NO_SQL_OR_HTTP = ("sqlalchemy", "fastapi", "httpx", "starlette", "uvicorn")
+
+
+def module_name(path: Path, package: str) -> str:
+    return ".".join(["softevo", package, *path.relative_to(ROOT / package).with_suffix("").parts])
+
+
+@pytest.mark.parametrize(("package", "path"), MODULES, ids=[str(p.relative_to(ROOT)) for _, p in MODULES])
+def test_storage_imports_no_analysis_and_the_worker_no_sql_or_http(package, path):
+    name = module_name(path, package)
+    found = imports(path, package)
+    for prefix, banned in NARROWER.items():
+        if name.startswith(prefix):
+            reached = {other for module, names in found for other in package_of(module, names)}
+            assert not reached & banned, f"{name} imports {sorted(reached & banned)}"
+    if package == "worker":
+        outside = {module.split(".")[0] for module, _ in found}
+        assert not outside & set(NO_SQL_OR_HTTP), f"{name} imports {sorted(outside & set(NO_SQL_OR_HTTP))}"
+
+
+def test_the_narrower_rules_see_what_they_forbid(tmp_path, monkeypatch):
+    storage = tmp_path / "service" / "storage"
+    storage.mkdir(parents=True)
+    (storage / "bad.py").write_text("from softevo.analysis.data import ExperimentData\n")
+    worker = tmp_path / "worker"
+    worker.mkdir()
+    (worker / "bad.py").write_text("import sqlalchemy\n")
+    monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
+    with pytest.raises(AssertionError, match="analysis"):
+        test_storage_imports_no_analysis_and_the_worker_no_sql_or_http("service", storage / "bad.py")
+    with pytest.raises(AssertionError, match="sqlalchemy"):
+        test_storage_imports_no_analysis_and_the_worker_no_sql_or_http("worker", worker / "bad.py")
+    assert problems(storage / "bad.py", "service") == []  # the package rule alone lets it pass

@@ -17,8 +17,8 @@ import time
 import traceback
 from typing import Any
 
-from softevo.evolution.scenes import compound_outcome
-from softevo.worker.tasks import Task, TaskResult, failed, scenes_of
+from softevo.evolution.evaluation import compound_outcome
+from softevo.worker.tasks import EmptyBody, Task, TaskResult, failed, generation_tasks, scenes_of
 
 ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
 
@@ -74,9 +74,10 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
             task = Task.from_json(data)
             phenotype, scenes = scenes_of(task)  # a compound world: one scene per part
             runnable.append((k, task, phenotype, scenes))
+        except EmptyBody as exc:
+            results[k] = failed(data, str(exc), phenotype)
         except Exception as exc:
-            message = str(exc) if str(exc) == "empty body" else f"{type(exc).__name__}: {exc}"
-            results[k] = failed(data, message, phenotype)
+            results[k] = failed(data, f"{type(exc).__name__}: {exc}", phenotype)
     if runnable:
         start = time.perf_counter()
         outcomes = _simulate([scene for *_, scenes in runnable for scene in scenes], threads)
@@ -89,6 +90,14 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
             except Exception as exc:
                 results[k] = failed(task, f"{type(exc).__name__}: {exc}")
     return [result.to_json() for result in results]  # type: ignore[union-attr]
+
+
+def evaluate_generation(algorithm, asked, generation: int, threads: int | None = None) -> dict[int, dict]:
+    """The results ({id: ``TaskResult`` JSON}) of one generation's asked individuals of an
+    ``evolution.Evolution``, through ``evaluate_batch`` as every executor evaluates them:
+    the ``evolution.runner.EvaluateGeneration`` of ``softevo.evolve``."""
+    results = evaluate_batch(generation_tasks(algorithm, asked, generation), threads)
+    return {result["id"]: result for result in results}
 
 
 def warm_up(threads: int | None = 1) -> None:

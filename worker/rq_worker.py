@@ -56,7 +56,7 @@ from rq.worker import SimpleWorker, WorkerStatus
 
 from softevo import __version__
 from softevo.errors import UserError
-from softevo.evolution import worlds
+from softevo.evolution import environments
 
 log = logging.getLogger("softevo.worker")
 
@@ -116,7 +116,7 @@ class EvaluationJob(Job):
     """RQ's job that can call ``JOB_FUNCTION`` alone and has no callbacks or webhooks: RQ
     resolves ``func`` and the callbacks by importing the dotted names the sender wrote, here
     and in its registry maintenance (an abandoned job's failure callback and webhooks), on
-    the workers and in the coordinator (``service.rq_executor``)."""
+    the workers and in the coordinator (``service.runs.rq_executor``)."""
 
     @property
     def func(self):
@@ -246,7 +246,7 @@ def warm(threads: int = 1) -> float:
     task = {
         "id": 0,
         "genome": genome.to_dict(),
-        "environment": worlds.LAND.name,
+        "environment": environments.LAND.name,
         "youngs_modulus": 1e5,
         "cycles": 1,
         "encoding": config.to_dict(),

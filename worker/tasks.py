@@ -1,7 +1,7 @@
 """Evaluation tasks and results, and the one path from a genome to a simulated robot.
 
-- ``Task``: one genome to evaluate (genome, environment, Young's modulus, cycles,
-  encoding, physics model), built by the coordinator from the algorithm's individuals
+- ``Task``: one genome to evaluate under an ``evolution.evaluation.EvaluationSpec`` (world,
+  Young's modulus, cycles, physics model, cap on seconds, encoding), built by the coordinator from the algorithm's individuals
   (``Task.from_genome``) or from a stored individual and its treatment's settings
   (``Task.from_stored``). ``to_json`` / ``from_json`` are the wire format every executor
   and RQ job exchanges:
@@ -18,6 +18,10 @@
        "encoding": {...},              # optional EncodingConfig.to_dict(); wins over workspace
        "model": "voxcad-land-water"}   # optional sim.scene model; absent: "voxelyze-2"
 
+  (the keys after ``genome`` are ``EvaluationSpec.to_dict()``).
+
+- ``generation_tasks(algorithm, asked, generation)``: the tasks of one generation's asked
+  individuals.
 - ``TaskResult``: what an evaluation returns, ``to_json`` / ``from_json`` with the keys
   ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
   phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
@@ -26,20 +30,19 @@
   result received from elsewhere (None: nothing).
 - ``scene_of(task)``: (phenotype, scene) of a task in a pure world, the scene the evaluation
   simulates; ``scenes_of(task)``: (phenotype, scenes) for any world, one scene per part of a
-  compound world (``evolution.worlds``: a gradual transition's ``land>water@0.250`` runs
+  compound world (``evolution.environments``: a gradual transition's ``land>water@0.250`` runs
   75% of the cycles on land, then 25% in water). Both develop the genome and hand it to
-  ``evolution.scenes.evaluation_scenes``, the path the local run loop takes too;
-  ``evolution.scenes.compound_outcome`` adds the parts' distances.
+  ``evolution.evaluation.evaluation_scenes``, the path the local run loop takes too;
+  ``evolution.evaluation.compound_outcome`` adds the parts' distances.
 - ``replay(task, every)``: the evaluation simulated again with frames recorded (the
   simulator is deterministic: the motion is the one that was evaluated).
-- ``encoding_of(settings)``: the encoding a treatment's runs express their genomes with;
-  ``default_record_every(scene)``: steps between frames for about ``DEFAULT_RECORD_FPS``
+- ``EmptyBody``: the error of a genome that develops no voxel (its message is the result's
+  ``error``); ``default_record_every(scene)``: steps between frames for about ``DEFAULT_RECORD_FPS``
   frames per simulated second.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -47,79 +50,40 @@ from typing import Any
 
 import numpy as np
 
+from softevo.evolution.evaluation import EvaluationSpec
+
 DEFAULT_RECORD_FPS = 60.0  # frames per simulated second of a replay without ``every``
 MAX_FRAMES = 2000  # frames a replay keeps at most when ``max_frames`` is given
 
 
-def encoding_of(settings: Mapping[str, Any]):
-    """The ``EncodingConfig`` of a treatment's runs from its settings
-    (``service.treatments.Treatment.to_settings()``): ``workspace``, ``evolve_stiffness``,
-    ``frequency_per_voxel``, ``stiffness_range_mpa`` (MPa; the encoding takes Pa),
-    ``control_mapping`` and ``body_rule``. Settings stored before the later ones existed give
-    their defaults: both options off, the linear mapping, any non-empty body."""
-    from softevo.evolution.genotype import EncodingConfig
-
-    config = EncodingConfig(
-        workspace=tuple(int(n) for n in settings["workspace"]),
-        evolve_stiffness=bool(settings.get("evolve_stiffness", False)),
-        frequency_per_voxel=bool(settings.get("frequency_per_voxel", False)),
-        control_mapping=str(settings.get("control_mapping", "linear")),
-        body_rule=str(settings.get("body_rule", "any")),
-    )
-    if "stiffness_range_mpa" in settings and config.evolve_stiffness:
-        low, high = (float(x) * 1e6 for x in settings["stiffness_range_mpa"])
-        config = dataclasses.replace(config, stiffness_range=(low, high))
-    return config
+class EmptyBody(ValueError):
+    """A genome that develops no voxel: nothing to simulate (the result's error is the
+    message, "empty body")."""
 
 
 @dataclass(frozen=True)
 class Task:
-    """One genome to evaluate; see the module doc for its JSON."""
+    """One genome to evaluate with the ``EvaluationSpec`` it is evaluated under; see the
+    module doc for its JSON."""
 
     id: int | None
     genome: dict[str, Any]
-    environment: str
-    youngs_modulus: float
-    cycles: int
-    workspace: tuple[int, int, int]
-    encoding: dict[str, Any] | None = None  # EncodingConfig.to_dict(); None: from workspace
+    evaluation: EvaluationSpec
     run_id: int | None = None
     generation: int | None = None
-    model: str = "voxelyze-2"  # sim.scene.MODELS: the physics of the task's scenes
-    max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
 
     @classmethod
     def from_genome(
         cls,
         genome,
-        environment: str,
-        youngs_modulus: float,
-        cycles: int,
-        encoding,
+        evaluation: EvaluationSpec,
         id: int | None = 0,
         run_id: int | None = None,
         generation: int | None = None,
-        model: str = "voxelyze-2",
-        max_seconds: float | None = None,
     ) -> Task:
-        """A task of ``genome`` (a ``Genotype`` or its ``to_dict()``) expressed with
-        ``encoding`` (an ``EncodingConfig`` or its ``to_dict()``), simulated in ``model`` for
-        ``cycles`` cycles, at most ``max_seconds`` seconds when given."""
+        """A task of ``genome`` (a ``Genotype`` or its ``to_dict()``) under ``evaluation``."""
         genome = genome if isinstance(genome, dict) else genome.to_dict()
-        encoding = encoding if isinstance(encoding, dict) else encoding.to_dict()
-        return cls(
-            id=id,
-            genome=genome,
-            environment=environment,
-            youngs_modulus=float(youngs_modulus),
-            cycles=int(cycles),
-            workspace=tuple(int(n) for n in encoding["workspace"]),
-            encoding=encoding,
-            run_id=run_id,
-            generation=generation,
-            model=model,
-            max_seconds=None if max_seconds is None else float(max_seconds),
-        )
+        return cls(id=id, genome=genome, evaluation=evaluation, run_id=run_id, generation=generation)
 
     @classmethod
     def from_stored(
@@ -131,27 +95,16 @@ class Task:
         youngs_modulus: float,
     ) -> Task:
         """The task of a stored individual: its genome (``Genotype.to_dict()`` JSON), its
-        treatment's settings (``Treatment.to_settings()``; encoding, cycles, model and the cap
-        on seconds, absent in settings stored before they existed: ``voxelyze-2``, no cap) and
-        the environment and Young's modulus (Pa) of the evaluation to reproduce."""
-        return cls.from_genome(
-            genome,
-            environment,
-            youngs_modulus,
-            int(settings["cycles"]),
-            encoding_of(settings),
-            id=int(individual_id),
-            model=str(settings.get("model", "voxelyze-2")),
-            max_seconds=settings.get("max_seconds"),
-        )
+        treatment's settings (``EvaluationSpec.from_settings``: older settings read with
+        their defaults) and the environment and Young's modulus (Pa) of the evaluation to
+        reproduce."""
+        spec = EvaluationSpec.from_settings(settings, environment, youngs_modulus)
+        return cls.from_genome(genome, spec, id=int(individual_id))
 
-    def encoding_config(self):
-        """The ``EncodingConfig`` the genome is expressed with."""
-        from softevo.evolution.genotype import EncodingConfig
-
-        if self.encoding:
-            return EncodingConfig.from_dict(self.encoding)
-        return EncodingConfig(workspace=self.workspace)
+    @property
+    def environment(self) -> str:
+        """The world the task is evaluated in (``evaluation.environment``)."""
+        return self.evaluation.environment
 
     def to_json(self) -> dict[str, Any]:
         """The wire format (module doc); ``from_json(t.to_json()) == t``."""
@@ -160,39 +113,31 @@ class Task:
             out["run_id"] = self.run_id
         if self.generation is not None:
             out["generation"] = self.generation
-        out.update(
-            genome=self.genome,
-            environment=self.environment,
-            youngs_modulus=self.youngs_modulus,
-            cycles=self.cycles,
-            workspace=list(self.workspace),
-        )
-        if self.encoding is not None:
-            out["encoding"] = self.encoding
-        if self.model != "voxelyze-2":
-            out["model"] = self.model
-        if self.max_seconds is not None:
-            out["max_seconds"] = self.max_seconds
+        out["genome"] = self.genome
+        out.update(self.evaluation.to_dict())
         return out
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Task:
         """A task from its JSON (unknown keys are ignored); KeyError if one is missing."""
-        encoding = data.get("encoding") or None
-        workspace = data["workspace"] if "workspace" in data or not encoding else encoding["workspace"]
         return cls(
             id=data["id"],
             genome=data["genome"],
-            environment=data["environment"],
-            youngs_modulus=data["youngs_modulus"],
-            cycles=data["cycles"],
-            workspace=tuple(int(n) for n in workspace),
-            encoding=encoding,
+            evaluation=EvaluationSpec.from_dict(data),
             run_id=data.get("run_id"),
             generation=data.get("generation"),
-            model=data.get("model", "voxelyze-2"),
-            max_seconds=data.get("max_seconds"),
         )
+
+
+def generation_tasks(algorithm, asked, generation: int, run_id: int | None = None) -> list[dict[str, Any]]:
+    """The JSON tasks of the individuals ``asked`` of an ``evolution.Evolution`` at
+    ``generation``, in the algorithm's current world (the schedule's, after a switch), as
+    the coordinator and ``softevo.evolve`` hand them to ``worker.evaluate.evaluate_batch``."""
+    spec = algorithm.config.evaluation.in_world(algorithm.environment)
+    return [
+        Task.from_genome(ind.genome, spec, id=ind.id, run_id=run_id, generation=generation).to_json()
+        for ind in asked
+    ]
 
 
 @dataclass(frozen=True)
@@ -307,11 +252,11 @@ def plain(value: Any) -> Any:
 def scene_of(task: Task, **extra: Any):
     """(phenotype, scene) of ``task``: the genome developed in its encoding and placed in
     its environment; ``extra`` scene fields (e.g. ``record``) are added. ValueError
-    ("empty body") for a genome without voxels, ValueError for a compound world (its
+    (``EmptyBody``) for a genome without voxels, ValueError for a compound world (its
     evaluation is several scenes: ``scenes_of``)."""
-    from softevo.evolution import worlds
+    from softevo.evolution import environments
 
-    if worlds.is_compound(task.environment):
+    if environments.is_compound(task.environment):
         raise ValueError(f"{task.environment} is a compound world of several scenes: use scenes_of")
     phenotype, (scene,) = scenes_of(task, **extra)
     return phenotype, scene
@@ -319,18 +264,15 @@ def scene_of(task: Task, **extra: Any):
 
 def scenes_of(task: Task, **extra: Any):
     """(phenotype, [scene, ...]): the genome developed in its encoding, and one scene per
-    part of the task's world (``evolution.scenes.evaluation_scenes``: a compound world's
+    part of the task's world (``evolution.evaluation.evaluation_scenes``: a compound world's
     parts each run their share of the cycles and of the cap on seconds). A pure world gives
-    the one scene of ``scene_of``. ValueError ("empty body") for a genome without voxels."""
+    the one scene of ``scene_of``. ``EmptyBody`` for a genome without voxels."""
     from softevo.evolution.genotype import Genotype, develop
-    from softevo.evolution.scenes import evaluation_scenes
 
-    phenotype = develop(Genotype.from_dict(task.genome), task.encoding_config())
+    phenotype = develop(Genotype.from_dict(task.genome), task.evaluation.encoding)
     if phenotype.voxel_count == 0:
-        raise ValueError("empty body")
-    scenes = evaluation_scenes(phenotype, task.environment, task.youngs_modulus, task.cycles,
-                               model=task.model, max_seconds=task.max_seconds, **extra)
-    return phenotype, scenes
+        raise EmptyBody("empty body")
+    return phenotype, task.evaluation.scenes(phenotype, **extra)
 
 
 def default_record_every(scene: Mapping[str, Any], fps: float = DEFAULT_RECORD_FPS) -> int:
@@ -360,10 +302,10 @@ def replay(
         dt: () float64 time step, seconds; stable: () bool.
         distance: () float64 distance, voxel lengths (the evaluated one when stable).
         voxel_size: () float64 voxel edge, metres.
-    Raises ValueError for a genome with an empty body.
+    Raises ``EmptyBody`` for a genome with an empty body.
     """
     from softevo import sim
-    from softevo.evolution.scenes import compound_outcome
+    from softevo.evolution.evaluation import compound_outcome
 
     task = task if isinstance(task, Task) else Task.from_json(task)
     phenotype, scenes = scenes_of(task)

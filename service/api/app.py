@@ -3,7 +3,7 @@
 The lifespan builds what the routes use (``Services``): the database engine (schema
 upgraded), the executor (RQ when ``SOFTEVO_REDIS_URL`` is set, else local processes) and,
 unless ``SOFTEVO_COORDINATOR=false``, the coordinator loop that drives every unfinished run
-(``service.driver``). Nothing is built at import time.
+(``service.runs.driver``). Nothing is built at import time.
 
 Errors are JSON ``{"detail": "<message>"}`` (422 adds ``errors``, the problems found).
 """
@@ -27,8 +27,10 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.routing import Match
 
+from softevo import __version__
 from softevo.errors import UserError
 from softevo.service.api import docs_page
+from softevo.service.api.dashboard import dashboard_router
 from softevo.service.api.expensive import Busy, ExpensiveReads
 from softevo.service.api.frames import recorded_frames
 from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
@@ -38,14 +40,13 @@ from softevo.service.api.routes import analyses, experiments, exports, health, i
 from softevo.service.api.routes import plan as plan_routes
 from softevo.service.api.routes import worlds as world_routes
 from softevo.service.api.schemas import EXPERIMENT_TAGS
-from softevo.service.dashboard import dashboard_router
-from softevo.service.db import open_database
-from softevo.service.db.locks import DatabaseLocks
-from softevo.service.driver import CoordinatorLoop
-from softevo.service.executors import make_executor
-from softevo.service.locks import RedisLocks
-from softevo.service.reports import write_report
+from softevo.service.reports.report import write_report
+from softevo.service.runs.driver import CoordinatorLoop
+from softevo.service.runs.executors import make_executor
+from softevo.service.runs.locks import RedisLocks
 from softevo.service.settings import Settings
+from softevo.service.storage import open_database
+from softevo.service.storage.advisory_locks import DatabaseLocks
 
 log = logging.getLogger("softevo.api")
 
@@ -76,7 +77,7 @@ class Services:
             from rq import Queue
             from rq.serializers import JSONSerializer
 
-            from softevo.service.rq_executor import connect
+            from softevo.service.runs.rq_executor import connect
 
             self._status_queue = Queue(
                 settings.queue, connection=connect(settings.redis_url), serializer=JSONSerializer
@@ -95,7 +96,7 @@ class Services:
     def _make_executor(self):
         settings = self.settings
         if settings.redis_url:
-            from softevo.service.rq_executor import RQExecutor  # only with Redis, as above
+            from softevo.service.runs.rq_executor import RQExecutor  # only with Redis, as above
 
             return RQExecutor(
                 settings.redis_url,
@@ -147,7 +148,7 @@ class Services:
         """(body, headers) of ``task``'s recorded frames (``service.api.frames.recorded_frames``
         in the background process), cached by individual, world and recording settings;
         ``X-Cache`` says whether the answer was in the cache (``hit``) or computed (``miss``)."""
-        key = ("frames", task.id, task.environment, task.youngs_modulus, every, max_frames)
+        key = ("frames", task.id, task.environment, task.evaluation.youngs_modulus, every, max_frames)
         hit = self.reads.cached(key) is not None
         body, headers = await self.reads.compute(
             key, recorded_frames, task, every, max_frames,
@@ -156,7 +157,7 @@ class Services:
         return body, {**headers, "X-Cache": "hit" if hit else "miss"}
 
     async def write_report(self, experiment_id: int, out_dir, client: str = "") -> Any:
-        """``service.reports.write_report`` in the background process; concurrent requests
+        """``service.reports.report.write_report`` in the background process; concurrent requests
         for one experiment share one writing."""
         key = ("report", experiment_id)
         return await self.reads.compute(
@@ -272,7 +273,7 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     app = FastAPI(
         title="softevo",
         summary="Evolve soft voxel robots on land and in water: experiments, runs, lineages.",
-        version="0.1.0",
+        version=__version__,
         lifespan=lifespan,
         docs_url=None,  # docs_page: vendored Swagger UI, no CDN; no ReDoc (it loads from a CDN)
         redoc_url=None,

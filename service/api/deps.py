@@ -11,7 +11,6 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy import Connection
 
 from softevo.service.api.schemas import ErrorOut, ValidationErrorOut
-from softevo.service.settings import Settings
 
 if TYPE_CHECKING:
     from softevo.service.api.app import Services
@@ -41,10 +40,6 @@ COMMON: dict[int | str, dict[str, Any]] = {
     422: {"model": ValidationErrorOut, "description": "The request does not match the schema"},
     503: {"model": ErrorOut, "description": "The database is unreachable"},
 }
-
-
-def get_settings(request: Request) -> Settings:
-    return request.app.state.settings
 
 
 def get_services(request: Request) -> Services:
@@ -117,7 +112,6 @@ def require_read_token(request: Request) -> None:
         )
 
 
-SettingsDep = Annotated[Settings, Depends(get_settings)]
 ServicesDep = Annotated["Services", Depends(get_services)]
 ConnectionDep = Annotated[Connection, Depends(get_connection)]
 WriteAccess = Depends(require_token)

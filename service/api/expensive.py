@@ -29,7 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-from softevo.sim import worlds
+from softevo.evolution import environments as worlds
 from softevo.worker.evaluate import ensure_compiled, init_pool_process
 
 DEFAULT_RETRY_AFTER_S = 5

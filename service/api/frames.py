@@ -30,7 +30,7 @@ import struct
 
 import numpy as np
 
-from softevo.sim.mesh import lattice_mesh
+from softevo.worker.physics import lattice_mesh
 
 MAGIC = b"SVXF"
 VERSION = 2

@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
+from softevo.evolution.treatments import Treatment, preset_grid
 from softevo.service.api.schemas import ExperimentIn, PresetIn
-from softevo.service.limits import check_workspace
-from softevo.service.treatments import Treatment, preset_grid
+from softevo.service.runs.limits import check_workspace
 
 
 def request_treatments(body: ExperimentIn | PresetIn) -> list[Treatment]:

@@ -22,9 +22,11 @@ from pydantic import (
 )
 from pydantic_core import core_schema
 
-from softevo.evolution import worlds
-from softevo.service.plan import EXECUTORS
-from softevo.service.treatments import SCALES, Treatment
+from softevo.evolution import environments
+from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS
+from softevo.evolution.treatments import ALGORITHMS, SCALES, Treatment, model_names
+from softevo.service.runs.executors import EXECUTOR_KINDS
+from softevo.service.storage.models import RunStatus
 
 MAX_INT32 = 2**31 - 1
 Name = Annotated[
@@ -56,22 +58,28 @@ class RegistryEnum(str):
 
 
 class Environment(RegistryEnum):
-    """A treatment's environment: a world or a transition (``evolution.worlds.environments``)."""
+    """A treatment's environment: a world or a transition (``evolution.environments.environments``)."""
 
-    choices = staticmethod(worlds.environments)
+    choices = staticmethod(environments.environments)
 
 
 class WorldName(RegistryEnum):
     """One evolvable world of the registry (``sim.worlds``)."""
 
-    choices = staticmethod(lambda: worlds.names(evolve=True))
+    choices = staticmethod(lambda: environments.names(evolve=True))
 
-Algorithm = Literal["afpo", "pareto"]
-Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.scene.MODELS
-ControlMapping = Literal["linear", "evosoro", "evosoro-bounded", "evosoro-positive",
-                         "evosoro-bounded-positive"]  # evolution.genotype.CONTROL_MAPPINGS
-BodyRule = Literal["any", "evosoro"]  # evolution.genotype.BODY_RULES
-RunStatusName = Literal["pending", "running", "finished", "failed", "cancelled"]
+class Model(RegistryEnum):
+    """A physics model of the registry (``evolution.treatments.model_names``: every model the
+    simulator knows, a model registered after this module was imported included)."""
+
+    choices = staticmethod(lambda: model_names())
+
+
+# The domain's choices, read from it (a choice added there is one here too)
+Algorithm = Literal[ALGORITHMS]  # type: ignore[valid-type]
+ControlMapping = Literal[CONTROL_MAPPINGS]  # type: ignore[valid-type]
+BodyRule = Literal[tuple(BODY_RULES)]  # type: ignore[valid-type]
+RunStatusName = Literal[tuple(status.value for status in RunStatus)]  # type: ignore[valid-type]
 
 
 class Strict(BaseModel):
@@ -205,7 +213,7 @@ class Devices(Strict):
     cores: int | None = Field(None, ge=1, le=100_000, description="CPU workers, one core each")
     gpus: int | None = Field(None, ge=1, le=10_000, description="GPUs (their rate: an estimate)")
     coordinators: int = Field(1, ge=1, le=1_000, description="coordinator processes sharing the runs")
-    executor: Literal[EXECUTORS] = Field(  # type: ignore[valid-type]
+    executor: Literal[EXECUTOR_KINDS] = Field(  # type: ignore[valid-type]
         "rq", description="rq: a cluster (softevo serve, Redis workers); local: softevo run's process pool"
     )
 
@@ -317,7 +325,7 @@ class BestOut(Objectives):
 
 class TreatmentOut(BaseModel):
     name: str
-    settings: dict[str, Any] = Field(description="service.treatments.Treatment as JSON")
+    settings: dict[str, Any] = Field(description="evolution.treatments.Treatment as JSON")
 
 
 class RunOut(BaseModel):
@@ -362,6 +370,8 @@ class EvaluationOut(BaseModel):
     descriptors: dict[str, Any] | None
     objectives: dict[str, float] | None = Field(
         description="every objective of the evaluation's run, by name (None: not recorded)")
+    traits: dict[str, float | None] = Field(
+        description="every trait of the registry (softevo.evolution.traits), by name")
     stable: bool
     error: str | None
     seconds: float | None

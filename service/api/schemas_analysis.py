@@ -1,5 +1,5 @@
 """Response body of ``GET /experiments/{id}/analysis``: an experiment's treatments side by
-side (``service.experiment_analysis`` says how each part is computed). Every statistic's
+side (``service.reports.report.experiment`` says how each part is computed). Every statistic's
 unit is the run; missing or non-finite numbers are null."""
 
 from __future__ import annotations

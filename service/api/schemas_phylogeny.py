@@ -1,5 +1,5 @@
 """Response bodies of the phylogeny endpoints (``GET /runs/{id}/phylogeny`` and
-``GET /runs/{id}/exaptation``); ``service.db.run_tree`` and ``service.db.exaptation`` say
+``GET /runs/{id}/exaptation``); ``service.storage.run_tree`` and ``service.storage.exaptation`` say
 what each field means."""
 
 from __future__ import annotations

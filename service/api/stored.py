@@ -7,11 +7,11 @@ from fastapi import HTTPException
 
 from softevo.analysis import robots
 from softevo.errors import UserError
-from softevo.service.db.individuals import individual_record
+from softevo.service.storage.individuals import individual_record
 from softevo.worker.tasks import Task
 
 
-def stored_task(services, individual_id: int, environment: str | None) -> Task:
+def stored_task_or_404(services, individual_id: int, environment: str | None) -> Task:
     """The ``worker.tasks.Task`` of a stored individual's latest evaluation (in
     ``environment`` if given), as the coordinator built it (``analysis.robots.stored_task``);
     404 if there is no such individual or evaluation."""

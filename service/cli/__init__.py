@@ -26,8 +26,7 @@ app = typer.Typer(
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
     from softevo.errors import UserError
-    from softevo.sim.engines import EngineUnavailable
-    from softevo.sim.scene import SceneError
+    from softevo.worker.physics import EngineUnavailable, SceneError
 
     return (UserError, SceneError, EngineUnavailable)
 
@@ -77,6 +76,9 @@ def main(argv: list[str] | None = None) -> None:
     _register()
     user_errors = _user_error_types()
     try:
+        from softevo.plugins import load_plugins
+
+        load_plugins()  # SOFTEVO_PLUGINS: traits, objectives, worlds a deployment registers
         app(args=argv, standalone_mode=False)
     except user_errors as exc:
         print(f"error: {exc}", file=sys.stderr)

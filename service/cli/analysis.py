@@ -1,7 +1,7 @@
 """``softevo report | show | export-vxa | import-vxa | power`` (docs/spec.md section 7).
 
 - ``softevo report EXPERIMENT --out DIR``: the HTML + Markdown report with every figure, the
-  statistics and the run settings (``service.reports.write_report``).
+  statistics and the run settings (``service.reports.report.write_report``).
 - ``softevo show INDIVIDUAL --out FILE.gif|FILE.mp4``: re-simulate a stored individual and
   animate its motion (MP4 needs ffmpeg).
 - ``softevo export-vxa INDIVIDUAL --out FILE.vxa``: the individual as a VoxCAD file.
@@ -13,7 +13,7 @@
 
 EXPERIMENT is an id (``3``, ``e3``, ``exp-3``), ``latest`` or a name (the newest of that
 name); INDIVIDUAL is an individual's database id (as ``softevo lineage`` and the exports
-show), or a run (``latest``, ``r5``, a name: ``service.db.runs.resolve_individual``) for its
+show), or a run (``latest``, ``r5``, a name: ``service.storage.runs.resolve_individual``) for its
 best individual in its last world. ``show`` and ``export-vxa`` use the environment of the
 individual's latest evaluation unless ``--environment`` is given.
 """
@@ -27,14 +27,14 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.evolution import worlds
+from softevo.evolution import environments
 from softevo.service.cli.options import INDIVIDUAL_HELP, DbOption, JsonOption
 from softevo.service.cli.runs import one_individual
 
 EnvironmentOption = Annotated[
     str | None,
     typer.Option(
-        "--environment", help=f"{' | '.join(worlds.names(evolve=True))} (default: of its latest evaluation)"
+        "--environment", help=f"{' | '.join(environments.names(evolve=True))} (default: of its latest evaluation)"
     ),
 ]
 
@@ -51,7 +51,7 @@ def report(
     """Write an experiment's report: report.html (self-contained), report.md, figures, CSVs."""
     # the report pulls in matplotlib and the analyses: load them only for this command
     from softevo.analysis.report import ReportWarning
-    from softevo.service.reports import write_report
+    from softevo.service.reports.report import write_report
 
     with _warning_lines(ReportWarning):
         result = write_report(db, experiment, out, animation=animation, progress=not quiet)
@@ -69,7 +69,7 @@ def show(
 ) -> None:
     """Animate a stored individual's evaluated motion (re-simulated, frames recorded)."""
     from softevo.analysis.motion import animate, movie_writer, stored_motion
-    from softevo.service.db.individuals import individual_record
+    from softevo.service.storage.individuals import individual_record
 
     if fps < 1:
         raise UserError(f"--fps must be >= 1 (got {fps})")
@@ -89,7 +89,7 @@ def export_vxa(
 ) -> None:
     """Write a stored individual as a VoxCAD .vxa file."""
     from softevo.analysis.vxa import record_vxa
-    from softevo.service.db.individuals import individual_record
+    from softevo.service.storage.individuals import individual_record
 
     if out.suffix.lower() != ".vxa":
         raise UserError(f"--out must end in .vxa (got {out.name!r})")
@@ -175,9 +175,10 @@ def power(
         missing,
         power_generations,
     )
-    from softevo.service.db.experiments import load_experiment, resolve_experiment
-    from softevo.service.reports import engine_of
-    from softevo.service.treatments import preset_scale
+    from softevo.evolution.treatments import preset_scale
+    from softevo.service.reports.data import load_experiment
+    from softevo.service.reports.report import engine_of
+    from softevo.service.storage.experiments import resolve_experiment
 
     study_n = preset_scale("study").repetitions if study_n is None else study_n
     settings = PowerSettings(

@@ -17,7 +17,7 @@ def check_database(url: str, create: bool = True) -> None:
     """UserError (one line) unless the database at ``url`` opens (and, unless ``create``,
     exists): checked before the server starts, whose startup would otherwise fail with a
     traceback. The dashboard does not create one (it would show a new empty one)."""
-    from softevo.service.db import open_database
+    from softevo.service.storage import open_database
 
     open_database(url, create=create).dispose()
 

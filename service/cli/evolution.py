@@ -13,7 +13,7 @@ from softevo.errors import UserError
 
 def _read_scene(path: Path):
     """The validated scene in ``path`` (sim.parse_scene); a UserError for an unreadable file."""
-    from softevo import sim
+    from softevo.worker import physics as sim
 
     try:
         data = json.loads(path.read_text())

@@ -2,16 +2,16 @@
 
 - ``softevo phylogeny RUN [--generation G] [--json | --csv]``: every individual of the run
   (as it stood at generation ``G`` if given): id, parent, generation born, last generation
-  kept, environment and objectives at birth (``service.db.run_tree.run_phylogeny``), read
+  kept, environment and objectives at birth (``service.storage.run_tree.run_phylogeny``), read
   page by page.
 - ``softevo exaptation RUN [--json]``: for a transition run, the founders kept at the switch,
   how many of their lines reach the last generation, the roots of the final population and,
   per surviving line, the traits of the founder, at the switch and at the end with the
-  generation each first changed (``service.db.exaptation.exaptation``; the JSON is that of
+  generation each first changed (``service.storage.exaptation.exaptation``; the JSON is that of
   ``GET /runs/{id}/exaptation`` without paging).
 
 RUN is a run id (``5``, ``r5``, ``run-5``), or ``latest``, ``e2`` or an experiment's name
-for an experiment of one run (``service.db.runs.resolve_run``). ``docs/sql.md`` gives the
+for an experiment of one run (``service.storage.runs.resolve_run``). ``docs/sql.md`` gives the
 same as SQL.
 """
 
@@ -59,9 +59,9 @@ def phylogeny(
 ) -> None:
     """A run's phylogeny: every individual with its parent, birth, last generation kept,
     environment and objectives at birth."""
-    from softevo.service.db import open_database
-    from softevo.service.db.run_tree import run_phylogeny
-    from softevo.service.db.runs import resolve_run, run_row
+    from softevo.service.storage import open_database
+    from softevo.service.storage.run_tree import run_phylogeny
+    from softevo.service.storage.runs import resolve_run, run_row
 
     if as_json and as_csv:
         raise UserError("give --json or --csv, not both")
@@ -117,9 +117,9 @@ def exaptation(
 ) -> None:
     """For a transition run: the founders kept at the switch, which of their lines survive
     to the end, and the traits of each surviving line at the founder, the switch and the end."""
-    from softevo.service.db import open_database
-    from softevo.service.db.exaptation import exaptation as summary_of
-    from softevo.service.db.runs import resolve_run
+    from softevo.service.storage import open_database
+    from softevo.service.storage.exaptation import exaptation as summary_of
+    from softevo.service.storage.runs import resolve_run
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:

@@ -1,5 +1,5 @@
 """``softevo plan PRESET_OR_SPEC``: what an experiment grid costs before it runs
-(``service.plan``): wall time, core- or GPU-hours, database size, utilisation.
+(``service.plan.model``): wall time, core- or GPU-hours, database size, utilisation.
 
 PRESET_OR_SPEC is a preset (``paper``, ``gradual``) at ``--scale``, or a JSON file holding
 what ``POST /experiments`` takes (``{"name", "treatments": [...]}`` or ``{"preset",
@@ -23,7 +23,7 @@ GB = 1e9
 def treatments_of(preset_or_spec: str, scale: str):
     """The treatments of a preset at ``scale``, or of a spec file as ``POST /experiments``
     takes it (validated by the API's own schema); UserError for anything else."""
-    from softevo.service.treatments import PRESETS, preset_grid
+    from softevo.evolution.treatments import PRESETS, preset_grid
 
     if preset_or_spec in PRESETS:
         return preset_grid(preset_or_spec, scale)
@@ -74,14 +74,14 @@ def plan(
     as_json: JsonOption = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
-    from softevo.service import plan as planner
-    from softevo.sim.cost import MEASURED
-    from softevo.sim.cost import measure as measure_rates
+    from softevo.service.plan import model as planner
+    from softevo.worker.physics import MEASURED
+    from softevo.worker.physics import measure as measure_rates
 
     planner.check_devices(cores, gpus)
     planner.check_coordinators(coordinators)
-    if executor not in planner.EXECUTORS:
-        raise UserError(f"--executor must be one of {', '.join(planner.EXECUTORS)} (got {executor!r})")
+    if executor not in planner.EXECUTOR_KINDS:
+        raise UserError(f"--executor must be one of {', '.join(planner.EXECUTOR_KINDS)} (got {executor!r})")
     treatments = treatments_of(preset_or_spec, scale)
     cost = MEASURED
     if measure:

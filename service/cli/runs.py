@@ -5,7 +5,7 @@ Everything runs embedded: a SQLite file (``--db`` or ``SOFTEVO_DB``, default
 ``RUN_OR_EXPERIMENT``: ``5``, ``r5`` or ``run-5`` for run 5; ``e2`` or ``exp-2`` for
 experiment 2; ``latest`` for the newest experiment; or an experiment's name. A command on
 one run (``best``) takes an experiment of one run too; INDIVIDUAL (``lineage``) is an
-individual id or a run, for its best individual (``service.db.runs``: the one resolver).
+individual id or a run, for its best individual (``service.storage.runs``: the one resolver).
 
 Each command imports what it uses inside its function: ``softevo --help`` and every other
 command start without loading SQLAlchemy, pandas, numba or rich.
@@ -21,7 +21,8 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.evolution import worlds
+from softevo.evolution import environments
+from softevo.evolution.treatments import GENOMES_PER_TASK, SCALES, Treatment
 from softevo.service.cli.options import (
     INDIVIDUAL_HELP,
     DbOption,
@@ -30,8 +31,6 @@ from softevo.service.cli.options import (
     RunArgument,
     WorkersOption,
 )
-from softevo.service.settings import GENOMES_PER_JOB
-from softevo.service.treatments import SCALES, Treatment
 
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
 MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
@@ -46,7 +45,7 @@ def _parse_workspace(text: str) -> tuple[int, int, int]:
         sizes = ()
     if len(sizes) != 3 or min(sizes) < 1:
         raise UserError(f"--workspace must be three positive integers X,Y,Z (got {text!r})")
-    from softevo.service.limits import check_workspace
+    from softevo.service.runs.limits import check_workspace
 
     check_workspace(sizes)
     return sizes  # type: ignore[return-value]
@@ -74,12 +73,12 @@ def _workers(workers: int | None) -> int:
 
 
 def _execute(
-    engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = GENOMES_PER_JOB
+    engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = GENOMES_PER_TASK
 ) -> None:
     """Advance ``run_ids`` to their end with a progress bar; print a summary line per run."""
-    from softevo.service.coordinator import Coordinator, unfinished_runs
-    from softevo.service.executors import make_executor
-    from softevo.service.progress import progress_bar
+    from softevo.service.cli.progress import progress_bar
+    from softevo.service.runs.coordinator import Coordinator, unfinished_runs
+    from softevo.service.runs.executors import make_executor
 
     runs = unfinished_runs(engine, run_ids)
     if not runs:
@@ -99,7 +98,7 @@ def _execute(
 
 
 def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
-    from softevo.service.db.runs import run_row
+    from softevo.service.storage.runs import run_row
 
     with engine.connect() as conn:
         rows = [run_row(conn, run_id) for run_id in run_ids]
@@ -117,7 +116,7 @@ def _treatment_options(params: dict) -> dict:
 
 def run(
     ctx: typer.Context,
-    env: Annotated[str, typer.Option("--env", help=" | ".join(worlds.environments()))],
+    env: Annotated[str, typer.Option("--env", help=" | ".join(environments.environments()))],
     stiffness: Annotated[
         float | None,
         typer.Option(
@@ -174,9 +173,9 @@ def run(
 ) -> None:
     """Evolve one treatment (one run) and store every individual. The defaults keep the
     quick start's meaning (AFPO, voxelyze-2); ``softevo experiment`` runs the paper's choices."""
-    from softevo.service.db import open_database
-    from softevo.service.experiments import create
-    from softevo.service.treatments import Treatment
+    from softevo.evolution.treatments import Treatment
+    from softevo.service.runs.submit import create
+    from softevo.service.storage import open_database
 
     if stiffness is None:
         if not evolve_stiffness:
@@ -233,9 +232,9 @@ def experiment(
     """Run a preset experiment: every treatment and repetition (or those of --treatments),
     with the paper's algorithm (plain Pareto), model (voxcad-land-water) and encoding unless
     --algorithm / --model."""
-    from softevo.service.db import open_database
-    from softevo.service.experiments import create_paper
-    from softevo.service.treatments import preset_grid, select_treatments
+    from softevo.evolution.treatments import preset_grid, select_treatments
+    from softevo.service.runs.submit import create_paper
+    from softevo.service.storage import open_database
 
     if repetitions is not None and repetitions < 1:
         raise UserError(f"--repetitions must be >= 1 (got {repetitions})")
@@ -258,7 +257,7 @@ def _print_status(engine, run_ids: list[int]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from softevo.service.db.status import run_summaries
+    from softevo.service.storage.status import run_summaries
 
     caption = "best: of the last generation; per world: of any generation in it"
     table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best",
@@ -287,8 +286,8 @@ def status(
 ) -> None:
     """Show runs: status, generation, world and best distance of the last generation, and
     the best distance reached in each world."""
-    from softevo.service.db import open_database
-    from softevo.service.db.runs import resolve_runs
+    from softevo.service.storage import open_database
+    from softevo.service.storage.runs import resolve_runs
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:
@@ -310,8 +309,8 @@ def resume(
     Without an argument: every pending or running run. Runs named explicitly are continued
     even if they were cancelled or failed.
     """
-    from softevo.service.db import open_database
-    from softevo.service.db.runs import reopen_runs, resolve_runs
+    from softevo.service.storage import open_database
+    from softevo.service.storage.runs import reopen_runs, resolve_runs
 
     engine = open_database(db, create=False)
     with engine.begin() as conn:
@@ -328,9 +327,9 @@ def export(
     db: DbOption = None,
 ) -> None:
     """Write runs, individuals (one row per evaluation) and populations files."""
-    from softevo.service.db import open_database
-    from softevo.service.db.export import export_runs
-    from softevo.service.db.runs import resolve_runs
+    from softevo.service.storage import open_database
+    from softevo.service.storage.export import export_runs
+    from softevo.service.storage.runs import resolve_runs
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:
@@ -341,9 +340,9 @@ def export(
 
 def one_individual(db: str | None, reference: str):
     """(engine, individual id) of the database ``db`` and the individual ``reference`` names
-    (``service.db.runs.resolve_individual``)."""
-    from softevo.service.db import open_database
-    from softevo.service.db.runs import resolve_individual
+    (``service.storage.runs.resolve_individual``)."""
+    from softevo.service.storage import open_database
+    from softevo.service.storage.runs import resolve_individual
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:
@@ -356,7 +355,7 @@ def lineage(
     db: DbOption = None,
 ) -> None:
     """An individual's ancestors, newest first, to its root newcomer."""
-    from softevo.service.db.status import lineage_records
+    from softevo.service.storage.status import lineage_records
 
     records = lineage_records(*one_individual(db, individual))
     if as_json:
@@ -387,8 +386,8 @@ def best(
 ) -> None:
     """A run's best individual in each world it visited (greatest distance), in the order
     the run met them; the same as GET /runs/{id}/best."""
-    from softevo.service.db import open_database
-    from softevo.service.db.runs import best_per_world, resolve_run
+    from softevo.service.storage import open_database
+    from softevo.service.storage.runs import best_per_world, resolve_run
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:

@@ -7,7 +7,7 @@ without a ``record`` field is recorded at about ``worker.tasks.DEFAULT_RECORD_FP
 per simulated second (``worker.tasks.default_record_every``) when ``--record`` is given.
 
 Mistakes (missing file, invalid JSON, malformed scene, a scene over the limits of
-``service.limits``: ``SOFTEVO_MAX_VOXELS``, ``SOFTEVO_MAX_VOXEL_STEPS``, unwritable output) raise
+``service.runs.limits``: ``SOFTEVO_MAX_VOXELS``, ``SOFTEVO_MAX_VOXEL_STEPS``, unwritable output) raise
 ``UserError`` / ``sim.SceneError``; ``service.cli.main`` turns them into one line and exit 2.
 An unstable robot is a result, not an error: it is reported with its reason and exit 0.
 """
@@ -22,8 +22,8 @@ from typing import Annotated, Any
 import typer
 
 from softevo.errors import UserError
+from softevo.evolution import environments as worlds
 from softevo.service.cli.options import device_option, engine_option
-from softevo.sim import worlds
 from softevo.worker.tasks import default_record_every
 
 
@@ -93,8 +93,8 @@ def simulate(
     device: device_option("default cuda:0 with --engine cuda") = None,
 ) -> None:
     """Simulate one scene and print its result."""
-    from softevo import sim
-    from softevo.service.limits import check_scene
+    from softevo.service.runs.limits import check_scene
+    from softevo.worker import physics as sim
 
     scene_dict = _read_scene(scene_path)
     check_scene(scene_dict)  # fail fast, before compiling anything: malformed, too large or too long

@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 from sqlalchemy import Engine
 
-from softevo.service.coordinator import Coordinator
-from softevo.service.db import open_database
-from softevo.service.executors import InlineExecutor
-from softevo.service.experiments import create
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.runs.coordinator import Coordinator
+from softevo.service.runs.executors import InlineExecutor
+from softevo.service.runs.submit import create
+from softevo.service.storage import open_database
 
 COMMON = {"population": 4, "generations": 3, "workspace": (4, 4, 4), "cycles": 2, "repetitions": 2}
 TREATMENTS = (
@@ -46,6 +46,6 @@ def tiny(tmp_path_factory) -> TinyExperiment:
 
 @pytest.fixture(scope="session")
 def tiny_data(tiny):
-    from softevo.service.db.experiments import load_experiment
+    from softevo.service.reports.data import load_experiment
 
     return load_experiment(tiny.engine, tiny.experiment_id)

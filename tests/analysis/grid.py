@@ -12,7 +12,7 @@ from collections.abc import Callable
 import pandas as pd
 
 from softevo.analysis.data import ExperimentData
-from softevo.service.treatments import paper_grid
+from softevo.evolution.treatments import paper_grid
 
 Values = Callable[[str, int, int], tuple[float, float]]  # (best distance, frequency)
 

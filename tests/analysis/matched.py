@@ -15,9 +15,9 @@ from __future__ import annotations
 
 from sqlalchemy import Engine
 
-from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
-from softevo.service.db.generations import GenerationRecord, record_generation
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.storage.experiments import NewRun, NewTreatment, create_experiment
+from softevo.service.storage.generations import GenerationRecord, record_generation
 
 TREATMENTS = (
     Treatment("land", 0.001, name="land S1", population=2, generations=3),

@@ -7,11 +7,10 @@ import pandas as pd
 import pytest
 from scipy import stats as scipy_stats
 
-from softevo.analysis.data import TRAITS
 from softevo.analysis.stats_tables import (
-    METRICS,
     RUN_PAIRED,
     SEED_PAIRED,
+    all_metrics,
     best_distance_per_run,
     distinct_metrics,
     fitness_curves,
@@ -19,7 +18,9 @@ from softevo.analysis.stats_tables import (
     summary_table,
 )
 from softevo.errors import UserError
-from softevo.service.db.experiments import load_experiment, resolve_experiment
+from softevo.evolution.traits import names as trait_names
+from softevo.service.reports.data import load_experiment
+from softevo.service.storage.experiments import resolve_experiment
 
 
 def test_the_experiment_is_read_back(tiny, tiny_data):
@@ -38,7 +39,7 @@ def test_the_experiment_is_read_back(tiny, tiny_data):
 
 def test_members_carry_the_traits_of_their_latest_evaluation(tiny_data):
     members = tiny_data.populations
-    assert members[list(TRAITS)].notna().all().all()
+    assert members[list(trait_names())].notna().all().all()
     assert (members["evaluation_generation"] <= members["generation"]).all()
     transition = members[members["treatment"] == "water-land S3"]
     expected = np.where(transition["generation"] >= 2, "land", "water")
@@ -72,7 +73,7 @@ def test_statistics_table_on_the_real_experiment(tiny_data):
     table = statistics_table(tiny_data)
     between = table[table["comparison"] == "between treatments"]
     metrics = distinct_metrics(tiny_data)  # METRICS less the constant or repeated ones
-    assert set(metrics) <= set(METRICS) and "voxel_count" in metrics
+    assert set(metrics) <= set(all_metrics()) and "voxel_count" in metrics
     assert sorted(between["metric"]) == sorted(metrics)
     assert (between["a"] == "land S3").all() and (between["b"] == "water-land S3").all()
     assert (between["family"] == [f"water-land S3 vs its final world | {m}" for m in between["metric"]]).all()

@@ -23,7 +23,7 @@ def test_load_experiment_is_the_stored_experiment(tiny, tiny_data):
 
 
 def test_load_experiment_reads_every_row_softevo_export_writes(tiny):
-    from softevo.service.db.export import individuals_frame, populations_frame
+    from softevo.service.storage.export import individuals_frame, populations_frame
 
     data = softevo.load_experiment(tiny.url, f"e{tiny.experiment_id}")
     with tiny.engine.connect() as conn:

@@ -10,7 +10,7 @@ from PIL import Image
 from softevo.analysis import figures
 from softevo.analysis.exaptation import exaptation_figure, run_statistics
 from softevo.analysis.stats_tables import fitness_curves, statistics_table
-from softevo.service.reports import exaptation_data, stored_robots
+from softevo.service.reports.report import exaptation_data, stored_robots
 
 # 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
 EXPECTED_PX = {

@@ -11,11 +11,11 @@ import pytest
 from softevo.analysis.findings import FINDING_COLUMNS, findings_display, findings_table, headline_findings
 from softevo.analysis.rank_tests import holm, jonckheere_terpstra, mann_whitney
 from softevo.analysis.run_summary import SUMMARY_COLUMNS, capped, evaluation_seconds, run_summary
-from softevo.evolution import worlds
+from softevo.evolution import environments
 from softevo.evolution.stats import vargha_delaney
 from tests.analysis.grid import grid_data
 
-LAND, WATER = worlds.PAPER
+LAND, WATER = environments.PAPER
 LEVEL = {f"S{k}": k for k in range(1, 6)}
 
 
@@ -27,7 +27,7 @@ def paper_like(name: str, repetition: int, generation: int) -> tuple[float, floa
     noise = 0.37 * repetition + 0.011 * k * repetition
     distance = (k if world == LAND else 6 - k) * 2 + noise + 0.5 * generation
     frequency = (6 - k if world == LAND else k) * 2 + noise + 0.001 * generation
-    if worlds.is_transition(world):
+    if environments.is_transition(world):
         distance = 3.0 + noise + 0.2 * generation + 0.003 * len(world)
     return distance, frequency
 
@@ -92,7 +92,7 @@ def test_the_transition_contrasts(grid):
 
 
 def test_missing_treatments_give_only_the_findings_held():
-    no_transitions = grid_data(paper_like, keep=lambda name: not worlds.is_transition(name.split(" ")[0]))
+    no_transitions = grid_data(paper_like, keep=lambda name: not environments.is_transition(name.split(" ")[0]))
     table = findings_table(no_transitions)
     assert len(table) == 4 and table["p_holm"].to_numpy() == pytest.approx(holm(table["p"]))
     land_only = grid_data(paper_like, keep=lambda name: name in (f"{LAND} S2", f"{LAND} S5", f"{LAND} S1"))

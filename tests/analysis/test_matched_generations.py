@@ -14,8 +14,8 @@ from softevo.analysis.stats_tables import (
     summary_table,
     treatment_comparisons,
 )
-from softevo.service.db import open_database
-from softevo.service.db.experiments import load_experiment
+from softevo.service.reports.data import load_experiment
+from softevo.service.storage import open_database
 from tests.analysis import matched
 
 

@@ -7,11 +7,11 @@ import pandas as pd
 import pytest
 
 from softevo.analysis.methods import cap_cuts, evaluation_methods, mapping_text, methods_text, settling_text
-from softevo.evolution import genotype, worlds
+from softevo.evolution import environments, genotype
 from softevo.evolution.genotype import Phenotype
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
 
-LAND, WATER = worlds.PAPER
+LAND, WATER = environments.PAPER
 ROBOT = Phenotype(body=np.full((2, 2, 2), 2, np.int8), phase=np.zeros((2, 2, 2)), frequency=2.0)
 
 
@@ -32,11 +32,11 @@ def test_mappings_are_described_from_the_genotype_module():
 def test_settling_is_read_from_the_scene_the_treatment_builds(model):
     transition = Treatment(f"{LAND}-{WATER}", 0.1, model=model)
     expected = [
-        ROBOT.to_scene(world, 1e5, transition.cycles, model=model)["settle_seconds"] for world in worlds.PAPER
+        ROBOT.to_scene(world, 1e5, transition.cycles, model=model)["settle_seconds"] for world in environments.PAPER
     ]
     text = settling_text(_row(transition), ROBOT)
     assert text == ", ".join(
-        f"{s:g} s {worlds.get(w).label}" for s, w in zip(expected, worlds.PAPER, strict=True)
+        f"{s:g} s {environments.get(w).label}" for s, w in zip(expected, environments.PAPER, strict=True)
     )
 
 

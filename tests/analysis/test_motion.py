@@ -17,7 +17,7 @@ from softevo.analysis.motion import (
     frame_indices,
     stored_motion,
 )
-from softevo.service.db.individuals import individual_record
+from softevo.service.storage.individuals import individual_record
 from softevo.sim.mesh import deformed_mesh, lattice_mesh
 from tests.support import softevo
 

@@ -18,8 +18,8 @@ from softevo.analysis.power import (
     pilot_shift,
     rank_test_power,
 )
-from softevo.service.db import open_database
-from softevo.service.treatments import STUDY_REPETITIONS, Treatment, paper_grid
+from softevo.evolution.treatments import STUDY_REPETITIONS, Treatment, paper_grid
+from softevo.service.storage import open_database
 from tests.analysis import matched
 from tests.support import softevo
 

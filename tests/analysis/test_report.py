@@ -8,7 +8,7 @@ import re
 import pytest
 
 from softevo.analysis.figures import FIGURES, TITLES
-from softevo.service.reports import report_html, write_report
+from softevo.service.reports.report import report_html, write_report
 from tests.support import softevo
 
 
@@ -102,9 +102,9 @@ def test_unknown_experiment_is_one_line_and_exit_2(capsys, tiny, tmp_path, refer
 
 
 def test_an_experiment_with_nothing_stored_yet_is_a_user_error(capsys, tmp_path):
-    from softevo.service.db import open_database
-    from softevo.service.experiments import create
-    from softevo.service.treatments import Treatment
+    from softevo.evolution.treatments import Treatment
+    from softevo.service.runs.submit import create
+    from softevo.service.storage import open_database
 
     url = f"sqlite:///{tmp_path / 'empty.db'}"
     engine = open_database(url)
@@ -117,7 +117,7 @@ def test_the_analysis_report_needs_only_the_data(tiny_data, tmp_path):
     from softevo.analysis.report import write_report as write_from_data
 
     result = write_from_data(tiny_data, tmp_path, robots=None)
-    # the exaptation figure needs the phylogeny, given as exaptation= (service.reports does)
+    # the exaptation figure needs the phylogeny, given as exaptation= (service.reports.report does)
     needing_more = ("robots", "exaptation")
     assert [f.name for f in result.figures] == [name for name in FIGURES if name not in needing_more]
     assert result.animation is None

@@ -13,8 +13,8 @@ from fastapi import HTTPException
 from softevo.analysis.robots import stored_task
 from softevo.errors import UserError
 from softevo.service.api import stored as route
-from softevo.service.db.individuals import individual_record
-from softevo.service.reports import stored_robots
+from softevo.service.reports.report import stored_robots
+from softevo.service.storage.individuals import individual_record
 
 
 def _record(tiny_record: dict, rows: list[tuple[str, float]]) -> dict:

@@ -25,7 +25,7 @@ from softevo.analysis.stats_tables import (
     significance_mark,
     welch_interval,
 )
-from softevo.service.treatments import paper_grid, preset_scale
+from softevo.evolution.treatments import paper_grid, preset_scale
 
 
 def test_ci_table_is_the_t_interval_per_group():

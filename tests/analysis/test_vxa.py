@@ -10,7 +10,7 @@ import pytest
 
 from softevo.analysis.robots import record_scene
 from softevo.analysis.vxa import data_layers, scene_to_vxa, value_layers, write_vxa
-from softevo.service.db.individuals import individual_record
+from softevo.service.storage.individuals import individual_record
 from tests.support import softevo
 
 EXPECTED = Path(__file__).parent / "data" / "small.vxa"

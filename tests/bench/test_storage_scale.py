@@ -10,13 +10,13 @@ from pathlib import Path
 
 from sqlalchemy import func, select
 
-from softevo.service.db import open_database
-from softevo.service.db.exaptation import exaptation
-from softevo.service.db.experiments import load_experiment
-from softevo.service.db.models import IndividualRow
-from softevo.service.db.phylogeny import ancestors
-from softevo.service.db.run_tree import run_phylogeny
-from softevo.service.db.runs import list_runs
+from softevo.service.reports.data import load_experiment
+from softevo.service.storage import open_database
+from softevo.service.storage.exaptation import exaptation
+from softevo.service.storage.models import IndividualRow
+from softevo.service.storage.phylogeny import ancestors
+from softevo.service.storage.run_tree import run_phylogeny
+from softevo.service.storage.runs import list_runs
 
 SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "storage_scale.py"
 GENERATIONS, POPULATION = 10, 6

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from sqlalchemy import Engine
 
-from softevo.service.db.experiments import NewTreatment, create_experiment
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.storage.experiments import NewTreatment, create_experiment
 from tests.analysis import matched
 
 NAME = "compared"

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import create_engine, select, update
 
-from softevo.service.db.models import IndividualRow
+from softevo.service.storage.models import IndividualRow
 from tests.dashboard.block import WORKSPACE, block_genome
 from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
 from tests.support import free_port, softevo_process, wait_healthy
@@ -181,7 +181,7 @@ class ComparedDatabase:
 @pytest.fixture(scope="session")
 def compared_db(tmp_path_factory) -> ComparedDatabase:
     """SQLite with the experiment of ``tests.dashboard.compared`` (written directly)."""
-    from softevo.service.db import open_database
+    from softevo.service.storage import open_database
     from tests.dashboard import compared
 
     path = tmp_path_factory.mktemp("compared") / "compared.db"

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from sqlalchemy import Engine
 
-from softevo.service.experiments import create
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.runs.submit import create
 
 POPULATION, GENERATIONS, SWITCH = 30, 9000, 4500
 

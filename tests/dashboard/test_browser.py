@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from sqlalchemy import create_engine, select
 
-from softevo.service.db.models import IndividualRow
+from softevo.service.storage.models import IndividualRow
 from tests.dashboard.chromium import browser_missing
 
 pytestmark = [

@@ -14,15 +14,15 @@ import pytest
 from scipy import stats
 from sqlalchemy import create_engine
 
-from softevo.analysis.data import TRAITS
 from softevo.analysis.matching import families
 from softevo.analysis.stats_tables import distinct_metrics
+from softevo.evolution.traits import names as trait_names
 from softevo.service.api.expensive import Busy
 from softevo.service.api.routes.exports import Downloads
 from softevo.service.api.schemas_analysis import ExperimentAnalysisOut
-from softevo.service.db.experiments import load_experiment
-from softevo.service.db.export import table_chunks
-from softevo.service.db.export_stream import stream_table
+from softevo.service.reports.data import load_experiment
+from softevo.service.storage.export import table_chunks
+from softevo.service.storage.export_stream import stream_table
 from tests.dashboard import compared
 from tests.dashboard.conftest import softevo
 
@@ -113,7 +113,7 @@ def test_tables_are_read_a_bounded_chunk_at_a_time(compared_db):
     assert max(sizes) == 4 and len(sizes) == -(-total // 4)  # every chunk full but the last
     import pyarrow.parquet as pq
 
-    from softevo.service.db import export_stream
+    from softevo.service.storage import export_stream
 
     original = export_stream.table_chunks
     export_stream.table_chunks = lambda conn, table, run_ids: original(conn, table, run_ids, chunk_rows=4)
@@ -149,7 +149,7 @@ def test_the_analysis_has_one_curve_front_and_box_per_treatment(analysis):
     assert [t["name"] for t in analysis["treatments"]] == names
     assert [c["treatment"] for c in analysis["curves"]] == names
     assert [f["treatment"] for f in analysis["fronts"]] == names
-    assert [d["metric"] for d in analysis["descriptors"]] == ["best_distance", *TRAITS]
+    assert [d["metric"] for d in analysis["descriptors"]] == ["best_distance", *trait_names()]
     for descriptor in analysis["descriptors"]:
         assert [len(t["values"]) for t in descriptor["treatments"]] == [compared.REPETITIONS] * len(names)
     runs = [run["run_id"] for t in analysis["treatments"] for run in t["runs"]]

@@ -12,8 +12,8 @@ import httpx
 import numpy as np
 import pytest
 
+from softevo.service.api.dashboard.assets import STATIC_DIR, plotly_js
 from softevo.service.api.frames import decode_frames
-from softevo.service.dashboard.assets import STATIC_DIR, plotly_js
 
 TEMPLATES = Path(STATIC_DIR).parent / "templates"
 OWN_FILES = [*TEMPLATES.glob("*.html"), *STATIC_DIR.glob("*.css"), *STATIC_DIR.glob("js/*.js")]
@@ -128,7 +128,7 @@ def test_every_dashboard_file_is_package_data():
 
     package = Path(STATIC_DIR).parent
     pyproject = tomllib.loads((package.parents[1] / "pyproject.toml").read_text())
-    patterns = pyproject["tool"]["setuptools"]["package-data"]["softevo.service.dashboard"]
+    patterns = pyproject["tool"]["setuptools"]["package-data"]["softevo.service.api.dashboard"]
     included = {path for pattern in patterns for path in package.glob(pattern)}
     files = {
         path for folder in ("static", "templates") for path in (package / folder).rglob("*") if path.is_file()

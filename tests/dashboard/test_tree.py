@@ -13,7 +13,7 @@ import httpx
 import numpy as np
 import pytest
 
-from softevo.service.db import open_database
+from softevo.service.storage import open_database
 from tests.dashboard import synthetic
 from tests.dashboard.chromium import browser_missing
 from tests.dashboard.conftest import softevo

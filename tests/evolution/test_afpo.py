@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from softevo.evolution import EncodingConfig, Evolution, EvolutionConfig, run
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.individual import Evaluation
 from softevo.evolution.runner import evaluations, individual_scenes
 from softevo.evolution.schedule import Schedule
@@ -23,8 +24,11 @@ def fake_evaluate(scenes):
 
 
 def config(**changes):
+    """A small config; evaluation fields (cycles, environment, ...) go into its spec."""
+    spec = {key: changes.pop(key) for key in list(changes) if key in EvaluationSpec.__dataclass_fields__}
     return EvolutionConfig(
-        **{"population_size": 6, "encoding": SMALL, "descriptors": False, **changes}
+        **{"population_size": 6, "evaluation": EvaluationSpec(**{"encoding": SMALL, **spec}),
+           "descriptors": False, **changes}
     )
 
 

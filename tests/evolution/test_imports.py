@@ -14,6 +14,6 @@ def test_largest_component_is_sims():
 
 
 def test_evolution_and_the_coordinator_do_not_import_numba():
-    code = "import sys, softevo.evolution, softevo.service.coordinator; print('numba' in sys.modules)"
+    code = "import sys, softevo.evolution, softevo.service.runs.coordinator; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from softevo.evolution.afpo import Evolution, EvolutionConfig
+from softevo.evolution.algorithm import Evolution, EvolutionConfig
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig
 from softevo.evolution.selection import (
     OBJECTIVES,
@@ -31,7 +32,7 @@ def most_voxels():
 
 
 def _run(objectives, generations=4):
-    algo = Evolution(EvolutionConfig(population_size=6, seed=3, encoding=ENCODING, objectives=objectives,
+    algo = Evolution(EvolutionConfig(population_size=6, seed=3, evaluation=EvaluationSpec(encoding=ENCODING), objectives=objectives,
                                      descriptors=False))
     for _ in range(generations):
         asked = algo.ask()

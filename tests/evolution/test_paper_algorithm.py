@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from softevo.evolution.afpo import Evolution, EvolutionConfig
+from softevo.evolution.algorithm import Evolution, EvolutionConfig
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import (
     EVOSORO_MAPPINGS,
     EncodingConfig,
@@ -224,7 +225,7 @@ def run_generations(config, generations=3):
 
 
 def test_pareto_keeps_mu_plus_mu_without_newcomers_and_valid_bodies():
-    config = EvolutionConfig(population_size=6, mode="pareto", encoding=PAPER, descriptors=False)
+    config = EvolutionConfig(population_size=6, mode="pareto", evaluation=EvaluationSpec(encoding=PAPER), descriptors=False)
     algo = run_generations(config)
     assert len(algo.population) == 6
     assert all(ind.parent_id is not None or ind.generation_born == 0 for ind in algo.population)
@@ -237,16 +238,16 @@ def test_pareto_keeps_mu_plus_mu_without_newcomers_and_valid_bodies():
 @pytest.mark.parametrize(("world", "settle"), [("water", 0.0), ("land", 0.5)])
 def test_scenes_carry_the_model_its_amplitude_and_the_fork_files_settling(rng, world, settle):
     """The fork's sample robots: InitCmTime 0.5 s on land, 0 s in water."""
-    config = EvolutionConfig(population_size=2, mode="pareto", encoding=PAPER,
-                             environment=world, model="voxcad-land-water")
+    config = EvolutionConfig(population_size=2, mode="pareto", evaluation=EvaluationSpec(
+        world, encoding=PAPER, model="voxcad-land-water"))
     algo = Evolution(config)
     (scene,) = individual_scenes(algo, algo.ask()[0])
     assert scene["model"] == "voxcad-land-water"
     assert scene["actuation"]["amplitude"] == pytest.approx(0.14)
     assert scene["settle_seconds"] == pytest.approx(settle)
-    default = Evolution(EvolutionConfig(population_size=2, environment="water"))
+    default = Evolution(EvolutionConfig(population_size=2, evaluation=EvaluationSpec("water")))
     (plain,) = individual_scenes(default, default.ask()[0])
     assert "model" not in plain and plain["actuation"]["amplitude"] == pytest.approx(0.39)
     assert plain["settle_seconds"] == 0.0
     with pytest.raises(ValueError, match="model"):
-        EvolutionConfig(model="voxelyze-3")
+        EvolutionConfig(evaluation=EvaluationSpec(model="voxelyze-3"))

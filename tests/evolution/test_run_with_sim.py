@@ -4,6 +4,7 @@ import pytest
 
 from softevo import sim  # noqa: E402
 from softevo.evolution import EncodingConfig, EvolutionConfig, run
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.runner import best_distance
 
 
@@ -12,10 +13,8 @@ def test_twenty_generations_on_land_improve_the_best_distance():
     config = EvolutionConfig(
         population_size=12,
         seed=1,
-        environment="land",
-        youngs_modulus=1e6,
-        cycles=4,  # short evaluations keep the test around a minute on 2 cores
-        encoding=EncodingConfig(workspace=(5, 5, 5)),
+        # short evaluations keep the test around a minute on 2 cores
+        evaluation=EvaluationSpec("land", 1e6, cycles=4, encoding=EncodingConfig(workspace=(5, 5, 5))),
     )
     best = {}
 

@@ -1,13 +1,13 @@
 """The local run loop: it asks as the coordinator asks (``ask_generation``) and evaluates a
-compound world as the workers do (``evolution.scenes``: one scene per part, distances added)."""
+compound world as the workers do (``evolution.evaluation``: one scene per part, distances added)."""
 
 from __future__ import annotations
 
 import pytest
 
 from softevo.evolution import Evaluation, Evolution, Schedule, run
+from softevo.evolution.evaluation import CompoundOutcome, compound_outcome
 from softevo.evolution.runner import ask_generation, evaluations, individual_scenes
-from softevo.evolution.scenes import CompoundOutcome, compound_outcome
 from tests.evolution.test_afpo import config, fake_evaluate
 
 GRADUAL = Schedule([("land", 0), ("water", 2)], spans=[0, 3])  # 2, 3, 4: compound; 5: water

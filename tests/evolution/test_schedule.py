@@ -18,7 +18,7 @@ def _old_runner_environment_at(schedule, generation):
 
 
 def _old_treatment_environment_at(schedule, generation):
-    """service.treatments' former rule over [(environment, first_generation), ...]."""
+    """evolution.treatments' former rule over [(environment, first_generation), ...]."""
     current = schedule[0][0]
     for environment, start in schedule:
         if generation >= start:
@@ -119,7 +119,7 @@ def test_a_switch_over_spends_its_span_in_compound_worlds():
 
 def test_a_treatment_validates_its_switch_over():
     from softevo.errors import UserError
-    from softevo.service.treatments import Treatment, gradual_grid
+    from softevo.evolution.treatments import Treatment, gradual_grid
 
     treatment = Treatment("water-land", 0.1, generations=10, switch_at=4, switch_over=3)
     assert treatment.arrival_generation() == 7 and treatment.name.endswith("over 3")

@@ -8,8 +8,8 @@ import os
 import pytest
 from sqlalchemy import Engine, text
 
-from softevo.service.db import open_database
-from softevo.service.db.models import Base
+from softevo.service.storage import open_database
+from softevo.service.storage.models import Base
 
 POSTGRES_URL = os.environ.get("SOFTEVO_TEST_POSTGRES")
 BACKENDS = [
@@ -25,7 +25,7 @@ BACKENDS = [
 
 
 def _reset_postgres(url: str) -> None:
-    from softevo.service.db import make_engine
+    from softevo.service.storage import make_engine
 
     engine = make_engine(url)
     with engine.begin() as conn:

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from sqlalchemy import Engine
 
-from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment
-from softevo.service.db.generations import GenerationRecord, record_generation
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.storage.experiments import NewRun, NewTreatment, create_experiment
+from softevo.service.storage.generations import GenerationRecord, record_generation
 
 TREATMENT = Treatment("land-water", 0.1, population=3, generations=4, switch_at=2)
 PARENTS = {4: 1, 5: 2, 7: 4, 8: 5, 10: 7, 11: 8}
@@ -103,7 +103,7 @@ def build(engine: Engine) -> int:
 
 
 def db_id(engine: Engine, run_id: int, local_id: int) -> int:
-    from softevo.service.db.individuals import local_to_db_ids
+    from softevo.service.storage.individuals import local_to_db_ids
 
     with engine.connect() as conn:
         return local_to_db_ids(conn, run_id, [local_id])[local_id]

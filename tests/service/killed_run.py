@@ -10,10 +10,10 @@ import os
 import signal
 import sys
 
-from softevo.service.coordinator import Coordinator
-from softevo.service.db import generations, open_database
-from softevo.service.db.models import PopulationMemberRow
-from softevo.service.executors import InlineExecutor
+from softevo.service.runs.coordinator import Coordinator
+from softevo.service.runs.executors import InlineExecutor
+from softevo.service.storage import generations, open_database
+from softevo.service.storage.models import PopulationMemberRow
 
 
 def _die() -> None:

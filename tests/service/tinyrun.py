@@ -7,12 +7,12 @@ from typing import Any
 
 from sqlalchemy import Engine, select
 
-from softevo.service.coordinator import Coordinator
-from softevo.service.db import open_database
-from softevo.service.db.models import EvaluationRow, IndividualRow, PopulationMemberRow, RunRow
-from softevo.service.executors import Executor, InlineExecutor
-from softevo.service.experiments import create
-from softevo.service.treatments import Treatment
+from softevo.evolution.treatments import Treatment
+from softevo.service.runs.coordinator import Coordinator
+from softevo.service.runs.executors import Executor, InlineExecutor
+from softevo.service.runs.submit import create
+from softevo.service.storage import open_database
+from softevo.service.storage.models import EvaluationRow, IndividualRow, PopulationMemberRow, RunRow
 
 TINY = Treatment(
     "land-water",

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from softevo import sim
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.sim import parse_scene, scene_steps
 from softevo.sim.cost import MEASURED, voxel_steps
@@ -21,8 +22,9 @@ def random_scenes(config: EncodingConfig, n: int, seed: int) -> list:
     for k in range(n):
         environment = ("land", "water")[k % 2]
         model = ("voxcad-land-water", "voxelyze-2")[(k // 2) % 2]
-        task = Task.from_genome(random_viable_genotype(rng, config), environment, 10 ** rng.uniform(3, 7), 2,
-                                config, id=k, model=model, max_seconds=1.0)
+        spec = EvaluationSpec(environment, 10 ** rng.uniform(3, 7), 2, model=model, max_seconds=1.0,
+                              encoding=config)
+        task = Task.from_genome(random_viable_genotype(rng, config), spec, id=k)
         scenes.append(parse_scene(scenes_of(task)[1][0]))
     return scenes
 
@@ -46,7 +48,7 @@ def test_the_cost_grows_with_stiffness_and_is_higher_in_water():
     seconds = {}
     for environment in ("land", "water"):
         for pa in (1e5, 1e7):
-            task = Task.from_genome(genome, environment, pa, 8, config, id=0, model="voxcad-land-water")
+            task = Task.from_genome(genome, EvaluationSpec(environment, pa, 8, model="voxcad-land-water", encoding=config), id=0)
             seconds[environment, pa] = MEASURED.scene_seconds(parse_scene(scenes_of(task)[1][0]))
     assert seconds["land", 1e7] > seconds["land", 1e5] > 0
     assert seconds["water", 1e5] > seconds["land", 1e5]
@@ -70,7 +72,7 @@ def test_sleep_workers_return_results_without_descriptors(monkeypatch):
 
     config = EncodingConfig(workspace=(4, 4, 4))
     genome = random_viable_genotype(np.random.default_rng(2), config)
-    task = Task.from_genome(genome, "water", 1e6, 2, config, id=7).to_json()
+    task = Task.from_genome(genome, EvaluationSpec("water", 1e6, 2, encoding=config), id=7).to_json()
     monkeypatch.setenv("SOFTEVO_ENGINE", "sleep")
     monkeypatch.setenv("SOFTEVO_DEVICE", "x1000")
     (result,) = evaluate_batch([task])

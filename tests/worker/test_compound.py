@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from softevo import sim
-from softevo.evolution import worlds
+from softevo.evolution import environments
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.worker.evaluate import evaluate_batch
 from softevo.worker.tasks import Task, replay, scene_of, scenes_of
@@ -20,16 +21,16 @@ def genome():
 
 
 def task(genome, environment: str, cycles: int = 2) -> Task:
-    return Task.from_genome(genome, environment, 1e5, cycles, EncodingConfig(workspace=(3, 3, 3)))
+    return Task.from_genome(genome, EvaluationSpec(environment, 1e5, cycles, encoding=EncodingConfig(workspace=(3, 3, 3))))
 
 
 def test_world_names_round_trip():
-    name = worlds.compound("land", "water", worlds.share_at(0, 3))
+    name = environments.compound("land", "water", environments.share_at(0, 3))
     assert name == "land>water@0.250" and len(name) <= 20
-    assert worlds.parts(name) == [("land", 0.75), ("water", 0.25)]
-    assert worlds.parts("water") == [("water", 1.0)]
+    assert environments.parts(name) == [("land", 0.75), ("water", 0.25)]
+    assert environments.parts("water") == [("water", 1.0)]
     with pytest.raises(ValueError, match="bad compound world"):
-        worlds.parts("land>water@1.5")
+        environments.parts("land>water@1.5")
 
 
 def test_compound_distance_is_the_sum_of_its_parts(genome):

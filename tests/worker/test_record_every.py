@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from softevo import sim
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.worker.tasks import DEFAULT_RECORD_FPS, Task, default_record_every, replay, scenes_of
 from tests.sim._support import stable_dt
@@ -19,7 +20,7 @@ ENCODING = EncodingConfig(workspace=(3, 3, 3))
 
 def _task(youngs_modulus: float) -> Task:
     genome = random_viable_genotype(np.random.default_rng(5), ENCODING)
-    return Task.from_genome(genome, "land", youngs_modulus, 1, ENCODING, id=3)
+    return Task.from_genome(genome, EvaluationSpec("land", youngs_modulus, 1, encoding=ENCODING), id=3)
 
 
 @pytest.mark.parametrize("youngs_modulus", [1e6, 1.0])

@@ -9,6 +9,7 @@ import types
 import numpy as np
 import pytest
 
+from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.evolution.individual import FAILED_DISTANCE
 from softevo.worker import evaluate
@@ -17,9 +18,10 @@ from softevo.worker.tasks import Task, TaskResult, failed, plain, replay, scene_
 ENCODING = EncodingConfig(workspace=(4, 4, 4))
 
 
-def _task(**extra) -> Task:
+def _task(model: str = "voxelyze-2", max_seconds: float | None = None, **extra) -> Task:
     genome = random_viable_genotype(np.random.default_rng(3), ENCODING)
-    return Task.from_genome(genome, "land", 1e5, 2, ENCODING, id=7, **extra)
+    spec = EvaluationSpec("land", 1e5, 2, model=model, max_seconds=max_seconds, encoding=ENCODING)
+    return Task.from_genome(genome, spec, id=7, **extra)
 
 
 def test_task_json_is_the_wire_format_and_round_trips_exactly():
@@ -34,8 +36,9 @@ def test_task_json_is_the_wire_format_and_round_trips_exactly():
     assert Task.from_json(wire) == task
     assert Task.from_json(wire).to_json() == wire
     old = {k: v for k, v in wire.items() if k not in ("run_id", "generation", "encoding")}
-    assert Task.from_json(old).to_json() == old  # a task with a workspace only
-    assert Task.from_json(old).encoding_config() == ENCODING
+    # a task with a workspace only (an older coordinator's) reads with the default encoding
+    assert Task.from_json(old).to_json() == {**old, "encoding": ENCODING.to_dict()}
+    assert Task.from_json(old).evaluation.encoding == ENCODING
 
 
 def test_result_json_round_trips_exactly():
@@ -69,11 +72,11 @@ def test_nan_or_unstable_scores_the_failed_distance():
 @pytest.fixture(scope="module")
 def stored(tmp_path_factory):
     """A tiny land->water run evaluated inline, with every scene the evaluation simulated."""
-    from softevo.service.coordinator import Coordinator
-    from softevo.service.db import open_database
-    from softevo.service.executors import InlineExecutor
-    from softevo.service.experiments import create
-    from softevo.service.treatments import Treatment
+    from softevo.evolution.treatments import Treatment
+    from softevo.service.runs.coordinator import Coordinator
+    from softevo.service.runs.executors import InlineExecutor
+    from softevo.service.runs.submit import create
+    from softevo.service.storage import open_database
 
     treatment = Treatment(
         "land-water", 0.1, population=3, generations=3, switch_at=2, workspace=(4, 4, 4), cycles=2, seed=5
@@ -98,7 +101,7 @@ def stored(tmp_path_factory):
 def _stored_evaluations(engine, run_id):
     from sqlalchemy import select
 
-    from softevo.service.db.models import EvaluationRow, IndividualRow
+    from softevo.service.storage.models import EvaluationRow, IndividualRow
 
     ind, ev = IndividualRow.__table__, EvaluationRow.__table__
     query = (
@@ -113,7 +116,7 @@ def _stored_evaluations(engine, run_id):
 
 
 def _task_of(engine, row) -> Task:
-    from softevo.service.db.individuals import individual_record
+    from softevo.service.storage.individuals import individual_record
 
     settings = individual_record(engine, row["id"]).get("treatment").to_settings()
     return Task.from_stored(row["id"], row["genome"], settings, row["environment"], row["stiffness"])

@@ -18,8 +18,8 @@ from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAcces
 from softevo.service.api.params import ExperimentId
 from softevo.service.api.schemas import ErrorOut
 from softevo.service.api.schemas_analysis import ExperimentAnalysisOut
-from softevo.service.db import experiments as db_experiments
-from softevo.service.experiment_analysis import analysis_json
+from softevo.service.reports.experiment import analysis_json
+from softevo.service.storage import experiments as db_experiments
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 
@@ -54,7 +54,7 @@ async def analysis(
     """Fitness curves (mean best distance over runs with 95% t intervals), the aggregated
     Pareto fronts (distance against active share), the descriptors (one value per run) and
     the statistics table (families, tests, Bonferroni, A12) of every treatment, with its runs
-    (``service.experiment_analysis``)."""
+    (``service.reports.report.experiment``)."""
     updated = await run_in_threadpool(_last_update, services, experiment_id)
     key = ("analysis", experiment_id, str(updated))
     hit = services.reads.cached(key) is not None

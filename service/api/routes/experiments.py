@@ -34,9 +34,9 @@ from softevo.service.api.schemas import (
     ExperimentRequest,
     PresetIn,
 )
-from softevo.service.db import experiments as db_experiments
-from softevo.service.db import runs as db_runs
-from softevo.service.experiments import create
+from softevo.service.runs.submit import create
+from softevo.service.storage import experiments as db_experiments
+from softevo.service.storage import runs as db_runs
 
 router = APIRouter(prefix="/experiments", tags=["experiments"], responses=COMMON)
 log = logging.getLogger("softevo.api")
@@ -159,7 +159,7 @@ def _stale(html: FilePath, updated: datetime | None, live: bool, interval: float
 async def report(experiment_id: ExperimentId, services: ServicesDep, request: Request):
     """The experiment's self-contained HTML report (figures, statistics, settings).
 
-    Written by ``service.reports.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
+    Written by ``service.reports.report.write_report`` into ``$SOFTEVO_REPORTS/experiment-<id>/``
     on the first request, again when runs have stored generations since (while a run is
     live, at most once per ``SOFTEVO_REPORT_INTERVAL`` seconds), and served from there. 404
     while the experiment has no stored generation; 429 with ``Retry-After`` when

@@ -1,9 +1,9 @@
 """Downloads: ``GET /runs/{id}/export`` and ``GET /experiments/{id}/export``.
 
 One table per request (``table``: runs, individuals or populations; the files of
-``softevo export``, ``service.db.export``) in one format (``format``: csv or parquet), so
+``softevo export``, ``service.storage.export``) in one format (``format``: csv or parquet), so
 a CSV and a Parquet download hold the same thing and neither needs an archive. The body is
-streamed a chunk of rows at a time (``service.db.export_stream``): memory stays bounded
+streamed a chunk of rows at a time (``service.storage.export_stream``): memory stays bounded
 whatever the table's size. At most ``MAX_DOWNLOADS`` downloads stream at once per server
 (each holds a database connection while it streams); one more is 429 with ``Retry-After``.
 """
@@ -22,9 +22,9 @@ from softevo.errors import UserError
 from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ServicesDep
 from softevo.service.api.expensive import Busy
 from softevo.service.api.params import ExperimentId, RunId
-from softevo.service.db import experiments as db_experiments
-from softevo.service.db import runs as db_runs
-from softevo.service.db.export_stream import MEDIA_TYPES, stream_table
+from softevo.service.storage import experiments as db_experiments
+from softevo.service.storage import runs as db_runs
+from softevo.service.storage.export_stream import MEDIA_TYPES, stream_table
 
 router = APIRouter(tags=["export"], responses=COMMON)
 

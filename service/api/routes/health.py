@@ -8,7 +8,7 @@ from fastapi.responses import JSONResponse
 
 from softevo.service.api.deps import ServicesDep
 from softevo.service.api.schemas import HealthOut
-from softevo.service.db.engine import database_reachable
+from softevo.service.storage.engine import database_reachable
 
 router = APIRouter(tags=["health"])
 

@@ -13,10 +13,11 @@ from softevo.service.api.deps import BUSY, COMMON, NOT_FOUND, ExpensiveReadAcces
 from softevo.service.api.frames import __doc__ as FRAMES_FORMAT
 from softevo.service.api.params import IndividualId
 from softevo.service.api.schemas import ErrorOut, IndividualOut, LineageEntry, WorldName
-from softevo.service.api.stored import stored_task
-from softevo.service.db.individuals import individual
-from softevo.service.db.rows import finite
-from softevo.service.db.status import lineage_records
+from softevo.service.api.stored import stored_task_or_404
+from softevo.service.storage.individuals import individual
+from softevo.service.storage.rows import finite
+from softevo.service.storage.status import lineage_records
+from softevo.worker.tasks import EmptyBody
 
 router = APIRouter(prefix="/individuals", tags=["individuals"], responses=COMMON)
 
@@ -88,11 +89,11 @@ async def frames(
     keyed by individual, world and recording settings. The body is the float32 format of
     ``service.api.frames``. 429 with ``Retry-After`` when ``SOFTEVO_BACKGROUND_QUEUE``
     simulations and reports are computing or waiting already."""
-    task = await run_in_threadpool(stored_task, services, individual_id, environment)
+    task = await run_in_threadpool(stored_task_or_404, services, individual_id, environment)
     try:
         body, headers = await services.record_motion(task, every, max_frames, client=client_of(request))
     except TimeoutError as exc:  # SOFTEVO_FRAMES_TIMEOUT; the simulation has ended, its slot free
         raise HTTPException(504, "the simulation took too long") from exc
-    except ValueError as exc:  # an empty body: nothing to simulate
+    except EmptyBody as exc:  # nothing to simulate
         raise HTTPException(404, f"individual {individual_id} has no motion: {exc}") from exc
     return Response(body, media_type="application/octet-stream", headers=headers)

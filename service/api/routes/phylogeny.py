@@ -11,8 +11,8 @@ from softevo.errors import UserError
 from softevo.service.api.deps import COMMON, NOT_FOUND, ConnectionDep
 from softevo.service.api.params import Offset, RunId, generation_query
 from softevo.service.api.schemas_phylogeny import ExaptationOut, PhylogenyPage
-from softevo.service.db.exaptation import exaptation as run_exaptation
-from softevo.service.db.run_tree import run_phylogeny
+from softevo.service.storage.exaptation import exaptation as run_exaptation
+from softevo.service.storage.run_tree import run_phylogeny
 
 router = APIRouter(prefix="/runs", tags=["phylogeny"], responses=COMMON)
 

@@ -1,4 +1,4 @@
-"""/plan: what an experiment would cost (``service.plan``), before it is submitted.
+"""/plan: what an experiment would cost (``service.plan.model``), before it is submitted.
 
 It stores nothing, so it needs no token; its work is bounded: the planner's fixed sample
 sizes, at most ``MAX_PLAN_TREATMENTS`` treatments, ``MAX_PLAN_POPULATION`` individuals over
@@ -17,7 +17,7 @@ from softevo.errors import UserError
 from softevo.service.api.deps import COMMON
 from softevo.service.api.requests import request_treatments
 from softevo.service.api.schemas import ErrorOut, PlanRequest
-from softevo.service.plan import check_devices, plan
+from softevo.service.plan.model import check_devices, plan
 
 router = APIRouter(prefix="/plan", tags=["plan"], responses=COMMON)
 MAX_PLAN_TREATMENTS = 24  # each is probed and costed (the paper grid has 12)

@@ -26,9 +26,9 @@ from softevo.service.api.schemas import (
     RunStatusName,
     RunSummary,
 )
-from softevo.service.db import generations as db_generations
-from softevo.service.db import runs as db_runs
-from softevo.service.db.models import RunStatus
+from softevo.service.storage import generations as db_generations
+from softevo.service.storage import runs as db_runs
+from softevo.service.storage.models import RunStatus
 
 router = APIRouter(prefix="/runs", tags=["runs"], responses=COMMON)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from softevo.evolution import worlds
+from softevo.evolution import environments
 from softevo.service.api.schemas import WorldOut
 
 router = APIRouter(tags=["worlds"])
@@ -15,4 +15,4 @@ def world_list() -> list[WorldOut]:
     """Every registered world in registration order: its physics (gravity, floor, drag, how
     distance is measured, settling time), its colours and report label, and whether it is
     offered for evolution. The dashboard's pages colour worlds from this list."""
-    return [WorldOut(**world.to_json()) for world in worlds.all_worlds()]
+    return [WorldOut(**world.to_json()) for world in environments.all_worlds()]

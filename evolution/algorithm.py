@@ -1,0 +1,331 @@
+"""The paper's plain Pareto optimisation and Age-Fitness Pareto Optimisation, ask/tell.
+
+A generation:
+1. every survivor's age grows by one;
+2. every survivor makes one mutated child (which inherits its parent's age and differs from
+   it in phenotype, see ``mutate_genotype``); in ``mode="afpo"`` one random newcomer of age
+   0 joins too;
+3. the new individuals are handed out by :meth:`Evolution.ask` and their results come back
+   through :meth:`Evolution.tell`;
+4. survivors and offspring together (parents survive: a (mu + mu) scheme) are cut back to
+   ``population_size``:
+   - ``mode="pareto"``, the paper's algorithm (its section 2.4: three objectives, mutation
+     only; evosoro's ``ParetoOptimization``, tools/algorithms.py:97-148, 156-158): over the
+     three objectives alone, by evosoro's ``pareto_selection``
+     (``selection.evosoro_survivors``: levels by dominance count, the newer of identical
+     twins preferred, a log-biased random pick within the level that does not fit);
+   - ``mode="afpo"`` (Schmidt & Lipson 2011, the remedy the paper names for premature
+     convergence): over the objectives plus age (minimised), by successive non-dominated
+     fronts; the front that does not fit whole is cut by crowding distance, then by lower id
+     (the older individual) (``selection.select_survivors``).
+evosoro's ``run`` adds ``num_random_individuals`` newcomers (default 1) whatever the
+objectives; the paper describes none and names age-based diversity as future work, so
+``pareto`` adds none.
+
+Failed evaluations (a crash, an unstable simulation, an empty body, a body the encoding's
+``body_rule`` rejects) get distance 0 and rank behind every successful individual.
+Offspring whose phenotype hash equals a living individual's evaluated in the same
+environment inherit that evaluation instead of being simulated again. Survivors are never
+simulated again in the world they were evaluated in: ``ask`` hands out only this
+generation's new individuals (all of them, survivors included, after ``reevaluate_all``
+moved the population to a new world) and refuses to hand out a survivor (RuntimeError).
+``not_simulated`` counts this generation's individuals evaluated without a simulation
+(``reused`` from a living twin, ``empty`` bodies, rejected ones included).
+
+The whole state (including the random generator) is JSON: ``state_to_json`` /
+``from_state_json``; a resumed run continues exactly as the uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from softevo.evolution.evaluation import EvaluationSpec
+from softevo.evolution.genotype import (
+    EncodingConfig,
+    is_viable,
+    mutate_developed,
+    random_viable,
+)
+from softevo.evolution.individual import FAILED_DISTANCE, Evaluation, Individual
+from softevo.evolution.selection import (
+    AGE_OBJECTIVE,
+    PAPER_OBJECTIVES,
+    Objective,
+    evosoro_survivors,
+    objective_matrix,
+    objective_named,
+    objective_values,
+    select_survivors,
+)
+from softevo.sim.scene import MODELS
+
+ALGORITHMS = ("afpo", "pareto")  # the algorithms (EvolutionConfig.mode): see the module doc
+PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
+
+
+@dataclass(frozen=True)
+class EvolutionConfig:
+    """Everything that defines a run's algorithm and its evaluations.
+
+    evaluation: the ``EvaluationSpec`` of the run's evaluations (its ``environment`` is the
+    starting world; ``encoding`` develops the genomes the algorithm breeds); descriptors:
+    compute shape descriptors at each tell (off where the evaluator computes them, as the
+    workers do); objectives: what selection optimises (``selection.Objective``s; age is
+    added in ``mode="afpo"``).
+    """
+
+    population_size: int = PAPER_POPULATION
+    mode: str = "afpo"
+    seed: int = 0
+    evaluation: EvaluationSpec = field(default_factory=EvaluationSpec)
+    objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
+    descriptors: bool = True
+
+    def __post_init__(self) -> None:
+        if self.mode not in ALGORITHMS:
+            raise ValueError(f"mode must be one of {ALGORITHMS} (got {self.mode!r})")
+        if self.evaluation.model not in MODELS:
+            raise ValueError(f"model must be one of {MODELS} (got {self.evaluation.model!r})")
+        if self.population_size < 1:
+            raise ValueError("population_size must be >= 1")
+        # an objective given by name and direction alone is the registered one of that name
+        resolved = tuple(o if o.value is not None else objective_named(o.name, o.direction)
+                         for o in self.objectives)
+        object.__setattr__(self, "objectives", resolved)
+
+    @property
+    def encoding(self) -> EncodingConfig:
+        """The encoding the algorithm develops and breeds genomes with."""
+        return self.evaluation.encoding
+
+    @property
+    def selection_objectives(self) -> tuple[Objective, ...]:
+        return self.objectives + ((AGE_OBJECTIVE,) if self.mode == "afpo" else ())
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON: the evaluation as its dict, each objective as [name, direction]."""
+        return {
+            "population_size": self.population_size,
+            "mode": self.mode,
+            "seed": self.seed,
+            "evaluation": self.evaluation.to_dict(),
+            "objectives": [[o.name, o.direction] for o in self.objectives],
+            "descriptors": self.descriptors,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> EvolutionConfig:
+        """Inverse of ``to_dict``; also reads the flat form stored before the evaluation had
+        a carrier of its own (``environment``, ``youngs_modulus``, ``cycles``, ``encoding``,
+        ``model``, ``max_seconds`` beside the algorithm's fields)."""
+        data = dict(data)
+        flat = {key: data.pop(key) for key in FLAT_EVALUATION_KEYS if key in data}
+        if "evaluation" in data:
+            data["evaluation"] = EvaluationSpec.from_dict(data["evaluation"])
+        elif flat:
+            defaults = EvaluationSpec()
+            encoding = flat.get("encoding") or defaults.encoding.to_dict()
+            data["evaluation"] = EvaluationSpec.from_dict({
+                "environment": flat.get("environment", defaults.environment),
+                "youngs_modulus": flat.get("youngs_modulus", defaults.youngs_modulus),
+                "cycles": flat.get("cycles", defaults.cycles),
+                "model": flat.get("model", defaults.model),
+                "max_seconds": flat.get("max_seconds"),
+                "encoding": encoding,
+                "workspace": encoding["workspace"],
+            })
+        if "objectives" in data:
+            data["objectives"] = tuple(objective_named(n, d) for n, d in data["objectives"])
+        return cls(**data)
+
+
+FLAT_EVALUATION_KEYS = ("environment", "youngs_modulus", "cycles", "encoding", "model", "max_seconds")
+
+
+class Evolution:
+    """The ask/tell algorithm. Holds the population, the pending offspring and the RNG."""
+
+    def __init__(self, config: EvolutionConfig, rng: np.random.Generator | None = None):
+        self.config = config
+        self.rng = rng if rng is not None else np.random.default_rng(config.seed)
+        self.generation = 0  # generation of the individuals being (or last) evaluated
+        self.next_id = 0
+        self.environment = config.evaluation.environment
+        self.population: list[Individual] = []  # evaluated survivors
+        self.pending: list[Individual] = []  # this generation's individuals awaiting results
+        self.started = False
+        self.not_simulated = {"reused": 0, "empty": 0}  # of this generation (not in the state)
+
+    # ---- ask / tell ------------------------------------------------------------------------
+    def ask(self) -> list[Individual]:
+        """Individuals needing evaluation in ``self.environment`` (idempotent until told)."""
+        if not self.pending:
+            if self.started:
+                self._breed()
+            else:
+                self.pending = [self._newcomer() for _ in range(self.config.population_size)]
+                self.started = True
+            self._fill_known()
+        asked = [ind for ind in self.pending if not ind.evaluated]
+        living = {ind.id for ind in self.population}
+        if any(ind.id in living for ind in asked):
+            raise RuntimeError(f"a survivor would be simulated again in {self.environment}")
+        return asked
+
+    def tell(self, evaluations: Sequence[Any] | Mapping[int, Any]) -> None:
+        """Record results: a mapping {individual id: result} or a sequence in ``ask`` order.
+
+        A result is anything ``Evaluation.coerce`` accepts. When every pending individual has
+        its result, survivors are selected and the generation is complete.
+        """
+        waiting = {ind.id: ind for ind in self.pending if not ind.evaluated}
+        if not isinstance(evaluations, Mapping):
+            asked = list(waiting.values())
+            if len(evaluations) != len(asked):
+                raise ValueError(f"expected {len(asked)} evaluations, got {len(evaluations)}")
+            evaluations = {ind.id: value for ind, value in zip(asked, evaluations, strict=True)}
+        for ind_id, value in evaluations.items():
+            if ind_id not in waiting:
+                raise KeyError(f"individual {ind_id} is not awaiting evaluation")
+            self._record(waiting[ind_id], Evaluation.coerce(value))
+        if all(ind.evaluated for ind in self.pending):
+            self._select()
+
+    def reevaluate_all(self, environment: str) -> None:
+        """Move the whole population into ``environment``: every living individual (and any
+        pending offspring) is evaluated again there by the next ``ask``/``tell``."""
+        self.environment = environment
+        everyone = self.population + self.pending
+        for ind in everyone:
+            ind.clear_evaluation()
+        self.population, self.pending = [], everyone
+        self.started = True
+        self.not_simulated = {"reused": 0, "empty": 0}
+        self._fill_known()
+
+    @property
+    def generation_complete(self) -> bool:
+        return self.started and not self.pending
+
+    # ---- internals -------------------------------------------------------------------------
+    def _new_id(self) -> int:
+        self.next_id += 1
+        return self.next_id - 1
+
+    def _newcomer(self) -> Individual:
+        encoding = self.config.encoding
+        genome, phenotype = random_viable(self.rng, encoding)
+        newcomer = Individual(self._new_id(), None, self.generation, 0, genome)
+        newcomer.developed(encoding, phenotype)
+        return newcomer
+
+    def _breed(self) -> None:
+        self.generation += 1
+        for ind in self.population:
+            ind.age += 1
+        offspring, encoding = [], self.config.encoding
+        for parent in self.population:
+            genome, ops, _, phenotype = mutate_developed(
+                parent.genome, parent.phenotype(encoding), self.rng, encoding
+            )
+            child = Individual(self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops)
+            child.developed(encoding, phenotype)
+            offspring.append(child)
+        if self.config.mode == "afpo" or not self.population:
+            offspring.append(self._newcomer())
+        self.pending = offspring
+        self.not_simulated = {"reused": 0, "empty": 0}
+
+    def _fill_known(self) -> None:
+        """Evaluate without simulation: empty bodies and bodies the encoding rejects fail
+        (both counted as ``empty`` in ``not_simulated``), known phenotypes reuse results."""
+        known = {
+            ind.phenotype(self.config.encoding).phenotype_hash(): ind
+            for ind in self.population
+            if ind.evaluated and ind.environment == self.environment
+        }
+        for ind in self.pending:
+            if ind.evaluated:
+                continue
+            phenotype = ind.phenotype(self.config.encoding)
+            twin = known.get(phenotype.phenotype_hash())
+            if phenotype.voxel_count == 0:
+                self._record(ind, Evaluation(FAILED_DISTANCE, False, "empty body"))
+                self.not_simulated["empty"] += 1
+            elif self.config.encoding.rejects_invalid and not is_viable(phenotype, self.config.encoding):
+                self._record(ind, Evaluation(FAILED_DISTANCE, False, "invalid body"))
+                self.not_simulated["empty"] += 1
+            elif twin is not None:
+                self.not_simulated["reused"] += 1
+                ind.objectives = dict(twin.objectives)
+                ind.descriptors = None if twin.descriptors is None else dict(twin.descriptors)
+                ind.environment, ind.stable, ind.error = self.environment, twin.stable, twin.error
+                ind.evaluated_generation = self.generation
+
+    def _record(self, ind: Individual, evaluation: Evaluation) -> None:
+        phenotype = ind.phenotype(self.config.encoding)
+        ind.objectives = objective_values(self.config.objectives, evaluation, phenotype)
+        ind.environment = self.environment
+        ind.stable, ind.error = evaluation.stable, evaluation.error
+        ind.evaluated_generation = self.generation
+        if self.config.descriptors and phenotype.voxel_count:
+            from softevo.evolution.descriptors import describe_phenotype
+
+            ind.descriptors = describe_phenotype(phenotype)
+
+    def _select(self) -> None:
+        combined = self.population + self.pending
+        rows = [{**ind.objectives, "age": ind.age} for ind in combined]
+        F = objective_matrix(rows, self.config.selection_objectives)
+        valid = np.array([not ind.failed for ind in combined])
+        # rows in id order, so "lower index" in select_survivors means "lower id"
+        order = np.argsort([ind.id for ind in combined], kind="stable")
+        size = self.config.population_size
+        if self.config.mode == "pareto":
+            ages = np.array([ind.age for ind in combined])[order]
+            kept = evosoro_survivors(F[order], size, ages, self.rng, valid[order])
+        else:
+            kept = select_survivors(F[order], size, valid[order])
+        self.population = [combined[i] for i in order[kept]]
+        self.pending = []
+
+    # ---- state -----------------------------------------------------------------------------
+    def state_to_dict(self) -> dict[str, Any]:
+        return {
+            "config": self.config.to_dict(),
+            "rng": self.rng.bit_generator.state,
+            "generation": self.generation,
+            "next_id": self.next_id,
+            "environment": self.environment,
+            "started": self.started,
+            "population": [ind.to_dict() for ind in self.population],
+            "pending": [ind.to_dict() for ind in self.pending],
+        }
+
+    def state_to_json(self) -> str:
+        return json.dumps(self.state_to_dict())
+
+    @classmethod
+    def from_state_dict(cls, state: Mapping[str, Any]) -> Evolution:
+        config = EvolutionConfig.from_dict(state["config"])
+        rng_state = state["rng"]
+        bit_generator = getattr(np.random, rng_state["bit_generator"])()
+        bit_generator.state = rng_state
+        algo = cls(config, np.random.Generator(bit_generator))
+        algo.generation = int(state["generation"])
+        algo.next_id = int(state["next_id"])
+        algo.environment = state["environment"]
+        algo.started = bool(state["started"])
+        algo.population = [Individual.from_dict(d) for d in state["population"]]
+        algo.pending = [Individual.from_dict(d) for d in state["pending"]]
+        return algo
+
+    @classmethod
+    def from_state_json(cls, text: str) -> Evolution:
+        return cls.from_state_dict(json.loads(text))

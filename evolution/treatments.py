@@ -1,0 +1,480 @@
+"""Treatments (environment schedule, stiffness, sizes, seeds) and the paper's presets.
+
+A treatment's environment is a world of the registry (``sim.worlds``: ``land``, ``water``,
+...) or a transition between two, ``land-water`` (``evolution.environments.transition``). A
+transition switches at ``switch_at`` (default: half the generations): generations
+``0 .. switch_at - 1`` are evaluated in the first environment, ``switch_at ..`` in the
+second, and at ``switch_at`` the whole surviving population is re-evaluated in the new one.
+With ``switch_over = G > 0`` the move is gradual: generations ``switch_at .. switch_at + G - 1``
+are evaluated in compound worlds (``evolution.environments``; the new world's share of each
+evaluation's cycles rising linearly, the population re-evaluated at each), pure second world
+from ``switch_at + G``; ``docs/gradual.md`` explains the choice.
+Repetition ``r`` of a treatment runs with seed ``seed + r``. In a preset every treatment has
+seeds of its own (treatment k from ``seed + first_seed + k * SEED_STRIDE``), so that no two
+treatments start from the same population, and the ``study`` scale starts past the
+``pilot``'s seeds, so that a study never repeats a pilot run (docs/analysis.md).
+
+The algorithm and the physics: ``algorithm`` is ``pareto`` (the paper's plain 3-objective
+Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
+``evolution.algorithm``) or ``afpo`` (Age-Fitness Pareto, a named variant: the remedy the paper
+names for its algorithm's loss of diversity); ``model`` is the physics model of every
+evaluation's scene (``sim.scene.MODELS``: ``voxelyze-2``, or ``voxcad-land-water``, the
+paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
+encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-bounded`` (the
+scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz bounded at their MAX_FREQUENCY of 4 Hz, a
+negative f run at |f|, and phase offsets in cycles; ``evosoro`` is the unbounded variant) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
+workspace full or 10% active are drawn or mutated again). Plain treatments default to AFPO,
+``voxelyze-2``, the linear 1-5 Hz mapping and any non-empty body, so stored runs and the
+quick start keep their meaning (stored settings without these fields read so too);
+the paper presets use the paper's four (``PAPER_CHOICES``).
+
+An evaluation lasts ``cycles`` actuation cycles (the paper's text, footnote 3; the fork's own
+sample robots stop after InitCmTime + 50 / f: 50 cycles) after settling (the world's: 0.5 s
+on land, 0 s in water, the fork files' InitCmTime; ``settle_seconds`` in the stored settings).
+``max_seconds`` is a guard against runaway robots, not a protocol: with it an evaluation never
+lasts more than that many seconds after settling. The presets set it at 50 cycles of
+``GUARD_FREQUENCY_HZ`` (0.1 Hz: 500 s), which binds on about 1% of random robots (the
+bounded mapping can go as low as it likes, 50 cycles of 0.01 Hz would last 83 minutes); the
+report counts the evaluations it cut. Plain treatments have no cap.
+
+Two encoding options, off by default (``evolution.genotype``): ``evolve_stiffness`` evolves a
+Young's modulus per voxel within ``stiffness_range_mpa`` (default the paper's S1..S5,
+0.001..10 MPa; the treatment's ``stiffness_mpa`` is then unused by the physics), and
+``frequency_per_voxel`` gives each voxel its own actuation frequency. Settings stored before
+these options existed read as both off.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from softevo.errors import UserError
+from softevo.evolution import environments
+from softevo.evolution.algorithm import ALGORITHMS, PAPER_POPULATION, EvolutionConfig
+from softevo.evolution.evaluation import EvaluationSpec, encoding_from_settings
+from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EVOSORO_MAPPINGS, EncodingConfig
+from softevo.evolution.schedule import Schedule
+from softevo.evolution.selection import Objective, objectives_named
+from softevo.sim import worlds as sim_worlds
+from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
+
+
+def model_names() -> tuple[str, ...]:
+    """Every physics model a treatment may name (the simulator's registry)."""
+    return tuple(MODELS)
+PAPER_WORLDS = environments.PAPER  # the paper's two worlds and its transitions
+PAPER_TRANSITIONS = tuple(environments.TRANSITION.join(pair) for pair in (PAPER_WORLDS, PAPER_WORLDS[::-1]))
+PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
+    "algorithm": "pareto",
+    "model": "voxcad-land-water",
+    "control_mapping": "evosoro-bounded",
+    "body_rule": "evosoro",
+}
+GENOMES_PER_TASK = 4  # genomes per RQ job or pool task: queue overhead against balance
+PAPER_CYCLES = 50  # the fork's sample robots: InitCmTime + 50 / f (docs/algorithm.md)
+GUARD_FREQUENCY_HZ = 0.1  # the presets' guard on seconds: their cycles at this frequency
+STIFFNESS_RANGE_MPA = (0.001, 10.0)
+PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
+
+
+@dataclass(frozen=True)
+class Treatment:
+    """One treatment; defaults are the paper-like evaluation settings (docs/physics.md)."""
+
+    environment: str
+    stiffness_mpa: float
+    name: str = ""
+    switch_at: int | None = None
+    switch_over: int = 0
+    population: int = PAPER_POPULATION
+    generations: int = 100
+    workspace: tuple[int, int, int] = EncodingConfig.workspace
+    cycles: int = DEFAULT_CYCLES
+    repetitions: int = 1
+    seed: int = 0
+    algorithm: str = "afpo"
+    genomes_per_task: int = GENOMES_PER_TASK
+    evolve_stiffness: bool = False
+    frequency_per_voxel: bool = False
+    stiffness_range_mpa: tuple[float, float] = STIFFNESS_RANGE_MPA
+    model: str = DEFAULT_MODEL
+    control_mapping: str = "linear"
+    body_rule: str = "any"
+    max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
+    objectives: tuple[str, ...] = ()  # objective names, distance among them (empty: the paper's)
+
+    def __post_init__(self) -> None:
+        self.validate()
+        if not self.name:
+            object.__setattr__(self, "name", self.default_name())
+
+    def validate(self) -> None:
+        """Raise UserError (one clear line) for an impossible setting."""
+        if self.environment not in environments.environments():
+            raise UserError(
+                f"unknown environment {self.environment!r}; choose one of {', '.join(environments.environments())}"
+            )
+        low, high = STIFFNESS_RANGE_MPA
+        stiffness = self.stiffness_mpa
+        if not (isinstance(stiffness, int | float) and math.isfinite(stiffness)):
+            raise UserError(f"stiffness must be a number of MPa (got {stiffness!r})")
+        if not low <= stiffness <= high:
+            raise UserError(f"stiffness must be within {low}..{high} MPa (got {stiffness})")
+        _positive("population", self.population, minimum=2)
+        _positive("generations", self.generations)
+        _positive("cycles", self.cycles)
+        cap = self.max_seconds
+        if cap is not None and (isinstance(cap, bool) or not isinstance(cap, int | float)
+                                or not math.isfinite(cap) or cap <= 0):
+            raise UserError(f"max_seconds must be a number of seconds > 0 (got {cap!r})")
+        _positive("repetitions", self.repetitions)
+        _positive("genomes_per_task", self.genomes_per_task)
+        if len(self.workspace) != 3 or any(int(n) < 1 for n in self.workspace):
+            raise UserError(f"workspace must be three positive sizes X,Y,Z (got {self.workspace})")
+        if self.seed < 0:
+            raise UserError(f"seed must be >= 0 (got {self.seed})")
+        if self.algorithm not in ALGORITHMS:
+            raise UserError(f"unknown algorithm {self.algorithm!r}; choose afpo or pareto")
+        for name, choices in (("model", MODELS), ("control_mapping", CONTROL_MAPPINGS),
+                              ("body_rule", tuple(BODY_RULES))):
+            if getattr(self, name) not in choices:
+                raise UserError(f"unknown {name} {getattr(self, name)!r}; choose {' or '.join(choices)}")
+        if self.control_mapping in EVOSORO_MAPPINGS and self.frequency_per_voxel:
+            raise UserError(f"control_mapping {self.control_mapping} gives one frequency per robot: "
+                            "it cannot be combined with frequency_per_voxel")
+        for flag in ("evolve_stiffness", "frequency_per_voxel"):
+            if not isinstance(getattr(self, flag), bool):
+                raise UserError(f"{flag} must be true or false (got {getattr(self, flag)!r})")
+        bounds = self.stiffness_range_mpa
+        if (len(bounds) != 2 or not all(isinstance(b, int | float) and math.isfinite(b) for b in bounds)
+                or not low <= bounds[0] < bounds[1] <= high):
+            raise UserError(f"stiffness range must be two numbers lo < hi within {low}..{high} MPa "
+                            f"(got {bounds!r})")
+        self._validate_switch()
+        if not all(isinstance(n, str) and n for n in self.objectives):
+            raise UserError(f"objectives must be names (got {self.objectives!r})")
+        if self.objectives and "distance" not in self.objectives:
+            raise UserError(f"objectives must include distance (got {', '.join(self.objectives)})")
+
+    def _validate_switch(self) -> None:
+        over = self.switch_over
+        if isinstance(over, bool) or not isinstance(over, int) or over < 0:
+            raise UserError(f"switch_over must be an integer >= 0 (got {over!r})")
+        if over and not environments.is_transition(self.environment):
+            raise UserError(f"--switch-over needs a transition environment (got {self.environment})")
+        if over and self.switch_generation() + over >= self.generations:
+            raise UserError(
+                f"the switch-over ends at generation {self.switch_generation() + over}: "
+                f"needs more than that many generations (got {self.generations})"
+            )
+        if self.switch_at is None:
+            return
+        if not environments.is_transition(self.environment):
+            raise UserError(f"--switch-at needs a transition environment (got {self.environment})")
+        if not 1 <= self.switch_at < self.generations:
+            raise UserError(f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})")
+
+    def default_name(self) -> str:
+        """E.g. ``land-water S=0.1MPa``; ``land E=evolved f=per-voxel`` with both options."""
+        stiffness = "E=evolved" if self.evolve_stiffness else f"S={self.stiffness_mpa:g}MPa"
+        frequency = " f=per-voxel" if self.frequency_per_voxel else ""
+        gradual = f" over {self.switch_over}" if self.switch_over else ""
+        return f"{self.environment} {stiffness}{frequency}{gradual}"
+
+    @property
+    def stiffness_pa(self) -> float:
+        """Young's modulus in pascals."""
+        return self.stiffness_mpa * 1e6
+
+    @property
+    def encoding(self) -> EncodingConfig:
+        """The ``EncodingConfig`` the treatment's runs express their genomes with."""
+        return encoding_from_settings(self.to_settings())
+
+    @property
+    def evaluation(self) -> EvaluationSpec:
+        """The ``EvaluationSpec`` of the treatment's evaluations in its first world (a
+        transition's later worlds: ``evaluation.in_world(world)``)."""
+        return EvaluationSpec(
+            environment=self.environment_at(0),
+            youngs_modulus=self.stiffness_pa,
+            cycles=self.cycles,
+            model=self.model,
+            max_seconds=self.max_seconds,
+            encoding=self.encoding,
+        )
+
+    def objective_list(self) -> tuple[Objective, ...]:
+        """The registered objectives the treatment names (``evolution.selection``; the
+        paper's when it names none); UserError for a name not registered in this process."""
+        try:
+            return objectives_named(self.objectives)
+        except ValueError as exc:
+            raise UserError(f"treatment {self.name}: {exc}") from None
+
+    def evolution_config(self, seed: int) -> EvolutionConfig:
+        """The ``EvolutionConfig`` of one run of the treatment with ``seed``. Descriptors are
+        computed where the genomes are evaluated (``worker.evaluate``), not at ``tell``."""
+        return EvolutionConfig(
+            population_size=self.population,
+            mode=self.algorithm,
+            seed=seed,
+            evaluation=self.evaluation,
+            descriptors=False,
+            objectives=self.objective_list(),
+        )
+
+    def switch_generation(self) -> int | None:
+        """First generation in the second environment (None without a transition)."""
+        if not environments.is_transition(self.environment):
+            return None
+        return self.switch_at if self.switch_at is not None else max(1, self.generations // 2)
+
+    def schedule(self) -> Schedule:
+        """The ``evolution.schedule.Schedule``: [(environment, first generation), ...]."""
+        switch = self.switch_generation()
+        if switch is None:
+            return Schedule.static(self.environment)
+        first, second = environments.transition(self.environment)
+        return Schedule([(first, 0), (second, switch)], spans=[0, self.switch_over])
+
+    def arrival_generation(self) -> int | None:
+        """First generation wholly in the second environment (``switch_generation`` plus the
+        switch-over; None without a transition)."""
+        switch = self.switch_generation()
+        return None if switch is None else switch + self.switch_over
+
+    def schedule_text(self) -> str:
+        """The schedule as text, e.g. ``land:0,water:50``."""
+        return self.schedule().format()
+
+    def environment_at(self, generation: int) -> str:
+        """The environment individuals are evaluated in at ``generation``."""
+        return self.schedule().environment_at(generation)
+
+    def seed_of(self, repetition: int) -> int:
+        """Seed of repetition ``repetition`` (0-based)."""
+        return self.seed + repetition
+
+    def settle_seconds(self) -> dict[str, float]:
+        """The settling time of an evaluation in each world the treatment visits (seconds;
+        ``sim.worlds``: 0.5 on a floor, 0 elsewhere), recorded in the stored settings."""
+        names = environments.transition(self.environment) if environments.is_transition(self.environment) else (
+            self.environment,)
+        return {name: float(sim_worlds.get(name).settle_seconds) for name in names}
+
+    def to_settings(self) -> dict[str, Any]:
+        """Plain JSON settings (stored in ``treatments.settings``), with the derived
+        ``settle_seconds`` of each world for the record (``from_settings`` ignores it)."""
+        settings = dataclasses.asdict(self)
+        settings["settle_seconds"] = self.settle_seconds()
+        settings["workspace"] = list(self.workspace)
+        settings["stiffness_range_mpa"] = list(self.stiffness_range_mpa)
+        if self.objectives:
+            settings["objectives"] = list(self.objectives)
+        else:
+            del settings["objectives"]
+        return settings
+
+    @classmethod
+    def from_settings(cls, settings: dict[str, Any]) -> Treatment:
+        """Inverse of ``to_settings``; unknown keys are a UserError."""
+        known = {f.name for f in dataclasses.fields(cls)} | set(DERIVED_SETTINGS)
+        unknown = sorted(set(settings) - known)
+        if unknown:
+            raise UserError(f"unknown treatment field(s): {', '.join(unknown)}")
+        values = {key: value for key, value in settings.items() if key not in DERIVED_SETTINGS}
+        if "workspace" in values:
+            values["workspace"] = tuple(int(n) for n in values["workspace"])
+        if "stiffness_range_mpa" in values:
+            values["stiffness_range_mpa"] = tuple(values["stiffness_range_mpa"])
+        if "objectives" in values:
+            values["objectives"] = tuple(values["objectives"])
+        return cls(**values)
+
+
+# The quick start's treatment (README: ``softevo run --env land --stiffness 1 --population 8
+# --generations 8 --workspace 5,5,5 --cycles 4``): ``softevo.evolve``'s defaults.
+QUICK_START = dict(environment="land", stiffness_mpa=1.0, population=8, generations=8,
+                   workspace=(5, 5, 5), cycles=4)
+
+DERIVED_SETTINGS = ("settle_seconds",)  # written by to_settings for the record, never read
+
+
+def _positive(name: str, value: int, minimum: int = 1) -> None:
+    if not isinstance(value, int) or value < minimum:
+        raise UserError(f"{name} must be an integer >= {minimum} (got {value!r})")
+
+
+@dataclass(frozen=True)
+class Scale:
+    """Sizes of a preset scale. The static S3 treatments run ``transition_generations``, as
+    long as the transitions (their controls); the other static ones ``generations``."""
+
+    population: int
+    generations: int
+    transition_generations: int
+    workspace: tuple[int, int, int]
+    cycles: int
+    repetitions: int
+    switch_over: int = 0  # the gradual preset's span (generations of compound worlds)
+    first_seed: int = 0  # each treatment's first seed past its block's start
+    max_seconds: float | None = None  # the guard on an evaluation's seconds (None: cycles/0.1 Hz)
+
+    def guard_seconds(self) -> float:
+        """The cap on an evaluation's seconds: ``max_seconds``, or ``cycles`` cycles at
+        ``GUARD_FREQUENCY_HZ``."""
+        return self.max_seconds if self.max_seconds is not None else self.cycles / GUARD_FREQUENCY_HZ
+
+
+# tiny: the whole grid in minutes on 2 cores (CI: 2 cycles, capped at 1 s);
+# pilot: 3 repetitions on the paper's protocol (50 cycles, the bounded mapping), the grid 10
+# generations and the S3 runs 40 (the knee of their fitness curves; docs/results), for
+# ``softevo power``; study: the pilot's sizes with the transitions switching at the knee, and
+# the repetitions and grid generations that fit about 2 hours of a 2-core machine, on seeds
+# past the pilot's (docs/results); small: longer runs of the same; paper: the paper's 5000 / 9000 generations
+# and 15 repetitions (a cluster job).
+PILOT = Scale(8, 10, 40, (5, 5, 5), PAPER_CYCLES, 3, switch_over=4)
+STUDY_REPETITIONS = 6  # what fits about 2 hours of a 2-core machine (softevo plan; docs/results)
+STUDY_SWITCH_GENERATIONS = 50  # 25 + 25: the switch at the pilot's knee, 24-26 (docs/results)
+STUDY_GRID_GENERATIONS = 6  # the grid's other treatments: what 2 hours allow beside the transitions
+PRESET_SCALES: dict[str, Scale] = {
+    "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
+    "pilot": PILOT,
+    "study": dataclasses.replace(PILOT, generations=STUDY_GRID_GENERATIONS,
+                                 transition_generations=STUDY_SWITCH_GENERATIONS,
+                                 repetitions=STUDY_REPETITIONS, first_seed=PILOT.repetitions),
+    "small": Scale(8, 40, 40, (6, 6, 6), PAPER_CYCLES, 2, switch_over=4),
+    "paper": Scale(30, 5000, 9000, (7, 7, 7), PAPER_CYCLES, 15, switch_over=1000),
+}
+SCALES = tuple(PRESET_SCALES)
+SEED_STRIDE = 1_000  # seeds per treatment of a preset
+
+
+def preset_scale(scale: str) -> Scale:
+    """The sizes of preset scale ``scale``; UserError for an unknown one."""
+    if scale not in PRESET_SCALES:
+        raise UserError(f"unknown scale {scale!r}; choose one of {', '.join(SCALES)}")
+    return PRESET_SCALES[scale]
+
+
+def paper_grid(
+    scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str
+) -> list[Treatment]:
+    """The paper's grid (docs/spec.md section 5): land and water at S1..S5, transitions at S3,
+    with the paper's algorithm, model and encoding (``PAPER_CHOICES``; ``choices`` override
+    any of them, e.g. ``algorithm="afpo"``).
+
+    The S3 static treatments run as long as the transitions (at paper scale 9000
+    generations), as in the paper, for a fair comparison: they are the transitions' controls.
+    """
+    sizes = preset_scale(scale)
+    reps = sizes.repetitions if repetitions is None else repetitions
+    common = {
+        "population": sizes.population,
+        "workspace": sizes.workspace,
+        "cycles": sizes.cycles,
+        "max_seconds": sizes.guard_seconds(),
+        "repetitions": reps,
+        "seed": seed,
+        **_paper_choices(choices),
+    }
+    treatments = []
+    for environment in PAPER_WORLDS:
+        for index, stiffness in enumerate(PAPER_STIFFNESSES_MPA, start=1):
+            long = stiffness == 0.1
+            generations = sizes.transition_generations if long else sizes.generations
+            treatments.append(
+                Treatment(
+                    environment,
+                    stiffness,
+                    name=f"{environment} S{index}",
+                    generations=generations,
+                    **common,
+                )
+            )
+    for environment in PAPER_TRANSITIONS:
+        treatments.append(
+            Treatment(
+                environment,
+                0.1,
+                name=f"{environment} S3",
+                generations=sizes.transition_generations,
+                **common,
+            )
+        )
+    return own_seeds(treatments, seed, sizes.first_seed)
+
+
+def own_seeds(treatments: list[Treatment], seed: int, first_seed: int = 0) -> list[Treatment]:
+    """The treatments, treatment k with seeds from ``seed + first_seed + k * SEED_STRIDE``: no
+    two share a seed, so their runs are independent samples (UserError if the repetitions
+    overflow a block)."""
+    if any(first_seed + t.repetitions > SEED_STRIDE for t in treatments):
+        raise UserError(f"at most {SEED_STRIDE - first_seed} repetitions per treatment in a preset")
+    start = seed + first_seed
+    return [dataclasses.replace(t, seed=start + k * SEED_STRIDE) for k, t in enumerate(treatments)]
+
+
+def gradual_grid(
+    scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str
+) -> list[Treatment]:
+    """The paper's two transitions at S3 (land-water, water-land), each abrupt and gradual
+    (``switch_over`` of the scale: tiny 2, small 4, paper 1000 generations), switching at
+    half the generations; same sizes, seeds and choices (``PAPER_CHOICES``, ``choices``
+    override them) as ``paper_grid``'s transitions."""
+    sizes = preset_scale(scale)
+    common = {
+        "population": sizes.population,
+        "workspace": sizes.workspace,
+        "cycles": sizes.cycles,
+        "max_seconds": sizes.guard_seconds(),
+        "repetitions": sizes.repetitions if repetitions is None else repetitions,
+        "seed": seed,
+        "generations": sizes.transition_generations,
+        **_paper_choices(choices),
+    }
+    return [
+        Treatment(environment, 0.1, name=f"{environment} S3 {kind}", switch_over=over, **common)
+        for environment in PAPER_TRANSITIONS
+        for kind, over in (("abrupt", 0), ("gradual", sizes.switch_over))
+    ]
+
+
+def _paper_choices(overrides: dict[str, str | None]) -> dict[str, str]:
+    """``PAPER_CHOICES`` with the given (non-None) overrides; UserError for an unknown key."""
+    unknown = sorted(set(overrides) - set(PAPER_CHOICES))
+    if unknown:
+        raise UserError(f"a preset cannot set {', '.join(unknown)}")
+    return {**PAPER_CHOICES, **{k: v for k, v in overrides.items() if v is not None}}
+
+
+PRESETS = {"paper": paper_grid, "gradual": gradual_grid}
+
+
+def select_treatments(treatments: list[Treatment], names: Sequence[str]) -> list[Treatment]:
+    """The treatments named in ``names``, in the preset's order and with their seeds in it
+    (a subset's runs are the whole preset's runs of those treatments); UserError for a name
+    the preset does not hold, or none at all."""
+    wanted = [n.strip() for n in names if n.strip()]
+    known = [t.name for t in treatments]
+    unknown = [n for n in wanted if n not in known]
+    if unknown or not wanted:
+        raise UserError(f"no treatment {', '.join(map(repr, unknown)) or 'named'} in this preset; "
+                        f"it has {', '.join(known)}")
+    return [t for t in treatments if t.name in wanted]
+
+
+def preset_grid(
+    preset: str, scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str | None
+):
+    """The treatments of preset ``preset`` (``PRESETS``); UserError for an unknown one.
+    ``choices`` (``algorithm``, ``model``, ``control_mapping``, ``body_rule``; None: the
+    paper's) override ``PAPER_CHOICES``."""
+    if preset not in PRESETS:
+        raise UserError(f"unknown experiment preset {preset!r}; choose {' or '.join(PRESETS)}")
+    return PRESETS[preset](scale, repetitions=repetitions, seed=seed, **choices)

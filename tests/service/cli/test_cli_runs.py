@@ -1,0 +1,90 @@
+"""``softevo run | experiment | status | resume | export | lineage`` on the embedded default."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from tests.support import softevo
+
+TINY = [
+    "--population",
+    "3",
+    "--generations",
+    "3",
+    "--workspace",
+    "3,3,3",
+    "--cycles",
+    "1",
+    "--workers",
+    "0",
+    "--quiet",
+]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--env", "moon", "--stiffness", "1"], "unknown environment 'moon'"),
+        (["--env", "land", "--stiffness", "1", "--population", "-5"], "population must be"),
+        (["--env", "land", "--stiffness", "20"], "stiffness must be within"),
+        (["--env", "land", "--stiffness", "0.0001"], "stiffness must be within"),
+        (["--env", "land", "--stiffness", "1", "--workspace", "3,3"], "--workspace"),
+        (["--env", "land", "--stiffness", "1", "--switch-at", "2"], "transition"),
+        (["--env", "land", "--stiffness", "1", "--db", "sqlite:////proc/no/x.db"], "cannot be"),
+    ],
+)
+def test_bad_arguments_are_one_line_and_exit_2(capsys, tmp_path, args, message):
+    if "--db" not in args:
+        args = [*args, "--db", f"sqlite:///{tmp_path / 'x.db'}"]
+    code, _, err = softevo(capsys, "run", *args)
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("error: ") and message in err
+
+
+def test_bad_experiment_arguments(capsys, tmp_path):
+    db = f"sqlite:///{tmp_path / 'x.db'}"
+    assert softevo(capsys, "experiment", "zoo", "--db", db)[0] == 2
+    code, _, err = softevo(capsys, "experiment", "paper", "--scale", "huge", "--db", db)
+    assert code == 2 and "unknown scale" in err
+
+
+def test_run_status_lineage_export_end_to_end(capsys, tmp_path):
+    db = f"sqlite:///{tmp_path / 'e2e.db'}"
+    code, out, err = softevo(capsys, "run", "--env", "water-land", "--stiffness", "0.1", *TINY, "--db", db)
+    assert code == 0, err
+    assert "finished" in out
+    code, out, _ = softevo(capsys, "status", "--db", db)
+    assert code == 0 and "finished" in out and "3/3" in out
+    code, out, _ = softevo(capsys, "export", "e1", "--out", str(tmp_path / "out"), "--db", db)
+    assert code == 0
+    individuals = pd.read_csv(tmp_path / "out" / "individuals.csv")
+    child = individuals[individuals["parent_id"].notna()].iloc[-1]
+    code, out, _ = softevo(capsys, "lineage", str(child["individual_id"]), "--json", "--db", db)
+    records = json.loads(out)
+    assert records[0]["id"] == child["individual_id"]
+    assert records[1]["id"] == child["parent_id"] and records[-1]["parent_id"] is None
+    code, out, _ = softevo(capsys, "resume", "--db", db, "--quiet")
+    assert code == 0 and "nothing to do" in out
+    assert softevo(capsys, "lineage", "999999", "--db", db)[0] == 2
+    assert softevo(capsys, "status", "r42", "--db", db)[0] == 2
+
+
+def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
+    from softevo.service.storage import open_database
+    from softevo.service.storage.models import RunStatus
+    from softevo.service.storage.runs import run_row, set_run_status
+    from tests.service import tinyrun
+
+    db = f"sqlite:///{tmp_path / 'cancelled.db'}"
+    engine = open_database(db)
+    run_id = tinyrun.new_run(engine)
+    with engine.begin() as conn:
+        set_run_status(conn, run_id, RunStatus.CANCELLED)
+    assert "nothing to do" in softevo(capsys, "resume", "--db", db, "-q", "--workers", "0")[1]
+    code, _, err = softevo(capsys, "resume", f"r{run_id}", "--db", db, "-q", "--workers", "0")
+    assert code == 0, err
+    with engine.connect() as conn:
+        assert run_row(conn, run_id)["status"] == "finished"

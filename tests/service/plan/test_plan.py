@@ -1,0 +1,201 @@
+"""``service.plan.model``, ``softevo plan`` and ``POST /plan`` against real runs and a real server."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import httpx
+import numpy as np
+import pytest
+from sqlalchemy import func, select
+
+from softevo.evolution.treatments import Treatment, paper_grid
+from softevo.service.plan.dispatch import Generation, simulate
+from softevo.service.plan.model import COORDINATOR_ASK_SECONDS, plan
+from softevo.service.storage import open_database
+from softevo.service.storage.models import GenerationRow
+from tests.service.rq_support import Processes, service_env
+from tests.service.tinyrun import TINY, new_run, run_to_end
+from tests.support import softevo
+
+PLAN_KEYS = {"wall_seconds", "core_hours", "gpu_hours", "database_bytes", "utilisation",
+             "evaluations", "voxel_steps"}
+GRADUAL = dataclasses.replace(TINY, name="gradual", switch_at=2, switch_over=2, generations=6, seed=5)
+
+
+@pytest.fixture(scope="module")
+def real_runs(tmp_path_factory):
+    """Two tiny runs stored on SQLite (an abrupt and a gradual transition): their simulated
+    evaluations and the file's growth."""
+    path = tmp_path_factory.mktemp("plan") / "runs.db"
+    open_database(f"sqlite:///{path}").dispose()  # the empty, migrated file
+    before = os.path.getsize(path)
+    engine = open_database(f"sqlite:///{path}")
+    for treatment in (TINY, GRADUAL):
+        run_to_end(engine, new_run(engine, treatment))
+    with engine.connect() as conn:
+        simulated = conn.execute(select(func.sum(GenerationRow.evaluations))).scalar_one()
+    engine.dispose()
+    return simulated, os.path.getsize(path) - before
+
+
+def test_evaluations_equal_a_real_runs(real_runs):
+    simulated, _ = real_runs
+    assert plan([TINY, GRADUAL], cores=1).evaluations == simulated
+
+
+def test_database_bytes_within_30_percent_of_a_real_runs(real_runs):
+    _, growth = real_runs
+    predicted = plan([TINY, GRADUAL], cores=1).database_bytes
+    assert abs(predicted - growth) <= 0.3 * growth, (predicted, growth)
+
+
+def test_more_cores_less_wall_time():
+    grid = paper_grid("tiny")
+    one, four = plan(grid, cores=1), plan(grid, cores=4)
+    assert four.wall_seconds < one.wall_seconds
+    assert 0 < four.utilisation <= one.utilisation <= 1
+    assert four.core_hours == pytest.approx(four.wall_seconds * 4 / 3600)
+
+
+def test_per_run_dispatch_uses_workers_at_least_as_well_as_rounds():
+    mixed = [Treatment("land", s, population=6, generations=20, workspace=(4, 4, 4), cycles=2,
+                       max_seconds=1.0, repetitions=2, seed=k * 10) for k, s in enumerate((0.01, 1.0, 10.0))]
+    rounds = plan(mixed, cores=4, dispatch="rounds")
+    per_run = plan(mixed, cores=4, dispatch="per-run")
+    assert per_run.utilisation >= rounds.utilisation
+    assert per_run.wall_seconds <= rounds.wall_seconds
+
+
+def test_a_second_coordinator_halves_their_load_and_never_slows_the_plan():
+    grid = paper_grid("tiny")
+    one, two = plan(grid, cores=64, coordinators=1), plan(grid, cores=64, coordinators=2)
+    assert 0 < two.coordinator_utilisation < one.coordinator_utilisation <= 1
+    assert two.wall_seconds <= one.wall_seconds * 1.0001
+    slow = plan(grid, cores=64, coordinator_seconds=5.0)  # a coordinator far too slow
+    assert slow.coordinator_utilisation > 0.9 and slow.coordinators_needed() > 1
+    assert plan(grid, cores=64, coordinator_seconds=5.0, coordinators=4).wall_seconds < slow.wall_seconds
+
+
+def test_coordinators_needed_holds_even_when_one_coordinator_is_saturated():
+    """A saturated coordinator's busy share says nothing of how far behind it is: the count
+    comes from its work over the wall the workers alone allow, and planning with that many
+    keeps each one near the target, the wall no longer waiting on them."""
+    grid = paper_grid("tiny")
+    slow = plan(grid, cores=64, coordinator_seconds=5.0)
+    needed = slow.coordinators_needed()
+    assert slow.coordinator_utilisation > 0.99 and needed > 2
+    enough = plan(grid, cores=64, coordinator_seconds=5.0, coordinators=needed)
+    assert enough.coordinator_utilisation <= 0.9
+    assert enough.wall_seconds < 0.6 * slow.wall_seconds
+    assert enough.wall_seconds <= 1.25 * slow.unqueued_wall_seconds
+
+
+def test_the_executor_picks_the_coordinators_measured_cost():
+    grid = paper_grid("tiny")
+    local, rq = plan(grid, cores=64, executor="local"), plan(grid, cores=64, executor="rq")
+    assert local.coordinator_seconds < rq.coordinator_seconds
+    assert (local.dispatch, rq.dispatch) == ("rounds", "per-run")  # as each executor advances runs
+    assert local.coordinator_utilisation < rq.coordinator_utilisation
+    assert "local executor" in " ".join(local.assumptions) and "rq executor" in " ".join(rq.assumptions)
+
+
+def test_a_coordinator_asks_its_runs_first_populations_one_after_the_other():
+    """Each run's first jobs wait for its coordinator's ask; one coordinator asks the runs in
+    turn, two split them; ``rounds`` dispatches once every run is asked."""
+    runs = [[Generation(np.array([1.0]), 0.0, 0.5)] for _ in range(4)]
+    assert simulate(runs, 4, "per-run") == (pytest.approx(3.0), pytest.approx(4.0))
+    assert simulate(runs, 4, "per-run", coordinators=2)[0] == pytest.approx(2.0)
+    assert simulate(runs, 4, "rounds")[0] == pytest.approx(3.0)
+    no_ask = [[Generation(np.array([1.0]), 0.0)] for _ in range(4)]
+    assert simulate(no_ask, 4, "per-run")[0] == pytest.approx(1.0)
+
+
+def test_the_first_populations_ask_lengthens_a_wide_grid():
+    grid = paper_grid("tiny")
+    asked, free = plan(grid, cores=64), plan(grid, cores=64, ask_seconds=0.0)
+    assert asked.wall_seconds > free.wall_seconds
+    assert f"{COORDINATOR_ASK_SECONDS['rq'] * 1000:.0f} ms to ask" in " ".join(asked.assumptions)
+
+
+def test_gpus_give_gpu_hours():
+    result = plan(paper_grid("tiny"), gpus=2)
+    assert result.gpu_hours == pytest.approx(result.wall_seconds * 2 / 3600)
+    assert result.core_hours == 0 and 0 < result.utilisation <= 1
+    assert "estimate, not measured" in result.cost["gpu_rate_source"]
+
+
+def test_cli_json_has_the_keys(capsys):
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", "--cores", "2", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert PLAN_KEYS <= set(data) and data["cores"] == 2 and data["runs"] == 12
+    assert data["coordinators"] == 1 and data["coordinators_needed"] >= 1
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", "--cores", "2",
+                             "--coordinators", "3")
+    assert code == 0 and "3 coordinator(s) busy" in out, err
+
+
+def test_cli_reads_a_spec_file(capsys, tmp_path):
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"name": "x", "treatments": [{"environment": "water", "stiffness_mpa": 1.0,
+                                                              "population": 4, "generations": 3}]}))
+    code, out, err = softevo(capsys, "plan", str(spec), "--cores", "1")
+    assert code == 0, err
+    assert "wall" in out and "core-hours" in out and "GB" in out
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("paper", "--cores", "2", "--gpus", "1"),
+        ("paper",),
+        ("paper", "--cores", "0"),
+        ("paper", "--cores", "2", "--coordinators", "0"),
+        ("nonsense", "--cores", "2"),
+        ("paper", "--scale", "huge", "--cores", "2"),
+        ("paper", "--cores", "2", "--executor", "slurm"),
+    ],
+)
+def test_cli_errors_are_one_line_exit_2(capsys, args):
+    code, out, err = softevo(capsys, "plan", *args)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+
+
+def test_cli_bad_spec_file_is_one_line(capsys, tmp_path):
+    for text in ("{not json", json.dumps({"name": "x", "treatments": [{"environment": "moon"}]})):
+        spec = tmp_path / "bad.json"
+        spec.write_text(text)
+        code, _, err = softevo(capsys, "plan", str(spec), "--cores", "2")
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.slow
+def test_rest_plan_200_and_422(tmp_path):
+    group = Processes(tmp_path, service_env(f"sqlite:///{tmp_path / 'api.db'}", None, SOFTEVO_WORKERS="1"))
+    try:
+        _, base = group.serve()
+        ok = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2}, timeout=120)
+        assert ok.status_code == 200, ok.text
+        assert PLAN_KEYS <= set(ok.json()) and ok.json()["evaluations"] > 0
+        two = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
+                                               "coordinators": 2}, timeout=120)
+        assert two.status_code == 200 and two.json()["coordinators"] == 2, two.text
+        local = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
+                                                 "executor": "local"}, timeout=120)
+        assert local.status_code == 200 and local.json()["executor"] == "local", local.text
+        assert local.json()["coordinator_seconds"] < ok.json()["coordinator_seconds"]
+        for bad in ({"preset": "paper", "scale": "tiny"},
+                    {"preset": "paper", "cores": 2, "gpus": 1},
+                    {"preset": "paper", "cores": 0},
+                    {"preset": "paper", "cores": 2, "coordinators": 0},
+                    {"preset": "paper", "cores": 2, "executor": "slurm"},
+                    {"treatments": [{"environment": "moon", "stiffness_mpa": 1}], "cores": 2}):
+            answer = httpx.post(f"{base}/plan", json=bad, timeout=60)
+            assert answer.status_code == 422, (bad, answer.text)
+            assert answer.json()["detail"]
+    finally:
+        group.stop_all()

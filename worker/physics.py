@@ -1,0 +1,31 @@
+"""The simulator as the service sees it. Everything ``service/`` needs of ``sim/`` passes
+here (STYLE.md: the service reaches physics only through the worker), so that the engine can
+change behind one door:
+
+- ``simulate(scene)``, ``parse_scene``, ``scene_steps`` and ``SceneError``: one scene run
+  (``softevo simulate``) or sized before anything is run (``service.runs.limits``);
+- ``EngineUnavailable``: the error of an engine that cannot run here;
+- ``lattice_mesh``: the surface mesh of a body, for the replay frames of the REST API;
+- the cost model of ``softevo plan``: ``CostModel``, ``MEASURED``, ``voxel_steps``,
+  ``measure``.
+"""
+
+from __future__ import annotations
+
+from softevo.sim import SceneError, parse_scene, scene_steps, simulate
+from softevo.sim.cost import MEASURED, CostModel, measure, voxel_steps
+from softevo.sim.engines import EngineUnavailable
+from softevo.sim.mesh import lattice_mesh
+
+__all__ = [
+    "MEASURED",
+    "CostModel",
+    "EngineUnavailable",
+    "SceneError",
+    "lattice_mesh",
+    "measure",
+    "parse_scene",
+    "scene_steps",
+    "simulate",
+    "voxel_steps",
+]
