@@ -19,8 +19,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
-from scipy import ndimage, sparse
+from scipy import ndimage
 
 from . import worlds
 from .scene import ModelOptions, Scene
@@ -419,24 +420,44 @@ def scene_steps(scene: Scene) -> int:
 
 def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
     """Each voxel's voxels within ``hops`` bond hops, itself left out (the paper's engine:
-    CalcNearby, walking bonds only, never across a gap): rows padded with -1. One hop is
-    ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
+    CalcNearby, walking bonds only, never across a gap): rows sorted, padded with -1. One hop
+    is ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
     if hops <= 1:
         return nbr
+    return _within_hops(np.ascontiguousarray(nbr, dtype=np.int64), int(hops))
+
+
+@numba.njit(cache=True)
+def _within_hops(nbr: np.ndarray, hops: int) -> np.ndarray:
+    """``nearby`` for hops >= 2: a breadth-first walk of at most ``hops`` bonds from every
+    voxel, twice (the first pass sizes the table)."""
     n = len(nbr)
-    rows, cols = np.nonzero(nbr >= 0)
-    adj = sparse.csr_matrix((np.ones(len(rows), np.int8), (rows, nbr[rows, cols])), shape=(n, n))
-    reach = sparse.identity(n, dtype=np.int8, format="csr")
-    step = reach + adj
-    for _ in range(hops):
-        reach = (reach @ step).astype(bool).astype(np.int8)
-    reach = (reach - sparse.identity(n, dtype=np.int8, format="csr")).tocsr()
-    reach.eliminate_zeros()
-    counts = np.diff(reach.indptr)
-    out = -np.ones((n, max(int(counts.max(initial=0)), 1)), dtype=np.int64)
-    for v in range(n):
-        row = reach.indices[reach.indptr[v]:reach.indptr[v + 1]]
-        out[v, : len(row)] = np.sort(row)
+    seen = np.full(n, -1, np.int64)  # the walk that last reached each voxel
+    depth = np.zeros(n, np.int64)
+    queue = np.empty(n, np.int64)
+    counts = np.zeros(n, np.int64)
+    out = np.full((n, 1), -1, np.int64)
+    for fill in range(2):
+        if fill:
+            out = np.full((n, max(1, counts.max())), -1, np.int64)
+            seen[:] = -1
+        for v in range(n):
+            seen[v], depth[v], queue[0] = v, 0, v
+            head, tail = 0, 1
+            while head < tail:
+                u = queue[head]
+                head += 1
+                if depth[u] == hops:
+                    continue
+                for f in range(nbr.shape[1]):
+                    w = nbr[u, f]
+                    if w >= 0 and seen[w] != v:
+                        seen[w], depth[w] = v, depth[u] + 1
+                        queue[tail] = w
+                        tail += 1
+            counts[v] = tail - 1
+            if fill:
+                out[v, : tail - 1] = np.sort(queue[1:tail])
     return out
 
 
@@ -455,32 +476,37 @@ FACE_TRIANGLES = (
 )
 
 
+_CORNERS = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])  # code -> (dx, dy, dz)
+
+
 def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
     """The vertices and triangles of a robot's surface mesh.
 
     ``mesh_vert`` (nv, 8): for each vertex, 8 voxel + corner of every voxel whose cell has
     that lattice corner (-1 pads); its position is the mean over them of the voxel's centre
     plus its rotated corner (``kernels.mesh_drag_kernel``). ``mesh_face`` (nf, 4): a
-    triangle's three vertices and the voxel whose exposed face it covers."""
-    corners = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])
-    faces, keys = [], {}
-    for v, cell in enumerate(idx):
-        for f in range(6):
-            if nbr[v, f] >= 0:
-                continue
-            for tri in FACE_TRIANGLES[f]:
-                ids = [keys.setdefault(tuple(cell + corners[c]), len(keys)) for c in tri]
-                faces.append((*ids, v))
-    vert = -np.ones((len(keys), 8), dtype=np.int64)
-    shape = np.array(lookup.shape)
-    for point, k in keys.items():
-        slot = 0
-        for c in range(8):
-            cell = np.array(point) - corners[c]  # the cell that has this point as corner c
-            if np.all(cell >= 0) and np.all(cell < shape) and lookup[tuple(cell)] >= 0:
-                vert[k, slot] = 8 * lookup[tuple(cell)] + c
-                slot += 1
-    return vert, np.array(faces, dtype=np.int64).reshape(-1, 4)
+    triangle's three vertices and the voxel whose exposed face it covers. Faces come voxel by
+    voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each; vertices
+    are numbered in the order the triangles first meet them, and list their voxels in corner
+    order."""
+    voxel, face = np.nonzero(nbr < 0)  # exposed faces, voxel-major
+    codes = np.asarray(FACE_TRIANGLES)[face]  # (q, 2, 3) corner codes
+    points = idx[voxel][:, None, None, :] + _CORNERS[codes]  # (q, 2, 3, 3) lattice corners
+    side = np.array(lookup.shape) + 1
+    keys = np.ravel_multi_index(points.reshape(-1, 3).T, side)
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    rank = np.empty(len(unique), np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(unique))  # by first appearance
+    faces = np.column_stack([rank[inverse].reshape(-1, 3), np.repeat(voxel, 2)])
+    point = np.empty((len(unique), 3), np.int64)
+    point[rank] = np.column_stack(np.unravel_index(unique, side))
+    cell = point[:, None, :] - _CORNERS[None, :, :]  # (nv, 8, 3): the cell with it as corner c
+    inside = np.all((cell >= 0) & (cell < np.array(lookup.shape)), axis=2)
+    owner = np.full(inside.shape, -1, np.int64)
+    owner[inside] = lookup[tuple(cell[inside].T)]
+    entry = np.where(owner >= 0, 8 * owner + np.arange(8), -1)
+    order = np.argsort(entry < 0, axis=1, kind="stable")  # each vertex's voxels first, in corner order
+    return np.take_along_axis(entry, order, axis=1), faces.astype(np.int64).reshape(-1, 4)
 
 
 def _offsets(counts) -> np.ndarray:

@@ -1,0 +1,87 @@
+"""The lattice tables ``build_robot`` derives (``sim.system.nearby``, ``sim.system.surface_mesh``)
+against the slow, obvious loops they replace (issue 47: the host side of an evaluation),
+element for element, on random bodies and edge cases."""
+
+import numpy as np
+import pytest
+from scipy import sparse
+
+from softevo.sim.system import FACE_TRIANGLES, _lattice, largest_component, nearby, surface_mesh
+
+
+def reference_nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
+    """Reachability by sparse matrix powers, each row sorted, padded with -1."""
+    if hops <= 1:
+        return nbr
+    n = len(nbr)
+    rows, cols = np.nonzero(nbr >= 0)
+    adj = sparse.csr_matrix((np.ones(len(rows), np.int8), (rows, nbr[rows, cols])), shape=(n, n))
+    reach = sparse.identity(n, dtype=np.int8, format="csr")
+    step = reach + adj
+    for _ in range(hops):
+        reach = (reach @ step).astype(bool).astype(np.int8)
+    reach = (reach - sparse.identity(n, dtype=np.int8, format="csr")).tocsr()
+    reach.eliminate_zeros()
+    counts = np.diff(reach.indptr)
+    out = -np.ones((n, max(int(counts.max(initial=0)), 1)), dtype=np.int64)
+    for v in range(n):
+        row = reach.indices[reach.indptr[v]:reach.indptr[v + 1]]
+        out[v, : len(row)] = np.sort(row)
+    return out
+
+
+def reference_surface_mesh(idx, lookup, nbr):
+    """Vertices numbered as the triangles first meet them, voxel by voxel, face by face."""
+    corners = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])
+    faces, keys = [], {}
+    for v, cell in enumerate(idx):
+        for f in range(6):
+            if nbr[v, f] >= 0:
+                continue
+            for tri in FACE_TRIANGLES[f]:
+                ids = [keys.setdefault(tuple(cell + corners[c]), len(keys)) for c in tri]
+                faces.append((*ids, v))
+    vert = -np.ones((len(keys), 8), dtype=np.int64)
+    shape = np.array(lookup.shape)
+    for point, k in keys.items():
+        slot = 0
+        for c in range(8):
+            cell = np.array(point) - corners[c]
+            if np.all(cell >= 0) and np.all(cell < shape) and lookup[tuple(cell)] >= 0:
+                vert[k, slot] = 8 * lookup[tuple(cell)] + c
+                slot += 1
+    return vert, np.array(faces, dtype=np.int64).reshape(-1, 4)
+
+
+def bodies():
+    rng = np.random.default_rng(5)
+    out = [np.ones((1, 1, 1)), np.ones((7, 1, 1)), np.ones((7, 7, 7))]
+    hollow = np.ones((5, 5, 5))
+    hollow[2, 2, 2] = 0
+    ring = np.ones((4, 4, 2))
+    ring[1:3, 1:3] = 0
+    out += [hollow, ring]
+    for _ in range(40):
+        shape = tuple(rng.integers(1, 8, size=3))
+        body = (rng.random(shape) < rng.uniform(0.2, 0.9)).astype(np.int8)
+        body.flat[0] = 1
+        out.append(largest_component(body))
+    return out
+
+
+@pytest.mark.parametrize("hops", [1, 2, 3, 5])
+def test_nearby_matches_sparse_matrix_powers(hops):
+    for body in bodies():
+        nbr = _lattice(np.asarray(body))[2]
+        fast, slow = nearby(nbr, hops), reference_nearby(nbr, hops)
+        assert fast.dtype == slow.dtype and fast.shape == slow.shape
+        np.testing.assert_array_equal(fast, slow)
+
+
+def test_surface_mesh_matches_the_loops():
+    for body in bodies():
+        idx, lookup, nbr = _lattice(np.asarray(body))[:3]
+        for fast, slow in zip(surface_mesh(idx, lookup, nbr), reference_surface_mesh(idx, lookup, nbr),
+                              strict=True):
+            assert fast.dtype == slow.dtype and fast.shape == slow.shape
+            np.testing.assert_array_equal(fast, slow)
