@@ -25,8 +25,9 @@ up (exclusive times: a stage called inside another is not counted twice):
 
 Printed per world: milliseconds per evaluation, the median over ``--repeats`` batches of
 each stage, and how many times per evaluation the genome was developed and the body's
-components labelled (``scipy.ndimage.label``). The CPU and the load average are printed
-beside them: compare runs made on the same machine at similar load only.
+components labelled (``scipy.ndimage.label`` or the flood fill of ``sim.system``). The CPU
+and the load average are printed beside them: compare runs made on the same machine at
+similar load only.
 """
 
 from __future__ import annotations
@@ -51,15 +52,18 @@ PAPER_ENCODING = EncodingConfig(
     workspace=(7, 7, 7), control_mapping="evosoro-bounded", body_rule="evosoro"
 )
 PAPER_MODEL = "voxcad-land-water"
-STAGES = {  # name: (module, attribute) where the worker's code looks the function up
-    "decode": ("softevo.worker.tasks", "Task.from_json"),
-    "develop": ("softevo.evolution.genotype", "develop"),
-    "to_scene": ("softevo.evolution.scenes", "evaluation_scenes"),
-    "parse": ("softevo.sim.engine", "parse_scene"),
-    "build": ("softevo.sim.engine", "build_robot"),
-    "descriptors": ("softevo.worker.tasks", "_descriptors"),
-    "simulator": ("softevo.sim.kernels", "run_batch"),
-    "labels": ("scipy.ndimage", "label"),
+ENGINES = ("softevo.sim.numba_engine", "softevo.sim.engine")  # the numba engine's module, new or old
+STAGES = {  # name: [(module, attribute)] where the worker's code looks the function up
+    "decode": [("softevo.worker.tasks", "Task.from_json")],
+    "develop": [("softevo.evolution.genotype", "develop")],
+    "to_scene": [("softevo.evolution.scenes", "evaluation_scenes")],
+    "parse": [(engine, "parse_scene") for engine in ENGINES],
+    "build": [(engine, "build_robot") for engine in ENGINES],
+    "descriptors": [("softevo.worker.tasks", "_descriptors")],
+    "simulator": [("softevo.sim.kernels", "run_batch")],
+}
+COUNTED = {  # name: [(module, attribute)] of functions counted, not timed
+    "labels": [("scipy.ndimage", "label"), ("softevo.sim.system", "_largest_component_mask")],
 }
 SHOWN = ("decode", "develop", "to_scene", "parse", "build", "descriptors", "other")
 
@@ -72,6 +76,13 @@ class StageClock:
         self.seconds: dict[str, float] = defaultdict(float)
         self.calls: dict[str, int] = defaultdict(int)
         self._inner: list[float] = []
+
+    def count(self, name: str, function):
+        def counted(*args, **kwargs):
+            self.calls[name] += 1
+            return function(*args, **kwargs)
+
+        return counted
 
     def wrap(self, name: str, function):
         def timed(*args, **kwargs):
@@ -100,20 +111,27 @@ def _owner_and_name(module: str, attribute: str):
 
 @contextmanager
 def timed_stages(clock: StageClock):
-    """Every stage of ``STAGES`` wrapped by ``clock`` (a stage missing from the code is
-    skipped and reported), restored on exit."""
+    """Every stage of ``STAGES`` wrapped by ``clock`` and every function of ``COUNTED``
+    counted (where a stage has several places, those the code holds; a stage found nowhere is
+    reported), restored on exit."""
     saved = []
-    for stage, (module, attribute) in STAGES.items():
+    places = [(stage, place, clock.wrap) for stage, places in STAGES.items() for place in places]
+    places += [(name, place, clock.count) for name, places in COUNTED.items() for place in places]
+    found = set()
+    for stage, (module, attribute), wrap in places:
         try:
             owner, name = _owner_and_name(module, attribute)
             original = owner.__dict__[name]
         except (ImportError, AttributeError, KeyError):
-            print(f"  (stage {stage}: {module}.{attribute} not found, not timed)")
             continue
         function = original.__func__ if isinstance(original, classmethod) else original
-        wrapped = clock.wrap(stage, function)
+        wrapped = wrap(stage, function)
         setattr(owner, name, classmethod(wrapped) if isinstance(original, classmethod) else wrapped)
         saved.append((owner, name, original))
+        found.add(stage)
+    for stage in (*STAGES, *COUNTED):
+        if stage not in found:
+            print(f"  ({stage}: none of {STAGES.get(stage) or COUNTED[stage]} found, not timed)")
     try:
         yield
     finally:

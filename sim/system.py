@@ -21,7 +21,6 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from scipy import ndimage
 
 from . import worlds
 from .scene import ModelOptions, Scene
@@ -52,13 +51,49 @@ FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
 
 def largest_component(body: np.ndarray) -> np.ndarray:
-    """Keep only the largest face-connected component of full voxels (ties: lowest label)."""
-    labels, n = ndimage.label(body > 0)  # default structure: face connectivity
-    if n <= 1:
+    """Keep only the largest face-connected component of full voxels (ties: the component
+    met first in x-major order, as ``scipy.ndimage.label`` numbers them)."""
+    body = np.asarray(body)
+    keep, components = _largest_component_mask(np.ascontiguousarray(body > 0))
+    if components <= 1:
         return body.copy()
-    sizes = np.bincount(labels.ravel())[1:]
-    keep = 1 + int(np.argmax(sizes))
-    return np.where(labels == keep, body, 0).astype(body.dtype)
+    return np.where(keep, body, 0).astype(body.dtype)
+
+
+@numba.njit(cache=True)
+def _largest_component_mask(full: np.ndarray) -> tuple[np.ndarray, int]:
+    """Where the largest face-connected component of ``full`` (nx, ny, nz) bool lies, and
+    how many components there are: a flood fill from each unvisited full voxel in x-major
+    order."""
+    nx, ny, nz = full.shape
+    label = np.zeros(full.shape, np.int64)
+    queue = np.empty((full.size, 3), np.int64)
+    best, best_size, current = 0, 0, 0
+    for i0 in range(nx):
+        for j0 in range(ny):
+            for k0 in range(nz):
+                if not full[i0, j0, k0] or label[i0, j0, k0]:
+                    continue
+                current += 1
+                label[i0, j0, k0] = current
+                queue[0, 0], queue[0, 1], queue[0, 2] = i0, j0, k0
+                head, tail = 0, 1
+                while head < tail:
+                    i, j, k = queue[head, 0], queue[head, 1], queue[head, 2]
+                    head += 1
+                    for axis in range(3):
+                        for step in (-1, 1):
+                            a = i + step if axis == 0 else i
+                            b = j + step if axis == 1 else j
+                            c = k + step if axis == 2 else k
+                            if (0 <= a < nx and 0 <= b < ny and 0 <= c < nz and full[a, b, c]
+                                    and not label[a, b, c]):
+                                label[a, b, c] = current
+                                queue[tail, 0], queue[tail, 1], queue[tail, 2] = a, b, c
+                                tail += 1
+                if tail > best_size:
+                    best, best_size = current, tail
+    return label == best, current
 
 
 def stable_dt(voxel_size: float, density: float, youngs_modulus: float, fraction: float) -> float:
@@ -521,9 +556,12 @@ CONCATENATED = (  # Batch fields that are the robots' arrays one after another
 
 def _padded(tables: list[np.ndarray]) -> np.ndarray:
     """Row tables of different widths one after another, padded with -1 to the widest."""
-    width = max(t.shape[1] for t in tables)
-    return np.concatenate([np.pad(t, ((0, 0), (0, width - t.shape[1])), constant_values=-1)
-                           for t in tables]).astype(np.int64)
+    out = np.full((sum(len(t) for t in tables), max(t.shape[1] for t in tables)), -1, np.int64)
+    start = 0
+    for table in tables:
+        out[start : start + len(table), : table.shape[1]] = table
+        start += len(table)
+    return out
 
 
 def pack(robots: list[Robot]) -> tuple[Batch, State]:

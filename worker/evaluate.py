@@ -72,7 +72,8 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
         phenotype = None
         try:
             task = Task.from_json(data)
-            phenotype, scenes = scenes_of(task)  # a compound world: one scene per part
+            # a compound world: one scene per part; the phenotype's arrays, not lists
+            phenotype, scenes = scenes_of(task, arrays=True)
             runnable.append((k, task, phenotype, scenes))
         except Exception as exc:
             message = str(exc) if str(exc) == "empty body" else f"{type(exc).__name__}: {exc}"
