@@ -219,27 +219,61 @@ class State(NamedTuple):
 
 
 def _lattice(body: np.ndarray):
-    idx = np.argwhere(body > 0)  # x-major order
-    lookup = -np.ones(body.shape, dtype=np.int64)
-    lookup[tuple(idx.T)] = np.arange(len(idx))
-    padded = np.pad(lookup, 1, constant_values=-1)
-    nbr = np.empty((len(idx), 6), dtype=np.int64)
-    shifted = idx + 1
+    """(idx, lookup, nbr, link_neg, link_pos, link_axis, vlink) of a body's full voxels: their
+    (n, 3) lattice indices in x-major order, the (X, Y, Z) index of each cell's voxel (-1
+    empty), each voxel's (n, 6) face neighbours (-x, +x, -y, +y, -z, +z; -1 none), the (m,)
+    links axis by axis, voxel by voxel, and each voxel's (n, 6) link per face (m: none)."""
+    return _lattice_tables(np.ascontiguousarray(np.asarray(body) > 0))
+
+
+@numba.njit(cache=True)
+def _lattice_tables(full: np.ndarray):
+    nx, ny, nz = full.shape
+    lookup = np.full(full.shape, -1, np.int64)
+    n = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if full[i, j, k]:
+                    lookup[i, j, k] = n
+                    n += 1
+    idx = np.empty((n, 3), np.int64)
+    nbr = np.full((n, 6), -1, np.int64)
+    links_on_axis = np.zeros(3, np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                v = lookup[i, j, k]
+                if v < 0:
+                    continue
+                idx[v, 0], idx[v, 1], idx[v, 2] = i, j, k
+                if i > 0:
+                    nbr[v, 0] = lookup[i - 1, j, k]
+                if i + 1 < nx:
+                    nbr[v, 1] = lookup[i + 1, j, k]
+                if j > 0:
+                    nbr[v, 2] = lookup[i, j - 1, k]
+                if j + 1 < ny:
+                    nbr[v, 3] = lookup[i, j + 1, k]
+                if k > 0:
+                    nbr[v, 4] = lookup[i, j, k - 1]
+                if k + 1 < nz:
+                    nbr[v, 5] = lookup[i, j, k + 1]
+                for axis in range(3):
+                    links_on_axis[axis] += nbr[v, 2 * axis + 1] >= 0
+    m = links_on_axis.sum()
+    link_neg = np.empty(m, np.int64)
+    link_pos = np.empty(m, np.int64)
+    link_axis = np.empty(m, np.int64)
+    vlink = np.full((n, 6), m, np.int64)
+    link = 0
     for axis in range(3):
-        for side, delta in enumerate((-1, 1)):
-            off = shifted.copy()
-            off[:, axis] += delta
-            nbr[:, 2 * axis + side] = padded[tuple(off.T)]
-    links = [
-        (np.arange(len(idx))[nbr[:, 2 * a + 1] >= 0], nbr[nbr[:, 2 * a + 1] >= 0, 2 * a + 1], a)
-        for a in range(3)
-    ]
-    link_neg = np.concatenate([n for n, _, _ in links]).astype(np.int64)
-    link_pos = np.concatenate([p for _, p, _ in links]).astype(np.int64)
-    link_axis = np.concatenate([np.full(len(n), a) for n, _, a in links]).astype(np.int64)
-    vlink = np.full((len(idx), 6), len(link_neg), dtype=np.int64)  # m: no link on that face
-    vlink[link_neg, 2 * link_axis + 1] = np.arange(len(link_neg))
-    vlink[link_pos, 2 * link_axis] = np.arange(len(link_neg))
+        for v in range(n):
+            other = nbr[v, 2 * axis + 1]
+            if other >= 0:
+                link_neg[link], link_pos[link], link_axis[link] = v, other, axis
+                vlink[v, 2 * axis + 1] = vlink[other, 2 * axis] = link
+                link += 1
     return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink
 
 
@@ -464,35 +498,45 @@ def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _within_hops(nbr: np.ndarray, hops: int) -> np.ndarray:
-    """``nearby`` for hops >= 2: a breadth-first walk of at most ``hops`` bonds from every
-    voxel, twice (the first pass sizes the table)."""
+    """``nearby`` for hops >= 2: each voxel's reach as a bit set of the voxels, grown one bond
+    at a time by the union of its neighbours' reach, read back in ascending order."""
     n = len(nbr)
-    seen = np.full(n, -1, np.int64)  # the walk that last reached each voxel
-    depth = np.zeros(n, np.int64)
-    queue = np.empty(n, np.int64)
-    counts = np.zeros(n, np.int64)
-    out = np.full((n, 1), -1, np.int64)
-    for fill in range(2):
-        if fill:
-            out = np.full((n, max(1, counts.max())), -1, np.int64)
-            seen[:] = -1
+    words = (n + 63) // 64
+    one = np.uint64(1)
+    reach = np.zeros((n, words), np.uint64)
+    for v in range(n):
+        reach[v, v // 64] |= one << np.uint64(v % 64)
+    grown = reach.copy()
+    for _ in range(hops):
         for v in range(n):
-            seen[v], depth[v], queue[0] = v, 0, v
-            head, tail = 0, 1
-            while head < tail:
-                u = queue[head]
-                head += 1
-                if depth[u] == hops:
-                    continue
-                for f in range(nbr.shape[1]):
-                    w = nbr[u, f]
-                    if w >= 0 and seen[w] != v:
-                        seen[w], depth[w] = v, depth[u] + 1
-                        queue[tail] = w
-                        tail += 1
-            counts[v] = tail - 1
-            if fill:
-                out[v, : tail - 1] = np.sort(queue[1:tail])
+            for f in range(nbr.shape[1]):
+                u = nbr[v, f]
+                if u >= 0:
+                    for w in range(words):
+                        grown[v, w] |= reach[u, w]
+        reach[:] = grown
+    width = 1
+    for v in range(n):
+        reach[v, v // 64] &= ~(one << np.uint64(v % 64))  # itself left out
+        count = 0
+        for w in range(words):
+            bits = reach[v, w]
+            while bits:
+                bits &= bits - one
+                count += 1
+        width = max(width, count)
+    out = np.full((n, width), -1, np.int64)
+    for v in range(n):
+        k = 0
+        for w in range(words):
+            bits = reach[v, w]
+            for b in range(64):
+                if bits == 0:
+                    break
+                if bits & one:
+                    out[v, k] = 64 * w + b
+                    k += 1
+                bits >>= one
     return out
 
 
@@ -524,24 +568,42 @@ def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
     voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each; vertices
     are numbered in the order the triangles first meet them, and list their voxels in corner
     order."""
-    voxel, face = np.nonzero(nbr < 0)  # exposed faces, voxel-major
-    codes = np.asarray(FACE_TRIANGLES)[face]  # (q, 2, 3) corner codes
-    points = idx[voxel][:, None, None, :] + _CORNERS[codes]  # (q, 2, 3, 3) lattice corners
-    side = np.array(lookup.shape) + 1
-    keys = np.ravel_multi_index(points.reshape(-1, 3).T, side)
-    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    rank = np.empty(len(unique), np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(unique))  # by first appearance
-    faces = np.column_stack([rank[inverse].reshape(-1, 3), np.repeat(voxel, 2)])
-    point = np.empty((len(unique), 3), np.int64)
-    point[rank] = np.column_stack(np.unravel_index(unique, side))
-    cell = point[:, None, :] - _CORNERS[None, :, :]  # (nv, 8, 3): the cell with it as corner c
-    inside = np.all((cell >= 0) & (cell < np.array(lookup.shape)), axis=2)
-    owner = np.full(inside.shape, -1, np.int64)
-    owner[inside] = lookup[tuple(cell[inside].T)]
-    entry = np.where(owner >= 0, 8 * owner + np.arange(8), -1)
-    order = np.argsort(entry < 0, axis=1, kind="stable")  # each vertex's voxels first, in corner order
-    return np.take_along_axis(entry, order, axis=1), faces.astype(np.int64).reshape(-1, 4)
+    return _surface_mesh(np.ascontiguousarray(idx, dtype=np.int64), lookup.astype(np.int64),
+                         nbr.astype(np.int64), np.asarray(FACE_TRIANGLES, dtype=np.int64), _CORNERS)
+
+
+@numba.njit(cache=True)
+def _surface_mesh(idx, lookup, nbr, face_triangles, corners):
+    nx, ny, nz = lookup.shape
+    number = np.full((nx + 1, ny + 1, nz + 1), -1, np.int64)  # each lattice corner's vertex
+    points = np.empty(((nx + 1) * (ny + 1) * (nz + 1), 3), np.int64)
+    faces = np.empty((12 * len(idx), 4), np.int64)
+    nv = nf = 0
+    for v in range(len(idx)):
+        for f in range(6):
+            if nbr[v, f] >= 0:
+                continue
+            for t in range(2):
+                for slot in range(3):
+                    code = face_triangles[f, t, slot]
+                    x, y, z = (idx[v, 0] + corners[code, 0], idx[v, 1] + corners[code, 1],
+                               idx[v, 2] + corners[code, 2])
+                    if number[x, y, z] < 0:
+                        number[x, y, z] = nv
+                        points[nv, 0], points[nv, 1], points[nv, 2] = x, y, z
+                        nv += 1
+                    faces[nf, slot] = number[x, y, z]
+                faces[nf, 3] = v
+                nf += 1
+    vert = np.full((nv, 8), -1, np.int64)
+    for k in range(nv):
+        slot = 0
+        for c in range(8):  # the cell that has this vertex as its corner c
+            x, y, z = points[k, 0] - corners[c, 0], points[k, 1] - corners[c, 1], points[k, 2] - corners[c, 2]
+            if 0 <= x < nx and 0 <= y < ny and 0 <= z < nz and lookup[x, y, z] >= 0:
+                vert[k, slot] = 8 * lookup[x, y, z] + c
+                slot += 1
+    return vert, faces[:nf].copy()
 
 
 def _offsets(counts) -> np.ndarray:

@@ -110,3 +110,38 @@ def test_largest_component_matches_scipy_labels():
         fast, slow = largest_component(body), reference_largest_component(body)
         assert fast.dtype == slow.dtype
         np.testing.assert_array_equal(fast, slow)
+
+
+def reference_lattice(body: np.ndarray):
+    """The lattice tables by NumPy indexing (x-major voxels; links by axis, then voxel)."""
+    idx = np.argwhere(body > 0)
+    lookup = -np.ones(body.shape, dtype=np.int64)
+    lookup[tuple(idx.T)] = np.arange(len(idx))
+    padded = np.pad(lookup, 1, constant_values=-1)
+    nbr = np.empty((len(idx), 6), dtype=np.int64)
+    shifted = idx + 1
+    for axis in range(3):
+        for side, delta in enumerate((-1, 1)):
+            off = shifted.copy()
+            off[:, axis] += delta
+            nbr[:, 2 * axis + side] = padded[tuple(off.T)]
+    links = [
+        (np.arange(len(idx))[nbr[:, 2 * a + 1] >= 0], nbr[nbr[:, 2 * a + 1] >= 0, 2 * a + 1], a)
+        for a in range(3)
+    ]
+    link_neg = np.concatenate([n for n, _, _ in links]).astype(np.int64)
+    link_pos = np.concatenate([p for _, p, _ in links]).astype(np.int64)
+    link_axis = np.concatenate([np.full(len(n), a) for n, _, a in links]).astype(np.int64)
+    vlink = np.full((len(idx), 6), len(link_neg), dtype=np.int64)
+    vlink[link_neg, 2 * link_axis + 1] = np.arange(len(link_neg))
+    vlink[link_pos, 2 * link_axis] = np.arange(len(link_neg))
+    return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink
+
+
+def test_lattice_matches_numpy_indexing():
+    rng = np.random.default_rng(7)
+    cases = bodies() + [rng.choice([0, 1, 2], size=(6, 5, 4)).astype(np.int8) for _ in range(20)]
+    for body in cases:
+        for fast, slow in zip(_lattice(body), reference_lattice(np.asarray(body)), strict=True):
+            assert fast.dtype == slow.dtype and fast.shape == slow.shape
+            np.testing.assert_array_equal(fast, slow)
