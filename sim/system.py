@@ -339,7 +339,11 @@ def build_robot(scene: Scene) -> Robot:
 
     com = pos.mean(axis=0)
     omega = np.array(scene.initial_angular_velocity)
-    vel = np.array(scene.initial_velocity) + np.cross(omega, pos - com)
+    arm = pos - com
+    spin = np.column_stack([omega[1] * arm[:, 2] - omega[2] * arm[:, 1],  # omega x arm, as np.cross
+                            omega[2] * arm[:, 0] - omega[0] * arm[:, 2],  # computes it (a tenth of
+                            omega[0] * arm[:, 1] - omega[1] * arm[:, 0]])  # its time for one vector)
+    vel = np.array(scene.initial_velocity) + spin
     lin_mom = mass[:, None] * vel
     ang_mom = inertia[:, None] * omega
     fixed = (flags & FLAG_FIXED) > 0

@@ -145,3 +145,19 @@ def test_lattice_matches_numpy_indexing():
         for fast, slow in zip(_lattice(body), reference_lattice(np.asarray(body)), strict=True):
             assert fast.dtype == slow.dtype and fast.shape == slow.shape
             np.testing.assert_array_equal(fast, slow)
+
+
+def test_initial_momenta_spin_the_body_as_np_cross_does():
+    from softevo.sim.scene import parse_scene
+    from softevo.sim.system import build_robot
+
+    body = np.ones((3, 2, 4), int)
+    body[1, 1, 2] = 0
+    for omega in ([0.3, -1.7, 2.2], [0.0, 0.0, -0.0], [1e-3, 0.0, 5.0]):
+        scene = parse_scene({"body": body.tolist(), "initial_velocity": [0.1, -0.2, 0.0],
+                             "initial_angular_velocity": omega, "duration": {"seconds": 0.01}})
+        robot = build_robot(scene)
+        com = robot.pos.mean(axis=0)
+        mass = robot.vconst[:, 0][:, None]
+        expected = mass * (np.array([0.1, -0.2, 0.0]) + np.cross(np.array(omega), robot.pos - com))
+        np.testing.assert_array_equal(robot.lin_mom, expected)
