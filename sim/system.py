@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba
 import numpy as np
+from scipy import ndimage
 
 from . import worlds
 from .scene import ModelOptions, Scene
@@ -51,49 +51,13 @@ FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
 
 def largest_component(body: np.ndarray) -> np.ndarray:
-    """Keep only the largest face-connected component of full voxels (ties: the component
-    met first in x-major order, as ``scipy.ndimage.label`` numbers them)."""
-    body = np.asarray(body)
-    keep, components = _largest_component_mask(np.ascontiguousarray(body > 0))
-    if components <= 1:
+    """Keep only the largest face-connected component of full voxels (ties: lowest label)."""
+    labels, n = ndimage.label(body > 0)  # default structure: face connectivity
+    if n <= 1:
         return body.copy()
-    return np.where(keep, body, 0).astype(body.dtype)
-
-
-@numba.njit(cache=True)
-def _largest_component_mask(full: np.ndarray) -> tuple[np.ndarray, int]:
-    """Where the largest face-connected component of ``full`` (nx, ny, nz) bool lies, and
-    how many components there are: a flood fill from each unvisited full voxel in x-major
-    order."""
-    nx, ny, nz = full.shape
-    label = np.zeros(full.shape, np.int64)
-    queue = np.empty((full.size, 3), np.int64)
-    best, best_size, current = 0, 0, 0
-    for i0 in range(nx):
-        for j0 in range(ny):
-            for k0 in range(nz):
-                if not full[i0, j0, k0] or label[i0, j0, k0]:
-                    continue
-                current += 1
-                label[i0, j0, k0] = current
-                queue[0, 0], queue[0, 1], queue[0, 2] = i0, j0, k0
-                head, tail = 0, 1
-                while head < tail:
-                    i, j, k = queue[head, 0], queue[head, 1], queue[head, 2]
-                    head += 1
-                    for axis in range(3):
-                        for step in (-1, 1):
-                            a = i + step if axis == 0 else i
-                            b = j + step if axis == 1 else j
-                            c = k + step if axis == 2 else k
-                            if (0 <= a < nx and 0 <= b < ny and 0 <= c < nz and full[a, b, c]
-                                    and not label[a, b, c]):
-                                label[a, b, c] = current
-                                queue[tail, 0], queue[tail, 1], queue[tail, 2] = a, b, c
-                                tail += 1
-                if tail > best_size:
-                    best, best_size = current, tail
-    return label == best, current
+    sizes = np.bincount(labels.ravel())[1:]
+    keep = 1 + int(np.argmax(sizes))
+    return np.where(labels == keep, body, 0).astype(body.dtype)
 
 
 def stable_dt(voxel_size: float, density: float, youngs_modulus: float, fraction: float) -> float:
@@ -223,58 +187,9 @@ def _lattice(body: np.ndarray):
     (n, 3) lattice indices in x-major order, the (X, Y, Z) index of each cell's voxel (-1
     empty), each voxel's (n, 6) face neighbours (-x, +x, -y, +y, -z, +z; -1 none), the (m,)
     links axis by axis, voxel by voxel, and each voxel's (n, 6) link per face (m: none)."""
-    return _lattice_tables(np.ascontiguousarray(np.asarray(body) > 0))
+    from .tables import lattice_tables  # numba: loaded by the engines, not by sim's users
 
-
-@numba.njit(cache=True)
-def _lattice_tables(full: np.ndarray):
-    nx, ny, nz = full.shape
-    lookup = np.full(full.shape, -1, np.int64)
-    n = 0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if full[i, j, k]:
-                    lookup[i, j, k] = n
-                    n += 1
-    idx = np.empty((n, 3), np.int64)
-    nbr = np.full((n, 6), -1, np.int64)
-    links_on_axis = np.zeros(3, np.int64)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                v = lookup[i, j, k]
-                if v < 0:
-                    continue
-                idx[v, 0], idx[v, 1], idx[v, 2] = i, j, k
-                if i > 0:
-                    nbr[v, 0] = lookup[i - 1, j, k]
-                if i + 1 < nx:
-                    nbr[v, 1] = lookup[i + 1, j, k]
-                if j > 0:
-                    nbr[v, 2] = lookup[i, j - 1, k]
-                if j + 1 < ny:
-                    nbr[v, 3] = lookup[i, j + 1, k]
-                if k > 0:
-                    nbr[v, 4] = lookup[i, j, k - 1]
-                if k + 1 < nz:
-                    nbr[v, 5] = lookup[i, j, k + 1]
-                for axis in range(3):
-                    links_on_axis[axis] += nbr[v, 2 * axis + 1] >= 0
-    m = links_on_axis.sum()
-    link_neg = np.empty(m, np.int64)
-    link_pos = np.empty(m, np.int64)
-    link_axis = np.empty(m, np.int64)
-    vlink = np.full((n, 6), m, np.int64)
-    link = 0
-    for axis in range(3):
-        for v in range(n):
-            other = nbr[v, 2 * axis + 1]
-            if other >= 0:
-                link_neg[link], link_pos[link], link_axis[link] = v, other, axis
-                vlink[v, 2 * axis + 1] = vlink[other, 2 * axis] = link
-                link += 1
-    return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink
+    return lattice_tables(np.ascontiguousarray(np.asarray(body) > 0))
 
 
 def series_modulus(e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
@@ -497,51 +412,9 @@ def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
     is ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
     if hops <= 1:
         return nbr
-    return _within_hops(np.ascontiguousarray(nbr, dtype=np.int64), int(hops))
+    from .tables import within_hops  # numba: loaded by the engines, not by sim's users
 
-
-@numba.njit(cache=True)
-def _within_hops(nbr: np.ndarray, hops: int) -> np.ndarray:
-    """``nearby`` for hops >= 2: each voxel's reach as a bit set of the voxels, grown one bond
-    at a time by the union of its neighbours' reach, read back in ascending order."""
-    n = len(nbr)
-    words = (n + 63) // 64
-    one = np.uint64(1)
-    reach = np.zeros((n, words), np.uint64)
-    for v in range(n):
-        reach[v, v // 64] |= one << np.uint64(v % 64)
-    grown = reach.copy()
-    for _ in range(hops):
-        for v in range(n):
-            for f in range(nbr.shape[1]):
-                u = nbr[v, f]
-                if u >= 0:
-                    for w in range(words):
-                        grown[v, w] |= reach[u, w]
-        reach[:] = grown
-    width = 1
-    for v in range(n):
-        reach[v, v // 64] &= ~(one << np.uint64(v % 64))  # itself left out
-        count = 0
-        for w in range(words):
-            bits = reach[v, w]
-            while bits:
-                bits &= bits - one
-                count += 1
-        width = max(width, count)
-    out = np.full((n, width), -1, np.int64)
-    for v in range(n):
-        k = 0
-        for w in range(words):
-            bits = reach[v, w]
-            for b in range(64):
-                if bits == 0:
-                    break
-                if bits & one:
-                    out[v, k] = 64 * w + b
-                    k += 1
-                bits >>= one
-    return out
+    return within_hops(np.ascontiguousarray(nbr, dtype=np.int64), int(hops))
 
 
 # The surface mesh of the paper's engine: two triangles per exposed face, each vertex a
@@ -572,42 +445,11 @@ def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
     voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each; vertices
     are numbered in the order the triangles first meet them, and list their voxels in corner
     order."""
-    return _surface_mesh(np.ascontiguousarray(idx, dtype=np.int64), lookup.astype(np.int64),
-                         nbr.astype(np.int64), np.asarray(FACE_TRIANGLES, dtype=np.int64), _CORNERS)
+    from .tables import surface_mesh_tables  # numba: loaded by the engines, not by sim's users
 
-
-@numba.njit(cache=True)
-def _surface_mesh(idx, lookup, nbr, face_triangles, corners):
-    nx, ny, nz = lookup.shape
-    number = np.full((nx + 1, ny + 1, nz + 1), -1, np.int64)  # each lattice corner's vertex
-    points = np.empty(((nx + 1) * (ny + 1) * (nz + 1), 3), np.int64)
-    faces = np.empty((12 * len(idx), 4), np.int64)
-    nv = nf = 0
-    for v in range(len(idx)):
-        for f in range(6):
-            if nbr[v, f] >= 0:
-                continue
-            for t in range(2):
-                for slot in range(3):
-                    code = face_triangles[f, t, slot]
-                    x, y, z = (idx[v, 0] + corners[code, 0], idx[v, 1] + corners[code, 1],
-                               idx[v, 2] + corners[code, 2])
-                    if number[x, y, z] < 0:
-                        number[x, y, z] = nv
-                        points[nv, 0], points[nv, 1], points[nv, 2] = x, y, z
-                        nv += 1
-                    faces[nf, slot] = number[x, y, z]
-                faces[nf, 3] = v
-                nf += 1
-    vert = np.full((nv, 8), -1, np.int64)
-    for k in range(nv):
-        slot = 0
-        for c in range(8):  # the cell that has this vertex as its corner c
-            x, y, z = points[k, 0] - corners[c, 0], points[k, 1] - corners[c, 1], points[k, 2] - corners[c, 2]
-            if 0 <= x < nx and 0 <= y < ny and 0 <= z < nz and lookup[x, y, z] >= 0:
-                vert[k, slot] = 8 * lookup[x, y, z] + c
-                slot += 1
-    return vert, faces[:nf].copy()
+    return surface_mesh_tables(np.ascontiguousarray(idx, dtype=np.int64), lookup.astype(np.int64),
+                               nbr.astype(np.int64), np.asarray(FACE_TRIANGLES, dtype=np.int64),
+                               _CORNERS)
 
 
 def _offsets(counts) -> np.ndarray:

@@ -1,6 +1,7 @@
-"""The lattice tables ``build_robot`` derives (``sim.system.nearby``, ``sim.system.surface_mesh``)
-against the slow, obvious loops they replace (issue 47: the host side of an evaluation),
-element for element, on random bodies and edge cases."""
+"""The lattice tables ``build_robot`` derives (``sim.system._lattice``, ``nearby``,
+``surface_mesh``: numba kernels in ``sim.tables``) against the slow, obvious NumPy and loops
+they replace (issue 47: the host side of an evaluation), element for element, on random
+bodies and edge cases."""
 
 import numpy as np
 import pytest
@@ -85,31 +86,6 @@ def test_surface_mesh_matches_the_loops():
                               strict=True):
             assert fast.dtype == slow.dtype and fast.shape == slow.shape
             np.testing.assert_array_equal(fast, slow)
-
-
-def reference_largest_component(body: np.ndarray) -> np.ndarray:
-    """scipy's labelling: the largest component, ties to the lowest label."""
-    from scipy import ndimage
-
-    labels, n = ndimage.label(body > 0)
-    if n <= 1:
-        return body.copy()
-    keep = 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
-    return np.where(labels == keep, body, 0).astype(body.dtype)
-
-
-def test_largest_component_matches_scipy_labels():
-    rng = np.random.default_rng(6)
-    ties = np.zeros((5, 1, 1), np.int8)
-    ties[[0, 2, 4], 0, 0] = [1, 2, 1]  # three single voxels: the first one is kept
-    cases = [np.zeros((2, 2, 2), np.int8), np.ones((1, 1, 1), np.int8), ties]
-    for _ in range(300):
-        shape = tuple(rng.integers(1, 8, size=3))
-        cases.append(rng.choice([0, 1, 2], size=shape, p=[0.6, 0.2, 0.2]).astype(np.int8))
-    for body in cases:
-        fast, slow = largest_component(body), reference_largest_component(body)
-        assert fast.dtype == slow.dtype
-        np.testing.assert_array_equal(fast, slow)
 
 
 def reference_lattice(body: np.ndarray):
