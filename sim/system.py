@@ -50,9 +50,12 @@ COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
 
+FACE_CONNECTED = ndimage.generate_binary_structure(3, 1)  # label's default in 3-D, made once
+
+
 def largest_component(body: np.ndarray) -> np.ndarray:
     """Keep only the largest face-connected component of full voxels (ties: lowest label)."""
-    labels, n = ndimage.label(body > 0)  # default structure: face connectivity
+    labels, n = ndimage.label(body > 0, FACE_CONNECTED if body.ndim == 3 else None)
     if n <= 1:
         return body.copy()
     sizes = np.bincount(labels.ravel())[1:]
