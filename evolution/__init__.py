@@ -11,7 +11,7 @@ Main entry points:
   (``evolution.evaluation``; the workers' ``worker.tasks.scenes_of`` goes through it);
 - ``Evolution``, ``EvolutionConfig``: the ask/tell algorithm (``evolution.algorithm``);
 - ``Individual``, ``Evaluation`` (``evolution.individual``);
-- ``describe`` (``evolution.descriptors``, needs trimesh; imported lazily);
+- ``describe`` (``evolution.descriptors``, numba kernels compiled on first use; imported lazily);
 - ``run``: a local run loop, and ``ask_generation``, the ask and environment switch it
   shares with the service's coordinator (``evolution.runner``);
 - ``Schedule``: environments by generation, and the switch (``evolution.schedule``).

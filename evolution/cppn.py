@@ -17,6 +17,7 @@ Hidden nodes apply one of :data:`ACTIVATIONS`. Output nodes always apply the bip
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -169,7 +170,7 @@ class CPPN:
                 raise GenomeError(f"link out of output node {link.source}")
             if (link.source, link.target) in pairs:
                 raise GenomeError(f"duplicate link {link.source}->{link.target}")
-            if not np.isfinite(link.weight):
+            if not math.isfinite(link.weight):
                 raise GenomeError(f"non-finite weight on {link.source}->{link.target}")
             pairs.add((link.source, link.target))
         self.topological_order  # noqa: B018 - raises on a cycle

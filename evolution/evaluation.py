@@ -136,17 +136,20 @@ def evaluation_scenes(
     *,
     model: str = DEFAULT_MODEL,
     max_seconds: float | None = None,
+    arrays: bool = False,
     **extra: Any,
 ) -> list[dict[str, Any]]:
     """The scenes (docs/spec.md section 1) that evaluate ``phenotype`` in ``environment``
     (a pure or compound world) at ``youngs_modulus`` (Pa) for ``cycles`` cycles, capped at
     ``max_seconds`` seconds when given, in the physics ``model``; one per part of the
-    world, in the order simulated. ``extra`` scene fields (e.g. ``record``) go into each."""
+    world, in the order simulated. ``extra`` scene fields (e.g. ``record``) go into each;
+    ``arrays``: the phenotype's arrays, not lists (``Phenotype.to_scene``)."""
     parts = environments.parts(environment)
     scenes = []
     for world, share in parts:
         scene = phenotype.to_scene(
-            world, youngs_modulus, cycles, model=model, max_seconds=max_seconds, **extra
+            world, youngs_modulus, cycles, model=model, max_seconds=max_seconds, arrays=arrays,
+            **extra
         )
         if len(parts) > 1:
             scene["duration"] = duration_of(cycles, max_seconds, share)

@@ -236,9 +236,13 @@ class Phenotype:
         settle_seconds: float | None = None,
         model: str = DEFAULT_MODEL,
         max_seconds: float | None = None,
+        arrays: bool = False,
         **extra: Any,
     ) -> dict[str, Any]:
-        """A simulator scene (docs/spec.md section 1 schema), plain JSON types.
+        """A simulator scene (docs/spec.md section 1 schema), plain JSON types; with
+        ``arrays`` its body, phase and fields are this phenotype's own NumPy arrays instead
+        of nested lists (what ``sim.parse_scene`` reads without converting lists: not JSON,
+        and to be read, not changed).
 
         The evaluation lasts ``cycles`` cycles, capped at ``max_seconds`` seconds when given
         (``duration_of``).
@@ -268,16 +272,17 @@ class Phenotype:
                 "poisson_ratio": poisson_ratio,
             },
             "environment": world.scene_environment(),
-            "body": self.body.astype(int).tolist(),
-            "phase": self.phase.tolist(),
+            "body": self.body if arrays else self.body.astype(int).tolist(),
+            "phase": self.phase if arrays else self.phase.tolist(),
             "actuation": {"frequency": float(self.frequency), "amplitude": amplitude},
             "duration": duration_of(int(cycles), max_seconds),
             "settle_seconds": float(settle_seconds),
         }
-        if self.stiffness is not None:
-            scene["youngs_modulus_field"] = np.asarray(self.stiffness, np.float64).tolist()
-        if self.frequency_field is not None:
-            scene["frequency_field"] = np.asarray(self.frequency_field, np.float64).tolist()
+        for name, values in (("youngs_modulus_field", self.stiffness),
+                             ("frequency_field", self.frequency_field)):
+            if values is not None:
+                values = np.asarray(values, np.float64)
+                scene[name] = values if arrays else values.tolist()
         if model != DEFAULT_MODEL:
             scene["model"] = model
         scene.update(extra)

@@ -20,7 +20,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy import ndimage, sparse
+from scipy import ndimage
 
 from . import worlds
 from .scene import ModelOptions, Scene
@@ -50,9 +50,12 @@ COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
 
 
+FACE_CONNECTED = ndimage.generate_binary_structure(3, 1)  # label's default in 3-D, made once
+
+
 def largest_component(body: np.ndarray) -> np.ndarray:
     """Keep only the largest face-connected component of full voxels (ties: lowest label)."""
-    labels, n = ndimage.label(body > 0)  # default structure: face connectivity
+    labels, n = ndimage.label(body > 0, FACE_CONNECTED if body.ndim == 3 else None)
     if n <= 1:
         return body.copy()
     sizes = np.bincount(labels.ravel())[1:]
@@ -183,28 +186,13 @@ class State(NamedTuple):
 
 
 def _lattice(body: np.ndarray):
-    idx = np.argwhere(body > 0)  # x-major order
-    lookup = -np.ones(body.shape, dtype=np.int64)
-    lookup[tuple(idx.T)] = np.arange(len(idx))
-    padded = np.pad(lookup, 1, constant_values=-1)
-    nbr = np.empty((len(idx), 6), dtype=np.int64)
-    shifted = idx + 1
-    for axis in range(3):
-        for side, delta in enumerate((-1, 1)):
-            off = shifted.copy()
-            off[:, axis] += delta
-            nbr[:, 2 * axis + side] = padded[tuple(off.T)]
-    links = [
-        (np.arange(len(idx))[nbr[:, 2 * a + 1] >= 0], nbr[nbr[:, 2 * a + 1] >= 0, 2 * a + 1], a)
-        for a in range(3)
-    ]
-    link_neg = np.concatenate([n for n, _, _ in links]).astype(np.int64)
-    link_pos = np.concatenate([p for _, p, _ in links]).astype(np.int64)
-    link_axis = np.concatenate([np.full(len(n), a) for n, _, a in links]).astype(np.int64)
-    vlink = np.full((len(idx), 6), len(link_neg), dtype=np.int64)  # m: no link on that face
-    vlink[link_neg, 2 * link_axis + 1] = np.arange(len(link_neg))
-    vlink[link_pos, 2 * link_axis] = np.arange(len(link_neg))
-    return idx, lookup, nbr, link_neg, link_pos, link_axis, vlink
+    """(idx, lookup, nbr, link_neg, link_pos, link_axis, vlink) of a body's full voxels: their
+    (n, 3) lattice indices in x-major order, the (X, Y, Z) index of each cell's voxel (-1
+    empty), each voxel's (n, 6) face neighbours (-x, +x, -y, +y, -z, +z; -1 none), the (m,)
+    links axis by axis, voxel by voxel, and each voxel's (n, 6) link per face (m: none)."""
+    from .tables import lattice_tables  # numba: loaded by the engines, not by sim's users
+
+    return lattice_tables(np.ascontiguousarray(np.asarray(body) > 0))
 
 
 def series_modulus(e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
@@ -269,7 +257,11 @@ def build_robot(scene: Scene) -> Robot:
 
     com = pos.mean(axis=0)
     omega = np.array(scene.initial_angular_velocity)
-    vel = np.array(scene.initial_velocity) + np.cross(omega, pos - com)
+    arm = pos - com
+    spin = np.column_stack([omega[1] * arm[:, 2] - omega[2] * arm[:, 1],  # omega x arm, as np.cross
+                            omega[2] * arm[:, 0] - omega[0] * arm[:, 2],  # computes it (a tenth of
+                            omega[0] * arm[:, 1] - omega[1] * arm[:, 0]])  # its time for one vector)
+    vel = np.array(scene.initial_velocity) + spin
     lin_mom = mass[:, None] * vel
     ang_mom = inertia[:, None] * omega
     fixed = (flags & FLAG_FIXED) > 0
@@ -419,25 +411,13 @@ def scene_steps(scene: Scene) -> int:
 
 def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
     """Each voxel's voxels within ``hops`` bond hops, itself left out (the paper's engine:
-    CalcNearby, walking bonds only, never across a gap): rows padded with -1. One hop is
-    ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
+    CalcNearby, walking bonds only, never across a gap): rows sorted, padded with -1. One hop
+    is ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
     if hops <= 1:
         return nbr
-    n = len(nbr)
-    rows, cols = np.nonzero(nbr >= 0)
-    adj = sparse.csr_matrix((np.ones(len(rows), np.int8), (rows, nbr[rows, cols])), shape=(n, n))
-    reach = sparse.identity(n, dtype=np.int8, format="csr")
-    step = reach + adj
-    for _ in range(hops):
-        reach = (reach @ step).astype(bool).astype(np.int8)
-    reach = (reach - sparse.identity(n, dtype=np.int8, format="csr")).tocsr()
-    reach.eliminate_zeros()
-    counts = np.diff(reach.indptr)
-    out = -np.ones((n, max(int(counts.max(initial=0)), 1)), dtype=np.int64)
-    for v in range(n):
-        row = reach.indices[reach.indptr[v]:reach.indptr[v + 1]]
-        out[v, : len(row)] = np.sort(row)
-    return out
+    from .tables import within_hops  # numba: loaded by the engines, not by sim's users
+
+    return within_hops(np.ascontiguousarray(nbr, dtype=np.int64), int(hops))
 
 
 # The surface mesh of the paper's engine: two triangles per exposed face, each vertex a
@@ -455,32 +435,24 @@ FACE_TRIANGLES = (
 )
 
 
+_CORNERS = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])  # code -> (dx, dy, dz)
+
+
 def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
     """The vertices and triangles of a robot's surface mesh.
 
     ``mesh_vert`` (nv, 8): for each vertex, 8 voxel + corner of every voxel whose cell has
     that lattice corner (-1 pads); its position is the mean over them of the voxel's centre
     plus its rotated corner (``kernels.mesh_drag_kernel``). ``mesh_face`` (nf, 4): a
-    triangle's three vertices and the voxel whose exposed face it covers."""
-    corners = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])
-    faces, keys = [], {}
-    for v, cell in enumerate(idx):
-        for f in range(6):
-            if nbr[v, f] >= 0:
-                continue
-            for tri in FACE_TRIANGLES[f]:
-                ids = [keys.setdefault(tuple(cell + corners[c]), len(keys)) for c in tri]
-                faces.append((*ids, v))
-    vert = -np.ones((len(keys), 8), dtype=np.int64)
-    shape = np.array(lookup.shape)
-    for point, k in keys.items():
-        slot = 0
-        for c in range(8):
-            cell = np.array(point) - corners[c]  # the cell that has this point as corner c
-            if np.all(cell >= 0) and np.all(cell < shape) and lookup[tuple(cell)] >= 0:
-                vert[k, slot] = 8 * lookup[tuple(cell)] + c
-                slot += 1
-    return vert, np.array(faces, dtype=np.int64).reshape(-1, 4)
+    triangle's three vertices and the voxel whose exposed face it covers. Faces come voxel by
+    voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each; vertices
+    are numbered in the order the triangles first meet them, and list their voxels in corner
+    order."""
+    from .tables import surface_mesh_tables  # numba: loaded by the engines, not by sim's users
+
+    return surface_mesh_tables(np.ascontiguousarray(idx, dtype=np.int64), lookup.astype(np.int64),
+                               nbr.astype(np.int64), np.asarray(FACE_TRIANGLES, dtype=np.int64),
+                               _CORNERS)
 
 
 def _offsets(counts) -> np.ndarray:
@@ -495,9 +467,12 @@ CONCATENATED = (  # Batch fields that are the robots' arrays one after another
 
 def _padded(tables: list[np.ndarray]) -> np.ndarray:
     """Row tables of different widths one after another, padded with -1 to the widest."""
-    width = max(t.shape[1] for t in tables)
-    return np.concatenate([np.pad(t, ((0, 0), (0, width - t.shape[1])), constant_values=-1)
-                           for t in tables]).astype(np.int64)
+    out = np.full((sum(len(t) for t in tables), max(t.shape[1] for t in tables)), -1, np.int64)
+    start = 0
+    for table in tables:
+        out[start : start + len(table), : table.shape[1]] = table
+        start += len(table)
+    return out
 
 
 def pack(robots: list[Robot]) -> tuple[Batch, State]:

@@ -17,6 +17,8 @@ import time
 import traceback
 from typing import Any
 
+import numpy as np
+
 from softevo.evolution.evaluation import compound_outcome
 from softevo.worker.tasks import EmptyBody, Task, TaskResult, failed, generation_tasks, scenes_of
 
@@ -72,7 +74,8 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
         phenotype = None
         try:
             task = Task.from_json(data)
-            phenotype, scenes = scenes_of(task)  # a compound world: one scene per part
+            # a compound world: one scene per part; the phenotype's arrays, not lists
+            phenotype, scenes = scenes_of(task, arrays=True)
             runnable.append((k, task, phenotype, scenes))
         except EmptyBody as exc:
             results[k] = failed(data, str(exc), phenotype)
@@ -101,11 +104,23 @@ def evaluate_generation(algorithm, asked, generation: int, threads: int | None =
 
 
 def warm_up(threads: int | None = 1) -> None:
-    """Compile (or load from numba's cache) the simulator once in this process."""
+    """Compile (or load from numba's cache) the simulator once in this process, with the
+    host side's kernels: on the numba engine a robot of the paper's model in water builds
+    the contact neighbourhoods and the drag mesh too; the shape descriptors are compiled
+    unless on the sleep engine (which describes no shapes)."""
     from softevo import sim
 
     body = [[[2]], [[1]]]
-    sim.simulate_many([{"body": body, "duration": {"cycles": 1}}], threads=threads, **engine_options())
+    options = engine_options()
+    scenes = [{"body": body, "duration": {"cycles": 1}}]
+    if not options:
+        scenes.append({"body": body, "duration": {"cycles": 1}, "model": "voxcad-land-water",
+                       "environment": {"kind": "water"}})
+    sim.simulate_many(scenes, threads=threads, **options)
+    if options.get("engine") != "sleep":
+        from softevo.evolution.descriptors import describe
+
+        describe(np.array(body))
 
 
 _CACHE_READY = False

@@ -16,10 +16,10 @@ from softevo.evolution.descriptors import (
     branching_index,
     describe,
     shape_entropy,
-    slice_symmetry,
-    surface_mesh,
+    symmetry_axes,
     symmetry_index,
 )
+from tests.evolution._descriptor_reference import surface_mesh
 
 
 def flat(rows):
@@ -42,7 +42,7 @@ def test_full_cube():
     assert branching_index(cube) == pytest.approx(0.0, abs=1e-12)
     # 56 surface vertices: 8 corners (pi/2); 24 on edges and 24 on faces, all flat (0)
     assert shape_entropy(cube) == pytest.approx(entropy_bits(8, 48))
-    mesh, _ = surface_mesh(cube)
+    mesh = surface_mesh(cube)
     assert mesh.is_watertight and mesh.volume == pytest.approx(27.0)
 
 
@@ -83,17 +83,22 @@ def test_shape_entropy_counts_the_flat_share_of_the_surface():
     assert shape_entropy(ragged) > 1.5 > shape_entropy(CROSS)
 
 
+def slice_shares(rows):
+    """The six shares of one 2-D slice (rows x, columns y): a flat body's shares along z."""
+    return symmetry_axes(np.array(rows, dtype=np.int8)[:, :, None])[2]
+
+
 # Six shares per slice: (r_v, r_h, r_pd, r_sd, t_v, t_h), intersection over union.
 def test_slice_shares_by_hand():
     # L slice [[1,1],[1,0]]: columns reversed [[1,1],[0,1]] overlaps 2 of 4 -> 1/2; rows
     # reversed likewise 1/2; transpose is itself -> 1; anti-transpose [[0,1],[1,1]] -> 2/4;
     # top row [1,1] vs bottom [1,0] -> 1/2; left column vs right column -> 1/2.
-    shares = slice_symmetry(np.array([[[1, 1], [1, 0]]], bool))[0]
+    shares = slice_shares([[1, 1], [1, 0]])
     assert shares == pytest.approx([0.5, 0.5, 1.0, 0.5, 0.5, 0.5])
     # column [1,0,1] (3x1): reflections of rows/columns -> 1; padded to 3x3 its transpose is
     # the row [1,0,1]: overlap (0,0) of union 3 -> 1/3, anti-transpose -> 1/3; odd halves
     # rows 0-1 [1,0] vs rows 1-2 [0,1] -> 0; one column compares with itself -> 1.
-    shares = slice_symmetry(np.array([[[1], [0], [1]]], bool))[0]
+    shares = slice_shares([[1], [0], [1]])
     assert shares == pytest.approx([1, 1, 1 / 3, 1 / 3, 0, 1])
 
 

@@ -86,8 +86,8 @@ def stored(tmp_path_factory):
     simulated = {}
     real = evaluate.scenes_of
 
-    def recording(task):
-        phenotype, scenes = real(task)
+    def recording(task, **options):
+        phenotype, scenes = real(task, **options)
         (simulated[(task.id, task.generation)],) = plain(scenes)  # pure worlds: one scene
         return phenotype, scenes
 

@@ -63,10 +63,10 @@ def test_a_failing_and_an_unstable_evaluation_are_stored_and_the_run_goes_on(eng
 
     real_express, real_simulate = evaluate.scenes_of, sim.simulate_many
 
-    def express(task):
+    def express(task, **options):
         if task.id == 1:
             raise RuntimeError("boom")
-        return real_express(task)
+        return real_express(task, **options)
 
     def simulate_many(scenes, threads=None):
         results = real_simulate(scenes, threads)
