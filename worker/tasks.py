@@ -224,7 +224,7 @@ def _phenotype_fields(phenotype, describe: bool = True) -> dict[str, Any]:
         "active_share": float(phenotype.active_share),
         "frequency": float(phenotype.frequency),
         "descriptors": _descriptors(phenotype) if describe else None,
-        "phenotype": plain(phenotype.summary()),
+        "phenotype": json_ready(phenotype.summary()),
     }
 
 
@@ -233,17 +233,17 @@ def _descriptors(phenotype) -> dict[str, float] | None:
     try:
         from softevo.evolution.descriptors import describe_phenotype
 
-        return plain(describe_phenotype(phenotype))
+        return json_ready(describe_phenotype(phenotype))
     except Exception as exc:  # descriptors never fail an evaluation
         return {"error": f"{type(exc).__name__}: {exc}"}
 
 
-def plain(value: Any) -> Any:
+def json_ready(value: Any) -> Any:
     """Numpy scalars and arrays to plain JSON types (RQ's JSON serialiser needs them)."""
     if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
+        return {str(k): json_ready(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [plain(v) for v in value]
+        return [json_ready(v) for v in value]
     if hasattr(value, "tolist"):
         return value.tolist()
     return value

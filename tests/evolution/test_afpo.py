@@ -44,8 +44,11 @@ def test_population_size_ids_and_ages():
     # generation 0: 6 newcomers; each later generation: 6 children + 1 newcomer
     assert algo.next_id == 6 + 5 * 7
     for ind in algo.population:
-        assert ind.generation_born <= 5
-        assert ind.age >= 5 - ind.generation_born or ind.parent_id is not None
+        assert 0 <= ind.generation_born <= 5
+        if ind.parent_id is None:  # a newcomer: age 0 at birth, one more each generation since
+            assert ind.age == 5 - ind.generation_born
+        else:  # a child inherits its parent's age (at least 1 once the parent has aged)
+            assert ind.age > 5 - ind.generation_born
 
 
 def test_afpo_generation_keeps_the_first_front():

@@ -15,7 +15,7 @@ from softevo import sim
 from softevo.evolution.evaluation import EvaluationSpec, compound_outcome, evaluation_scenes
 from softevo.evolution.genotype import EncodingConfig, Genotype, develop, random_viable
 from softevo.worker.evaluate import evaluate_batch
-from softevo.worker.tasks import Task, TaskResult, plain
+from softevo.worker.tasks import Task, TaskResult, json_ready
 from tests.evolution._descriptor_reference import reference_describe
 
 PAPER_ENCODING = EncodingConfig(control_mapping="evosoro-bounded", body_rule="evosoro")  # 7^3
@@ -52,7 +52,7 @@ def reference_results(tasks: list[dict]) -> list[dict]:
         outcome = compound_outcome(outcomes[offset : offset + count])
         offset += count
         result = TaskResult.of(task, phenotype, outcome, 0.0, describe=False).to_json()
-        result["descriptors"] = plain(reference_describe(phenotype.body, phenotype.frequency))
+        result["descriptors"] = json_ready(reference_describe(phenotype.body, phenotype.frequency))
         results.append(result)
     return results
 

@@ -13,7 +13,7 @@ from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.evolution.individual import FAILED_DISTANCE
 from softevo.worker import evaluate
-from softevo.worker.tasks import Task, TaskResult, failed, plain, replay, scene_of
+from softevo.worker.tasks import Task, TaskResult, failed, json_ready, replay, scene_of
 
 ENCODING = EncodingConfig(workspace=(4, 4, 4))
 
@@ -88,7 +88,7 @@ def stored(tmp_path_factory):
 
     def recording(task, **options):
         phenotype, scenes = real(task, **options)
-        (simulated[(task.id, task.generation)],) = plain(scenes)  # pure worlds: one scene
+        (simulated[(task.id, task.generation)],) = json_ready(scenes)  # pure worlds: one scene
         return phenotype, scenes
 
     with pytest.MonkeyPatch.context() as patch:
@@ -131,7 +131,7 @@ def test_the_scene_of_a_stored_genome_is_the_one_evaluated(stored):
         key = (row["local_id"], row["generation"])
         if key in simulated:  # evaluated in that generation (not carried over)
             _, scene = scene_of(_task_of(engine, row))
-            assert plain(scene) == simulated[key]
+            assert json_ready(scene) == simulated[key]
             compared += 1
     assert compared >= 3
 
