@@ -63,8 +63,8 @@ from softevo.evolution.selection import (
     objective_values,
     select_survivors,
 )
-from softevo.sim import worlds
-from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
+from softevo.sim import models, worlds
+from softevo.sim.scene import DEFAULT_CYCLES
 
 MODES = ("afpo", "pareto")
 PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
@@ -76,7 +76,7 @@ class EvolutionConfig:
 
     youngs_modulus: Pa; cycles: actuation cycles per evaluation, and max_seconds, when given,
     the most seconds an evaluation lasts (``genotype.duration_of``); environment: the starting
-    world (a ``sim.worlds`` name); model: the physics model of the scenes (``sim.scene.MODELS``);
+    world (a ``sim.worlds`` name); model: the physics model of the scenes (``sim.models.names()``);
     descriptors: compute shape descriptors at each tell; objectives: what selection optimises
     (``selection.Objective``s; age is added in ``mode="afpo"``).
     """
@@ -90,14 +90,14 @@ class EvolutionConfig:
     encoding: EncodingConfig = field(default_factory=EncodingConfig)
     objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
     descriptors: bool = True
-    model: str = DEFAULT_MODEL
+    model: str = models.DEFAULT
     max_seconds: float | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"mode must be one of {MODES} (got {self.mode!r})")
-        if self.model not in MODELS:
-            raise ValueError(f"model must be one of {MODELS} (got {self.model!r})")
+        if self.model not in models.names():
+            raise ValueError(f"model must be one of {models.names()} (got {self.model!r})")
         if self.population_size < 1:
             raise ValueError("population_size must be >= 1")
         # an objective given by name and direction alone is the registered one of that name

@@ -17,7 +17,7 @@ from typing import Any
 
 from softevo.evolution import worlds
 from softevo.evolution.genotype import Phenotype, duration_of
-from softevo.sim.scene import DEFAULT_MODEL
+from softevo.sim import models
 
 
 def evaluation_scenes(
@@ -26,7 +26,7 @@ def evaluation_scenes(
     youngs_modulus: float,
     cycles: int,
     *,
-    model: str = DEFAULT_MODEL,
+    model: str = models.DEFAULT,
     max_seconds: float | None = None,
     **extra: Any,
 ) -> list[dict[str, Any]]:

@@ -1,5 +1,5 @@
 """The GPU engine: ``simulate_many`` on an NVIDIA GPU through numba-cuda, the same scenes and
-the same ``Result`` as ``sim.engine``.
+the same ``Result`` (``sim.result``) as the numba engine (``sim.numba_engine``).
 
 Scenes go through the one scene -> arrays path (``prepare``, ``pack``); the packed batch is
 copied to the device once and ``sim.cuda_kernels`` steps it, one thread block per robot, up
@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from .engine import Result, _result, prepare
 from .engines import PRECISIONS, EngineUnavailable
 from .kernels import COLLIDE_MARGIN
+from .result import Result, from_run, prepare
 from .scene import Scene
 from .system import F_L, I_N_FRAMES, I_STEPS, pack
 
@@ -97,12 +97,12 @@ def simulate_many(scenes: list[dict | Scene], device: str | None = None,
     if runnable:
         out = run_batch([robots[k] for k in runnable], dev, precision, chunk)
         for r, k in enumerate(runnable):
-            results[k] = _result(parsed[k], robots[k], 0, *out.robot(r))
+            results[k] = from_run(parsed[k], robots[k], 0, *out.robot(r))
     return results  # type: ignore[return-value]
 
 
 class BatchOutput:
-    """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.engine._result``
+    """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.result.from_run``
     takes it (a one-robot batch), and the seconds its step loop took."""
 
     def __init__(self, seconds, voff, froff, n_frames, pos, frames, com_traj, com_count,

@@ -31,7 +31,7 @@ from numba import cuda, float64
 from numba.cuda import config as cuda_config
 
 from . import physics
-from .kernels import COLLIDE_MARGIN, STATUS_NONFINITE, STATUS_STRAIN
+from .kernels import COLLIDE_MARGIN
 from .system import (
     COM_SAMPLES,
     FLAG_ACTIVE,
@@ -39,6 +39,8 @@ from .system import (
     N_FPARAMS,
     N_IPARAMS,
     N_VCONST,
+    STATUS_NONFINITE,
+    STATUS_STRAIN,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,

@@ -78,6 +78,9 @@ from .physics import MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine report
 from .system import (
     FLAG_ACTIVE,
     FLAG_FIXED,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_STRAIN,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,
@@ -126,7 +129,6 @@ def fma(typingctx, a, b, c):
     return sig, codegen
 
 
-STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
 # Self-collision candidates are unbonded surface pairs within the largest contact distance plus
 # this margin (in voxel lengths); the list is rebuilt once surface voxels have moved half of it.
 COLLIDE_MARGIN = 0.2

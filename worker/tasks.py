@@ -85,7 +85,7 @@ class Task:
     encoding: dict[str, Any] | None = None  # EncodingConfig.to_dict(); None: from workspace
     run_id: int | None = None
     generation: int | None = None
-    model: str = "voxelyze-2"  # sim.scene.MODELS: the physics of the task's scenes
+    model: str = "voxelyze-2"  # sim.models.names(): the physics of the task's scenes
     max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
 
     @classmethod

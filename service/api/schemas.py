@@ -67,7 +67,7 @@ class WorldName(RegistryEnum):
     choices = staticmethod(lambda: worlds.names(evolve=True))
 
 Algorithm = Literal["afpo", "pareto"]
-Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.scene.MODELS
+Model = Literal["voxelyze-2", "voxcad-land-water"]  # sim.models.names()
 ControlMapping = Literal["linear", "evosoro", "evosoro-bounded", "evosoro-positive",
                          "evosoro-bounded-positive"]  # evolution.genotype.CONTROL_MAPPINGS
 BodyRule = Literal["any", "evosoro"]  # evolution.genotype.BODY_RULES
