@@ -19,7 +19,9 @@ from .system import (
     F_L,
     I_RECORD,
     I_STEPS,
+    MAX_CONTACTS,
     MIN_RESOLVED_STEPS_PER_CYCLE,
+    STATUS_CONTACTS,
     STATUS_NONFINITE,
     STATUS_OK,
     STATUS_STRAIN,
@@ -109,6 +111,10 @@ def from_run(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj,
     reason = None
     if status[r] == STATUS_STRAIN:
         reason = f"diverged: a link's axial strain exceeded {MAX_STRAIN:g} at step {steps_done[r]}"
+    elif status[r] == STATUS_CONTACTS:
+        reason = (f"self-contact: a voxel had more than {MAX_CONTACTS} contact candidates at step "
+                  f"{steps_done[r]} (the engines keep at most {MAX_CONTACTS}; the body had "
+                  f"collapsed onto itself)")
     elif status[r] == STATUS_NONFINITE or not stable:
         reason = f"diverged: a voxel's state became non-finite or exploded at step {steps_done[r]}"
     horizontal = worlds.get(scene.environment.kind).floor and scene.options.distance == "horizontal"

@@ -50,7 +50,9 @@ STEPS_PER_CYCLE = ModelOptions.min_steps_per_cycle
 COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
 # how a robot's run ended (every engine writes one per robot; ``sim.result`` reads it)
-STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
+STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE, STATUS_CONTACTS = 0, 1, 2, 3
+# self-contact candidates a voxel may have (the contact policy: ``sim.physics``)
+MAX_CONTACTS = 64
 
 
 def largest_component(body: np.ndarray) -> np.ndarray:
@@ -514,7 +516,7 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         moff=_offsets([len(r.mesh_vert) for r in robots]),
         foff=_offsets([len(r.mesh_face) for r in robots]),
         near=_padded([r.near for r in robots]),
-        poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
+        poff=_offsets([len(r.surface) * MAX_CONTACTS // 2 + 1 for r in robots]),
         cos_phase=np.cos(phase),
         sin_phase=np.sin(phase),
         phase=phase,

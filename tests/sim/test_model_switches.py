@@ -66,7 +66,8 @@ def test_collision_pairs_skip_every_pair_within_the_horizon():
         near = system.nearby(robot.nbr, hops)
         reach = 2.5 * scene.voxel_size
         pairs = np.zeros((200, 2), np.int64)
-        count = kernels.collision_pairs(robot.surface, pos, near, reach, pairs)
+        count = kernels.collision_pairs(robot.surface, pos, near, reach, pairs,
+                                        np.zeros(len(pos), np.int64))
         got = {tuple(sorted(p)) for p in pairs[:count].tolist()}
         want = set()
         for a in robot.surface:
