@@ -587,7 +587,7 @@ def _environment(env: dict[str, float]) -> dict[str, Any]:
 
 
 def _scene(file: _File) -> dict[str, Any]:
-    from softevo.sim import model_defaults
+    from softevo.sim.models import defaults as model_defaults
 
     vxc = file.root.find("VXC")
     if vxc is None:

@@ -48,8 +48,8 @@ def main() -> None:
                "model": "voxcad-land-water", "self_collisions": True, "record": {"every": 10}}]
     batch, state = pack([build_robot(parse_scene(s)) for s in scenes])
     host = cuda_engine.kernel_inputs(batch, state)
-    which = host["voff"][:1]
-    sig = tuple(numba.typeof(x) for x in (numba.int32(1), which, *host.values()))
+    which = host[0].voff[:1]  # the kernel's groups (``cuda_kernels.Robots`` ...) as typed tuples
+    sig = tuple(numba.typeof(x) for x in (numba.int32(1), which, *host))
     for shared in (True, False):
         kernel = cuda_kernels.rollout_kernel(shared, args.threads)
         ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=cc)

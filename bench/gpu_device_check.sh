@@ -97,7 +97,7 @@ EOF
     echo "softevo.sim does not import (see $LOGS/install.log)"; tail -5 "$LOGS/install.log"; exit 3
   fi
 fi
-"$PY" -c "import softevo.sim, softevo.sim.engine; from softevo.sim import cuda_engine; print('softevo.sim:', softevo.sim.__file__)" 2>&1 \
+"$PY" -c "import softevo.sim, softevo.sim.numba_engine; from softevo.sim import cuda_engine; print('softevo.sim:', softevo.sim.__file__)" 2>&1 \
   | tail -3
 
 say "CUDA test module on $DEVICE, $ROBOTS random robots (limit $TEST_LIMIT s)"

@@ -18,10 +18,10 @@ from pathlib import Path
 
 from softevo import sim
 from softevo.analysis.vxa_import import vxa_to_scene
-from softevo.sim.scene import MODEL_DEFAULTS, MODEL_OPTIONS
+from softevo.sim import models
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "sim" / "reference" / "voxcad"
-PLAIN = MODEL_OPTIONS["voxelyze-2"]
+PLAIN = models.options("voxelyze-2")
 
 # (item of issue 24, what changes): each a change from the fork's model back to Voxelyze 2's.
 SWITCHES = [
@@ -36,9 +36,9 @@ SWITCHES = [
     ("4 3-D distance -> horizontal", {"model_options": {"distance": PLAIN.distance}}),
     ("5 drag on the mesh -> on voxel faces", {"model_options": {"drag": PLAIN.drag}}),
     ("6 dt 0.7, no floor -> dt 0.5, 2000 steps/cycle",
-     {"dt_fraction": MODEL_DEFAULTS["voxelyze-2"]["dt_fraction"],
+     {"dt_fraction": models.get("voxelyze-2").dt_fraction,
       "model_options": {"min_steps_per_cycle": PLAIN.min_steps_per_cycle}}),
-    ("10 amplitude 0.14 -> 0.39", {"actuation": {"amplitude": MODEL_DEFAULTS["voxelyze-2"]["amplitude"]}}),
+    ("10 amplitude 0.14 -> 0.39", {"actuation": {"amplitude": models.get("voxelyze-2").amplitude}}),
     ("all: the voxelyze-2 model", None),
 ]
 

@@ -63,7 +63,7 @@ from softevo.evolution.selection import (
     objective_values,
     select_survivors,
 )
-from softevo.sim.scene import MODELS
+from softevo.sim import models
 
 ALGORITHMS = ("afpo", "pareto")  # the algorithms (EvolutionConfig.mode): see the module doc
 PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
@@ -90,8 +90,8 @@ class EvolutionConfig:
     def __post_init__(self) -> None:
         if self.mode not in ALGORITHMS:
             raise ValueError(f"mode must be one of {ALGORITHMS} (got {self.mode!r})")
-        if self.evaluation.model not in MODELS:
-            raise ValueError(f"model must be one of {MODELS} (got {self.evaluation.model!r})")
+        if self.evaluation.model not in models.names():
+            raise ValueError(f"model must be one of {models.names()} (got {self.evaluation.model!r})")
         if self.population_size < 1:
             raise ValueError("population_size must be >= 1")
         # an objective given by name and direction alone is the registered one of that name

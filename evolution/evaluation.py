@@ -26,7 +26,8 @@ from typing import Any
 
 from softevo.evolution import environments
 from softevo.evolution.genotype import EncodingConfig, Phenotype, duration_of
-from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL
+from softevo.sim.models import DEFAULT as DEFAULT_MODEL
+from softevo.sim.scene import DEFAULT_CYCLES
 
 DEFAULT_YOUNGS_MODULUS = 1e6  # Pa: 1 MPa, the quick start's stiffness (the paper's S4)
 
@@ -35,7 +36,7 @@ DEFAULT_YOUNGS_MODULUS = 1e6  # Pa: 1 MPa, the quick start's stiffness (the pape
 class EvaluationSpec:
     """The parameters of one evaluation: ``environment`` (a world of ``sim.worlds``, or a
     compound world ``land>water@0.250``), ``youngs_modulus`` (Pa), ``cycles`` of actuation,
-    the physics ``model`` (``sim.scene.MODELS``), ``max_seconds`` (the cap on an evaluation's
+    the physics ``model`` (``sim.models.names()``), ``max_seconds`` (the cap on an evaluation's
     seconds after settling; None: cycles only) and the ``encoding`` that develops genomes."""
 
     environment: str = environments.LAND.name

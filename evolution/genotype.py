@@ -68,7 +68,9 @@ import numpy as np
 from softevo.evolution.cppn import CPPN, INPUT_NAMES, express, minimal_cppn
 from softevo.evolution.mutation import mutate_cppn
 from softevo.sim import worlds
-from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, Material, Scene, model_defaults
+from softevo.sim.models import DEFAULT as DEFAULT_MODEL
+from softevo.sim.models import defaults as model_defaults
+from softevo.sim.scene import DEFAULT_CYCLES, Material, Scene
 from softevo.sim.system import largest_component
 
 EVOSORO_MAPPINGS: dict[str, tuple[bool, bool]] = {  # name: (bounded at 4 Hz, negative f invalid)
@@ -247,7 +249,7 @@ class Phenotype:
         The evaluation lasts ``cycles`` cycles, capped at ``max_seconds`` seconds when given
         (``duration_of``).
 
-        ``model`` is the physics model (``sim.scene.MODELS``); the scene names it unless it is
+        ``model`` is the physics model (``sim.models.names()``); the scene names it unless it is
         the default (a scene without ``model`` is the default model's). ``amplitude``
         defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to the
         world's (``sim.worlds``: 0.5 on a floor, 0 elsewhere), which is also the paper's engine's

@@ -18,7 +18,7 @@ The algorithm and the physics: ``algorithm`` is ``pareto`` (the paper's plain 3-
 Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
 ``evolution.algorithm``) or ``afpo`` (Age-Fitness Pareto, a named variant: the remedy the paper
 names for its algorithm's loss of diversity); ``model`` is the physics model of every
-evaluation's scene (``sim.scene.MODELS``: ``voxelyze-2``, or ``voxcad-land-water``, the
+evaluation's scene (``sim.models.names()``: ``voxelyze-2``, or ``voxcad-land-water``, the
 paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
 encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-bounded`` (the
 scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz bounded at their MAX_FREQUENCY of 4 Hz, a
@@ -59,13 +59,15 @@ from softevo.evolution.evaluation import EvaluationSpec, encoding_from_settings
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EVOSORO_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import Objective, objectives_named
+from softevo.sim import models
 from softevo.sim import worlds as sim_worlds
-from softevo.sim.scene import DEFAULT_CYCLES, DEFAULT_MODEL, MODELS
+from softevo.sim.models import DEFAULT as DEFAULT_MODEL
+from softevo.sim.scene import DEFAULT_CYCLES
 
 
 def model_names() -> tuple[str, ...]:
-    """Every physics model a treatment may name (the simulator's registry)."""
-    return tuple(MODELS)
+    """Every physics model a treatment may name (the simulator's registry, ``sim.models``)."""
+    return models.names()
 PAPER_WORLDS = environments.PAPER  # the paper's two worlds and its transitions
 PAPER_TRANSITIONS = tuple(environments.TRANSITION.join(pair) for pair in (PAPER_WORLDS, PAPER_WORLDS[::-1]))
 PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
@@ -139,7 +141,7 @@ class Treatment:
             raise UserError(f"seed must be >= 0 (got {self.seed})")
         if self.algorithm not in ALGORITHMS:
             raise UserError(f"unknown algorithm {self.algorithm!r}; choose afpo or pareto")
-        for name, choices in (("model", MODELS), ("control_mapping", CONTROL_MAPPINGS),
+        for name, choices in (("model", models.names()), ("control_mapping", CONTROL_MAPPINGS),
                               ("body_rule", tuple(BODY_RULES))):
             if getattr(self, name) not in choices:
                 raise UserError(f"unknown {name} {getattr(self, name)!r}; choose {' or '.join(choices)}")

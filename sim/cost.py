@@ -18,11 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import worlds
+from . import engines, worlds
 from .scene import Scene
 from .system import largest_component, scene_steps
-
-WORLDS = worlds.KINDS
 
 
 def voxel_steps(scene: Scene) -> tuple[int, int]:
@@ -83,10 +81,9 @@ def measure(scenes_by_key: dict[tuple[str, str], list[dict]], repeats: int = 3) 
     """A ``CostModel`` measured here: each key's scenes simulated one by one on one thread
     (after a warm-up), the rate the median over ``repeats`` of voxel-steps per second, the
     overhead a one-step scene's seconds."""
-    from . import engine
     from .scene import parse_scene
 
-    engine.simulate_many([next(iter(scenes_by_key.values()))[0]], threads=1)  # compile / load
+    engines.simulate_many([next(iter(scenes_by_key.values()))[0]], threads=1)  # compile / load
     rates = {}
     for key, scenes in scenes_by_key.items():
         parsed = [parse_scene(dict(s)) for s in scenes]
@@ -94,12 +91,12 @@ def measure(scenes_by_key: dict[tuple[str, str], list[dict]], repeats: int = 3) 
         runs = []
         for _ in range(repeats):
             start = time.perf_counter()
-            engine.simulate_many(parsed, threads=1)
+            engines.simulate_many(parsed, threads=1)
             runs.append(time.perf_counter() - start)
         rates[key] = work / float(np.median(runs))
     tiny = dict(next(iter(scenes_by_key.values()))[0], duration={"cycles": 1, "max_seconds": 1e-4})
     start = time.perf_counter()
     for _ in range(5):
-        engine.simulate_many([tiny], threads=1)
+        engines.simulate_many([tiny], threads=1)
     overhead = (time.perf_counter() - start) / 5
     return CostModel(rates, overhead, float(np.median(list(rates.values()))), "measured here")

@@ -1,5 +1,5 @@
 """The GPU engine: ``simulate_many`` on an NVIDIA GPU through numba-cuda, the same scenes and
-the same ``Result`` as ``sim.engine``.
+the same ``Result`` (``sim.result``) as the numba engine (``sim.numba_engine``).
 
 Scenes go through the one scene -> arrays path (``prepare``, ``pack``); the packed batch is
 copied to the device once and ``sim.cuda_kernels`` steps it, one thread block per robot, up
@@ -25,16 +25,17 @@ from typing import Any
 
 import numpy as np
 
-from .engine import Result, _result, prepare
-from .engines import PRECISIONS, EngineUnavailable
-from .kernels import COLLIDE_MARGIN
+from .engines import EngineUnavailable
+from .physics import COLLIDE_MARGIN
+from .result import Result, from_run, prepare
 from .scene import Scene
-from .system import F_L, I_N_FRAMES, I_STEPS, pack
+from .system import F_L, I_N_FRAMES, I_STEPS, MAX_CONTACTS, pack
 
 DEFAULT_DEVICE = "cuda:0"
 CHUNK_STEPS = 5000  # steps per launch on a GPU (a 7^3 robot: a few milliseconds)
 THREADS = {"gpu": 256, "simulator": 4}  # threads per block (SOFTEVO_CUDA_THREADS overrides)
 SHARED_DEFAULT = 48 * 1024  # bytes of shared memory a block may use without opting in
+PRECISIONS = ("float64", "float32")  # float32 is refused until it passes on a GPU
 SIMULATOR_SWITCH_SECONDS = 5e-5  # the GIL's switch interval while the simulator runs (5x faster)
 
 
@@ -97,12 +98,12 @@ def simulate_many(scenes: list[dict | Scene], device: str | None = None,
     if runnable:
         out = run_batch([robots[k] for k in runnable], dev, precision, chunk)
         for r, k in enumerate(runnable):
-            results[k] = _result(parsed[k], robots[k], 0, *out.robot(r))
+            results[k] = from_run(parsed[k], robots[k], 0, *out.robot(r))
     return results  # type: ignore[return-value]
 
 
 class BatchOutput:
-    """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.engine._result``
+    """What a run leaves on the host, cut per robot in ``robot(r)`` as ``sim.result.from_run``
     takes it (a one-robot batch), and the seconds its step loop took."""
 
     def __init__(self, seconds, voff, froff, n_frames, pos, frames, com_traj, com_count,
@@ -176,10 +177,11 @@ def _shared_limit(kernel, dev, want: int) -> int:
         return SHARED_DEFAULT
 
 
-def kernel_inputs(batch, state) -> dict[str, Any]:
-    """The rollout kernel's arguments after ``chunk`` and ``which``, in order, as host
-    arrays (flat, int32 indices: ``sim.cuda_kernels`` layout) and scalars, for a packed
-    batch at its initial state."""
+def kernel_inputs(batch, state) -> tuple:
+    """The rollout kernel's arguments after ``chunk`` and ``which``: its groups
+    (``cuda_kernels.Robots``, ``VoxelData``, ``LinkData``, ``ContactData``, ``MeshData``,
+    ``BodyState``, ``Scratch``, ``Output``) of host arrays (flat, int32 indices: the
+    ``sim.cuda_kernels`` layout), for a packed batch at its initial state."""
     from . import cuda_kernels as ck
 
     R = len(batch.voff) - 1
@@ -189,10 +191,12 @@ def kernel_inputs(batch, state) -> dict[str, Any]:
     froff = _offsets(batch.iparams[:, I_N_FRAMES].astype(np.int64) * counts)
     if batch.iparams[:, I_STEPS].max(initial=0) >= 2**31 or froff[-1] * 3 >= 2**31:
         raise EngineUnavailable("batch too large for the cuda engine's int32 counters: split it")
-    # each voxel's facets (the mesh lists them voxel by voxel) and its place on the surface
+    # each voxel's facets (the mesh lists them voxel by voxel, indices local to the robot)
+    # and its place on the surface
     face_voxel = batch.mesh_face[:, 3] + np.repeat(voff[:-1], np.diff(foff))
     fstart = np.searchsorted(face_voxel, np.arange(n_vox), side="left")
     fcount = np.searchsorted(face_voxel, np.arange(n_vox), side="right") - fstart
+    fstart = fstart - np.repeat(foff[:-1], counts)
     surf_of = -np.ones(n_vox, dtype=np.int64)
     first_surface = np.repeat(soff[:-1], np.diff(soff))
     surf_of[batch.surface + np.repeat(voff[:-1], np.diff(soff))] = (
@@ -212,26 +216,26 @@ def kernel_inputs(batch, state) -> dict[str, Any]:
         x = np.ascontiguousarray(x, dtype=np.int32).reshape(-1)
         return x if x.size else np.zeros(1, np.int32)
 
-    return dict(
-        fp=f64(batch.fparams), ip=i32(batch.iparams), voff=i32(voff), loff=i32(loff),
-        soff=i32(soff), moff=i32(moff), foff=i32(foff), froff=i32(froff),
-        flags=i32(batch.flags), cos_phase=f64(batch.cos_phase), sin_phase=f64(batch.sin_phase),
-        phase=f64(batch.phase), vc=f64(batch.vconst), ext=f64(batch.ext_force),
-        nbr=i32(batch.nbr), vlink=i32(vlink), exposed=i32(exposed), fstart=i32(fstart),
-        fcount=i32(fcount), surf_of=i32(surf_of), surface=i32(batch.surface),
-        near=i32(batch.near), near_width=np.int32(batch.near.shape[1]),
-        lneg=i32(batch.link_neg), lpos=i32(batch.link_pos), laxis=i32(batch.link_axis),
-        lstiff=f64(batch.link_stiff), ldamp=f64(batch.link_damp),
-        mvert=i32(batch.mesh_vert), mface=i32(batch.mesh_face),
-        pos=f64(state.pos), quat=f64(state.quat), lm=f64(state.lin_mom), am=f64(state.ang_mom),
-        static=i32(np.ones(n_vox)), ls=f64(np.zeros(n_links * ck.LINK_STATE)),
-        size=f64(np.zeros(n_vox)), force=f64(np.zeros(3 * n_vox)),
-        moment=f64(np.zeros(3 * n_vox)), loads=f64(np.zeros(ck.LINK_LOADS * n_links)),
-        vert=f64(np.zeros(3 * len(batch.mesh_vert))),
-        cand=i32(np.zeros(ck.MAX_CANDIDATES * len(batch.surface))),
-        ncand=i32(np.zeros(len(batch.surface))), built=f64(np.full(3 * len(batch.surface), np.nan)),
-        ctl=ctl, travel=f64(COLLIDE_MARGIN * batch.fparams[:, F_L]),
-        frames=f64(np.zeros(3 * int(froff[-1]))), com=f64(np.zeros(R * ck.COM_ROWS * 4)),
+    return (
+        ck.Robots(f64(batch.fparams), i32(batch.iparams), i32(voff), i32(loff), i32(soff),
+                  i32(moff), i32(foff), i32(froff)),
+        ck.VoxelData(i32(batch.flags), f64(batch.cos_phase), f64(batch.sin_phase),
+                     f64(batch.phase), f64(batch.vconst), f64(batch.ext_force), i32(batch.nbr),
+                     i32(vlink), i32(exposed), i32(fstart), i32(fcount), i32(surf_of)),
+        ck.LinkData(i32(batch.link_neg), i32(batch.link_pos), i32(batch.link_axis),
+                    f64(batch.link_stiff), f64(batch.link_damp)),
+        ck.ContactData(i32(batch.surface), i32(batch.near), i32([batch.near.shape[1]]),
+                       i32(np.zeros(MAX_CONTACTS * len(batch.surface))),
+                       i32(np.zeros(len(batch.surface))),
+                       f64(np.full(3 * len(batch.surface), np.nan))),
+        ck.MeshData(i32(batch.mesh_vert), i32(batch.mesh_face),
+                    f64(np.zeros(3 * len(batch.mesh_vert)))),
+        ck.BodyState(f64(state.pos), f64(state.quat), f64(state.lin_mom), f64(state.ang_mom),
+                     i32(np.ones(n_vox)), f64(np.zeros(n_links * ck.LINK_STATE))),
+        ck.Scratch(f64(np.zeros(n_vox)), f64(np.zeros(3 * n_vox)), f64(np.zeros(3 * n_vox)),
+                   f64(np.zeros(ck.LINK_LOADS * n_links))),
+        ck.Output(ctl, f64(COLLIDE_MARGIN * batch.fparams[:, F_L]),
+                  f64(np.zeros(3 * int(froff[-1]))), f64(np.zeros(R * ck.COM_ROWS * 4))),
     )
 
 
@@ -246,11 +250,11 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
     batch, state = pack(robots)
     R = len(robots)
     host = kernel_inputs(batch, state)
-    args = [cuda.to_device(x) if isinstance(x, np.ndarray) else x for x in host.values()]
-    a = SimpleNamespace(**dict(zip(host, args, strict=True)))
+    args = tuple(type(group)(*(cuda.to_device(x) for x in group)) for group in host)
+    body, out = args[5], args[7]
     counts, links = np.diff(batch.voff), np.diff(batch.loff)
     n_frames = batch.iparams[:, I_N_FRAMES].astype(np.int64)
-    froff = host["froff"].astype(np.int64)
+    froff = host[0].froff.astype(np.int64)
 
     threads = threads_per_block()
     sim_mode = simulator()
@@ -271,7 +275,7 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
     started = time.perf_counter()
     try:
         for _ in range(-(-total // chunk)):  # every robot is done after this many launches
-            running = a.ctl.copy_to_host()[:, ck.C_RUNNING] != 0
+            running = out.ctl.copy_to_host()[:, ck.C_RUNNING] != 0
             if not running.any():
                 break
             if limit is None:  # compile once, then let it use more than the default if it may
@@ -292,13 +296,13 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
         sys.setswitchinterval(switch)
     seconds = time.perf_counter() - started
 
-    ctl = a.ctl.copy_to_host()
-    com = a.com.copy_to_host().reshape(R, ck.COM_ROWS, 4)
+    ctl = out.ctl.copy_to_host()
+    com = out.com.copy_to_host().reshape(R, ck.COM_ROWS, 4)
     status = ctl[:, ck.C_CODE].astype(np.int64)
     done = ctl[:, ck.C_DONE].astype(np.int64)
     com_count = ctl[:, ck.C_NCOM].astype(np.int64)
     if (ctl[:, ck.C_RUNNING] != 0).any():
         raise RuntimeError("cuda engine: robots still running after their step count")
-    return BatchOutput(seconds, batch.voff, froff, n_frames, a.pos.copy_to_host().reshape(-1, 3),
-                       a.frames.copy_to_host()[: 3 * int(froff[-1])].reshape(-1, 3), com,
+    return BatchOutput(seconds, batch.voff, froff, n_frames, body.pos.copy_to_host().reshape(-1, 3),
+                       out.frames.copy_to_host()[: 3 * int(froff[-1])].reshape(-1, 3), com,
                        com_count, status, done)

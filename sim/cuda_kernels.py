@@ -26,19 +26,23 @@ from __future__ import annotations
 
 import math
 from functools import cache
+from typing import Any, NamedTuple
 
 from numba import cuda, float64
 from numba.cuda import config as cuda_config
 
 from . import physics
-from .kernels import COLLIDE_MARGIN, STATUS_NONFINITE, STATUS_STRAIN
 from .system import (
     COM_SAMPLES,
     FLAG_ACTIVE,
     FLAG_FIXED,
+    MAX_CONTACTS,
     N_FPARAMS,
     N_IPARAMS,
     N_VCONST,
+    STATUS_CONTACTS,
+    STATUS_NONFINITE,
+    STATUS_STRAIN,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,
@@ -52,12 +56,11 @@ from .system import (
 )
 
 SIMULATOR = bool(cuda_config.ENABLE_CUDASIM)
-MAX_CANDIDATES = 32  # self-contact candidates kept per surface voxel
 COM_ROWS = COM_SAMPLES + 3  # rows of a robot's centre-of-mass trajectory
 VOXEL_WORDS = 20  # float64 per voxel in shared memory: pos 3, quat 4, momenta 6, size 1, force 3, moment 3
 LINK_WORDS = 18  # per link: state 9 (previous deformation 8, frame mode), loads 9
 LINK_STATE, LINK_LOADS = 9, 9
-SCRATCH_WORDS = 2  # float64 in a block's dynamic shared memory beyond one per thread: the flags
+SCRATCH_WORDS = 3  # float64 in a block's dynamic shared memory beyond one per thread: the flags
 # control words of a robot, ``ctl[r, :]``
 C_RUNNING, C_STEP, C_CODE, C_DONE, C_NCOM = range(5)
 N_CTL = 5
@@ -71,17 +74,20 @@ if SIMULATOR:  # the plain functions: the simulator runs kernels as Python
     def device(f):
         return f
 
+    substep = device
     phys = physics.compiled(device, physics.fma)
 else:
     device = cuda.jit(device=True)
+    substep = cuda.jit(device=True, forceinline=True)  # the step's sub-steps, inlined by NVVM
     phys = physics.compiled(device, device(_fma_device))
 
 dot3, qrot, rotation_matrix, waveform = phys.dot3, phys.qrot, phys.rotation_matrix, phys.waveform
 actuated_size, link_geometry, small_frame = phys.actuated_size, phys.link_geometry, phys.small_frame
 large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
 link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
-contact_overlap = phys.contact_overlap
+contact_overlap, candidate_radius = phys.contact_overlap, phys.candidate_radius
 mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
+corner_point, load_sum, centre_of_mass = phys.corner_point, phys.load_sum, phys.centre_of_mass
 params = device(params_of)
 
 
@@ -104,24 +110,18 @@ def link_load(loads, j, q):
 def face_loads(loads, p0, p1, p2, q0, q1, q2, row_p, row_q, sign):
     """A voxel's sum over its faces of row ``row_p`` of the links it is the negative end of
     (p0, p1, p2: on its +x, +y, +z faces) plus ``sign`` times row ``row_q`` of those it is the
-    positive end of (q0, q1, q2), in the order of ``kernels.link_sums``."""
-    return ((link_load(loads, p0, row_p) + link_load(loads, p1, row_p) + link_load(loads, p2, row_p))
-            + sign * (link_load(loads, q0, row_q) + link_load(loads, q1, row_q)
-                      + link_load(loads, q2, row_q)))
+    positive end of (q0, q1, q2) (``physics.load_sum``)."""
+    return load_sum(link_load(loads, p0, row_p), link_load(loads, p1, row_p),
+                    link_load(loads, p2, row_p), link_load(loads, q0, row_q),
+                    link_load(loads, q1, row_q), link_load(loads, q2, row_q), sign)
 
 
 @device
 def com_sample(n, vc, pos, com, row):
-    """The mass-weighted centre of mass into ``com[row, 1:4]`` (one thread; the order of
-    ``sim.kernels.com``)."""
-    total = 0.0
-    for v in range(n):
-        total += vc[v * N_VCONST + V_WEIGHT]
-    for c in range(3):
-        acc = 0.0
-        for v in range(n):
-            acc += vc[v * N_VCONST + V_WEIGHT] * pos[3 * v + c]
-        com[row * 4 + 1 + c] = acc / total
+    """The mass-weighted centre of mass into ``com[row, 1:4]`` (one thread;
+    ``physics.centre_of_mass``)."""
+    com[row * 4 + 1], com[row * 4 + 2], com[row * 4 + 3] = centre_of_mass(
+        n, vc, N_VCONST, V_WEIGHT, pos)
 
 
 @device
@@ -140,44 +140,401 @@ def tree_max(red, t, nt):
         span //= 2
 
 
+class Robots(NamedTuple):
+    """Per-robot rows and the offsets of each robot's slices (``sim.system.pack``)."""
+
+    fp: Any  # (R * N_FPARAMS,) float parameters (``F_*``)
+    ip: Any  # (R * N_IPARAMS,) integer parameters (``I_*``)
+    voff: Any  # (R + 1,) first voxel of each robot
+    loff: Any  # (R + 1,) first link
+    soff: Any  # (R + 1,) first surface voxel
+    moff: Any  # (R + 1,) first surface-mesh vertex
+    foff: Any  # (R + 1,) first surface-mesh triangle
+    froff: Any  # (R + 1,) first recorded voxel position (frames x voxels)
+
+
+class VoxelData(NamedTuple):
+    """Per-voxel constants, flat (voxel v of robot r at voff[r] + v)."""
+
+    flags: Any  # FLAG_FIXED | FLAG_ACTIVE
+    cos_phase: Any
+    sin_phase: Any
+    phase: Any  # radians
+    vc: Any  # (N_VCONST per voxel) mass, damping, floor stiffness, frequency, weight
+    ext: Any  # (3 per voxel) external force
+    nbr: Any  # (6 per voxel) face neighbours, local (-1: exposed)
+    vlink: Any  # (6 per voxel) link on each face, local (-1: none)
+    exposed: Any  # bit f: face f exposed
+    fstart: Any  # the voxel's first surface-mesh triangle (``mesh_face`` order)
+    fcount: Any  # its triangles
+    surf_of: Any  # its place among the robot's surface voxels (-1: none)
+
+
+class LinkData(NamedTuple):
+    """Per-link constants, flat (link j of robot r at loff[r] + j)."""
+
+    neg: Any  # voxel on the negative side, local
+    pos: Any  # voxel on the positive side
+    axis: Any  # 0 x, 1 y, 2 z
+    stiff: Any  # E_link / E_ref
+    damp: Any  # bond damping gamma_link / (2 dt)
+
+
+class ContactData(NamedTuple):
+    """The self-contact candidates (the policy: ``sim.physics``), per surface voxel."""
+
+    surface: Any  # surface voxels, local, by robot (soff)
+    near: Any  # (width per voxel) voxels never in contact (-1 pads)
+    near_width: Any  # (1,) the width of ``near``'s rows
+    cand: Any  # (MAX_CONTACTS per surface voxel) candidates
+    ncand: Any  # candidates in use
+    built: Any  # (3 per surface voxel) positions when the list was built
+
+
+class MeshData(NamedTuple):
+    """The surface mesh of the paper's water drag (``sim.system.surface_mesh``)."""
+
+    vert: Any  # (8 per vertex) voxel * 8 + corner of the voxels sharing it (-1 pads)
+    face: Any  # (4 per triangle) its vertices and the voxel whose face it covers
+    points: Any  # (3 per vertex) the vertices' positions this step
+
+
+class BodyState(NamedTuple):
+    """The robots' state carried from launch to launch, flat."""
+
+    pos: Any  # (3 per voxel) metres
+    quat: Any  # (4 per voxel) (w, x, y, z)
+    lin_mom: Any  # (3 per voxel)
+    ang_mom: Any  # (3 per voxel)
+    static: Any  # held by static friction (0 / 1)
+    link_state: Any  # (LINK_STATE per link) previous deformation and frame mode
+
+
+class Scratch(NamedTuple):
+    """Per-step values of the robots that run in global memory (``shared=False``)."""
+
+    size: Any  # actuated size per voxel
+    force: Any  # (3 per voxel)
+    moment: Any  # (3 per voxel)
+    loads: Any  # (LINK_LOADS per link) each link's loads in world axes
+
+
+class Output(NamedTuple):
+    """What the host reads back, and the control words it steers the launches with."""
+
+    ctl: Any  # (R, N_CTL) int32: C_RUNNING, C_STEP, C_CODE, C_DONE, C_NCOM
+    travel: Any  # (R,) bound on the surface's motion since the candidates were listed
+    frames: Any  # (3 per recorded voxel position)
+    com: Any  # (R * COM_ROWS * 4) centre-of-mass samples (t, x, y, z)
+
+
+# ---------------------------------------------------------------- the sub-steps of a step
+# Each is run by every thread of a robot's block, thread t of nt taking elements t, t + nt, ...;
+# arrays are the robot's own (local indices) unless named otherwise. The kernel puts a block
+# sync between them.
+@substep
+def sample(k, p, t, nt, n, r, VC, pos, frames, frame0, com, n_com):
+    """Frames and centre-of-mass samples due at step k (``kernels.run_robot``); returns the
+    samples taken so far. ``com``: ``Output.com`` (robot r's rows)."""
+    if p.record > 0 and k % p.record == 0:
+        base = frame0 + (k // p.record) * n
+        for q in range(t, 3 * n, nt):
+            frames[3 * base + q] = pos[q]
+    after = k - p.settle_steps
+    if after >= 0 and after % p.com_every == 0 and n_com < COM_ROWS - 1:
+        if t == 0:
+            com[(r * COM_ROWS + n_com) * 4] = k * p.dt
+            com_sample(n, VC, pos, com[r * COM_ROWS * 4:(r + 1) * COM_ROWS * 4], n_com)
+        n_com += 1
+    return n_com
+
+
+@substep
+def actuate(k, p, t, nt, n, v0, voxels, FL, VC, size):
+    """Every voxel's size at step k (``kernels.actuate_kernel``); ``voxels``: the batch's
+    (the robot's from voxel v0)."""
+    phase, cos_phase, sin_phase = voxels.phase, voxels.cos_phase, voxels.sin_phase
+    time = (k - p.act_start) * p.dt
+    s_wt, c_wt = math.sin(p.omega * time), math.cos(p.omega * time)
+    for v in range(t, n, nt):
+        size[v] = p.L
+        if time >= 0.0 and FL[v] & FLAG_ACTIVE:
+            if p.freq_field:
+                w = waveform(p.wave, VC[v * N_VCONST + V_OMEGA] * time + phase[v0 + v])
+            elif p.wave == 0:  # sin(wt + phi) without libm per voxel
+                w = s_wt * cos_phase[v0 + v] + c_wt * sin_phase[v0 + v]
+            else:
+                w = waveform(p.wave, p.omega * time + phase[v0 + v])
+            size[v] = actuated_size(p.L, p.amp, w)
+
+
+@substep
+def link_forces(p, t, nt, m, l0, links, pos, quat, size, ls, loads, flag):
+    """Every link's loads in world axes into ``loads`` (``kernels.link_kernel`` and
+    ``change_frames``): each link in the co-rotational frame it is in (mode +1 small, -1
+    large, 0 new), computed again undamped in the other frame when it outgrows it; flag[0]
+    set if a link diverged. ``links``: the batch's (the robot's from link l0)."""
+    L = p.L
+    for j in range(t, m, nt):
+        a, b = links.neg[l0 + j], links.pos[l0 + j]
+        axis = links.axis[l0 + j]
+        rest = 0.5 * (size[a] + size[b])
+        R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
+            quat[4 * a], quat[4 * a + 1], quat[4 * a + 2], quat[4 * a + 3],
+            quat[4 * b], quat[4 * b + 1], quat[4 * b + 2], quat[4 * b + 3],
+            pos[3 * b] - pos[3 * a], pos[3 * b + 1] - pos[3 * a + 1],
+            pos[3 * b + 2] - pos[3 * a + 2], axis)
+        mode = ls[LINK_STATE * j + 8]
+        damp = links.damp[l0 + j]
+        if mode >= 0.0:
+            W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
+                R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+            damp = damp if mode != 0.0 else 0.0
+            mode = 1.0
+            if leave:  # computed again in the other frame, undamped
+                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
+                    R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+                damp, mode = 0.0, -1.0
+        else:
+            W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
+                R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+            mode = -1.0
+            if back:
+                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
+                    R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+                damp, mode = 0.0, 1.0
+        S = LINK_STATE * j
+        ex, ey, ez = damped(damp, dx, ls[S]), damped(damp, dy, ls[S + 1]), damped(damp, dz, ls[S + 2])
+        e1y, e1z = damped(damp, t1y, ls[S + 3]), damped(damp, t1z, ls[S + 4])
+        e2x, e2y = damped(damp, t2x, ls[S + 5]), damped(damp, t2y, ls[S + 6])
+        e2z = damped(damp, t2z, ls[S + 7])
+        ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
+        ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
+        O = LINK_LOADS * j
+        (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
+         loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
+            W, links.stiff[l0 + j], rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y, e1z, e2x,
+            e2y, e2z)
+        if link_diverged(dx, rest):
+            flag[0] = 1.0
+
+
+@substep
+def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
+    """The surface mesh's vertices (``kernels.mesh_drag_kernel``): each the mean of the
+    corners of the voxels that share it (``physics.corner_point``). ``mvert`` and ``points``
+    are the batch's (the robot's from vertex m0)."""
+    for kv in range(t, nv, nt):
+        sx, sy, sz, count = 0.0, 0.0, 0.0, 0
+        for slot in range(8):
+            code8 = mvert[(m0 + kv) * 8 + slot]
+            if code8 < 0:
+                break
+            v, c = code8 >> 3, code8 & 7
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(
+                quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3])
+            ox, oy, oz = mesh_corner(c, size[v], p.L, NB[6 * v + ((c >> 2) & 1)] >= 0,
+                                     NB[6 * v + 2 + ((c >> 1) & 1)] >= 0,
+                                     NB[6 * v + 4 + (c & 1)] >= 0)
+            cx, cy, cz = corner_point(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], r00, r01,
+                                      r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
+            sx, sy, sz = sx + cx, sy + cy, sz + cz
+            count += 1
+        points[3 * (m0 + kv)] = sx / count
+        points[3 * (m0 + kv) + 1] = sy / count
+        points[3 * (m0 + kv) + 2] = sz / count
+
+
+@substep
+def contact_list(p, t, nt, ns, s0, contacts, near, width, pos, red, flag, travel):
+    """The self-contact candidates (``kernels.collide_kernel``), rebuilt once the surface
+    voxels may have closed half the margin and did; flag[2] set if a voxel has more than
+    MAX_CONTACTS (the policy). Returns the new bound on the surface's travel. Every thread
+    calls it (it reduces over the block). ``contacts``: the batch's (the robot's surface
+    from s0); ``near``: the robot's rows."""
+    surface, cand = contacts.surface[s0:s0 + ns], contacts.cand[s0 * MAX_CONTACTS:]
+    ncand, built = contacts.ncand[s0:s0 + ns], contacts.built[3 * s0:3 * (s0 + ns)]
+    most = 0.0
+    for q in range(t, ns, nt):
+        v = surface[q]
+        dx = pos[3 * v] - built[3 * q]
+        dy = pos[3 * v + 1] - built[3 * q + 1]
+        dz = pos[3 * v + 2] - built[3 * q + 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        most = d2 if not (d2 <= most) else most
+    red[t] = most
+    cuda.syncthreads()
+    tree_max(red, t, nt)
+    travel = math.sqrt(red[0])
+    cuda.syncthreads()
+    if not (2.0 * travel < physics.COLLIDE_MARGIN * p.L):
+        reach = candidate_radius(p.L, p.contact_reach, p.amp)
+        reach2 = reach * reach
+        for q in range(t, ns, nt):
+            i = surface[q]
+            count = 0
+            for qq in range(ns):
+                j = surface[qq]
+                if j == i:
+                    continue
+                dx = pos[3 * j] - pos[3 * i]
+                dy = pos[3 * j + 1] - pos[3 * i + 1]
+                dz = pos[3 * j + 2] - pos[3 * i + 2]
+                if dx * dx + dy * dy + dz * dz < reach2 and not listed(near, width, i, j):
+                    if count == MAX_CONTACTS:  # the policy: the run stops
+                        flag[2] = 1.0
+                        break
+                    cand[q * MAX_CONTACTS + count] = j
+                    count += 1
+            ncand[q] = count
+            built[3 * q] = pos[3 * i]  # where the list was built from
+            built[3 * q + 1] = pos[3 * i + 1]
+            built[3 * q + 2] = pos[3 * i + 2]
+        travel = 0.0
+    return travel
+
+
+@substep
+def gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm, size, loads,
+           force, moment):
+    """Each voxel's force and moment, gathered by the voxel itself (no atomics): its links'
+    loads (``kernels.link_sums``), its self-contacts (``kernels.collision_forces``) and the
+    drag on its surface-mesh triangles (``kernels.mesh_drag_kernel``). ``voxels``,
+    ``contacts``, ``mesh``: the batch's groups (the robot's from voxel v0, surface voxel s0,
+    vertex m0, triangle f0)."""
+    surf_of, fstart, fcount = voxels.surf_of, voxels.fstart, voxels.fcount
+    cand, ncand, mface, points = contacts.cand, contacts.ncand, mesh.face, mesh.points
+    for v in range(t, n, nt):
+        p0, p1, p2 = VL[6 * v + 1], VL[6 * v + 3], VL[6 * v + 5]  # v the negative end
+        q0, q1, q2 = VL[6 * v], VL[6 * v + 2], VL[6 * v + 4]  # v the positive end
+        fx = face_loads(loads, p0, p1, p2, q0, q1, q2, 0, 0, -1.0)
+        fy = face_loads(loads, p0, p1, p2, q0, q1, q2, 1, 1, -1.0)
+        fz = face_loads(loads, p0, p1, p2, q0, q1, q2, 2, 2, -1.0)
+        moment[3 * v] = face_loads(loads, p0, p1, p2, q0, q1, q2, 3, 6, 1.0)
+        moment[3 * v + 1] = face_loads(loads, p0, p1, p2, q0, q1, q2, 4, 7, 1.0)
+        moment[3 * v + 2] = face_loads(loads, p0, p1, p2, q0, q1, q2, 5, 8, 1.0)
+        q = surf_of[v0 + v]
+        if p.collide and q >= 0:
+            inv_mv = VC[v * N_VCONST + V_INV_MASS]
+            for c in range(ncand[s0 + q]):
+                j = cand[(s0 + q) * MAX_CONTACTS + c]
+                dx = pos[3 * j] - pos[3 * v]
+                dy = pos[3 * j + 1] - pos[3 * v + 1]
+                dz = pos[3 * j + 2] - pos[3 * v + 2]
+                overlap, dist = contact_overlap(dx, dy, dz, size[v], size[j], p.contact_reach)
+                if overlap <= 0.0 or dist == 0.0:
+                    continue
+                inv_mj = VC[j * N_VCONST + V_INV_MASS]
+                px, py, pz = contact_push(
+                    overlap, dist, dx, dy, dz, lm[3 * j] * inv_mj - lm[3 * v] * inv_mv,
+                    lm[3 * j + 1] * inv_mj - lm[3 * v + 1] * inv_mv,
+                    lm[3 * j + 2] * inv_mj - lm[3 * v + 2] * inv_mv,
+                    VC[v * N_VCONST + V_KFLOOR], VC[j * N_VCONST + V_KFLOOR],
+                    VC[v * N_VCONST + V_CCOLL], VC[j * N_VCONST + V_CCOLL],
+                    p.contact_stiff, p.contact_damp)
+                fx, fy, fz = fx - px, fy - py, fz - pz
+        if p.mesh_drag > 0.0:
+            for tri in range(f0 + fstart[v0 + v], f0 + fstart[v0 + v] + fcount[v0 + v]):
+                va, vb = m0 + mface[4 * tri], m0 + mface[4 * tri + 1]
+                vcn = m0 + mface[4 * tri + 2]
+                ux = points[3 * vb] - points[3 * va]
+                uy = points[3 * vb + 1] - points[3 * va + 1]
+                uz = points[3 * vb + 2] - points[3 * va + 2]
+                wx = points[3 * vcn] - points[3 * va]
+                wy = points[3 * vcn + 1] - points[3 * va + 1]
+                wz = points[3 * vcn + 2] - points[3 * va + 2]
+                nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+                dfx, dfy, dfz = facet_drag(
+                    p.mesh_drag, lm[3 * v] * nx + lm[3 * v + 1] * ny + lm[3 * v + 2] * nz,
+                    VC[v * N_VCONST + V_INV_MASS], nx, ny, nz)
+                fx, fy, fz = fx + dfx, fy + dfy, fz + dfz
+        force[3 * v], force[3 * v + 1], force[3 * v + 2] = fx, fy, fz
+
+
+@substep
+def voxel_updates(world, t, nt, n, v0, voxels, FL, VC, ST, pos, quat, lm, am, size, force,
+                  moment, flag):
+    """Every voxel's own forces and its step (``kernels.voxel_kernel``); returns the largest
+    squared speed of this thread's voxels; flag[1] set if one left the sane range.
+    ``voxels``: the batch's (the robot's from voxel v0)."""
+    exposed, ext = voxels.exposed, voxels.ext
+    fastest = 0.0
+    sane_all = True
+    for v in range(t, n, nt):
+        if FL[v] & FLAG_FIXED:
+            lm[3 * v], lm[3 * v + 1], lm[3 * v + 2] = 0.0, 0.0, 0.0
+            am[3 * v], am[3 * v + 1], am[3 * v + 2] = 0.0, 0.0, 0.0
+            continue
+        c0 = v * N_VCONST
+        (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2,
+         sane) = voxel_update(
+            world, (VC[c0 + V_MASS], VC[c0 + V_INV_MASS], VC[c0 + V_INV_INERTIA],
+                    VC[c0 + V_CGLIN], VC[c0 + V_CGANG], VC[c0 + V_KFLOOR],
+                    VC[c0 + V_CCOLL]), exposed[v0 + v], size[v],
+            force[3 * v] + ext[3 * (v0 + v)], force[3 * v + 1] + ext[3 * (v0 + v) + 1],
+            force[3 * v + 2] + ext[3 * (v0 + v) + 2], moment[3 * v], moment[3 * v + 1],
+            moment[3 * v + 2], pos[3 * v], pos[3 * v + 1], pos[3 * v + 2],
+            quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3],
+            lm[3 * v], lm[3 * v + 1], lm[3 * v + 2], am[3 * v], am[3 * v + 1],
+            am[3 * v + 2], ST[v] != 0)
+        ST[v] = 1 if still else 0
+        pos[3 * v], pos[3 * v + 1], pos[3 * v + 2] = x, y, z
+        quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3] = qw, qx, qy, qz
+        lm[3 * v], lm[3 * v + 1], lm[3 * v + 2] = px, py, pz
+        am[3 * v], am[3 * v + 1], am[3 * v + 2] = lx, ly, lz
+        fastest = max(fastest, v2)
+        sane_all = sane_all and sane
+    if not sane_all:
+        flag[1] = 1.0
+    return fastest
+
+
+@substep
+def copy(t, nt, count, src, dst):
+    """dst[:count] = src[:count], by the block's threads."""
+    for q in range(t, count, nt):
+        dst[q] = src[q]
+
+
 @cache
 def rollout_kernel(shared: bool, threads: int):
     """The rollout kernel with the robot's state in shared memory (``shared``) or global
-    memory, for blocks of ``threads`` threads (its reduction scratch is sized for them)."""
+    memory, for blocks of ``threads`` threads (its reduction scratch is sized for them).
+    Its arguments: ``chunk`` (steps per launch), ``which`` (the robot of each block) and the
+    groups ``Robots``, ``VoxelData``, ``LinkData``, ``ContactData``, ``MeshData``,
+    ``BodyState``, ``Scratch``, ``Output`` (``sim.cuda_engine.kernel_inputs`` fills them)."""
 
     @cuda.jit
-    def rollout(chunk, which, fp, ip, voff, loff, soff, moff, foff, froff,
-                flags, cos_phase, sin_phase, phase, vc, ext, nbr, vlink, exposed, fstart,
-                fcount, surf_of, surface, near, near_width, lneg, lpos, laxis, lstiff, ldamp,
-                mvert, mface, g_pos, g_quat, g_lm, g_am, static, g_ls, g_size, g_force,
-                g_moment, g_loads, vert, cand, ncand, built, ctl, travel_of, frames, com_traj):
+    def rollout(chunk, which, robots, voxels, links, contacts, mesh, body, scratch, out):
         r = which[cuda.blockIdx.x]
+        ctl = out.ctl
         if ctl[r, C_RUNNING] == 0:
             return
         t = cuda.threadIdx.x
         nt = cuda.blockDim.x
-        # dynamic shared memory: the reductions' scratch, two flags (a link diverged; a voxel
-        # left the sane range), then the robot's state (``shared``). (No static shared
-        # arrays: numba-cuda's simulator can hand two threads of a block different copies of
-        # one.)
+        # dynamic shared memory: the reductions' scratch, three flags (a link diverged; a voxel
+        # left the sane range; a voxel has more contact candidates than MAX_CONTACTS), then
+        # the robot's state (``shared``). (No static shared arrays: numba-cuda's simulator
+        # can hand two threads of a block different copies of one.)
         dyn = cuda.shared.array(0, float64)
         red = dyn[0:threads]
-        flag = dyn[threads:threads + 2]
+        flag = dyn[threads:threads + SCRATCH_WORDS]
         base = threads + SCRATCH_WORDS
-        v0, l0, s0, m0 = voff[r], loff[r], soff[r], moff[r]
+        voff, loff, soff, moff, foff = robots.voff, robots.loff, robots.soff, robots.moff, robots.foff
+        v0, l0, s0, m0, f0 = voff[r], loff[r], soff[r], moff[r], foff[r]
         n, m, ns = voff[r + 1] - v0, loff[r + 1] - l0, soff[r + 1] - s0
         nv = moff[r + 1] - m0
-        p = params(fp[r * N_FPARAMS:(r + 1) * N_FPARAMS], ip[r * N_IPARAMS:(r + 1) * N_IPARAMS])
-        L, dt, amp, omega = p.L, p.dt, p.amp, p.omega
-        steps, record, wave, collide = p.steps, p.record, p.wave, p.collide
+        p = params(robots.fp[r * N_FPARAMS:(r + 1) * N_FPARAMS],
+                   robots.ip[r * N_IPARAMS:(r + 1) * N_IPARAMS])
         world = voxel_world(p)
-        margin = COLLIDE_MARGIN * L
 
         # this robot's slices (local indices from here on)
-        VC = vc[v0 * N_VCONST:(v0 + n) * N_VCONST]
-        FL, NB, VL = flags[v0:v0 + n], nbr[6 * v0:6 * (v0 + n)], vlink[6 * v0:6 * (v0 + n)]
-        NEAR = near[v0 * near_width:(v0 + n) * near_width]
-        ST = static[v0:v0 + n]
+        VC = voxels.vc[v0 * N_VCONST:(v0 + n) * N_VCONST]
+        FL, NB = voxels.flags[v0:v0 + n], voxels.nbr[6 * v0:6 * (v0 + n)]
+        VL = voxels.vlink[6 * v0:6 * (v0 + n)]
+        width = contacts.near_width[0]
+        NEAR = contacts.near[v0 * width:(v0 + n) * width]
+        ST = body.static[v0:v0 + n]
         if shared:
             own = dyn[base:base + VOXEL_WORDS * n + LINK_WORDS * m]
             pos, quat = own[0:3 * n], own[3 * n:7 * n]
@@ -185,274 +542,79 @@ def rollout_kernel(shared: bool, threads: int):
             size, force, moment = own[13 * n:14 * n], own[14 * n:17 * n], own[17 * n:20 * n]
             ls = own[20 * n:20 * n + LINK_STATE * m]
             loads = own[20 * n + LINK_STATE * m:20 * n + (LINK_STATE + LINK_LOADS) * m]
-            for q in range(t, 3 * n, nt):
-                pos[q], lm[q], am[q] = g_pos[3 * v0 + q], g_lm[3 * v0 + q], g_am[3 * v0 + q]
-            for q in range(t, 4 * n, nt):
-                quat[q] = g_quat[4 * v0 + q]
-            for q in range(t, LINK_STATE * m, nt):
-                ls[q] = g_ls[LINK_STATE * l0 + q]
+            copy(t, nt, 3 * n, body.pos[3 * v0:], pos)
+            copy(t, nt, 3 * n, body.lin_mom[3 * v0:], lm)
+            copy(t, nt, 3 * n, body.ang_mom[3 * v0:], am)
+            copy(t, nt, 4 * n, body.quat[4 * v0:], quat)
+            copy(t, nt, LINK_STATE * m, body.link_state[LINK_STATE * l0:], ls)
         else:
-            pos, quat = g_pos[3 * v0:3 * (v0 + n)], g_quat[4 * v0:4 * (v0 + n)]
-            lm, am = g_lm[3 * v0:3 * (v0 + n)], g_am[3 * v0:3 * (v0 + n)]
-            size = g_size[v0:v0 + n]
-            force, moment = g_force[3 * v0:3 * (v0 + n)], g_moment[3 * v0:3 * (v0 + n)]
-            ls = g_ls[LINK_STATE * l0:LINK_STATE * (l0 + m)]
-            loads = g_loads[LINK_LOADS * l0:LINK_LOADS * (l0 + m)]
+            pos, quat = body.pos[3 * v0:3 * (v0 + n)], body.quat[4 * v0:4 * (v0 + n)]
+            lm, am = body.lin_mom[3 * v0:3 * (v0 + n)], body.ang_mom[3 * v0:3 * (v0 + n)]
+            ls = body.link_state[LINK_STATE * l0:LINK_STATE * (l0 + m)]
+            size = scratch.size[v0:v0 + n]
+            force = scratch.force[3 * v0:3 * (v0 + n)]
+            moment = scratch.moment[3 * v0:3 * (v0 + n)]
+            loads = scratch.loads[LINK_LOADS * l0:LINK_LOADS * (l0 + m)]
         if t == 0:
-            flag[0], flag[1] = 0.0, 0.0
+            flag[0], flag[1], flag[2] = 0.0, 0.0, 0.0
         cuda.syncthreads()
 
         k = ctl[r, C_STEP]
         n_com = ctl[r, C_NCOM]
-        travel = travel_of[r]
-        code, done, finished = 0, steps, False
-        end = min(k + chunk, steps + 1)
+        travel = out.travel[r]
+        code, done, finished = 0, p.steps, False
+        end = min(k + chunk, p.steps + 1)
         while k < end:
-            if record > 0 and k % record == 0:
-                base = froff[r] + (k // record) * n
-                for q in range(t, 3 * n, nt):
-                    frames[3 * base + q] = pos[q]
-            after = k - p.settle_steps
-            if after >= 0 and after % p.com_every == 0 and n_com < COM_ROWS - 1:
-                if t == 0:
-                    com_traj[(r * COM_ROWS + n_com) * 4] = k * dt
-                    com_sample(n, VC, pos, com_traj[r * COM_ROWS * 4:(r + 1) * COM_ROWS * 4], n_com)
-                n_com += 1
-            if k == steps:
+            n_com = sample(k, p, t, nt, n, r, VC, pos, out.frames, robots.froff[r], out.com, n_com)
+            if k == p.steps:
                 finished = True
                 break
-
-            # actuate (``kernels.actuate``)
-            time = (k - p.act_start) * dt
-            s_wt, c_wt = math.sin(omega * time), math.cos(omega * time)
-            for v in range(t, n, nt):
-                size[v] = L
-                if time >= 0.0 and FL[v] & FLAG_ACTIVE:
-                    if p.freq_field:
-                        w = waveform(wave, VC[v * N_VCONST + V_OMEGA] * time + phase[v0 + v])
-                    elif wave == 0:  # sin(wt + phi) without libm per voxel
-                        w = s_wt * cos_phase[v0 + v] + c_wt * sin_phase[v0 + v]
-                    else:
-                        w = waveform(wave, omega * time + phase[v0 + v])
-                    size[v] = actuated_size(L, amp, w)
+            actuate(k, p, t, nt, n, v0, voxels, FL, VC, size)
             cuda.syncthreads()
-
-            # link_forces, first half (``kernels.link_kernel`` and ``change_frames``): each link
-            # in the co-rotational frame it is in (mode +1 small, -1 large, 0 new)
-            for j in range(t, m, nt):
-                a, b = lneg[l0 + j], lpos[l0 + j]
-                axis = laxis[l0 + j]
-                rest = 0.5 * (size[a] + size[b])
-                R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
-                    quat[4 * a], quat[4 * a + 1], quat[4 * a + 2], quat[4 * a + 3],
-                    quat[4 * b], quat[4 * b + 1], quat[4 * b + 2], quat[4 * b + 3],
-                    pos[3 * b] - pos[3 * a], pos[3 * b + 1] - pos[3 * a + 1],
-                    pos[3 * b + 2] - pos[3 * a + 2], axis)
-                mode = ls[LINK_STATE * j + 8]
-                damp = ldamp[l0 + j]
-                if mode >= 0.0:
-                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                        R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                    damp = damp if mode != 0.0 else 0.0
-                    mode = 1.0
-                    if leave:  # computed again in the other frame, undamped
-                        W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
-                            R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                        damp, mode = 0.0, -1.0
-                else:
-                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
-                        R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                    mode = -1.0
-                    if back:
-                        W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                            R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                        damp, mode = 0.0, 1.0
-                S = LINK_STATE * j
-                ex, ey, ez = damped(damp, dx, ls[S]), damped(damp, dy, ls[S + 1]), damped(damp, dz, ls[S + 2])
-                e1y, e1z = damped(damp, t1y, ls[S + 3]), damped(damp, t1z, ls[S + 4])
-                e2x, e2y = damped(damp, t2x, ls[S + 5]), damped(damp, t2y, ls[S + 6])
-                e2z = damped(damp, t2z, ls[S + 7])
-                ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
-                ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
-                O = LINK_LOADS * j
-                (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
-                 loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
-                    W, lstiff[l0 + j], rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y, e1z, e2x,
-                    e2y, e2z)
-                if link_diverged(dx, rest):
-                    flag[0] = 1.0
-            # mesh drag, first half (``kernels.mesh_drag_kernel``): surface-mesh vertices, the
-            # mean of the corners of the voxels that share each
+            link_forces(p, t, nt, m, l0, links, pos, quat, size, ls, loads, flag)
             if p.mesh_drag > 0.0:
-                for kv in range(t, nv, nt):
-                    sx, sy, sz, count = 0.0, 0.0, 0.0, 0
-                    for slot in range(8):
-                        code8 = mvert[(m0 + kv) * 8 + slot]
-                        if code8 < 0:
-                            break
-                        v, c = code8 >> 3, code8 & 7
-                        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(
-                            quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3])
-                        ox, oy, oz = mesh_corner(c, size[v], L, NB[6 * v + ((c >> 2) & 1)] >= 0,
-                                                 NB[6 * v + 2 + ((c >> 1) & 1)] >= 0,
-                                                 NB[6 * v + 4 + (c & 1)] >= 0)
-                        sx += pos[3 * v] + dot3(r00, r01, r02, ox, oy, oz)
-                        sy += pos[3 * v + 1] + dot3(r10, r11, r12, ox, oy, oz)
-                        sz += pos[3 * v + 2] + dot3(r20, r21, r22, ox, oy, oz)
-                        count += 1
-                    vert[3 * (m0 + kv)] = sx / count
-                    vert[3 * (m0 + kv) + 1] = sy / count
-                    vert[3 * (m0 + kv) + 2] = sz / count
-            # collide, first half (``kernels.collide_kernel``): the self-contact candidates,
-            # rebuilt once surface voxels may have closed half the margin and did
-            if collide and 2.0 * travel >= margin:
-                most = 0.0
-                for q in range(t, ns, nt):
-                    v = surface[s0 + q]
-                    dx = pos[3 * v] - built[3 * (s0 + q)]
-                    dy = pos[3 * v + 1] - built[3 * (s0 + q) + 1]
-                    dz = pos[3 * v + 2] - built[3 * (s0 + q) + 2]
-                    d2 = dx * dx + dy * dy + dz * dz
-                    most = d2 if not (d2 <= most) else most
-                red[t] = most
-                cuda.syncthreads()
-                tree_max(red, t, nt)
-                travel = math.sqrt(red[0])
-                cuda.syncthreads()
-                if not (2.0 * travel < margin):
-                    reach = 2.0 * p.contact_reach * L * (1.0 + amp) + margin
-                    reach2 = reach * reach
-                    for q in range(t, ns, nt):
-                        i = surface[s0 + q]
-                        count = 0
-                        for qq in range(ns):
-                            j = surface[s0 + qq]
-                            if j == i:
-                                continue
-                            dx = pos[3 * j] - pos[3 * i]
-                            dy = pos[3 * j + 1] - pos[3 * i + 1]
-                            dz = pos[3 * j + 2] - pos[3 * i + 2]
-                            if (dx * dx + dy * dy + dz * dz < reach2
-                                    and not listed(NEAR, near_width, i, j)
-                                    and count < MAX_CANDIDATES):
-                                cand[(s0 + q) * MAX_CANDIDATES + count] = j
-                                count += 1
-                        ncand[s0 + q] = count
-                        built[3 * (s0 + q)] = pos[3 * i]  # where the list was built from
-                        built[3 * (s0 + q) + 1] = pos[3 * i + 1]
-                        built[3 * (s0 + q) + 2] = pos[3 * i + 2]
-                    travel = 0.0
+                mesh_vertices(p, t, nt, nv, m0, mesh.vert, NB, pos, quat, size, mesh.points)
+            if p.collide and 2.0 * travel >= physics.COLLIDE_MARGIN * p.L:
+                travel = contact_list(p, t, nt, ns, s0, contacts, NEAR, width, pos, red, flag,
+                                      travel)
             cuda.syncthreads()
-
-            # the second halves, gathered per voxel: link_forces' sums (``kernels.link_sums``),
-            # collide's contacts and the mesh drag's facets
-            for v in range(t, n, nt):
-                p0, p1, p2 = VL[6 * v + 1], VL[6 * v + 3], VL[6 * v + 5]  # v the negative end
-                q0, q1, q2 = VL[6 * v], VL[6 * v + 2], VL[6 * v + 4]  # v the positive end
-                fx = face_loads(loads, p0, p1, p2, q0, q1, q2, 0, 0, -1.0)
-                fy = face_loads(loads, p0, p1, p2, q0, q1, q2, 1, 1, -1.0)
-                fz = face_loads(loads, p0, p1, p2, q0, q1, q2, 2, 2, -1.0)
-                moment[3 * v] = face_loads(loads, p0, p1, p2, q0, q1, q2, 3, 6, 1.0)
-                moment[3 * v + 1] = face_loads(loads, p0, p1, p2, q0, q1, q2, 4, 7, 1.0)
-                moment[3 * v + 2] = face_loads(loads, p0, p1, p2, q0, q1, q2, 5, 8, 1.0)
-                q = surf_of[v0 + v]
-                if collide and q >= 0:
-                    inv_mv = VC[v * N_VCONST + V_INV_MASS]
-                    for c in range(ncand[s0 + q]):
-                        j = cand[(s0 + q) * MAX_CANDIDATES + c]
-                        dx = pos[3 * j] - pos[3 * v]
-                        dy = pos[3 * j + 1] - pos[3 * v + 1]
-                        dz = pos[3 * j + 2] - pos[3 * v + 2]
-                        overlap, dist = contact_overlap(dx, dy, dz, size[v], size[j], p.contact_reach)
-                        if overlap <= 0.0 or dist == 0.0:
-                            continue
-                        inv_mj = VC[j * N_VCONST + V_INV_MASS]
-                        px, py, pz = contact_push(
-                            overlap, dist, dx, dy, dz, lm[3 * j] * inv_mj - lm[3 * v] * inv_mv,
-                            lm[3 * j + 1] * inv_mj - lm[3 * v + 1] * inv_mv,
-                            lm[3 * j + 2] * inv_mj - lm[3 * v + 2] * inv_mv,
-                            VC[v * N_VCONST + V_KFLOOR], VC[j * N_VCONST + V_KFLOOR],
-                            VC[v * N_VCONST + V_CCOLL], VC[j * N_VCONST + V_CCOLL],
-                            p.contact_stiff, p.contact_damp)
-                        fx, fy, fz = fx - px, fy - py, fz - pz
-                if p.mesh_drag > 0.0:
-                    for tri in range(fstart[v0 + v], fstart[v0 + v] + fcount[v0 + v]):
-                        va, vb, vcn = (m0 + mface[4 * tri], m0 + mface[4 * tri + 1],
-                                       m0 + mface[4 * tri + 2])
-                        ux = vert[3 * vb] - vert[3 * va]
-                        uy = vert[3 * vb + 1] - vert[3 * va + 1]
-                        uz = vert[3 * vb + 2] - vert[3 * va + 2]
-                        wx = vert[3 * vcn] - vert[3 * va]
-                        wy = vert[3 * vcn + 1] - vert[3 * va + 1]
-                        wz = vert[3 * vcn + 2] - vert[3 * va + 2]
-                        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-                        dfx, dfy, dfz = facet_drag(
-                            p.mesh_drag, lm[3 * v] * nx + lm[3 * v + 1] * ny + lm[3 * v + 2] * nz,
-                            VC[v * N_VCONST + V_INV_MASS], nx, ny, nz)
-                        fx, fy, fz = fx + dfx, fy + dfy, fz + dfz
-                force[3 * v], force[3 * v + 1], force[3 * v + 2] = fx, fy, fz
+            gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm, size,
+                   loads, force, moment)
             cuda.syncthreads()
-
-            # voxel_update (``kernels.voxel_kernel``): every voxel's own forces and its step
-            fastest = 0.0
-            sane_all = True
-            for v in range(t, n, nt):
-                if FL[v] & FLAG_FIXED:
-                    lm[3 * v], lm[3 * v + 1], lm[3 * v + 2] = 0.0, 0.0, 0.0
-                    am[3 * v], am[3 * v + 1], am[3 * v + 2] = 0.0, 0.0, 0.0
-                    continue
-                c0 = v * N_VCONST
-                e = 3 * (v0 + v)
-                (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2,
-                 sane) = voxel_update(
-                    world, (VC[c0 + V_MASS], VC[c0 + V_INV_MASS], VC[c0 + V_INV_INERTIA],
-                            VC[c0 + V_CGLIN], VC[c0 + V_CGANG], VC[c0 + V_KFLOOR],
-                            VC[c0 + V_CCOLL]), exposed[v0 + v], size[v],
-                    force[3 * v] + ext[e], force[3 * v + 1] + ext[e + 1],
-                    force[3 * v + 2] + ext[e + 2], moment[3 * v], moment[3 * v + 1],
-                    moment[3 * v + 2], pos[3 * v], pos[3 * v + 1], pos[3 * v + 2],
-                    quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3],
-                    lm[3 * v], lm[3 * v + 1], lm[3 * v + 2], am[3 * v], am[3 * v + 1],
-                    am[3 * v + 2], ST[v] != 0)
-                ST[v] = 1 if still else 0
-                pos[3 * v], pos[3 * v + 1], pos[3 * v + 2] = x, y, z
-                quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3] = qw, qx, qy, qz
-                lm[3 * v], lm[3 * v + 1], lm[3 * v + 2] = px, py, pz
-                am[3 * v], am[3 * v + 1], am[3 * v + 2] = lx, ly, lz
-                fastest = max(fastest, v2)
-                sane_all = sane_all and sane
-            if not sane_all:
-                flag[1] = 1.0
-            if collide:
+            fastest = voxel_updates(world, t, nt, n, v0, voxels, FL, VC, ST, pos, quat, lm, am,
+                                    size, force, moment, flag)
+            if p.collide:
                 red[t] = fastest
             cuda.syncthreads()
-            if collide:
+            if p.collide:
                 tree_max(red, t, nt)
-                travel = travel + math.sqrt(max(red[0], 0.0)) * dt
+                travel = travel + math.sqrt(max(red[0], 0.0)) * p.dt
             if flag[0] != 0.0:
                 code, done, finished = STATUS_STRAIN, k + 1, True
                 break
             if flag[1] != 0.0:
                 code, done, finished = STATUS_NONFINITE, k + 1, True
                 break
+            if flag[2] != 0.0:
+                code, done, finished = STATUS_CONTACTS, k + 1, True
+                break
             k += 1
 
         cuda.syncthreads()
         if finished:
             if t == 0:  # the final centre of mass is always the last sample
-                com_traj[(r * COM_ROWS + n_com) * 4] = done * dt
-                com_sample(n, VC, pos, com_traj[r * COM_ROWS * 4:(r + 1) * COM_ROWS * 4], n_com)
+                out.com[(r * COM_ROWS + n_com) * 4] = done * p.dt
+                com_sample(n, VC, pos, out.com[r * COM_ROWS * 4:(r + 1) * COM_ROWS * 4], n_com)
                 ctl[r, C_RUNNING], ctl[r, C_CODE], ctl[r, C_DONE] = 0, code, done
                 ctl[r, C_NCOM] = n_com + 1
         elif t == 0:
             ctl[r, C_STEP], ctl[r, C_NCOM] = k, n_com
-            travel_of[r] = travel
+            out.travel[r] = travel
         if shared:
-            for q in range(t, 3 * n, nt):
-                g_pos[3 * v0 + q], g_lm[3 * v0 + q], g_am[3 * v0 + q] = pos[q], lm[q], am[q]
-            for q in range(t, 4 * n, nt):
-                g_quat[4 * v0 + q] = quat[q]
-            for q in range(t, LINK_STATE * m, nt):
-                g_ls[LINK_STATE * l0 + q] = ls[q]
+            copy(t, nt, 3 * n, pos, body.pos[3 * v0:])
+            copy(t, nt, 3 * n, lm, body.lin_mom[3 * v0:])
+            copy(t, nt, 3 * n, am, body.ang_mom[3 * v0:])
+            copy(t, nt, 4 * n, quat, body.quat[4 * v0:])
+            copy(t, nt, LINK_STATE * m, ls, body.link_state[LINK_STATE * l0:])
 
     return rollout

@@ -74,10 +74,15 @@ from numba.core import cgutils
 from numba.extending import intrinsic
 
 from . import physics
-from .physics import MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine reports MAX_STRAIN)
+from .physics import COLLIDE_MARGIN, MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine reports MAX_STRAIN)
 from .system import (
     FLAG_ACTIVE,
     FLAG_FIXED,
+    MAX_CONTACTS,
+    STATUS_CONTACTS,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_STRAIN,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,
@@ -126,10 +131,6 @@ def fma(typingctx, a, b, c):
     return sig, codegen
 
 
-STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE = 0, 1, 2
-# Self-collision candidates are unbonded surface pairs within the largest contact distance plus
-# this margin (in voxel lengths); the list is rebuilt once surface voxels have moved half of it.
-COLLIDE_MARGIN = 0.2
 
 # The physics, compiled for this target (``sim.physics``): inlined into the loops below.
 _phys = physics.compiled(njit(inline="always", fastmath=FASTMATH, error_model="numpy"), fma)
@@ -138,8 +139,9 @@ quat_from_rotvec, rotation_matrix, waveform = _phys.quat_from_rotvec, _phys.rota
 actuated_size, link_geometry_of, small_frame_of = _phys.actuated_size, _phys.link_geometry, _phys.small_frame
 large_frame_of, damped, link_loads = _phys.large_frame, _phys.damped, _phys.link_loads
 link_diverged, contact_push, facet_drag = _phys.link_diverged, _phys.contact_push, _phys.facet_drag
-contact_overlap = _phys.contact_overlap
+contact_overlap, candidate_radius = _phys.contact_overlap, _phys.candidate_radius
 mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
+corner_point, load_sum, centre_of_mass = _phys.corner_point, _phys.load_sum, _phys.centre_of_mass
 voxel_world = _phys.voxel_world
 
 
@@ -433,28 +435,30 @@ def link_sums(vlink, B, force, moment):
     for v in range(len(vlink)):
         p0, p1, p2 = U(vlink[v, 1]), U(vlink[v, 3]), U(vlink[v, 5])
         n0, n1, n2 = U(vlink[v, 0]), U(vlink[v, 2]), U(vlink[v, 4])
-        force[v, 0] = (o[R0 + p0] + o[R0 + p1] + o[R0 + p2]) - (o[R0 + n0] + o[R0 + n1] + o[R0 + n2])
-        force[v, 1] = (o[R1 + p0] + o[R1 + p1] + o[R1 + p2]) - (o[R1 + n0] + o[R1 + n1] + o[R1 + n2])
-        force[v, 2] = (o[R2 + p0] + o[R2 + p1] + o[R2 + p2]) - (o[R2 + n0] + o[R2 + n1] + o[R2 + n2])
-        moment[v, 0] = (o[R3 + p0] + o[R3 + p1] + o[R3 + p2]) + (o[R6 + n0] + o[R6 + n1] + o[R6 + n2])
-        moment[v, 1] = (o[R4 + p0] + o[R4 + p1] + o[R4 + p2]) + (o[R7 + n0] + o[R7 + n1] + o[R7 + n2])
-        moment[v, 2] = (o[R5 + p0] + o[R5 + p1] + o[R5 + p2]) + (o[R8 + n0] + o[R8 + n1] + o[R8 + n2])
+        force[v, 0] = load_sum(o[R0 + p0], o[R0 + p1], o[R0 + p2], o[R0 + n0], o[R0 + n1], o[R0 + n2], -1.0)
+        force[v, 1] = load_sum(o[R1 + p0], o[R1 + p1], o[R1 + p2], o[R1 + n0], o[R1 + n1], o[R1 + n2], -1.0)
+        force[v, 2] = load_sum(o[R2 + p0], o[R2 + p1], o[R2 + p2], o[R2 + n0], o[R2 + n1], o[R2 + n2], -1.0)
+        moment[v, 0] = load_sum(o[R3 + p0], o[R3 + p1], o[R3 + p2], o[R6 + n0], o[R6 + n1], o[R6 + n2], 1.0)
+        moment[v, 1] = load_sum(o[R4 + p0], o[R4 + p1], o[R4 + p2], o[R7 + n0], o[R7 + n1], o[R7 + n2], 1.0)
+        moment[v, 2] = load_sum(o[R5 + p0], o[R5 + p1], o[R5 + p2], o[R8 + n0], o[R8 + n1], o[R8 + n2], 1.0)
 
 
 # ---------------------------------------------------------------- self-collisions
 @njit(**JIT)
-def collision_pairs(surface, pos, near, reach, pairs):
+def collision_pairs(surface, pos, near, reach, pairs, partners):
     """Candidate pairs of surface voxels closer than ``reach`` (sweep along x) that ``near``
     does not list for each other (its rows: the voxels a voxel never touches, -1 pads; the
-    face neighbours ``nbr`` for bonded pairs only), into ``pairs``; returns how many (at
-    most its length)."""
+    face neighbours ``nbr`` for bonded pairs only), into ``pairs``; returns how many, or -1
+    if a voxel has more than MAX_CONTACTS candidates (the contact policy: ``sim.physics``;
+    ``pairs`` holds surface * MAX_CONTACTS / 2 of them). ``partners`` (n voxels): scratch,
+    each voxel's count."""
     ns = len(surface)
     xs = np.empty(ns)
     for a in range(ns):
         xs[a] = pos[surface[a], 0]
+        partners[surface[a]] = 0
     order = np.argsort(xs)
     count = 0
-    cap = len(pairs)
     reach2 = reach * reach
     for a in range(ns):
         i = surface[order[a]]
@@ -466,10 +470,13 @@ def collision_pairs(surface, pos, near, reach, pairs):
             dy = pos[j, 1] - pos[i, 1]
             dz = pos[j, 2] - pos[i, 2]
             if dx * dx + dy * dy + dz * dz < reach2 and not listed(near, i, j):
-                if count < cap:
-                    pairs[count, 0] = i
-                    pairs[count, 1] = j
-                    count += 1
+                partners[i] += 1
+                partners[j] += 1
+                if partners[i] > MAX_CONTACTS or partners[j] > MAX_CONTACTS:
+                    return -1
+                pairs[count, 0] = i
+                pairs[count, 1] = j
+                count += 1
     return count
 
 
@@ -525,8 +532,10 @@ def surface_moved(surface, pos, built):
 
 
 @njit(**JIT)
-def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs, built, force):
-    """Self-collision forces when the robot has them on; returns the updated ``Contacts``.
+def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs, partners,
+                   built, force):
+    """Self-collision forces when the robot has them on; returns the updated ``Contacts``
+    (``count`` -1: a voxel has more candidates than the policy keeps, and the run stops).
 
     ``contacts.travel`` bounds how far any surface voxel has moved since the candidate list
     was built (the step adds the largest voxel speed times dt). Once two voxels may have
@@ -540,8 +549,8 @@ def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs
     if 2.0 * travel >= margin:
         travel = surface_moved(surface, pos, built)
         if not (2.0 * travel < margin):  # NaN before the first build
-            reach = 2.0 * p.contact_reach * p.L * (1.0 + p.amp) + margin
-            count = collision_pairs(surface, pos, near, reach, pairs)
+            reach = candidate_radius(p.L, p.contact_reach, p.amp)
+            count = collision_pairs(surface, pos, near, reach, pairs, partners)
             for a in range(len(surface)):
                 for c in range(3):
                     built[a, c] = pos[surface[a], c]
@@ -576,9 +585,10 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
             v, c = code >> 3, code & 7
             ox, oy, oz = mesh_corner(c, size[v], L, nbr[v, (c >> 2) & 1] >= 0,
                                      nbr[v, 2 + ((c >> 1) & 1)] >= 0, nbr[v, 4 + (c & 1)] >= 0)
-            ax += pos[v, 0] + dot3(axes[v, 0], axes[v, 1], axes[v, 2], ox, oy, oz)
-            ay += pos[v, 1] + dot3(axes[v, 3], axes[v, 4], axes[v, 5], ox, oy, oz)
-            az += pos[v, 2] + dot3(axes[v, 6], axes[v, 7], axes[v, 8], ox, oy, oz)
+            cx, cy, cz = corner_point(pos[v, 0], pos[v, 1], pos[v, 2], axes[v, 0], axes[v, 1],
+                                      axes[v, 2], axes[v, 3], axes[v, 4], axes[v, 5], axes[v, 6],
+                                      axes[v, 7], axes[v, 8], ox, oy, oz)
+            ax, ay, az = ax + cx, ay + cy, az + cz
             count += 1
         vert_pos[k, 0], vert_pos[k, 1], vert_pos[k, 2] = ax / count, ay / count, az / count
     for t in range(len(mesh_face)):
@@ -692,6 +702,7 @@ class Work(NamedTuple):
     moment: np.ndarray  # (n, 3) total moment on each voxel
     static: np.ndarray  # (n,) bool: held by static friction
     pairs: np.ndarray  # (p, 2) self-collision candidates
+    partners: np.ndarray  # (n,) candidates of each voxel (``collision_pairs``' scratch)
     contact: np.ndarray  # (n,) bool: touching the floor this step
     built: np.ndarray  # (s, 3) surface voxels' positions when the candidates were listed
     # the links as ``link_kernel`` keeps them, in two runs by frame (see there):
@@ -708,7 +719,7 @@ class Work(NamedTuple):
 class Contacts(NamedTuple):
     """Self-collision candidates carried from step to step."""
 
-    count: int  # pairs in use at the head of ``Work.pairs``
+    count: int  # pairs in use at the head of ``Work.pairs`` (-1: over the policy's cap)
     travel: float  # bound on any voxel's displacement since the list was built, m
 
 
@@ -740,7 +751,8 @@ def collide(p, voxels, body, work, contacts):
     """Self-collision forces (if on), added to ``work.force``; returns the updated
     ``Contacts``."""
     return collide_kernel(p, contacts, voxels.surface, voxels.near, body.pos, body.lin_mom,
-                          work.size, voxels.vconst, work.pairs, work.built, work.force)
+                          work.size, voxels.vconst, work.pairs, work.partners, work.built,
+                          work.force)
 
 
 @njit(**INLINE)
@@ -840,7 +852,8 @@ def robot_work(n_voxels, links, n_pairs, n_surface, n_vert=0):
             vlink[v, f] = place(links.vlink[v, f])
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
-                np.zeros(n_voxels, dtype=np.bool_), np.full((n_surface, 3), np.nan), buf,
+                np.zeros(n_voxels, dtype=np.int64), np.zeros(n_voxels, dtype=np.bool_),
+                np.full((n_surface, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
                 np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)),
                 np.zeros((n_voxels if n_vert else 0, 9)))
@@ -848,17 +861,9 @@ def robot_work(n_voxels, links, n_pairs, n_surface, n_vert=0):
 
 @njit(**JIT)
 def com(pos, vconst, out, row):
-    """Centre of mass into out[row, 1:4]: positions weighted by ``V_WEIGHT`` (m_i / max m,
-    so exactly the mean position for one density)."""
-    n = len(pos)
-    total = 0.0
-    for v in range(n):
-        total += vconst[v, V_WEIGHT]
-    for c in range(3):
-        acc = 0.0
-        for v in range(n):
-            acc += vconst[v, V_WEIGHT] * pos[v, c]
-        out[row, 1 + c] = acc / total
+    """Centre of mass into out[row, 1:4] (``physics.centre_of_mass``)."""
+    out[row, 1], out[row, 2], out[row, 3] = centre_of_mass(
+        len(pos), vconst.reshape(-1), vconst.shape[1], V_WEIGHT, pos.reshape(-1))
 
 
 @njit(**JIT)
@@ -903,6 +908,9 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
             break
         if speed2 < 0.0:
             code, done = STATUS_NONFINITE, k + 1
+            break
+        if contacts.count < 0:
+            code, done = STATUS_CONTACTS, k + 1
             break
     # always keep the final centre of mass as the last sample
     traj[n_com, 0] = done * p.dt

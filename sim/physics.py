@@ -4,9 +4,11 @@ Every piece of the model that acts on one thing at a time is here: the quaternio
 the waveform and the actuated size, one link's beam (its geometry in either co-rotational
 frame, bond damping and the loads in world axes), one self-contact pair, the drag on one
 exposed face or one surface-mesh facet, and one voxel's update (world forces, floor contact
-and friction, semi-implicit Euler). The functions take and return numbers and tuples of
-numbers only, never arrays, so that each target compiles them into its own loops and memory
-layout:
+and friction, semi-implicit Euler); the self-contact policy (``candidate_radius``,
+MAX_CONTACTS), one corner of the surface mesh (``corner_point``), one voxel's sum of its
+links' loads (``load_sum``). The functions take and return numbers and tuples of numbers
+only, never arrays (``centre_of_mass``, sampled every few hundred steps, reads the flat
+position array), so that each target compiles them into its own loops and memory layout:
 
 - ``sim.kernels`` (the CPU engine): ``compiled(njit(inline="always", ...), fma)``, inlined
   into its loops over voxels and links;
@@ -26,13 +28,21 @@ import math
 import types
 from types import SimpleNamespace
 
-from .system import ENV_LAND, ENV_WATER, FRICTION_VOXCAD
+from .system import ENV_LAND, ENV_WATER, FRICTION_VOXCAD, MAX_CONTACTS  # noqa: F401
 
 MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
 SMALL_TURN, SMALL_EXTEND, HYSTERESIS = 0.05, 0.5, 1.2  # the co-rotational frames' bounds
 MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
 FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
+# The self-contact policy, both engines: candidates are unbonded surface pairs within the
+# largest contact distance plus COLLIDE_MARGIN voxel lengths (``candidate_radius``); the list
+# is rebuilt once surface voxels have moved half the margin. A voxel keeps at most
+# MAX_CONTACTS candidates (``sim.system``, which sizes the lists): a run in which one has more
+# stops, its ``Result.reason`` says so (no contact is dropped silently). Full-size voxels of
+# the paper's model (spheres of 1.5 voxels, amplitude 0.14) have at most about 50 voxel
+# centres within the radius.
+COLLIDE_MARGIN = 0.2
 
 
 def fma(a, b, c):
@@ -298,9 +308,20 @@ def link_diverged(d, rest):
 def contact_overlap(dx, dy, dz, size_i, size_j, reach):
     """How far voxels i and j (d = x_j - x_i) overlap, and their distance: contact begins
     at ``reach`` times the sum of their sizes. They touch when the overlap is positive and
-    the distance is not zero."""
-    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-    return reach * (size_i + size_j) - dist, dist
+    the distance is not zero. Candidates that do not touch (most of them, most steps) take
+    no square root: their overlap is returned as -1, their distance as 0."""
+    d2 = dx * dx + dy * dy + dz * dz
+    touch = reach * (size_i + size_j)
+    if not d2 < touch * touch:
+        return -1.0, 0.0
+    dist = math.sqrt(d2)
+    return touch - dist, dist
+
+
+def candidate_radius(L, reach, amp):
+    """How near two surface voxels must be to be contact candidates: the largest distance at
+    which they can touch (``reach`` times twice the largest actuated size) plus the margin."""
+    return 2.0 * reach * L * (1.0 + amp) + COLLIDE_MARGIN * L
 
 
 def contact_push(overlap, dist, dx, dy, dz, vx, vy, vz, ki, kj, ci, cj, stiff, damp):
@@ -338,6 +359,40 @@ def mesh_corner(c, size, L, has_x, has_y, has_z):
     return (0.5 * (size if has_x else L) * (1.0 if sx else -1.0),
             0.5 * (size if has_y else L) * (1.0 if sy else -1.0),
             0.5 * (size if has_z else L) * (1.0 if sz else -1.0))
+
+
+def corner_point(x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz):
+    """A voxel's corner in world axes: its centre (x, y, z) plus its rotation (rows r) times
+    the corner's offset o (``mesh_corner``). A surface-mesh vertex is the mean of this over
+    the voxels that share it (the fork's vertex average), summed in their order in
+    ``system.surface_mesh``'s ``mesh_vert``."""
+    return (x + dot3(r00, r01, r02, ox, oy, oz), y + dot3(r10, r11, r12, ox, oy, oz),
+            z + dot3(r20, r21, r22, ox, oy, oz))
+
+
+def load_sum(a0, a1, a2, b0, b1, b2, sign):
+    """A voxel's total of one row of its links' loads: the links it is the negative end of
+    (a: on its +x, +y, +z faces) plus ``sign`` times those it is the positive end of (b: on
+    its -x, -y, -z faces); a face without a link contributes 0. Forces take sign -1 (a link
+    pushes its two ends oppositely), moments +1 (each end has its own row)."""
+    return (a0 + a1 + a2) + sign * (b0 + b1 + b2)
+
+
+def centre_of_mass(n, weights, stride, column, pos):
+    """The centre of mass of n voxels: ``weights[v * stride + column]`` their mass weights
+    (``V_WEIGHT``: m_i / max m, so exactly the mean position for one density), ``pos`` their
+    positions, flat (x, y, z per voxel). Summed in voxel order, one axis after the other."""
+    total = 0.0
+    for v in range(n):
+        total += weights[v * stride + column]
+    cx, cy, cz = 0.0, 0.0, 0.0
+    for v in range(n):
+        cx += weights[v * stride + column] * pos[3 * v]
+    for v in range(n):
+        cy += weights[v * stride + column] * pos[3 * v + 1]
+    for v in range(n):
+        cz += weights[v * stride + column] * pos[3 * v + 2]
+    return cx / total, cy / total, cz / total
 
 
 def face_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz, area):
@@ -468,8 +523,8 @@ PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
     "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
     "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "damped",
-    "link_loads", "link_diverged", "contact_overlap", "contact_push", "facet_drag",
-    "mesh_corner", "face_drag", "voxel_update", "voxel_world",
+    "link_loads", "link_diverged", "candidate_radius", "contact_overlap", "contact_push", "facet_drag",
+    "mesh_corner", "corner_point", "load_sum", "centre_of_mass", "face_drag", "voxel_update", "voxel_world",
 )
 
 

@@ -30,7 +30,8 @@ The physics model (optional, top level): ``"model"`` is ``"voxelyze-2"`` (the de
 model validated against Voxelyze 2.0, analytic solutions and conservation laws) or
 ``"voxcad-land-water"`` (the paper's own engine, the VoxCAD land/water fork in evosoro: what
 ``softevo import-vxa`` writes and the paper presets run). ``"model_options"`` overrides any
-of the model's switches (``ModelOptions``; each one documented in docs/fidelity.md), e.g.
+of the model's switches (``sim.models``: the model registry, ``ModelOptions``; each one
+documented in docs/fidelity.md), e.g.
 ``{"model": "voxcad-land-water", "model_options": {"rotation_damping": 1}}``. The model also
 sets the defaults of ``dt_fraction`` (0.5 / 0.7) and ``actuation.amplitude`` (0.39 / 0.14:
 the fork reads its files' TempAmp 39, TempBase 25, CTE 0.01 as 0.14 strain).
@@ -44,11 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from . import worlds
+from . import models, worlds
+from .models import ModelOptions
 
 WAVEFORMS = ("sine", "square", "impulse")
-MODELS = ("voxelyze-2", "voxcad-land-water")
-DEFAULT_MODEL = "voxelyze-2"
 ENVIRONMENTS = worlds.KINDS  # the physics kinds (sim.worlds): every other world simulates as one
 DEFAULT_MAX_STEPS = 20_000_000
 MAX_SIDE = 64  # workspace side limit: a guard against absurd inputs, far above any robot here
@@ -89,56 +89,6 @@ class Actuation:
 
 
 @dataclass(frozen=True)
-class ModelOptions:
-    """The physics choices where the paper's engine (the VoxCAD land/water fork in evosoro)
-    and Voxelyze 2.0 differ; each one a switch (docs/fidelity.md has the fork's file and line
-    and the measured effect of each). The defaults are Voxelyze 2.0's; ``MODEL_OPTIONS``
-    gives each model's."""
-
-    rotation_damping: float = 1.0  # factor on the global angular damping (the fork: 10)
-    collision_horizon: int = 1  # voxels within this many bond hops never collide (1: bonded)
-    actuation_start: str = "settled"  # actuation begins after settling, or at the "start"
-    actuation_clock: str = "settled"  # the sine's time: since settling, or "absolute"
-    distance: str = "horizontal"  # on land: "horizontal" or "3d" (water is 3-D anyway)
-    drag: str = "faces"  # water drag on each voxel's own faces, or on the deformed "mesh"
-    min_steps_per_cycle: int = 2000  # the step resolves an actuation cycle at least this finely
-    contact: str = "voxelyze-2"  # self-contact: "voxelyze-2" or the fork's 1.5-voxel "voxcad" spheres
-    actuation_lag: int = 0  # steps by which the sizes lag the clock (the fork: 1)
-    friction: str = "voxelyze-2"  # the floor's static/kinetic rule: "voxelyze-2" or "voxcad"
-
-
-OPTION_CHOICES = {
-    "actuation_start": ("settled", "start"),
-    "actuation_clock": ("settled", "absolute"),
-    "distance": ("horizontal", "3d"),
-    "drag": ("faces", "mesh"),
-    "contact": ("voxelyze-2", "voxcad"),
-    "friction": ("voxelyze-2", "voxcad"),
-}
-# Each model's options, and its defaults for fields a scene may leave out.
-MODEL_OPTIONS = {
-    "voxelyze-2": ModelOptions(),
-    "voxcad-land-water": ModelOptions(rotation_damping=10.0, collision_horizon=3,
-                                      actuation_start="settled", actuation_clock="absolute",
-                                      distance="3d", drag="mesh", min_steps_per_cycle=0,
-                                      contact="voxcad", actuation_lag=1, friction="voxcad"),
-}
-MODEL_DEFAULTS = {  # dt_fraction, actuation amplitude
-    "voxelyze-2": {"dt_fraction": 0.5, "amplitude": 0.39},
-    "voxcad-land-water": {"dt_fraction": 0.7, "amplitude": 0.14},
-}
-
-
-def model_defaults(model: str) -> dict[str, Any]:
-    """The scene defaults of a physics model: its ``dt_fraction``, actuation ``amplitude`` and
-    ``model_options`` (a dict), e.g. for code that writes scenes for that model."""
-    if model not in MODELS:
-        raise SceneError(f"model: must be one of {', '.join(MODELS)} (got {model!r})")
-    return {**MODEL_DEFAULTS[model],
-            "model_options": dict(MODEL_OPTIONS[model].__dict__)}
-
-
-@dataclass(frozen=True)
 class Scene:
     """A validated scene. Arrays are indexed body[x][y][z] (x-major)."""
 
@@ -170,7 +120,7 @@ class Scene:
     self_collisions: bool = True
     record_every: int = 0  # 0: no frames
     max_steps: int = DEFAULT_MAX_STEPS
-    model: str = DEFAULT_MODEL
+    model: str = models.DEFAULT
     options: ModelOptions = field(default_factory=ModelOptions)
 
     @property
@@ -284,27 +234,20 @@ def _parse_environment(data: Any) -> Environment:
 
 
 def _parse_model(data: dict) -> tuple[str, ModelOptions]:
-    model = data.get("model", DEFAULT_MODEL)
-    if model not in MODELS:
-        raise SceneError(f"model: must be one of {', '.join(MODELS)} (got {model!r})")
-    base = MODEL_OPTIONS[model]
-    d = _section(data.get("model_options"), "model_options", set(ModelOptions.__dataclass_fields__))
-    kw = dict(base.__dict__)
-    for key, value in d.items():
-        name = f"model_options.{key}"
-        if key in OPTION_CHOICES:
-            if value not in OPTION_CHOICES[key]:
-                raise SceneError(f"{name}: must be one of {', '.join(OPTION_CHOICES[key])} "
-                                 f"(got {value!r})")
-            kw[key] = value
-        elif key == "rotation_damping":
-            kw[key] = _number(value, name, low=0, high=1e3)
-        else:
-            x = _number(value, name, low=1 if key == "collision_horizon" else 0, high=1e6)
-            if x != int(x):
-                raise SceneError(f"{name}: must be a whole number (got {value!r})")
-            kw[key] = int(x)
-    return model, ModelOptions(**kw)
+    model = data.get("model", models.DEFAULT)
+    if model not in models.names():
+        raise SceneError(f"model: must be one of {', '.join(models.names())} (got {model!r})")
+    d = _section(data.get("model_options"), "model_options", set(models.option_names()))
+    try:
+        return model, models.options(model).replace(**d)
+    except ValueError:
+        pass
+    for key, value in d.items():  # the first bad field, named
+        try:
+            models.option(key).check(value)
+        except ValueError as exc:
+            raise SceneError(f"model_options.{key}: {exc}") from None
+    raise AssertionError("a bad field was found")
 
 
 def _parse_actuation(data: Any, default_amplitude: float) -> Actuation:
@@ -362,7 +305,7 @@ def parse_scene(data: Any) -> Scene:
     model, options = _parse_model(data)
     material = _parse_material(data.get("material"))
     environment = _parse_environment(data.get("environment"))
-    actuation = _parse_actuation(data.get("actuation"), MODEL_DEFAULTS[model]["amplitude"])
+    actuation = _parse_actuation(data.get("actuation"), models.get(model).amplitude)
 
     fixed_list = data.get("fixed") or []
     if not isinstance(fixed_list, list):
@@ -432,7 +375,7 @@ def parse_scene(data: Any) -> Scene:
         initial_offset=_vector3(data.get("initial_offset", [0, 0, 0]), "initial_offset"),
         duration_seconds=seconds,
         settle_seconds=_number(data.get("settle_seconds", 0.0), "settle_seconds", low=0),
-        dt_fraction=_number(data.get("dt_fraction", MODEL_DEFAULTS[model]["dt_fraction"]),
+        dt_fraction=_number(data.get("dt_fraction", models.get(model).dt_fraction),
                             "dt_fraction", low=0, low_open=True, high=10),
         self_collisions=self_collisions,
         record_every=record_every,

@@ -20,6 +20,7 @@ import numpy as np
 
 from .cost import MEASURED, voxel_steps
 from .engines import EngineUnavailable
+from .result import Result
 from .scene import Scene, parse_scene
 from .system import largest_component, scene_dt
 
@@ -48,8 +49,6 @@ def body_distance(body: np.ndarray) -> float:
 
 def simulate_many(scenes: list[dict | Scene], device: str | None = None) -> list:
     """Results of ``scenes`` after sleeping their modelled cost divided by ``device``'s factor."""
-    from .engine import Result
-
     factor = speed_up(device)
     parsed = [s if isinstance(s, Scene) else parse_scene(s) for s in scenes]
     results, seconds = [], 0.0

@@ -23,7 +23,8 @@ import numpy as np
 from scipy import ndimage
 
 from . import worlds
-from .scene import ModelOptions, Scene
+from .models import ModelOptions
+from .scene import Scene
 
 # Columns of the per-robot float parameter table ``fparams``.
 F_L, F_A1, F_A2, F_B1, F_B2, F_B3, F_DT, F_GRAVITY, F_MUS, F_MUK = range(10)
@@ -48,6 +49,10 @@ WAVE_CODES = {"sine": 0, "square": 1, "impulse": 2}
 STEPS_PER_CYCLE = ModelOptions.min_steps_per_cycle
 COM_SAMPLES = 200  # centre-of-mass samples kept per run (plus the start)
 FLAG_FIXED, FLAG_ACTIVE = 1, 2
+# how a robot's run ended (every engine writes one per robot; ``sim.result`` reads it)
+STATUS_OK, STATUS_STRAIN, STATUS_NONFINITE, STATUS_CONTACTS = 0, 1, 2, 3
+# self-contact candidates a voxel may have (the contact policy: ``sim.physics``)
+MAX_CONTACTS = 64
 
 
 FACE_CONNECTED = ndimage.generate_binary_structure(3, 1)  # label's default in 3-D, made once
@@ -357,7 +362,7 @@ def cycle_capped_dt(dt: float, active_frequencies: np.ndarray, min_steps_per_cyc
 MIN_RESOLVED_STEPS_PER_CYCLE = 20
 """The fewest steps per actuation cycle the engine simulates: a faster robot is aliased (at
 11,804 Hz the fork's step of a stiff robot sees less than one step per cycle), and every engine
-refuses it unrun (``sim.engine``), whatever its model's ``min_steps_per_cycle``."""
+refuses it unrun (``sim.result.prepare``), whatever its model's ``min_steps_per_cycle``."""
 
 
 def steps_per_cycle(robot: Robot) -> float:
@@ -486,7 +491,7 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         moff=_offsets([len(r.mesh_vert) for r in robots]),
         foff=_offsets([len(r.mesh_face) for r in robots]),
         near=_padded([r.near for r in robots]),
-        poff=_offsets([8 * len(r.surface) + 8 for r in robots]),
+        poff=_offsets([len(r.surface) * MAX_CONTACTS // 2 + 1 for r in robots]),
         cos_phase=np.cos(phase),
         sin_phase=np.sin(phase),
         phase=phase,

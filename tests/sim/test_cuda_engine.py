@@ -298,3 +298,15 @@ def test_workers_evaluate_on_the_engine_of_their_environment(monkeypatch):
     monkeypatch.setenv(DEVICE_ENV, "cuda:7")
     with pytest.raises(EngineUnavailable, match="cuda:7"):  # a GPU worker without its GPU
         warm_up()
+
+
+def test_a_collapsed_body_stops_with_the_same_reason_as_on_numba():
+    """The contact policy is the engines' one (``sim.physics``): the body of
+    ``test_contact_policy`` collapses past MAX_CONTACTS candidates at the same step."""
+    from tests.sim.test_contact_policy import collapsing
+
+    scene = {**collapsing("voxcad-land-water"), "duration": {"seconds": 0.012}}
+    gpu = sim.simulate(scene, engine="cuda", device=DEVICE)
+    cpu = sim.simulate(scene)
+    assert not gpu.stable and gpu.reason == cpu.reason and gpu.steps == cpu.steps
+    assert gpu.reason.startswith("self-contact: a voxel had more than")

@@ -221,7 +221,8 @@ def test_collision_pairs_and_forces_match_brute_force():
     size, force, _m, _s, pairs = _work(batch, n)[:5]
     size[:] = 0.05
     reach = 0.06
-    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, reach, pairs)
+    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, reach, pairs,
+                                    np.zeros(n, np.int64))
     got = {tuple(sorted(p)) for p in pairs[:count]}
     want = set()
     surf = batch.surface
@@ -257,7 +258,8 @@ def test_candidates_are_rebuilt_only_when_a_surface_voxel_moved_half_the_margin(
     def collide(travel):
         return kernels.collide_kernel(p, kernels.Contacts(count, travel), voxels.surface,
                                       voxels.nbr, mine.pos, mine.lin_mom, work.size,
-                                      voxels.vconst, work.pairs, work.built, work.force)
+                                      voxels.vconst, work.pairs, work.partners, work.built,
+                                      work.force)
 
     count = 0
     first = collide(margin)  # the first step: NaN positions, so a build
@@ -328,7 +330,8 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     n = len(state.pos)
     size, force, _m, _s, pairs = _work(batch, n)[:5]
     size[:] = 0.05
-    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, 0.06, pairs)
+    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, 0.06, pairs,
+                                    np.zeros(len(state.pos), np.int64))
     force[:] = 0.0
     kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
     assert np.abs(force).max() > 0
@@ -348,3 +351,19 @@ def test_fma_rounds_once():
     a, b, c = rng.normal(size=(3, 100))
     got = np.array([fused(x, y, z) for x, y, z in zip(a, b, c, strict=True)])
     np.testing.assert_allclose(got, a * b + c, rtol=1e-15, atol=1e-15)
+
+
+def test_a_voxel_with_more_candidates_than_the_cap_stops_the_listing():
+    """The contact policy (``sim.physics``): a voxel keeps at most MAX_CONTACTS candidates;
+    one more and ``collision_pairs`` says so (-1) instead of dropping a pair; at the cap
+    exactly every pair is listed."""
+    cap = system.MAX_CONTACTS
+    for extra, want in ((0, cap * (cap + 1) // 2), (1, -1)):
+        k = cap + 1 + extra  # k voxels, each within reach of the k - 1 others
+        rng = np.random.default_rng(k)
+        pos = rng.uniform(0.0, 0.01, (k, 3))
+        surface = np.arange(k)
+        near = -np.ones((k, 1), np.int64)
+        pairs = np.zeros((k * cap // 2 + 1, 2), np.int64)
+        partners = np.zeros(k, np.int64)
+        assert kernels.collision_pairs(surface, pos, near, 0.05, pairs, partners) == want

@@ -66,7 +66,8 @@ def test_collision_pairs_skip_every_pair_within_the_horizon():
         near = system.nearby(robot.nbr, hops)
         reach = 2.5 * scene.voxel_size
         pairs = np.zeros((200, 2), np.int64)
-        count = kernels.collision_pairs(robot.surface, pos, near, reach, pairs)
+        count = kernels.collision_pairs(robot.surface, pos, near, reach, pairs,
+                                        np.zeros(len(pos), np.int64))
         got = {tuple(sorted(p)) for p in pairs[:count].tolist()}
         want = set()
         for a in robot.surface:
@@ -216,7 +217,7 @@ def test_model_defaults_and_errors():
     paper = parse_scene({"body": [[[2]]], "model": "voxcad-land-water"})
     assert (paper.dt_fraction, paper.actuation.amplitude) == (0.7, 0.14)
     assert paper.options.rotation_damping == 10 and paper.options.collision_horizon == 3
-    assert sim.model_defaults("voxcad-land-water")["model_options"]["drag"] == "mesh"
+    assert sim.models.defaults("voxcad-land-water")["model_options"]["drag"] == "mesh"
     plain = parse_scene({"body": [[[2]]]})
     assert (plain.model, plain.dt_fraction, plain.actuation.amplitude) == ("voxelyze-2", 0.5, 0.39)
     for bad, start in (({"model": "voxcad"}, "model:"),

@@ -1,38 +1,34 @@
-"""Public entry points: ``simulate(scene)`` and ``simulate_many(scenes)``.
-
-Both accept scene dicts (docs/spec.md section 1) or parsed ``Scene`` objects and return ``Result``
-objects; an unstable robot yields ``stable=False`` with a reason, never an exception. Invalid
-scenes raise ``SceneError`` before anything runs.
+"""What an evaluation returns, and how the engines make it: ``Result`` (docs/spec.md
+section 1), read from a run's arrays by ``from_run``, or ``unrun`` for a robot refused before
+it runs; ``prepare`` parses and builds a batch of scenes for any engine and refuses those
+past their step budget. Every engine (``sim.engines``) returns these; none imports another.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-import numba
 import numpy as np
 
-from . import kernels, worlds
-from .cache import drop_foreign_entries
-from .engines import check_engine
+from . import worlds
+from .physics import MAX_STRAIN
 from .scene import Scene, parse_scene
 from .system import (
-    COM_SAMPLES,
     F_DT,
     F_L,
-    I_N_FRAMES,
     I_RECORD,
     I_STEPS,
+    MAX_CONTACTS,
     MIN_RESOLVED_STEPS_PER_CYCLE,
+    STATUS_CONTACTS,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_STRAIN,
     Robot,
     build_robot,
-    pack,
     steps_per_cycle,
 )
-
-drop_foreign_entries(Path(kernels.__file__).parent / "__pycache__")
 
 
 @dataclass
@@ -101,19 +97,25 @@ def _budget_reason(scene: Scene, robot: Robot) -> str | None:
     return None
 
 
-def _result(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, com_count,
-            status, steps_done) -> Result:
+def from_run(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, com_count,
+             status, steps_done) -> Result:
+    """Robot r's ``Result`` from the arrays of the run of its batch (``kernels.run_batch``'s
+    or the cuda engine's, cut to one robot)."""
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     dt = float(robot.fparams[F_DT])
     L = float(robot.fparams[F_L])
     traj = com_traj[r, : com_count[r]]
     com_start, com_end = traj[0, 1:].copy(), traj[-1, 1:].copy()
     disp = com_end - com_start
-    stable = status[r] == kernels.STATUS_OK and np.all(np.isfinite(disp))
+    stable = status[r] == STATUS_OK and np.all(np.isfinite(disp))
     reason = None
-    if status[r] == kernels.STATUS_STRAIN:
-        reason = f"diverged: a link's axial strain exceeded {kernels.MAX_STRAIN:g} at step {steps_done[r]}"
-    elif status[r] == kernels.STATUS_NONFINITE or not stable:
+    if status[r] == STATUS_STRAIN:
+        reason = f"diverged: a link's axial strain exceeded {MAX_STRAIN:g} at step {steps_done[r]}"
+    elif status[r] == STATUS_CONTACTS:
+        reason = (f"self-contact: a voxel had more than {MAX_CONTACTS} contact candidates at step "
+                  f"{steps_done[r]} (the engines keep at most {MAX_CONTACTS}; the body had "
+                  f"collapsed onto itself)")
+    elif status[r] == STATUS_NONFINITE or not stable:
         reason = f"diverged: a voxel's state became non-finite or exploded at step {steps_done[r]}"
     horizontal = worlds.get(scene.environment.kind).floor and scene.options.distance == "horizontal"
     distance = float(np.hypot(disp[0], disp[1]) if horizontal else np.linalg.norm(disp)) / L
@@ -141,7 +143,8 @@ def _result(scene: Scene, robot: Robot, r: int, batch, state, frames, com_traj, 
     )
 
 
-def _unrun(robot: Robot, reason: str) -> Result:
+def unrun(robot: Robot, reason: str) -> Result:
+    """The ``Result`` of a robot refused before it runs: not stable, ``reason``, no steps."""
     com0 = robot.pos.mean(axis=0)
     return Result(False, reason, float(robot.fparams[F_DT]), 0, 0.0, robot.voxels,
                   robot.pos.copy(), com0, com0.copy(), np.zeros(3), 0.0,
@@ -159,59 +162,9 @@ def prepare(scenes: list[dict | Scene]) -> tuple[list[Scene], list[Robot], list[
     for k, (scene, robot) in enumerate(zip(parsed, robots, strict=True)):
         reason = _budget_reason(scene, robot)
         if reason:
-            results[k] = _unrun(robot, reason)
+            results[k] = unrun(robot, reason)
         else:
             runnable.append(k)
     return parsed, robots, results, runnable
 
-
-def simulate_many(scenes: list[dict | Scene], threads: int | None = None, engine: str = "numba",
-                  device: str | None = None) -> list[Result]:
-    """Simulate many robots in one compiled call, one robot per parallel task.
-
-    ``threads`` caps numba's threads for this call (default: all cores numba was given).
-    Results come back in the order of ``scenes``. ``engine="cuda"`` runs the batch on the
-    GPU engine instead (``sim.cuda_engine``; ``device`` e.g. "cuda:0");
-    ``engine="sleep"`` only sleeps for the batch's modelled cost (``sim.sleep_engine``;
-    ``device`` its speed-up, e.g. "x100").
-    """
-    if check_engine(engine) == "cuda":
-        from . import cuda_engine
-
-        return cuda_engine.simulate_many(scenes, device=device)
-    if engine == "sleep":
-        from . import sleep_engine
-
-        return sleep_engine.simulate_many(scenes, device=device)
-    parsed, robots, results, runnable = prepare(scenes)
-    if runnable:
-        # longest robots first, so the parallel tasks finish together
-        cost = {k: robots[k].iparams[I_STEPS] * len(robots[k].pos) for k in runnable}
-        runnable.sort(key=lambda k: -cost[k])
-        sub = [robots[k] for k in runnable]
-        batch, state = pack(sub)
-        n = int(batch.voff[-1])
-        n_frames = max(int(r.iparams[I_N_FRAMES]) for r in sub)
-        frames = np.zeros((n_frames, n if n_frames else 0, 3))
-        com_traj = np.zeros((len(sub), COM_SAMPLES + 3, 4))
-        com_count = np.zeros(len(sub), dtype=np.int64)
-        status = np.zeros(len(sub), dtype=np.int64)
-        steps_done = np.zeros(len(sub), dtype=np.int64)
-        previous = numba.get_num_threads()
-        if threads is not None:
-            numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-        try:
-            kernels.run_batch(batch, state, frames, com_traj, com_count, status, steps_done)
-        finally:
-            numba.set_num_threads(previous)
-        for r, k in enumerate(runnable):
-            results[k] = _result(parsed[k], robots[k], r, batch, state, frames, com_traj,
-                                 com_count, status, steps_done)
-    return results  # type: ignore[return-value]
-
-
-def simulate(scene: dict | Scene, threads: int | None = 1, engine: str = "numba",
-             device: str | None = None) -> Result:
-    """Simulate one robot (docs/spec.md section 1); ``engine``/``device`` as ``simulate_many``."""
-    return simulate_many([scene], threads=threads, engine=engine, device=device)[0]
 
