@@ -41,12 +41,6 @@ import pandas as pd
 from softevo.analysis import matching
 from softevo.evolution import traits
 
-__all__ = [
-    "ExperimentData",
-    "experiment_data",
-    "member_traits",
-]
-
 
 @dataclass(frozen=True)
 class ExperimentData:

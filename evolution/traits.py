@@ -26,6 +26,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from softevo.sim.registry import Registry
+
 
 @dataclass(frozen=True)
 class Trait:
@@ -48,59 +50,41 @@ BUILT_IN = (
     Trait("branching", "branching index", column=True),
     Trait("shape_entropy", "shape entropy (bits)", column=True),
 )
-_REGISTRY: dict[str, Trait] = {trait.name: trait for trait in BUILT_IN}
+_REGISTRY: Registry[Trait] = Registry("trait", BUILT_IN)
+unregister, get, names, all_traits = _REGISTRY.unregister, _REGISTRY.get, _REGISTRY.names, _REGISTRY.records
 
 
 def register(trait: Trait) -> Trait:
-    """Add ``trait`` (ValueError for a name taken or not an identifier)."""
+    """Add ``trait`` (ValueError for a name taken or not a lower-case identifier, or a trait
+    that does not compute itself)."""
     if not trait.name.isidentifier() or not trait.name.islower():
         raise ValueError(f"trait names are lower-case identifiers (got {trait.name!r})")
-    if trait.name in _REGISTRY:
-        raise ValueError(f"trait {trait.name!r} is registered already")
     if trait.compute is None or trait.column:
         raise ValueError("a registered trait computes itself from the phenotype and has no column")
-    _REGISTRY[trait.name] = trait
-    return trait
-
-
-def unregister(name: str) -> None:
-    """Remove a registered trait (the built-in ones stay)."""
-    if name in {trait.name for trait in BUILT_IN}:
-        raise ValueError(f"{name!r} is a built-in trait")
-    _REGISTRY.pop(name, None)
-
-
-def all_traits() -> tuple[Trait, ...]:
-    """Every trait, the built-in ones first, then in the order registered."""
-    return tuple(_REGISTRY.values())
-
-
-def names() -> tuple[str, ...]:
-    """Every trait's name (``all_traits``)."""
-    return tuple(_REGISTRY)
+    return _REGISTRY.register(trait)
 
 
 def columns() -> tuple[str, ...]:
     """The traits with SQL columns of their own (the built-in ones)."""
-    return tuple(trait.name for trait in _REGISTRY.values() if trait.column)
+    return tuple(trait.name for trait in _REGISTRY.records() if trait.column)
 
 
 def along_lines() -> tuple[str, ...]:
     """The traits the exaptation analysis follows along each line."""
-    return tuple(trait.name for trait in _REGISTRY.values() if trait.along_lines)
+    return tuple(trait.name for trait in _REGISTRY.records() if trait.along_lines)
 
 
 def labels() -> dict[str, str]:
     """{name: label} of every trait, and ``best_distance``'s."""
     return {"best_distance": "best distance (voxel lengths)",
-            **{trait.name: trait.label for trait in _REGISTRY.values()}}
+            **{trait.name: trait.label for trait in _REGISTRY.records()}}
 
 
 def computed(phenotype: Any) -> dict[str, float | None]:
     """The values of the registered traits that compute themselves from ``phenotype``; a
     trait whose computation fails is None (a trait never fails an evaluation)."""
     values: dict[str, float | None] = {}
-    for trait in _REGISTRY.values():
+    for trait in _REGISTRY.records():
         if trait.compute is None:
             continue
         try:

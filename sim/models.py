@@ -31,6 +31,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+from .registry import Registry
+
 
 @dataclass(frozen=True)
 class ModelOptions:
@@ -150,35 +152,8 @@ VOXCAD_LAND_WATER = Model(
                 "paper presets)")
 DEFAULT = VOXELYZE_2.name
 _BUILT_IN = (VOXELYZE_2, VOXCAD_LAND_WATER)
-_REGISTRY: dict[str, Model] = {model.name: model for model in _BUILT_IN}
-
-
-def register(model: Model) -> Model:
-    """Add ``model`` (ValueError if its name is taken)."""
-    if model.name in _REGISTRY:
-        raise ValueError(f"model {model.name!r} is already registered")
-    _REGISTRY[model.name] = model
-    return model
-
-
-def unregister(name: str) -> None:
-    """Remove a model added by ``register`` (the built-in ones stay)."""
-    if name in (m.name for m in _BUILT_IN):
-        raise ValueError(f"model {name!r} is built in")
-    _REGISTRY.pop(name, None)
-
-
-def names() -> tuple[str, ...]:
-    """Every model's name in registration order."""
-    return tuple(_REGISTRY)
-
-
-def get(name: str) -> Model:
-    """The model called ``name``; KeyError naming the choices."""
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise KeyError(f"unknown model {name!r}; choose one of {', '.join(_REGISTRY)}") from None
+_REGISTRY: Registry[Model] = Registry("model", _BUILT_IN)
+register, unregister, get, names = _REGISTRY.register, _REGISTRY.unregister, _REGISTRY.get, _REGISTRY.names
 
 
 def options(name: str) -> ModelOptions:

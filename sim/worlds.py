@@ -24,6 +24,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from .registry import Registry
+
 HORIZONTAL, THREE_D = "horizontal", "3-D"
 
 
@@ -93,48 +95,18 @@ _KINDS = (
 )
 LAND, WATER, VOID = _KINDS
 KINDS = tuple(world.name for world in _KINDS)  # the scene schema's environment.kind
-_REGISTRY: dict[str, World] = {world.name: world for world in _KINDS}
-
-
-def register(world: World) -> World:
-    """Add ``world`` (ValueError if its name is taken)."""
-    if world.name in _REGISTRY:
-        raise ValueError(f"world {world.name!r} is already registered")
-    _REGISTRY[world.name] = world
-    return world
-
-
-def unregister(name: str) -> None:
-    """Remove a world added by ``register`` (the built-in kinds stay)."""
-    if name in KINDS:
-        raise ValueError(f"world {name!r} is built in")
-    _REGISTRY.pop(name, None)
-
-
-def get(name: str) -> World:
-    """The world named ``name``; KeyError naming the choices."""
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise KeyError(f"unknown world {name!r}; choose one of {', '.join(_REGISTRY)}") from None
+_REGISTRY: Registry[World] = Registry("world", _KINDS)
+register, unregister, get = _REGISTRY.register, _REGISTRY.unregister, _REGISTRY.get
+all_worlds, added = _REGISTRY.records, _REGISTRY.added
 
 
 def names(evolve: bool = False) -> tuple[str, ...]:
     """Every world's name in registration order (``evolve=True``: those offered for evolution)."""
-    return tuple(name for name, world in _REGISTRY.items() if world.evolve or not evolve)
-
-
-def all_worlds() -> tuple[World, ...]:
-    return tuple(_REGISTRY.values())
-
-
-def added() -> tuple[World, ...]:
-    """The worlds ``register`` added (what a spawned process must register to know them)."""
-    return tuple(world for world in _REGISTRY.values() if world.name not in KINDS)
+    return tuple(world.name for world in _REGISTRY.records() if world.evolve or not evolve)
 
 
 def register_missing(records: tuple[World, ...]) -> None:
     """Register each of ``records`` this process does not know yet (a pool's initializer)."""
     for world in records:
         if world.name not in _REGISTRY:
-            register(world)
+            _REGISTRY.register(world)

@@ -170,9 +170,11 @@ def init_pool_process(added_worlds: tuple = ()) -> None:
 
     import numba
 
+    from softevo.plugins import load_plugins
     from softevo.sim import worlds
 
     end_with_parent(os.getppid())
+    load_plugins()  # SOFTEVO_PLUGINS: a model or world they register exists here too
     worlds.register_missing(added_worlds)
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's to handle

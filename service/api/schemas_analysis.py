@@ -32,6 +32,7 @@ class AnalysisTreatment(BaseModel):
     environment: str
     schedule: str = Field(description="e.g. land:0,water:2500")
     stiffness_mpa: float
+    model: str = Field(description="the physics model of its evaluations (sim.models)")
     switch_at: int | None
     generations: int
     population: int

@@ -106,6 +106,7 @@ def treatments(data: ExperimentData) -> list[dict[str, Any]]:
                 "environment": row.environment,
                 "schedule": row.schedule,
                 "stiffness_mpa": float(row.stiffness_mpa),
+                "model": str(row.model),
                 "switch_at": None if pd.isna(row.switch_at) else int(row.switch_at),
                 "generations": int(row.generations),
                 "population": int(row.population),

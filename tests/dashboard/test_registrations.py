@@ -1,6 +1,6 @@
-"""One registration reaches every room: a trait registered once (a deployment's plugin,
-``SOFTEVO_PLUGINS``) is stored in SQL, answered by REST, shown by the dashboard and reported,
-with nothing else written for it (issue 48)."""
+"""One registration reaches every room: a trait and a physics model, each registered once
+(a deployment's plugin, ``SOFTEVO_PLUGINS``), are stored in SQL, answered by REST, shown by
+the dashboard and reported, with nothing else written for them (issue 48)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 from sqlalchemy import create_engine, select
 
 from softevo.evolution.genotype import EncodingConfig, Genotype, develop
-from softevo.service.storage.models import EvaluationRow, IndividualRow
+from softevo.service.storage.models import EvaluationRow, IndividualRow, TreatmentRow
 from tests.service.plugin_height import height
 from tests.support import softevo_process
 
@@ -21,18 +21,20 @@ PLUGIN = {"SOFTEVO_PLUGINS": "tests.service.plugin_height", "PYTHONPATH": str(RO
 WORKSPACE = (4, 4, 4)
 
 
-@pytest.fixture(scope="module")
-def height_db(tmp_path_factory) -> tuple[Path, str]:
-    """A tiny run stored with the plugin loaded: (folder, database URL)."""
-    folder = tmp_path_factory.mktemp("height")
-    url = f"sqlite:///{folder / 'height.db'}"
-    done = softevo_process(
-        "run", "--env", "land", "--stiffness", "1", "--population", "4", "--generations", "2",
-        "--workspace", ",".join(map(str, WORKSPACE)), "--cycles", "1", "--seed", "5", "--db", url,
-        env=PLUGIN, cwd=ROOT,
-    )  # fmt: skip
+def stored_run(folder: Path, plugin: dict, *options: str) -> tuple[Path, str]:
+    """A tiny run (``softevo run`` with ``options``) stored with ``plugin`` loaded: (folder,
+    database URL)."""
+    url = f"sqlite:///{folder / 'run.db'}"
+    done = softevo_process("run", "--stiffness", "1", "--generations", "2", "--cycles", "1", *options,
+                           "--db", url, env=plugin, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     return folder, url
+
+
+@pytest.fixture(scope="module")
+def height_db(tmp_path_factory) -> tuple[Path, str]:
+    return stored_run(tmp_path_factory.mktemp("height"), PLUGIN, "--env", "land", "--population", "4",
+                      "--workspace", ",".join(map(str, WORKSPACE)), "--seed", "5")
 
 
 def stored_heights(url: str) -> dict[int, tuple[float | None, float]]:
@@ -87,7 +89,8 @@ def test_without_the_plugin_the_trait_is_unknown_and_old_rows_still_read(height_
     done = softevo_process("export", "latest", "--db", url, "--out", str(folder / "plain"), cwd=ROOT)
     assert done.returncode == 0, done.stderr
     header = (folder / "plain" / "individuals.csv").read_text().splitlines()[0].split(",")
-    assert "height" not in header and "shape_entropy" in header
+    assert "height" not in header
+    assert "shape_entropy" in header
     done = softevo_process("export", "latest", "--db", url, "--out", str(folder / "plugged"), env=PLUGIN, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     header = (folder / "plugged" / "individuals.csv").read_text().splitlines()[0].split(",")
@@ -100,3 +103,53 @@ def test_a_plugin_that_cannot_be_imported_is_one_line():
     assert done.stderr.strip() == (
         "error: SOFTEVO_PLUGINS: cannot import 'no_such_module_here' (No module named 'no_such_module_here')"
     )
+
+
+MODEL_PLUGIN = {"SOFTEVO_PLUGINS": "tests.service.plugin_model", "PYTHONPATH": str(ROOT)}
+
+
+@pytest.fixture(scope="module")
+def model_db(tmp_path_factory) -> tuple[Path, str]:
+    return stored_run(tmp_path_factory.mktemp("model"), MODEL_PLUGIN, "--env", "water", "--population", "3",
+                      "--workspace", "3,3,3", "--model", "soft-fork")
+
+
+def test_a_registered_model_is_run_and_stored(model_db):
+    engine = create_engine(model_db[1])
+    with engine.connect() as conn:
+        (settings,) = conn.execute(select(TreatmentRow.__table__.c.settings)).scalars()
+        stable = conn.execute(select(EvaluationRow.__table__.c.stable)).scalars().all()
+    engine.dispose()
+    assert settings["model"] == "soft-fork"
+    assert len(stable) >= 6 and any(stable)  # the worker processes simulated it
+    unknown = softevo_process("run", "--env", "water", "--stiffness", "1", "--model", "soft-fork",
+                              "--db", model_db[1], cwd=ROOT)  # the plugin not loaded
+    assert unknown.returncode == 2 and "soft-fork" in unknown.stderr
+
+
+def test_a_registered_model_reaches_rest_the_dashboard_and_the_report(model_db, start_server, open_page):
+    folder, url = model_db
+    base = start_server("dashboard", url, env=MODEL_PLUGIN)
+    analysis = httpx.get(f"{base}/experiments/1/analysis", timeout=60).json()
+    assert [t["model"] for t in analysis["treatments"]] == ["soft-fork"]
+    schema = httpx.get(f"{base}/openapi.json", timeout=30).json()["components"]["schemas"]
+    enums = [s.get("enum", []) for s in _walk(schema) if isinstance(s, dict)]
+    assert any("soft-fork" in e and "voxelyze-2" in e for e in enums)  # the REST enum of models
+
+    page = open_page(base).page
+    page.goto(f"{base}/dashboard/experiments/1")
+    page.locator("#treatments td", has_text="soft-fork").first.wait_for(timeout=30_000)
+
+    out = folder / "report"
+    done = softevo_process("report", "latest", "--db", url, "--out", str(out), "--no-animation", "--quiet",
+                           env=MODEL_PLUGIN, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "physics model soft-fork" in (out / "report.md").read_text()
+
+
+def _walk(node):
+    """Every dict and list inside a JSON value."""
+    yield node
+    children = node.values() if isinstance(node, dict) else node if isinstance(node, list) else ()
+    for child in children:
+        yield from _walk(child)

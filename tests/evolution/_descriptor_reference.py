@@ -99,13 +99,12 @@ def reference_describe(body, frequency=None):
     body = np.asarray(body)
     kept = np.where(largest_component(body > 0), body, 0)
     count = int(np.count_nonzero(kept))
-    result = {
-        "symmetry": float(reference_symmetry_axes(kept).mean()) if count else None,
-        "branching": reference_branching(kept) if count else None,
-        "shape_entropy": reference_entropy(kept) if count else None,
-        "voxel_count": count,
-        "active_share": float(np.count_nonzero(kept == 2)) / count if count else 0.0,
+    measures = {
+        "symmetry": lambda: float(reference_symmetry_axes(kept).mean()),
+        "branching": lambda: reference_branching(kept),
+        "shape_entropy": lambda: reference_entropy(kept),
     }
-    if frequency is not None:
-        result["frequency"] = float(frequency)
-    return result
+    result = {name: measure() if count else None for name, measure in measures.items()}
+    result["voxel_count"] = count
+    result["active_share"] = float(np.count_nonzero(kept == 2)) / count if count else 0.0
+    return result if frequency is None else {**result, "frequency": float(frequency)}

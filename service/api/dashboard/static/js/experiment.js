@@ -54,12 +54,13 @@ function drawTreatments(treatments) {
     el("span", {}, el("span", { class: "swatch", style: `background:${t.color}` }), t.name),
     t.schedule,
     t.stiffness_mpa,
+    t.model,
     t.runs.length,
     t.display_generation ?? "–",
     interval(t.best_distance),
     runLinks(t.runs),
   ]);
-  fill("treatments", table(["treatment", "schedule", "stiffness (MPa)", "runs", "shown at generation", "best distance [95% CI]", "runs"], rows, [2, 3, 4]));
+  fill("treatments", table(["treatment", "schedule", "stiffness (MPa)", "physics model", "runs", "shown at generation", "best distance [95% CI]", "runs"], rows, [2, 4, 5]));
 }
 
 function switchLines(treatments) {
