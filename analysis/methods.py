@@ -18,7 +18,7 @@ import pandas as pd
 
 from softevo.analysis.run_summary import capped
 from softevo.evolution import environments, genotype
-from softevo.evolution.evaluation import evaluation_scenes
+from softevo.evolution.evaluation import DEFAULT_MODEL, evaluation_scenes
 
 METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "capped", "counted"]
 
@@ -49,7 +49,7 @@ def settling_text(treatment: pd.Series, phenotype) -> str:
             world,
             float(treatment["stiffness_mpa"]) * 1e6,
             int(treatment["cycles"]),
-            model=str(treatment.get("model", "voxelyze-2")),
+            model=str(treatment.get("model", DEFAULT_MODEL)),
             max_seconds=_cap(treatment),
         )[0]
         parts.append(f"{float(scene['settle_seconds']):g} s {environments.get(world).label}")
@@ -84,7 +84,7 @@ def evaluation_methods(treatments: pd.DataFrame, evaluations: pd.DataFrame, phen
         rows.append(
             {
                 "treatment": t["name"],
-                "model": t.get("model", "voxelyze-2"),
+                "model": t.get("model", DEFAULT_MODEL),
                 "frequency": mapping_text(str(t.get("control_mapping", "linear"))),
                 "settling": settling_text(t, phenotype),
                 "cycles": int(t["cycles"]),

@@ -1,9 +1,9 @@
 """Evaluation tasks and results, and the one path from a genome to a simulated robot.
 
 - ``Task``: one genome to evaluate under an ``evolution.evaluation.EvaluationSpec`` (world,
-  Young's modulus, cycles, physics model, cap on seconds, encoding), built by the coordinator from the algorithm's individuals
-  (``Task.from_genome``) or from a stored individual and its treatment's settings
-  (``Task.from_stored``). ``to_json`` / ``from_json`` are the wire format every executor
+  Young's modulus, cycles, physics model, cap on seconds, encoding), built by the
+  coordinator from the algorithm's individuals (``Task.from_genome``) or from a stored
+  individual and its treatment's settings (``Task.from_stored``). ``to_json`` / ``from_json`` are the wire format every executor
   and RQ job exchanges:
 
       {"id": int,                      # the algorithm's id of the individual
@@ -16,7 +16,7 @@
        "max_seconds": float,           # optional: the cap on an evaluation's seconds; absent: none
        "workspace": [x, y, z],
        "encoding": {...},              # optional EncodingConfig.to_dict(); wins over workspace
-       "model": "voxcad-land-water"}   # optional sim.scene model; absent: "voxelyze-2"
+       "model": "voxcad-land-water"}   # optional sim.models name; absent: the default model
 
   (the keys after ``genome`` are ``EvaluationSpec.to_dict()``).
 
