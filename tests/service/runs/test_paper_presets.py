@@ -97,9 +97,9 @@ def test_paper_presets_run_50_cycles_guarded_in_seconds(scale, cycles, cap):
     assert Task.from_json(task.to_json()) == task and task.to_json()["max_seconds"] == cap
     _, scene = scene_of(task)
     assert scene["duration"] == {"cycles": treatment.cycles, "max_seconds": cap}
-    assert scene["settle_seconds"] == 0.0 and scene_of(dataclasses.replace(task, environment="land"))[1][
+    assert scene["settle_seconds"] == 0.0 and scene_of(dataclasses.replace(task, evaluation=task.evaluation.in_world("land")))[1][
         "settle_seconds"] == 0.5
-    _, parts = scenes_of(dataclasses.replace(task, environment="land>water@0.250"))
+    _, parts = scenes_of(dataclasses.replace(task, evaluation=task.evaluation.in_world("land>water@0.250")))
     assert [p["duration"]["max_seconds"] for p in parts] == pytest.approx([0.75 * cap, 0.25 * cap])
     old = {k: v for k, v in treatment.to_settings().items() if k != "max_seconds"}
     assert Task.from_stored(7, genome.to_dict(), old, "water", 1e3).max_seconds is None
