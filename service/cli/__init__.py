@@ -77,7 +77,9 @@ def main(argv: list[str] | None = None) -> None:
     _register()
     user_errors = _user_error_types()
     try:
-        app(args=argv, standalone_mode=False)
+        # standalone_mode=False: click returns a ``typer.Exit``'s code instead of exiting
+        # (Ctrl-C during a run: 130, so ``softevo run ... && softevo report`` stops there)
+        code = app(args=argv, standalone_mode=False)
     except user_errors as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -91,4 +93,6 @@ def main(argv: list[str] | None = None) -> None:
                 print(usage_error_line(exc.format_message()), file=sys.stderr)
             sys.exit(2)
         raise
+    if isinstance(code, int) and not isinstance(code, bool) and code:
+        sys.exit(code)
 

@@ -88,3 +88,46 @@ def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
     assert code == 0, err
     with engine.connect() as conn:
         assert run_row(conn, run_id)["status"] == "finished"
+
+
+def test_ctrl_c_exits_130_so_a_chained_report_does_not_run(tmp_path):
+    """Ctrl-C (SIGINT to the terminal's process group) while ``softevo run`` evolves: exit
+    130, so ``softevo run ... && softevo report ...`` stops (issue 49.12: it exited 0)."""
+    import os
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from sqlalchemy import create_engine, text
+
+    db = tmp_path / "interrupted.db"
+    exe = shutil.which("softevo")
+    cmd = [exe] if exe else [sys.executable, "-m", "softevo.service.cli"]
+    args = ["run", "--env", "land", "--stiffness", "1", "--population", "4", "--generations", "100000",
+            "--workspace", "3,3,3", "--cycles", "1", "--workers", "0", "--quiet", "--db", f"sqlite:///{db}"]
+    proc = subprocess.Popen([*cmd, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)  # its own process group, as a terminal's job
+    try:
+        generation = -1
+        while generation < 1 and proc.poll() is None:  # a generation stored: it is evolving
+            time.sleep(0.5)
+            if db.exists():
+                engine = create_engine(f"sqlite:///{db}")
+                try:
+                    with engine.connect() as conn:
+                        generation = conn.execute(text("SELECT max(generation) FROM runs")).scalar() or -1
+                except Exception:  # the tables are being created
+                    pass
+                finally:
+                    engine.dispose()
+        assert proc.poll() is None, proc.communicate()
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "softevo resume" in err and "Traceback" not in err, err
