@@ -19,7 +19,7 @@ from typing import Any
 
 from fastapi import APIRouter, FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, RedirectResponse, Response
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
@@ -37,8 +37,9 @@ from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import analyses, experiments, exports, health, individuals, phylogeny, runs
 from softevo.service.api.routes import plan as plan_routes
 from softevo.service.api.routes import worlds as world_routes
-from softevo.service.api.schemas import EXPERIMENT_TAGS
+from softevo.service.api.schemas import problem_line, request_problems
 from softevo.service.dashboard import dashboard_router
+from softevo.service.dashboard.pages import not_found
 from softevo.service.db import open_database
 from softevo.service.db.locks import DatabaseLocks
 from softevo.service.driver import CoordinatorLoop
@@ -172,28 +173,17 @@ def _error(status: int, message: str, headers: dict | None = None, **extra) -> J
     return JSONResponse({"detail": message, **extra}, status_code=status, headers=headers)
 
 
-def _location(loc) -> str:
-    return ".".join(str(part) for part in loc)
+async def _validation_error(request: Request, exc: RequestValidationError) -> Response:
+    errors = request_problems(exc.errors())
+    if _dashboard_page(request):  # /dashboard/runs/abc: a page that says so, not JSON
+        return not_found(request, f"There is no page {request.url.path} ({problem_line(errors)}).")
+    return _error(422, problem_line(errors), errors=errors)
 
 
-async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
-    errors = []
-    for error in exc.errors():
-        loc = [str(part) for part in error.get("loc", ())]
-        if len(loc) > 1 and loc[0] == "body" and loc[1] in EXPERIMENT_TAGS:
-            del loc[1]  # the union's tag (which kind of experiment body), not a field
-        errors.append(
-            {
-                "loc": loc,
-                "msg": str(error.get("msg", "")),
-                "type": str(error.get("type", "")),
-            }
-        )
-    first = errors[0] if errors else {"loc": [], "msg": "invalid request"}
-    message = f"{_location(first['loc'])}: {first['msg']}" if first["loc"] else first["msg"]
-    if len(errors) > 1:
-        message += f" (and {len(errors) - 1} more problem(s))"
-    return _error(422, message, errors=errors)
+def _dashboard_page(request: Request) -> bool:
+    """Whether ``request`` asks for a dashboard page (HTML), not its JSON helpers or assets."""
+    path = request.url.path
+    return path.startswith("/dashboard/") and not path.startswith(("/dashboard/api/", "/dashboard/static/"))
 
 
 async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -285,6 +275,7 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     app.include_router(plan_routes.router)  # POST, but it stores nothing: read-only servers too
     app.include_router(dashboard_router())  # /dashboard pages and assets
     app.include_router(docs_page.router)  # /docs
+    app.add_api_route("/", _front_door, methods=["GET", "HEAD"], include_in_schema=False)
     app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
     app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)
     app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # hits wait for nothing
@@ -292,6 +283,12 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     if settings.token_value is None:  # loopback only: refuse DNS-rebinding names (docs/security.md)
         app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.trusted_hosts())
     return app
+
+
+def _front_door(request: Request) -> RedirectResponse:
+    """``/``: the dashboard (the API is at ``/docs``, ``/openapi.json``)."""
+    root = request.scope.get("root_path", "").rstrip("/")
+    return RedirectResponse(f"{root}/dashboard/", status_code=307)
 
 
 def _reads_of(router: APIRouter) -> APIRouter:

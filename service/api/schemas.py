@@ -192,6 +192,31 @@ def _experiment_kind(value: Any) -> str:
 
 
 EXPERIMENT_TAGS = ("treatments", "preset")  # where a request's errors are (see app.py)
+
+
+def request_problems(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """pydantic's ``errors()`` of a request, as a person reads them: each ``loc`` without the
+    union's tag (which kind of experiment body: no field of it), each ``msg`` without
+    pydantic's "Value error, " prefix, and the problems with values given before the fields
+    left out (a body with no ``name`` and a wrong treatment leads with the treatment)."""
+    problems = []
+    for error in errors:
+        loc = [str(part) for part in error.get("loc", ())]
+        at = 1 if loc[:1] == ["body"] else 0
+        if len(loc) > at and loc[at] in EXPERIMENT_TAGS:
+            del loc[at]
+        msg = str(error.get("msg", "")).removeprefix("Value error, ")
+        problems.append({"loc": loc, "msg": msg, "type": str(error.get("type", ""))})
+    return sorted(problems, key=lambda problem: problem["type"] == "missing")
+
+
+def problem_line(problems: list[dict[str, Any]]) -> str:
+    """The first of ``problems`` (``request_problems``) in one line, with how many more."""
+    first = problems[0] if problems else {"loc": [], "msg": "invalid request"}
+    message = f"{'.'.join(first['loc'])}: {first['msg']}" if first["loc"] else first["msg"]
+    if len(problems) > 1:
+        message += f" (and {len(problems) - 1} more problem(s))"
+    return message
 ExperimentRequest = Annotated[
     Annotated[ExperimentIn, Tag("treatments")] | Annotated[PresetIn, Tag("preset")],
     Discriminator(_experiment_kind),

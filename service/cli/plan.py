@@ -42,15 +42,16 @@ def spec_treatments(body, where: str = "spec"):
     from pydantic import TypeAdapter, ValidationError
 
     from softevo.service.api.requests import request_treatments
-    from softevo.service.api.schemas import ExperimentRequest
+    from softevo.service.api.schemas import ExperimentRequest, problem_line, request_problems
 
     try:
         request = TypeAdapter(ExperimentRequest).validate_python(body, strict=False)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        location = ".".join(str(part) for part in first["loc"])
-        raise UserError(f"{where}: {location}: {first['msg']}") from None
-    return request_treatments(request)
+        raise UserError(f"{where}: {problem_line(request_problems(exc.errors()))}") from None
+    try:
+        return request_treatments(request)
+    except UserError as exc:
+        raise UserError(f"{where}: {exc}") from None
 
 
 def plan(

@@ -173,6 +173,26 @@ def test_cli_bad_spec_file_is_one_line(capsys, tmp_path):
         assert code == 2 and len(err.strip().splitlines()) == 1, err
 
 
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ({"treatments": [{"environment": "water", "stiffness_mpa": 1.0}]}, "spec.json: name: Field required"),
+        ({"name": "x", "treatments": [{"environment": "lnd", "stiffness_mpa": 1.0}]},
+         "spec.json: treatments.0.environment: must be one of land, water"),
+        ({"name": "x", "treatments": [{"environment": "land", "stiffness_mpa": 1.0, "switch_at": 2}]},
+         "spec.json: switch_at needs a transition environment (got land)"),
+    ],
+)  # fmt: skip
+def test_cli_spec_errors_name_the_field_once(capsys, tmp_path, spec, message):
+    """Issue 49.13: a missing top-level name said ``treatments.name``, and a treatment's
+    field ``treatments.treatments.0...`` with "Value error, " (the union's tag twice)."""
+    path = tmp_path / "spec.json"
+    path.write_text(json.dumps(spec))
+    code, _, err = softevo(capsys, "plan", str(path), "--cores", "2")
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error: "), err
+    assert message in err and "Value error" not in err and "treatments.treatments" not in err, err
+
+
 @pytest.mark.slow
 def test_rest_plan_200_and_422(tmp_path):
     group = Processes(tmp_path, service_env(f"sqlite:///{tmp_path / 'api.db'}", None, SOFTEVO_WORKERS="1"))
