@@ -120,6 +120,12 @@ class ExperimentData:
         """The generation treatment ``name`` is shown at."""
         return matching.display_generation(self.treatments, self.runs, name)
 
+    @property
+    def left_out_note(self) -> str | None:
+        """Which runs stopped before their treatment's compared generation and are left out
+        of the summary and the tests (``analysis.matching.left_out_note``), or None."""
+        return matching.left_out_note(self.treatments, self.runs)
+
     def _per_treatment(self, frame_at) -> pd.DataFrame:
         parts = []
         for name in self.treatment_names:

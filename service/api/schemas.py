@@ -23,6 +23,7 @@ from pydantic import (
 from pydantic_core import core_schema
 
 from softevo.evolution import worlds
+from softevo.service.limits import MAX_EVALUATION_SECONDS, MAX_WORKSPACE_SIDE, TREATMENT_BOUNDS
 from softevo.service.plan import EXECUTORS
 from softevo.service.treatments import SCALES, Treatment
 
@@ -119,14 +120,17 @@ class TreatmentIn(Strict):
         description="generations of a gradual switch: compound worlds whose evaluations spend a "
         "rising share of their cycles in the second environment (0: abrupt)")
     stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
-    population: int = Field(Treatment.population, ge=2, le=10_000)
-    generations: int = Field(Treatment.generations, ge=1, le=1_000_000)
-    workspace: list[Annotated[int, Field(ge=1, le=32)]] = Field(
+    population: int = Field(Treatment.population, ge=TREATMENT_BOUNDS["population"][0],
+                            le=TREATMENT_BOUNDS["population"][1])
+    generations: int = Field(Treatment.generations, ge=TREATMENT_BOUNDS["generations"][0],
+                             le=TREATMENT_BOUNDS["generations"][1])
+    workspace: list[Annotated[int, Field(ge=1, le=MAX_WORKSPACE_SIDE)]] = Field(
         list(Treatment.workspace), min_length=3, max_length=3, description="voxels along x, y, z"
     )
-    cycles: int = Field(Treatment.cycles, ge=1, le=10_000, description="actuation cycles per evaluation")
+    cycles: int = Field(Treatment.cycles, ge=TREATMENT_BOUNDS["cycles"][0], le=TREATMENT_BOUNDS["cycles"][1],
+                        description="actuation cycles per evaluation")
     max_seconds: float | None = Field(
-        Treatment.max_seconds, gt=0, le=3600, allow_inf_nan=False,
+        Treatment.max_seconds, gt=0, le=MAX_EVALUATION_SECONDS, allow_inf_nan=False,
         description="the most seconds an evaluation lasts, settling not counted (null: its cycles "
         "alone; the paper's scripts: 4.5)")
     repetitions: int = Field(1, ge=1, le=1000)

@@ -95,7 +95,9 @@ def _execute(
         raise typer.Exit(130) from None
     finally:
         executor.close()
-    _print_status(engine, run_ids)
+    failed = _print_status(engine, run_ids)
+    if failed:
+        raise typer.Exit(1)  # ``softevo run ... && softevo report ...`` stops at a failed run
 
 
 def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
@@ -176,6 +178,7 @@ def run(
     quick start's meaning (AFPO, voxelyze-2); ``softevo experiment`` runs the paper's choices."""
     from softevo.service.db import open_database
     from softevo.service.experiments import create
+    from softevo.service.limits import check_treatment
     from softevo.service.treatments import Treatment
 
     if stiffness is None:
@@ -189,6 +192,7 @@ def run(
         stiffness_range_mpa=_parse_range(stiffness_range),
         **_treatment_options(ctx.params),
     )
+    check_treatment(treatment)  # the REST API's bounds, before anything is stored
     engine = open_database(db)
     if name is not None and not name.strip():
         raise UserError("--name must not be empty")
@@ -253,7 +257,9 @@ def experiment(
     _execute(engine, run_ids, workers, quiet)
 
 
-def _print_status(engine, run_ids: list[int]) -> None:
+def _print_status(engine, run_ids: list[int]) -> list[int]:
+    """Print the runs' table, and below it one line per failed run saying why (stderr);
+    return the failed runs' ids."""
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -261,10 +267,11 @@ def _print_status(engine, run_ids: list[int]) -> None:
     from softevo.service.db.status import run_summaries
 
     caption = "best: of the last generation; per world: of any generation in it"
+    summaries = run_summaries(engine, run_ids)
     table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best",
                   box=box.SIMPLE_HEAD, show_edge=False, collapse_padding=True, caption=caption)  # fmt: skip
     table.add_column("per world", no_wrap=True)
-    for r in run_summaries(engine, run_ids):
+    for r in summaries:
         per_world = "\n".join(f"{world} {best:.3f}" for world, best in r["best_by_world"].items())
         table.add_row(
             str(r["run_id"]),
@@ -279,6 +286,10 @@ def _print_status(engine, run_ids: list[int]) -> None:
             per_world or "-",
         )
     Console().print(table)
+    failed = [r for r in summaries if r["status"] == "failed"]
+    for r in failed:
+        typer.echo(f"run {r['run_id']} failed: {r['error'] or 'no reason stored'}", err=True)
+    return [r["run_id"] for r in failed]
 
 
 def status(

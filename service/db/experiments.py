@@ -326,13 +326,14 @@ def _run_ids(conn: Connection, experiment_id: int) -> list[int]:
 
 
 def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
+    """``runs`` with each run's last stored ``generation`` and its ``error`` (why it failed)."""
     table = RunRow.__table__
     rows = conn.execute(
-        select(table.c.id.label("run_id"), table.c.generation.label("generation")).where(
+        select(table.c.id.label("run_id"), table.c.generation.label("generation"), table.c.error).where(
             table.c.id.in_([int(i) for i in runs["run_id"]])
         )
     ).all()
-    last = pd.DataFrame(rows, columns=["run_id", "generation"])
+    last = pd.DataFrame(rows, columns=["run_id", "generation", "error"])
     return runs.merge(last, on="run_id", how="left")
 
 

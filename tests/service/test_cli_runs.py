@@ -131,3 +131,42 @@ def test_ctrl_c_exits_130_so_a_chained_report_does_not_run(tmp_path):
             proc.wait()
     assert proc.returncode == 130, err
     assert "interrupted" in err and "softevo resume" in err and "Traceback" not in err, err
+
+
+def test_a_run_whose_evaluations_all_fail_ends_failed_and_says_why(capsys, tmp_path):
+    """Issue 49.1: every evaluation over the step budget (10 MPa: a short step; 10,000 cycles)
+    ended "finished" with best 0.000 and exit 0; now the run fails after its first generation,
+    the command exits 1 with the reason, and status and report say it."""
+    db = f"sqlite:///{tmp_path / 'failing.db'}"
+    args = ["--population", "4", "--generations", "5", "--workspace", "3,3,3", "--workers", "0", "--quiet"]
+    code, out, err = softevo(capsys, "run", "--env", "land", "--stiffness", "10", "--cycles", "10000", *args,
+                             "--db", db)
+    assert code == 1, err
+    assert "failed" in out and "1/5" in out, out  # stopped after generation 0
+    reason = "run 1 failed: 4 of 4 evaluations of generation 0 failed (a run fails at 95%)"
+    assert reason in err and "step budget exceeded" in err, err
+    code, out, err = softevo(capsys, "status", "--db", db)
+    assert code == 0 and "failed" in out and reason in err, (out, err)
+    code, out, err = softevo(capsys, "report", "e1", "--out", str(tmp_path / "report"), "--no-animation",
+                             "--quiet", "--db", db)
+    assert code == 0, err
+    assert "warning: 1 of 1 run(s) failed: r1 (land S=10MPa): 4 of 4 evaluations" in err, err
+    assert "1 of 1 run(s) failed" in (tmp_path / "report" / "report.md").read_text()
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (["--cycles", "1000000"], "cycles must be within 1..10,000 (got 1,000,000)"),
+        (["--generations", "1000000000"], "generations must be within 1..1,000,000 (got 1,000,000,000)"),
+        (["--population", "20000"], "population must be within 2..10,000 (got 20,000)"),
+        (["--workspace", "40,2,2"], "workspace sides must be at most 32 voxels"),
+        (["--max-seconds", "5000"], "max_seconds must be at most 3600"),
+    ],
+)
+def test_the_cli_takes_what_the_api_takes(capsys, tmp_path, option, message):
+    """Issue 49.1: the CLI accepted 1e6 cycles and 1e9 generations (REST: 10,000, 1,000,000)."""
+    db = tmp_path / "limits.db"
+    code, out, err = softevo(capsys, "run", "--env", "land", "--stiffness", "1", *option, "--db", f"sqlite:///{db}")
+    assert code == 2 and out == "" and err == f"error: {message}\n", err
+    assert not db.exists()  # refused before anything was stored
