@@ -29,6 +29,7 @@ from softevo.service.cli.options import (
     QuietOption,
     RunArgument,
     WorkersOption,
+    say_bare_number,
 )
 from softevo.service.settings import GENOMES_PER_JOB
 from softevo.service.treatments import SCALES, Treatment
@@ -302,6 +303,7 @@ def status(
     from softevo.service.db.runs import resolve_runs
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.connect() as conn:
         run_ids = resolve_runs(conn, reference)
     if not run_ids:
@@ -325,6 +327,7 @@ def resume(
     from softevo.service.db.runs import reopen_runs, resolve_runs
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.begin() as conn:
         run_ids = resolve_runs(conn, reference)
         if reference is not None:
@@ -344,6 +347,7 @@ def export(
     from softevo.service.db.runs import resolve_runs
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.connect() as conn:
         run_ids = resolve_runs(conn, reference)
     for path in export_runs(engine, run_ids, out, fmt):
@@ -357,6 +361,7 @@ def one_individual(db: str | None, reference: str):
     from softevo.service.db.runs import resolve_individual
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "individual")
     with engine.connect() as conn:
         return engine, resolve_individual(conn, reference)
 
@@ -402,6 +407,7 @@ def best(
     from softevo.service.db.runs import best_per_world, resolve_run
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.connect() as conn:
         run_id = resolve_run(conn, reference)
         rows = best_per_world(conn, run_id)

@@ -115,9 +115,12 @@ def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
 
 def resolve_experiment(conn: Connection, reference: str) -> int:
     """The experiment named by ``e2``, ``exp-2``, ``2``, ``latest`` or its name (the newest of
-    that name); UserError if there is none."""
+    that name); UserError if there is none, or for a run (``r5``, ``run-5``: the message names
+    its experiment)."""
     experiments = ExperimentRow.__table__
     kind, number = parse_reference(reference)
+    if kind == "run" and not reference.strip().isdigit():
+        raise UserError(_not_an_experiment(conn, reference, number))
     query = select(func.max(experiments.c.id))
     if kind in ("experiment", "run"):  # a bare number names an experiment here
         query = query.where(experiments.c.id == number)
@@ -127,6 +130,16 @@ def resolve_experiment(conn: Connection, reference: str) -> int:
     if found is None:
         raise UserError(f"no experiment {reference!r}")
     return int(found)
+
+
+def _not_an_experiment(conn: Connection, reference: str, run_id: int) -> str:
+    """Why ``reference`` (a run: ``r5``) names no experiment, with the run's experiment."""
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
+    query = select(treatments.c.experiment_id).join(runs, runs.c.treatment_id == treatments.c.id)
+    experiment_id = conn.execute(query.where(runs.c.id == run_id)).scalar()
+    if experiment_id is None:
+        return f"{reference!r} names a run, and there is no run {run_id}; give an experiment (e2, latest, a name)"
+    return f"{reference!r} names a run, not an experiment; run {run_id} is in experiment e{experiment_id}"
 
 
 # -- the REST API's listings ------------------------------------------------------------------

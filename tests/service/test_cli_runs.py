@@ -160,8 +160,8 @@ def test_a_run_whose_evaluations_all_fail_ends_failed_and_says_why(capsys, tmp_p
         (["--cycles", "1000000"], "cycles must be within 1..10,000 (got 1,000,000)"),
         (["--generations", "1000000000"], "generations must be within 1..1,000,000 (got 1,000,000,000)"),
         (["--population", "20000"], "population must be within 2..10,000 (got 20,000)"),
-        (["--workspace", "40,2,2"], "workspace sides must be at most 32 voxels"),
-        (["--max-seconds", "5000"], "max_seconds must be at most 3600"),
+        (["--workspace", "40,2,2"], "workspace sides must be at most 32 voxels (got 40,2,2)"),
+        (["--max-seconds", "5000"], "max_seconds must be at most 3600 (got 5000)"),
     ],
 )
 def test_the_cli_takes_what_the_api_takes(capsys, tmp_path, option, message):
@@ -170,3 +170,21 @@ def test_the_cli_takes_what_the_api_takes(capsys, tmp_path, option, message):
     code, out, err = softevo(capsys, "run", "--env", "land", "--stiffness", "1", *option, "--db", f"sqlite:///{db}")
     assert code == 2 and out == "" and err == f"error: {message}\n", err
     assert not db.exists()  # refused before anything was stored
+
+
+def test_a_bare_number_says_what_it_was_taken_as(capsys, tmp_path):
+    """Issue 49.5: ``1`` was silently a run in best and status, an individual in lineage, runs
+    in export and an experiment in report; each now says which, and ``report r1`` (a run) is
+    refused naming the run's experiment instead of being taken as experiment 1."""
+    db = f"sqlite:///{tmp_path / 'ids.db'}"
+    assert softevo(capsys, "run", "--env", "land", "--stiffness", "1", *TINY, "--db", db)[0] == 0
+    for command, taken in (("best", "run 1; e1 names experiment 1"),
+                           ("status", "run 1; e1 names experiment 1"),
+                           ("lineage", "individual 1; r1 names run 1's best individual")):
+        code, _, err = softevo(capsys, command, "1", "--db", db)
+        assert code == 0 and err == f"note: 1 is taken as {taken}\n", (command, err)
+    code, _, err = softevo(capsys, "export", "1", "--out", str(tmp_path / "out"), "--db", db)
+    assert code == 0 and "note: 1 is taken as run 1" in err, err
+    assert softevo(capsys, "best", "r1", "--db", db)[2] == ""  # a prefixed id needs no note
+    code, _, err = softevo(capsys, "report", "r1", "--out", str(tmp_path / "report"), "--db", db)
+    assert code == 2 and err == "error: 'r1' names a run, not an experiment; run 1 is in experiment e1\n", err
