@@ -9,7 +9,13 @@ from sqlalchemy import Connection, Engine
 from softevo.errors import UserError
 from softevo.evolution.afpo import EvolutionConfig
 from softevo.evolution.selection import objectives_named
-from softevo.service.db.experiments import NewRun, NewTreatment, create_experiment, unfinished_work
+from softevo.service.db.experiments import (
+    NewRun,
+    NewTreatment,
+    create_experiment,
+    lock_new_experiments,
+    unfinished_work,
+)
 from softevo.service.limits import check_experiment, generation_cost
 from softevo.service.settings import Settings
 from softevo.service.treatments import Treatment, preset_grid, select_treatments
@@ -45,6 +51,7 @@ def create(
         for t in treatments
     ]
     with engine.begin() as conn:
+        lock_new_experiments(conn)  # the check and the insert as one: concurrent requests queue
         check_experiment(treatments, unfinished_cost(conn), settings)
         return create_experiment(conn, name, new, preset=preset, scale=scale)
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
-from sqlalchemy import Connection, Engine, and_, func, or_, select
+from sqlalchemy import Connection, Engine, and_, func, or_, select, text, update
 
 from softevo.analysis.columns import INDIVIDUAL_COLUMNS
 from softevo.analysis.data import ExperimentData, experiment_data
@@ -78,6 +78,25 @@ def create_experiment(
         for run in treatment.runs:
             run_ids.append(_insert_run(conn, treatment_id, run))
     return experiment_id, run_ids
+
+
+BUDGET_LOCK = (0x50F8, 0)  # PostgreSQL advisory lock (class, key) of the budget check
+
+
+def lock_new_experiments(conn: Connection) -> None:
+    """Hold, until ``conn``'s transaction ends, the lock that new experiments take: two
+    requests that each read the unfinished work (``unfinished_work``), find room under the
+    server budget and insert would otherwise both pass before either inserts. PostgreSQL: a
+    transaction advisory lock (``BUDGET_LOCK``). SQLite: the write lock, taken by an UPDATE
+    that changes nothing (pysqlite begins a transaction at the first write, so the reads
+    after it see every experiment committed before; another writer waits its
+    ``busy_timeout``)."""
+    if conn.dialect.name == "postgresql":
+        conn.execute(text("SELECT pg_advisory_xact_lock(:lock_class, :key)"),
+                     {"lock_class": BUDGET_LOCK[0], "key": BUDGET_LOCK[1]})
+    elif conn.dialect.name == "sqlite":
+        table = ExperimentRow.__table__
+        conn.execute(update(table).where(table.c.id == -1).values(name=table.c.name))
 
 
 def unfinished_work(conn: Connection) -> list[tuple[dict[str, Any], int]]:
