@@ -34,12 +34,23 @@ BARE_NUMBER = {
 }
 
 
+_NOTES: list[str] = []  # what this command took bare numbers as (``take_notes``)
+
+
 def say_bare_number(reference: str | None, kind: str) -> None:
-    """One ``note:`` line on stderr saying what the bare number ``reference`` was taken as
-    (``kind``: run, individual or experiment); nothing for any other reference."""
+    """Note what the bare number ``reference`` was taken as (``kind``: run, individual or
+    experiment); nothing for any other reference. ``service.cli.main`` prints the notes as
+    ``note:`` lines on stderr when the command ends, or adds them to its one error line."""
     text = (reference or "").strip()
     if text.isdigit():
-        typer.echo(f"note: {text} is taken as {BARE_NUMBER[kind].format(n=int(text))}", err=True)
+        _NOTES.append(f"{text} is taken as {BARE_NUMBER[kind].format(n=int(text))}")
+
+
+def take_notes() -> list[str]:
+    """The notes ``say_bare_number`` made since the last call (and forget them)."""
+    notes = list(_NOTES)
+    _NOTES.clear()
+    return notes
 
 
 def engine_option(default: str):

@@ -123,8 +123,8 @@ def exaptation(
     from softevo.service.db.runs import resolve_run
 
     engine = open_database(db, create=False)
-    say_bare_number(reference, "run")
     with engine.connect() as conn:
+        say_bare_number(reference, "run")
         summary = summary_of(conn, resolve_run(conn, reference))
     if as_json:
         typer.echo(json.dumps(summary, indent=1))

@@ -13,7 +13,15 @@ from typing import Any
 from sqlalchemy import Connection, Table, func, select, update
 
 from softevo.errors import UserError
-from softevo.service.db.models import EvaluationRow, ExperimentRow, RunRow, RunStatus, TreatmentRow, utcnow
+from softevo.service.db.models import (
+    EvaluationRow,
+    ExperimentRow,
+    IndividualRow,
+    RunRow,
+    RunStatus,
+    TreatmentRow,
+    utcnow,
+)
 from softevo.service.db.rows import columns, dict_rows
 from softevo.service.db.run_tree import BIRTH, NODE_OBJECTIVES
 from softevo.service.db.status import run_summary_select, with_best_by_world
@@ -203,6 +211,9 @@ def resolve_individual(conn: Connection, reference: str) -> int:
     in its last world (``best_per_world``); UserError if there is none."""
     text = reference.strip()
     if text.isdigit():
+        individuals = IndividualRow.__table__
+        if conn.execute(select(individuals.c.id).where(individuals.c.id == int(text))).first() is None:
+            raise UserError(f"no individual {int(text)}")
         return int(text)
     run_id = resolve_run(conn, text)
     best = best_per_world(conn, run_id)

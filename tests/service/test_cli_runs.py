@@ -186,5 +186,8 @@ def test_a_bare_number_says_what_it_was_taken_as(capsys, tmp_path):
     code, _, err = softevo(capsys, "export", "1", "--out", str(tmp_path / "out"), "--db", db)
     assert code == 0 and "note: 1 is taken as run 1" in err, err
     assert softevo(capsys, "best", "r1", "--db", db)[2] == ""  # a prefixed id needs no note
+    code, _, err = softevo(capsys, "lineage", "999999", "--db", db)  # an error says it in its one line
+    assert code == 2 and err == ("error: no individual 999999 (999999 is taken as individual 999999; "
+                                 "r999999 names run 999999's best individual)\n"), err
     code, _, err = softevo(capsys, "report", "r1", "--out", str(tmp_path / "report"), "--db", db)
     assert code == 2 and err == "error: 'r1' names a run, not an experiment; run 1 is in experiment e1\n", err
