@@ -83,6 +83,10 @@ class Services:
                 settings.queue, connection=connect(settings.redis_url), serializer=JSONSerializer
             )
             self.executor_kind = "rq"
+        redis_away = not self.redis_reachable()
+        if redis_away:  # one line now; the loop stays quiet until it is back
+            log.warning("Redis cannot be reached (SOFTEVO_REDIS_URL): new experiments are refused (503) "
+                        "and runs wait until it answers; this server goes on by itself then")
         if not settings.coordinator:
             return
         self.executor = self._make_executor()
@@ -91,6 +95,8 @@ class Services:
         else:
             locks = DatabaseLocks(self.engine)  # two serve on one database: one drives a run
         self.loop = CoordinatorLoop(self.engine, self.executor, locks, stop=self.stop)
+        if redis_away:
+            self.loop.away = "Redis"
         self.loop.start()
 
     def _make_executor(self):
@@ -137,6 +143,15 @@ class Services:
         if self.executor is not None:
             return int(self.executor.workers), 0, True
         return 0, 0, True
+
+    def redis_reachable(self) -> bool:
+        """Whether the Redis the runs' jobs go through answers (True without one)."""
+        if self._status_queue is None:
+            return True
+        try:
+            return bool(self._status_queue.connection.ping())
+        except Exception:  # noqa: BLE001 - any failure to answer is "unreachable"
+            return False
 
     def cancel(self, run_id: int) -> None:
         if self.loop is not None:
