@@ -304,6 +304,7 @@ def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
         # empty body (survivors are never simulated again in their world: Evolution.ask)
         "reused": run.algorithm.not_simulated["reused"],
         "empty_bodies": run.algorithm.not_simulated["empty"],
+        "passive_bodies": run.algorithm.not_simulated["passive"],  # no active voxel: distance 0
         "mean_voxel_count": float(np.mean([_traits(run, i)["voxel_count"] for i in population])),
         "mean_active_share": float(np.mean([_traits(run, i)["active_share"] for i in population])),
         "best_local_id": population[int(np.argmax(distances))].id,
