@@ -16,7 +16,7 @@ from the frames read):
   (run_id, generation, individual_id, front_rank), each member with the traits of its
   latest evaluation at or before that generation (after an environment switch: the one in
   the new environment);
-- ``evaluations``: every evaluation of those members (``INDIVIDUAL_COLUMNS``) with
+- ``evaluations``: every evaluation of those members (``service.storage.export.individual_columns``) with
   ``treatment`` and ``repetition``.
 
 Only those generations' populations are read: a paper-scale experiment stores tens of
@@ -27,7 +27,7 @@ Comparisons are made at matched generations (``analysis.matching``): ``run_value
 one value per run at generation ``g`` (the unit of every statistic), ``display_populations``
 the members each treatment is shown with.
 
-Trait columns are ``TRAITS``: distance (voxel lengths), active_share, voxel_count,
+Trait columns are ``evolution.traits.names()``: distance (voxel lengths), active_share, voxel_count,
 frequency (Hz), branching, shape_entropy (bits), symmetry.
 """
 
@@ -100,6 +100,12 @@ class ExperimentData:
         """The generation treatment ``name`` is shown at."""
         return matching.display_generation(self.treatments, self.runs, name)
 
+    @property
+    def left_out_note(self) -> str | None:
+        """Which runs stopped before their treatment's compared generation and are left out
+        of the summary and the tests (``analysis.matching.left_out_note``), or None."""
+        return matching.left_out_note(self.treatments, self.runs)
+
     def _per_treatment(self, frame_at) -> pd.DataFrame:
         parts = []
         for name in self.treatment_names:
@@ -130,7 +136,7 @@ def experiment_data(
 ) -> ExperimentData:
     """An ``ExperimentData`` from the frames as read: ``runs`` with run_id, treatment and
     repetition; ``members`` the end populations (run_id, generation, individual_id,
-    front_rank); ``evaluations`` every evaluation of those members (``INDIVIDUAL_COLUMNS``).
+    front_rank); ``evaluations`` every evaluation of those members (one row per evaluation).
     Adds the treatment and repetition labels and each member's traits."""
     labels = runs[["run_id", "treatment", "repetition"]]
     evaluations = evaluations.merge(labels, on="run_id", how="left")

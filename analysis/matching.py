@@ -106,9 +106,39 @@ def static_names(treatments: pd.DataFrame) -> list[str]:
 
 
 def last_common_generation(runs: pd.DataFrame, names: Iterable[str]) -> int | None:
-    """The last generation every started run of the treatments ``names`` has stored."""
+    """The last generation every finished run of the treatments ``names`` has stored (every
+    started run's, while none has finished). A run that stopped earlier (cancelled, failed,
+    or still running behind the finished ones) is left out there (``left_out_runs``), so
+    that one run cancelled at generation 0 does not pull the comparison back to 0."""
     started = runs[runs["treatment"].isin(list(names)) & (runs["generation"] >= 0)]
+    if "status" in started.columns and (started["status"] == "finished").any():
+        started = started[started["status"] == "finished"]
     return None if started.empty else int(started["generation"].min())
+
+
+def left_out_runs(treatments: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
+    """The runs (rows of ``runs``) that have not stored the generation their treatment is
+    shown at (``display_generation``): they are missing from its summary and tests."""
+    shown = {name: display_generation(treatments, runs, name) for name in treatments["name"]}
+    behind = [
+        shown.get(row.treatment) is not None and row.generation < shown[row.treatment]
+        for row in runs[["treatment", "generation"]].itertuples(index=False)
+    ]
+    return runs[np.array(behind, dtype=bool)] if len(runs) else runs
+
+
+def left_out_note(treatments: pd.DataFrame, runs: pd.DataFrame) -> str | None:
+    """One sentence naming the runs ``left_out_runs`` leaves out, or None for none."""
+    left = left_out_runs(treatments, runs)
+    if left.empty:
+        return None
+    named = ", ".join(
+        f"r{int(row.run_id)} ({row.treatment}, {row.status} after generation {int(row.generation)})"
+        if row.generation >= 0 else f"r{int(row.run_id)} ({row.treatment}, {row.status}, nothing stored)"
+        for row in left.itertuples(index=False)
+    )
+    return (f"{len(left)} run(s) stopped before the generation their treatment is compared at (the last "
+            f"one its finished runs share) and are left out of the summary and the tests: {named}")
 
 
 def static_generation(treatments: pd.DataFrame, runs: pd.DataFrame) -> int | None:

@@ -116,6 +116,21 @@ def sample_size_warning(data: ExperimentData) -> str | None:
     )
 
 
+def failed_runs_warning(data: ExperimentData) -> str | None:
+    """Which runs failed, and why (the run's stored error), or None."""
+    runs = data.runs
+    if "status" not in runs.columns:
+        return None
+    failed = runs[runs["status"] == "failed"]
+    if failed.empty:
+        return None
+    reasons = "; ".join(
+        f"r{int(row.run_id)} ({row.treatment}): {getattr(row, 'error', None) or 'no reason stored'}"
+        for row in failed.itertuples(index=False)
+    )
+    return f"{len(failed)} of {len(runs)} run(s) failed: {reasons}"
+
+
 # ---- document model: blocks rendered to Markdown and to HTML ----------------------------------
 @dataclass
 class Document:
@@ -466,9 +481,9 @@ def write_report(
     if data.generations.empty:
         raise UserError(f"experiment e{data.experiment['id']} has no stored generation yet")
     out = _output_dir(out_dir)
-    note = sample_size_warning(data)
-    if note is not None:
-        warnings.warn(note, ReportWarning, stacklevel=2)
+    for note in (failed_runs_warning(data), sample_size_warning(data), data.left_out_note):
+        if note is not None:
+            warnings.warn(note, ReportWarning, stacklevel=2)
     figures_dir = out / "figures"
     animation = animation and robots is not None
     with _steps(9 if animation else 8, progress) as step:
@@ -609,8 +624,9 @@ def build_document(
     if evaluation is not None:
         doc.paragraph(evaluation)
     note = sample_size_warning(data)
-    if note is not None:
-        doc.paragraph(f"Warning: {note}.")
+    for warning in (failed_runs_warning(data), note, data.left_out_note):
+        if warning is not None:
+            doc.paragraph(f"Warning: {warning}.")
     doc.heading("Objectives")
     doc.paragraph(
         "What each treatment's selection optimises, with each objective's mean and best over "
@@ -647,6 +663,8 @@ def build_document(
     doc.heading("Statistics")
     if note is not None:
         doc.paragraph(f"Warning: {note}.")
+    if data.left_out_note is not None:
+        doc.paragraph(f"Warning: {data.left_out_note}.")
     doc.paragraph(METHODS)
     doc.table(_statistics_display(stats))
     return doc

@@ -415,7 +415,9 @@ def summary_table(data: ExperimentData) -> pd.DataFrame:
     ``frequency_active``, or ``passive_share``: the share of robots without an active
     voxel)."""
     values = _Values(data)
-    metrics = distinct_metrics(data)
+    # every metric constant (one run of one generation, e.g. a run failed at generation 0):
+    # the primary measure alone, so that the summary still shows it
+    metrics = distinct_metrics(data) or all_metrics()[:1]
     parts = []
     for name, generation in shown_generations(data):
         for metric in metrics:

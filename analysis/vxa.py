@@ -37,7 +37,10 @@ TempPeriod is 1 / frequency. Only the sine waveform exists there, and one period
 ``frequency_field`` of several values the file has their mean (a ``VxaWarning`` says so).
 Fixed voxels, forces and initial velocities are not exported (a warning names them), nor
 are the model's other switches (rotation damping, drag model, ...): the fork runs its own
-physics, which is ``"model": "voxcad-land-water"``.
+physics, which is ``"model": "voxcad-land-water"``. A scene of another model (``voxelyze-2``,
+``softevo run``'s default) is written all the same, with a ``VxaWarning`` and an XML comment
+saying so, which ``softevo import-vxa`` turns into a warning again: re-imported, such a robot
+runs the paper's physics and its distance differs from the stored one.
 """
 
 from __future__ import annotations
@@ -358,14 +361,31 @@ def _warn_unexported(scene) -> None:
         warnings.warn(f"not in the VXA file: {', '.join(left_out)}", VxaWarning, stacklevel=3)
 
 
+EXPORTED_FROM = "softevo: written from a "  # the comment that names another model's scene
+VXA_MODEL = "voxcad-land-water"  # the physics a .vxa file holds: the paper's engine
+
+
+def _other_model_note(scene) -> str | None:
+    """What a reader must know when ``scene``'s model is not the one a VXA file holds (a
+    ``VxaWarning`` now, a comment in the file that ``softevo import-vxa`` warns about), or None."""
+    if scene.model == VXA_MODEL:
+        return None
+    note = (f"a .vxa file holds the paper's engine ({VXA_MODEL}), so VoxCAD, evosoro and softevo "
+            f"import-vxa simulate this {scene.model} robot with other physics: its distance differs")
+    warnings.warn(f"the robot's model is {scene.model}: {note}", VxaWarning, stacklevel=3)
+    return note
+
+
 def scene_to_vxa(scene: dict[str, Any]) -> str:
     """The ``.vxa`` document of a simulator scene (docs/spec.md section 1 schema)."""
     from softevo import sim
 
     parsed = sim.parse_scene(scene)
     _warn_unexported(parsed)
+    other_model = _other_model_note(parsed)
     lines = [
         '<?xml version="1.0" encoding="ISO-8859-1"?>',
+        *([f"<!-- {EXPORTED_FROM}{parsed.model} scene: {other_model} -->"] if other_model else []),
         '<VXA Version="1.1">',
         *_simulator(parsed, "  "),
         *_environment(parsed, "  "),

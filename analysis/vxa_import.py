@@ -50,6 +50,7 @@ from __future__ import annotations
 import base64
 import binascii
 import math
+import re
 import warnings
 import zlib
 from dataclasses import dataclass
@@ -268,6 +269,11 @@ def vxa_to_scene(data: bytes, name: str = "VXA") -> Imported:
             f"{', '.join(unknown)}"
         )
     scene = _scene(file)
+    exported = re.search(rb"<!-- softevo: written from a ([\w.-]+) scene", data)
+    if exported is not None:
+        file.warn(f"this file was written from a {exported.group(1).decode()} robot: imported, it runs the "
+                  f"paper's engine ({scene.get('model', 'voxcad-land-water')}), so its distance differs "
+                  f"from the stored one")
     from softevo.sim import SceneError, parse_scene
 
     try:

@@ -30,7 +30,15 @@ simulated again in the world they were evaluated in: ``ask`` hands out only this
 generation's new individuals (all of them, survivors included, after ``reevaluate_all``
 moved the population to a new world) and refuses to hand out a survivor (RuntimeError).
 ``not_simulated`` counts this generation's individuals evaluated without a simulation
-(``reused`` from a living twin, ``empty`` bodies, rejected ones included).
+(``reused`` from a living twin, ``empty`` bodies, rejected ones included, and ``passive``
+bodies).
+
+A passive body (no active voxel) is not simulated: it travels ``PASSIVE_DISTANCE`` (0), a
+valid evaluation. It cannot move itself; what a simulation measures for it is its fall: a
+tall body that topples after settling travels about 1.6 voxel lengths, and with the least
+active share it would sit on the Pareto front of distance against active share. Robots
+with active voxels that topple still count their fall (the settling time is the world's,
+``sim.worlds.World.settle_seconds``): detecting that in the simulator is left open.
 
 The whole state (including the random generator) is JSON: ``state_to_json`` /
 ``from_state_json``; a resumed run continues exactly as the uninterrupted one.
@@ -67,6 +75,8 @@ from softevo.sim import models
 
 ALGORITHMS = ("afpo", "pareto")  # the algorithms (EvolutionConfig.mode): see the module doc
 PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
+
+PASSIVE_DISTANCE = 0.0  # a body without an active voxel: it cannot move itself (issue 49.7)
 
 
 @dataclass(frozen=True)
@@ -160,7 +170,7 @@ class Evolution:
         self.population: list[Individual] = []  # evaluated survivors
         self.pending: list[Individual] = []  # this generation's individuals awaiting results
         self.started = False
-        self.not_simulated = {"reused": 0, "empty": 0}  # of this generation (not in the state)
+        self.not_simulated = {"reused": 0, "empty": 0, "passive": 0}  # of this generation (not in the state)
 
     # ---- ask / tell ------------------------------------------------------------------------
     def ask(self) -> list[Individual]:
@@ -206,7 +216,7 @@ class Evolution:
             ind.clear_evaluation()
         self.population, self.pending = [], everyone
         self.started = True
-        self.not_simulated = {"reused": 0, "empty": 0}
+        self.not_simulated = {"reused": 0, "empty": 0, "passive": 0}
         self._fill_known()
 
     @property
@@ -240,11 +250,12 @@ class Evolution:
         if self.config.mode == "afpo" or not self.population:
             offspring.append(self._newcomer())
         self.pending = offspring
-        self.not_simulated = {"reused": 0, "empty": 0}
+        self.not_simulated = {"reused": 0, "empty": 0, "passive": 0}
 
     def _fill_known(self) -> None:
         """Evaluate without simulation: empty bodies and bodies the encoding rejects fail
-        (both counted as ``empty`` in ``not_simulated``), known phenotypes reuse results."""
+        (both counted as ``empty`` in ``not_simulated``), a passive body (no active voxel)
+        travels ``PASSIVE_DISTANCE`` (``passive``), known phenotypes reuse results."""
         known = {
             ind.phenotype(self.config.encoding).phenotype_hash(): ind
             for ind in self.population
@@ -261,6 +272,11 @@ class Evolution:
             elif self.config.encoding.rejects_invalid and not is_viable(phenotype, self.config.encoding):
                 self._record(ind, Evaluation(FAILED_DISTANCE, False, "invalid body"))
                 self.not_simulated["empty"] += 1
+            elif phenotype.active_share == 0:
+                # no active voxel: it cannot move itself, and what a simulation would measure is
+                # its fall (a tower toppling after settling travels 1.6 voxel lengths): 0
+                self._record(ind, Evaluation(PASSIVE_DISTANCE, True, None))
+                self.not_simulated["passive"] += 1
             elif twin is not None:
                 self.not_simulated["reused"] += 1
                 ind.objectives = dict(twin.objectives)

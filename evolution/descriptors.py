@@ -391,13 +391,27 @@ def _entropy_of(counts: np.ndarray) -> float:
     return float(max(0.0, -(p * np.log2(p)).sum()))
 
 
+def _voxel_array(body: Any) -> np.ndarray:
+    """``body`` as an array, or ValueError saying what a body is (not NumPy's own words)."""
+    try:
+        array = np.asarray(body)
+    except ValueError:  # ragged nested lists
+        array = np.asarray(None)
+    if array.dtype.kind not in "biuf" or array.ndim != 3 or not np.isin(array, (0, 1, 2)).all():
+        shown = repr(body) if len(repr(body)) <= 40 else f"{repr(body)[:37]}..."
+        raise ValueError(f"body must be a 3-D array body[x][y][z] of 0 (empty), 1 (passive) "
+                         f"and 2 (active) (got {shown})")
+    return array
+
+
 def describe(body: np.ndarray, frequency: float | None = None) -> dict[str, Any]:
     """All descriptors of a body's largest face-connected component (what gets simulated).
 
     Keys: symmetry, branching, shape_entropy, voxel_count, active_share (+ frequency in Hz
     when given). An empty body gives voxel_count 0 and the shape descriptors as None.
+    ValueError for anything but a 3-D array of 0 (empty), 1 (passive) and 2 (active).
     """
-    body = np.asarray(body)
+    body = _voxel_array(body)
     return describe_component(np.where(largest_component(body > 0), body, 0), frequency)
 
 

@@ -83,6 +83,17 @@ STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
 
 
+def _check_objective_names(names: Sequence[str]) -> None:
+    """UserError naming the first of ``names`` that is no registered objective."""
+    from softevo.evolution.selection import objective_named
+
+    for name in names:
+        try:
+            objective_named(name)
+        except ValueError as exc:
+            raise UserError(f"objectives: {exc}") from None
+
+
 @dataclass(frozen=True)
 class Treatment:
     """One treatment; defaults are the paper-like evaluation settings (docs/physics.md)."""
@@ -160,6 +171,7 @@ class Treatment:
         if not all(isinstance(n, str) and n for n in self.objectives):
             raise UserError(f"objectives must be names (got {self.objectives!r})")
         if self.objectives and "distance" not in self.objectives:
+            _check_objective_names(self.objectives)  # a misspelt name says so, not "must include"
             raise UserError(f"objectives must include distance (got {', '.join(self.objectives)})")
 
     def _validate_switch(self) -> None:
@@ -167,7 +179,7 @@ class Treatment:
         if isinstance(over, bool) or not isinstance(over, int) or over < 0:
             raise UserError(f"switch_over must be an integer >= 0 (got {over!r})")
         if over and not environments.is_transition(self.environment):
-            raise UserError(f"--switch-over needs a transition environment (got {self.environment})")
+            raise UserError(f"switch_over needs a transition environment (got {self.environment})")
         if over and self.switch_generation() + over >= self.generations:
             raise UserError(
                 f"the switch-over ends at generation {self.switch_generation() + over}: "
@@ -176,7 +188,7 @@ class Treatment:
         if self.switch_at is None:
             return
         if not environments.is_transition(self.environment):
-            raise UserError(f"--switch-at needs a transition environment (got {self.environment})")
+            raise UserError(f"switch_at needs a transition environment (got {self.environment})")
         if not 1 <= self.switch_at < self.generations:
             raise UserError(f"switch_at must be within 1..{self.generations - 1} (got {self.switch_at})")
 

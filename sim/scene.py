@@ -40,6 +40,7 @@ the fork reads its files' TempAmp 39, TempBase 25, CTE 0.01 as 0.14 strain).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -275,6 +276,9 @@ def parse_scene(data: Any) -> Scene:
     """Validate a scene document (a dict from JSON) and return a Scene with defaults filled."""
     if isinstance(data, Scene):
         return data
+    if isinstance(data, str | os.PathLike):
+        raise SceneError(f"scene: must be a dict, the JSON object itself (got the {type(data).__name__} "
+                         f"{str(data)[:60]!r}; a file: json.load it first, or softevo simulate FILE)")
     if not isinstance(data, dict):
         raise SceneError(f"scene: must be a JSON object (got {type(data).__name__})")
     unknown = sorted(set(data) - _TOP_FIELDS)

@@ -19,7 +19,7 @@ from typing import Any
 
 from fastapi import APIRouter, FastAPI, HTTPException, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, RedirectResponse, Response
 from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeout
@@ -31,6 +31,7 @@ from softevo import __version__
 from softevo.errors import UserError
 from softevo.service.api import docs_page
 from softevo.service.api.dashboard import dashboard_router
+from softevo.service.api.dashboard.pages import not_found
 from softevo.service.api.expensive import Busy, ExpensiveReads
 from softevo.service.api.frames import recorded_frames
 from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
@@ -39,7 +40,7 @@ from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import analyses, experiments, exports, health, individuals, phylogeny, runs
 from softevo.service.api.routes import plan as plan_routes
 from softevo.service.api.routes import worlds as world_routes
-from softevo.service.api.schemas import EXPERIMENT_TAGS
+from softevo.service.api.schemas import problem_line, request_problems
 from softevo.service.reports.report import write_report
 from softevo.service.runs.driver import CoordinatorLoop
 from softevo.service.runs.executors import make_executor
@@ -83,6 +84,10 @@ class Services:
                 settings.queue, connection=connect(settings.redis_url), serializer=JSONSerializer
             )
             self.executor_kind = "rq"
+        redis_away = not self.redis_reachable()
+        if redis_away:  # one line now; the loop stays quiet until it is back
+            log.warning("Redis cannot be reached (SOFTEVO_REDIS_URL): new experiments are refused (503) "
+                        "and runs wait until it answers; this server goes on by itself then")
         if not settings.coordinator:
             return
         self.executor = self._make_executor()
@@ -91,6 +96,8 @@ class Services:
         else:
             locks = DatabaseLocks(self.engine)  # two serve on one database: one drives a run
         self.loop = CoordinatorLoop(self.engine, self.executor, locks, stop=self.stop)
+        if redis_away:
+            self.loop.away = "Redis"
         self.loop.start()
 
     def _make_executor(self):
@@ -138,6 +145,15 @@ class Services:
             return int(self.executor.workers), 0, True
         return 0, 0, True
 
+    def redis_reachable(self) -> bool:
+        """Whether the Redis the runs' jobs go through answers (True without one)."""
+        if self._status_queue is None:
+            return True
+        try:
+            return bool(self._status_queue.connection.ping())
+        except Exception:  # noqa: BLE001 - any failure to answer is "unreachable"
+            return False
+
     def cancel(self, run_id: int) -> None:
         if self.loop is not None:
             self.loop.request_cancel(run_id)
@@ -173,28 +189,17 @@ def _error(status: int, message: str, headers: dict | None = None, **extra) -> J
     return JSONResponse({"detail": message, **extra}, status_code=status, headers=headers)
 
 
-def _location(loc) -> str:
-    return ".".join(str(part) for part in loc)
+async def _validation_error(request: Request, exc: RequestValidationError) -> Response:
+    errors = request_problems(exc.errors())
+    if _dashboard_page(request):  # /dashboard/runs/abc: a page that says so, not JSON
+        return not_found(request, f"There is no page {request.url.path} ({problem_line(errors)}).")
+    return _error(422, problem_line(errors), errors=errors)
 
 
-async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
-    errors = []
-    for error in exc.errors():
-        loc = [str(part) for part in error.get("loc", ())]
-        if len(loc) > 1 and loc[0] == "body" and loc[1] in EXPERIMENT_TAGS:
-            del loc[1]  # the union's tag (which kind of experiment body), not a field
-        errors.append(
-            {
-                "loc": loc,
-                "msg": str(error.get("msg", "")),
-                "type": str(error.get("type", "")),
-            }
-        )
-    first = errors[0] if errors else {"loc": [], "msg": "invalid request"}
-    message = f"{_location(first['loc'])}: {first['msg']}" if first["loc"] else first["msg"]
-    if len(errors) > 1:
-        message += f" (and {len(errors) - 1} more problem(s))"
-    return _error(422, message, errors=errors)
+def _dashboard_page(request: Request) -> bool:
+    """Whether ``request`` asks for a dashboard page (HTML), not its JSON helpers or assets."""
+    path = request.url.path
+    return path.startswith("/dashboard/") and not path.startswith(("/dashboard/api/", "/dashboard/static/"))
 
 
 async def _http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -286,6 +291,7 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     app.include_router(plan_routes.router)  # POST, but it stores nothing: read-only servers too
     app.include_router(dashboard_router())  # /dashboard pages and assets
     app.include_router(docs_page.router)  # /docs
+    app.add_api_route("/", _front_door, methods=["GET", "HEAD"], include_in_schema=False)
     app.add_middleware(BodyLimits, max_bytes=settings.max_body_bytes, max_depth=settings.max_json_depth)
     app.add_middleware(ConcurrencyLimit, limit=settings.max_concurrent_requests)
     app.add_middleware(ReadCache, seconds=settings.read_cache_seconds)  # hits wait for nothing
@@ -293,6 +299,12 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     if settings.token_value is None:  # loopback only: refuse DNS-rebinding names (docs/security.md)
         app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.trusted_hosts())
     return app
+
+
+def _front_door(request: Request) -> RedirectResponse:
+    """``/``: the dashboard (the API is at ``/docs``, ``/openapi.json``)."""
+    root = request.scope.get("root_path", "").rstrip("/")
+    return RedirectResponse(f"{root}/dashboard/", status_code=307)
 
 
 def _reads_of(router: APIRouter) -> APIRouter:

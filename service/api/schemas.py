@@ -26,6 +26,7 @@ from softevo.evolution import environments
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS
 from softevo.evolution.treatments import ALGORITHMS, SCALES, Treatment, model_names
 from softevo.service.runs.executors import EXECUTOR_KINDS
+from softevo.service.runs.limits import MAX_EVALUATION_SECONDS, MAX_WORKSPACE_SIDE, TREATMENT_BOUNDS
 from softevo.service.storage.models import RunStatus
 
 MAX_INT32 = 2**31 - 1
@@ -127,14 +128,17 @@ class TreatmentIn(Strict):
         description="generations of a gradual switch: compound worlds whose evaluations spend a "
         "rising share of their cycles in the second environment (0: abrupt)")
     stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
-    population: int = Field(Treatment.population, ge=2, le=10_000)
-    generations: int = Field(Treatment.generations, ge=1, le=1_000_000)
-    workspace: list[Annotated[int, Field(ge=1, le=32)]] = Field(
+    population: int = Field(Treatment.population, ge=TREATMENT_BOUNDS["population"][0],
+                            le=TREATMENT_BOUNDS["population"][1])
+    generations: int = Field(Treatment.generations, ge=TREATMENT_BOUNDS["generations"][0],
+                             le=TREATMENT_BOUNDS["generations"][1])
+    workspace: list[Annotated[int, Field(ge=1, le=MAX_WORKSPACE_SIDE)]] = Field(
         list(Treatment.workspace), min_length=3, max_length=3, description="voxels along x, y, z"
     )
-    cycles: int = Field(Treatment.cycles, ge=1, le=10_000, description="actuation cycles per evaluation")
+    cycles: int = Field(Treatment.cycles, ge=TREATMENT_BOUNDS["cycles"][0], le=TREATMENT_BOUNDS["cycles"][1],
+                        description="actuation cycles per evaluation")
     max_seconds: float | None = Field(
-        Treatment.max_seconds, gt=0, le=3600, allow_inf_nan=False,
+        Treatment.max_seconds, gt=0, le=MAX_EVALUATION_SECONDS, allow_inf_nan=False,
         description="the most seconds an evaluation lasts, settling not counted (null: its cycles "
         "alone; the paper's scripts: 4.5)")
     repetitions: int = Field(1, ge=1, le=1000)
@@ -200,6 +204,31 @@ def _experiment_kind(value: Any) -> str:
 
 
 EXPERIMENT_TAGS = ("treatments", "preset")  # where a request's errors are (see app.py)
+
+
+def request_problems(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """pydantic's ``errors()`` of a request, as a person reads them: each ``loc`` without the
+    union's tag (which kind of experiment body: no field of it), each ``msg`` without
+    pydantic's "Value error, " prefix, and the problems with values given before the fields
+    left out (a body with no ``name`` and a wrong treatment leads with the treatment)."""
+    problems = []
+    for error in errors:
+        loc = [str(part) for part in error.get("loc", ())]
+        at = 1 if loc[:1] == ["body"] else 0
+        if len(loc) > at and loc[at] in EXPERIMENT_TAGS:
+            del loc[at]
+        msg = str(error.get("msg", "")).removeprefix("Value error, ")
+        problems.append({"loc": loc, "msg": msg, "type": str(error.get("type", ""))})
+    return sorted(problems, key=lambda problem: problem["type"] == "missing")
+
+
+def problem_line(problems: list[dict[str, Any]]) -> str:
+    """The first of ``problems`` (``request_problems``) in one line, with how many more."""
+    first = problems[0] if problems else {"loc": [], "msg": "invalid request"}
+    message = f"{'.'.join(first['loc'])}: {first['msg']}" if first["loc"] else first["msg"]
+    if len(problems) > 1:
+        message += f" (and {len(problems) - 1} more problem(s))"
+    return message
 ExperimentRequest = Annotated[
     Annotated[ExperimentIn, Tag("treatments")] | Annotated[PresetIn, Tag("preset")],
     Discriminator(_experiment_kind),

@@ -15,6 +15,8 @@ import sys
 
 import typer
 
+from softevo.service.cli.options import take_notes
+
 app = typer.Typer(
     name="softevo",
     help="Evolve soft voxel robots on land and in water.",
@@ -75,13 +77,17 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``softevo`` console script."""
     _register()
     user_errors = _user_error_types()
+    take_notes()
     try:
         from softevo.plugins import load_plugins
 
         load_plugins()  # SOFTEVO_PLUGINS: traits, objectives, worlds a deployment registers
-        app(args=argv, standalone_mode=False)
+        # standalone_mode=False: click returns a ``typer.Exit``'s code instead of exiting
+        # (Ctrl-C during a run: 130, so ``softevo run ... && softevo report`` stops there)
+        code = app(args=argv, standalone_mode=False)
     except user_errors as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        notes = "; ".join(take_notes())  # what a bare number was taken as, in the one line
+        print(f"error: {exc}" + (f" ({notes})" if notes else ""), file=sys.stderr)
         sys.exit(2)
     except typer.Abort:
         print("aborted", file=sys.stderr)
@@ -93,4 +99,8 @@ def main(argv: list[str] | None = None) -> None:
                 print(usage_error_line(exc.format_message()), file=sys.stderr)
             sys.exit(2)
         raise
+    for note in take_notes():
+        print(f"note: {note}", file=sys.stderr)
+    if isinstance(code, int) and not isinstance(code, bool) and code:
+        sys.exit(code)
 

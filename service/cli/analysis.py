@@ -28,7 +28,7 @@ import typer
 
 from softevo.errors import UserError
 from softevo.evolution import environments
-from softevo.service.cli.options import INDIVIDUAL_HELP, DbOption, JsonOption
+from softevo.service.cli.options import INDIVIDUAL_HELP, DbOption, JsonOption, say_bare_number
 from softevo.service.cli.runs import one_individual
 
 EnvironmentOption = Annotated[
@@ -53,6 +53,7 @@ def report(
     from softevo.analysis.report import ReportWarning
     from softevo.service.reports.report import write_report
 
+    say_bare_number(experiment, "experiment")
     with _warning_lines(ReportWarning):
         result = write_report(db, experiment, out, animation=animation, progress=not quiet)
     typer.echo(str(result.html))
@@ -186,6 +187,7 @@ def power(
     )
     settings.validate()
     engine = engine_of(db)
+    say_bare_number(experiment, "experiment")
     with engine.connect() as conn:
         experiment_id = resolve_experiment(conn, experiment)
     data = load_experiment(engine, experiment_id)

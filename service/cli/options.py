@@ -24,6 +24,35 @@ JsonOption = Annotated[bool, typer.Option("--json", help="print JSON")]
 RunArgument = Annotated[str, typer.Argument(metavar="RUN", help=RUN_HELP)]
 
 
+# What a bare number (``5``) names, per kind of argument, and how to name the others: a
+# bare number is a run in best/status/export, an individual in lineage and an experiment in
+# report, so each command says what it took it as (issue 49.5).
+BARE_NUMBER = {
+    "run": "run {n}; e{n} names experiment {n}",
+    "individual": "individual {n}; r{n} names run {n}'s best individual",
+    "experiment": "experiment {n}; r{n}'s experiment: softevo status r{n}",
+}
+
+
+_NOTES: list[str] = []  # what this command took bare numbers as (``take_notes``)
+
+
+def say_bare_number(reference: str | None, kind: str) -> None:
+    """Note what the bare number ``reference`` was taken as (``kind``: run, individual or
+    experiment); nothing for any other reference. ``service.cli.main`` prints the notes as
+    ``note:`` lines on stderr when the command ends, or adds them to its one error line."""
+    text = (reference or "").strip()
+    if text.isdigit():
+        _NOTES.append(f"{text} is taken as {BARE_NUMBER[kind].format(n=int(text))}")
+
+
+def take_notes() -> list[str]:
+    """The notes ``say_bare_number`` made since the last call (and forget them)."""
+    notes = list(_NOTES)
+    _NOTES.clear()
+    return notes
+
+
 def engine_option(default: str):
     """``--engine NAME``, its default said as ``default``."""
     return Annotated[str | None, typer.Option("--engine", help=f"{ENGINES}; {default}")]

@@ -25,7 +25,7 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
-from softevo.service.cli.options import DbOption, JsonOption, RunArgument
+from softevo.service.cli.options import DbOption, JsonOption, RunArgument, say_bare_number
 
 PAGE = 10_000
 PHYLOGENY_COLUMNS = (
@@ -68,6 +68,7 @@ def phylogeny(
     if generation is not None and generation < 0:
         raise UserError(f"--generation must be >= 0 (got {generation})")
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     rows = []
     with engine.connect() as conn:
         run_id = resolve_run(conn, reference)
@@ -123,6 +124,7 @@ def exaptation(
 
     engine = open_database(db, create=False)
     with engine.connect() as conn:
+        say_bare_number(reference, "run")
         summary = summary_of(conn, resolve_run(conn, reference))
     if as_json:
         typer.echo(json.dumps(summary, indent=1))

@@ -42,15 +42,16 @@ def spec_treatments(body, where: str = "spec"):
     from pydantic import TypeAdapter, ValidationError
 
     from softevo.service.api.requests import request_treatments
-    from softevo.service.api.schemas import ExperimentRequest
+    from softevo.service.api.schemas import ExperimentRequest, problem_line, request_problems
 
     try:
         request = TypeAdapter(ExperimentRequest).validate_python(body, strict=False)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        location = ".".join(str(part) for part in first["loc"])
-        raise UserError(f"{where}: {location}: {first['msg']}") from None
-    return request_treatments(request)
+        raise UserError(f"{where}: {problem_line(request_problems(exc.errors()))}") from None
+    try:
+        return request_treatments(request)
+    except UserError as exc:
+        raise UserError(f"{where}: {exc}") from None
 
 
 def plan(
@@ -74,7 +75,7 @@ def plan(
     as_json: JsonOption = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
-    from softevo.service.plan import model as planner
+    from softevo.service.plan.model import model as planner
     from softevo.worker.physics import MEASURED
     from softevo.worker.physics import measure as measure_rates
 
@@ -86,35 +87,89 @@ def plan(
     cost = MEASURED
     if measure:
         cost = measure_rates(planner.scenes_for_measure(treatments), repeats=1)
-    result = planner.plan(
-        treatments, cores=cores, gpus=gpus, cost=cost, coordinators=coordinators, executor=executor
-    )
-    typer.echo(json.dumps(result.to_json(), indent=2) if as_json else plan_text(result))
+    def planned(n: int):
+        return planner.plan(treatments, cores=cores, gpus=gpus, cost=cost, coordinators=n, executor=executor)
+
+    result = planned(coordinators)
+    more = None  # coordinator-bound: the plan with as many coordinators as keep each under 80%
+    if coordinator_bound(result):
+        more = planned(result.coordinators_needed())
+    if as_json:
+        typer.echo(json.dumps(result.to_json(), indent=2))
+        return
+    typer.echo(plan_text(result, more))
 
 
-def plan_text(result) -> str:
-    """The plan as a table per treatment and the totals, with units."""
+def coordinator_bound(result) -> bool:
+    """Whether the coordinators limit the plan: busy over 80% of the time, and more of them
+    would keep each under it."""
+    from softevo.service.plan.model import COORDINATOR_TARGET
+
+    return result.coordinator_utilisation > COORDINATOR_TARGET and result.coordinators_needed() > result.coordinators
+
+
+def plan_text(result, more=None) -> str:
+    """The plan as a table per treatment and the totals, with units. Each treatment's core-
+    (GPU-) hours are its share of the total, in proportion to its evaluations' own seconds
+    (voxel-steps on GPUs), so that the column adds up to the total; ``more``: the plan with
+    as many coordinators as ``result`` needs, when it is coordinator-bound."""
+    unit = "core-h" if result.cores else "GPU-h"
+    total_hours = result.core_hours if result.cores else result.gpu_hours
+    weights = [t.core_seconds if result.cores else t.voxel_steps for t in result.treatments]
     rows = [f"{'treatment':<24} {'runs':>5} {'gens':>6} {'evaluations':>12} {'s/eval mean (p90)':>20} "
-            f"{'core-h':>9} {'DB GB':>7}"]
-    for t in result.treatments:
+            f"{unit:>9} {'DB GB':>7}"]
+    for t, weight in zip(result.treatments, weights, strict=True):
         spread = " ".join(f"{v['mean']:.3g} ({v['p90']:.3g})" for v in t.seconds_per_evaluation.values())
+        share = total_hours * weight / sum(weights) if sum(weights) else 0.0
         rows.append(f"{t.name:<24} {t.runs:>5} {t.generations:>6} {t.evaluations:>12,} {spread:>20} "
-                    f"{t.core_seconds / 3600:>9.3g} {t.database_bytes / GB:>7.3g}")
+                    f"{share:>9.3g} {t.database_bytes / GB:>7.3g}")
+    rows.append(f"{'total':<24} {sum(t.runs for t in result.treatments):>5} {'':>6} {result.evaluations:>12,} "
+                f"{'':>20} {total_hours:>9.3g} {result.database_bytes / GB:>7.3g}")
     device = f"{result.cores} cores" if result.cores else f"{result.gpus} GPUs"
-    hours = f"{result.core_hours:,.4g} core-hours" if result.cores else f"{result.gpu_hours:,.4g} GPU-hours"
+    evaluation_hours = sum(t.core_seconds for t in result.treatments) / 3600
     rows += [
         "",
-        f"on {device} ({result.dispatch} dispatch): wall {result.wall_hours:,.4g} hours, {hours}, "
-        f"utilisation {result.utilisation:.0%}",
+        f"on {device} ({result.dispatch} dispatch): wall {result.wall_hours:,.4g} hours, "
+        f"{total_hours:,.4g} {unit.replace('-h', '-hours')} (wall x {device}), utilisation {result.utilisation:.0%}",
         f"{result.evaluations:,} evaluations, {result.voxel_steps:.3g} voxel-steps, "
         f"database {result.database_bytes / GB:,.3g} GB",
-        f"{result.coordinators} coordinator(s) busy {result.coordinator_utilisation:.0%} of the time; "
-        f"{result.coordinators_needed()} keep(s) each under 80%",
     ]
+    if result.cores:
+        rows.append(f"the evaluations themselves: {evaluation_hours:,.4g} core-hours; the rest of the "
+                    f"{result.core_hours:,.4g} is workers waiting (for the coordinator, a round's "
+                    "slowest job, the start)")
+    rows.append(coordinator_text(result, more))
     if result.gpus:
         rows.append(f"GPU rate {result.cost['gpu_rate']:.2g} voxel-steps/s: {result.cost['gpu_rate_source']}")
+        rows.append(gpu_text(result, evaluation_hours))
     rows += [f"assumes: {note}" for note in result.assumptions]
     return "\n".join(rows)
+
+
+def coordinator_text(result, more=None) -> str:
+    """How busy the coordinators are, and when they limit the plan what more of them give."""
+    busy = f"{result.coordinators} coordinator(s) busy {result.coordinator_utilisation:.0%} of the time"
+    if more is None:
+        return f"{busy}; {result.coordinators_needed()} keep(s) each under 80%"
+    return (f"coordinator-bound ({busy}): --coordinators {more.coordinators} gives about "
+            f"{_hours(more.wall_hours)} (from {_hours(result.wall_hours)})")
+
+
+def gpu_text(result, evaluation_hours: float) -> str:
+    """Why the GPUs take as long as they do, against CPU cores: their voxel-steps per second
+    as a number of this machine's cores, and what a round waits for."""
+    rate = result.cost["gpu_rate"] * result.gpus
+    per_core = result.voxel_steps / (evaluation_hours * 3600) if evaluation_hours else 0.0
+    cores = rate / per_core if per_core else 0.0
+    coordinator = min(1.0, result.coordinator_seconds / result.wall_seconds) if result.wall_seconds else 0.0
+    return (f"why: {result.gpus} GPUs step {rate:.2g} voxel-steps/s in all, as many as about {cores:,.0f} "
+            f"CPU cores at {per_core:.2g} per core; and each round (a generation of every run) waits for "
+            f"its longest robot (a batch steps in lock-step: GPUs busy {result.utilisation:.0%}) and for "
+            f"the coordinator ({coordinator:.0%} of the wall), so more cores than that finish sooner")
+
+
+def _hours(hours: float) -> str:
+    return f"{hours:,.2g} h" if hours >= 1 else f"{hours * 60:,.2g} min"
 
 
 def register(app: typer.Typer) -> None:

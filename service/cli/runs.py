@@ -30,6 +30,7 @@ from softevo.service.cli.options import (
     QuietOption,
     RunArgument,
     WorkersOption,
+    say_bare_number,
 )
 
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
@@ -94,7 +95,9 @@ def _execute(
         raise typer.Exit(130) from None
     finally:
         executor.close()
-    _print_status(engine, run_ids)
+    failed = _print_status(engine, run_ids)
+    if failed:
+        raise typer.Exit(1)  # ``softevo run ... && softevo report ...`` stops at a failed run
 
 
 def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
@@ -174,6 +177,7 @@ def run(
     """Evolve one treatment (one run) and store every individual. The defaults keep the
     quick start's meaning (AFPO, voxelyze-2); ``softevo experiment`` runs the paper's choices."""
     from softevo.evolution.treatments import Treatment
+    from softevo.service.runs.limits import check_treatment
     from softevo.service.runs.submit import create
     from softevo.service.storage import open_database
 
@@ -188,6 +192,7 @@ def run(
         stiffness_range_mpa=_parse_range(stiffness_range),
         **_treatment_options(ctx.params),
     )
+    check_treatment(treatment)  # the REST API's bounds, before anything is stored
     engine = open_database(db)
     if name is not None and not name.strip():
         raise UserError("--name must not be empty")
@@ -252,7 +257,9 @@ def experiment(
     _execute(engine, run_ids, workers, quiet)
 
 
-def _print_status(engine, run_ids: list[int]) -> None:
+def _print_status(engine, run_ids: list[int]) -> list[int]:
+    """Print the runs' table, and below it one line per failed run saying why (stderr);
+    return the failed runs' ids."""
     from rich import box
     from rich.console import Console
     from rich.table import Table
@@ -260,10 +267,11 @@ def _print_status(engine, run_ids: list[int]) -> None:
     from softevo.service.storage.status import run_summaries
 
     caption = "best: of the last generation; per world: of any generation in it"
+    summaries = run_summaries(engine, run_ids)
     table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best",
                   box=box.SIMPLE_HEAD, show_edge=False, collapse_padding=True, caption=caption)  # fmt: skip
     table.add_column("per world", no_wrap=True)
-    for r in run_summaries(engine, run_ids):
+    for r in summaries:
         per_world = "\n".join(f"{world} {best:.3f}" for world, best in r["best_by_world"].items())
         table.add_row(
             str(r["run_id"]),
@@ -278,6 +286,10 @@ def _print_status(engine, run_ids: list[int]) -> None:
             per_world or "-",
         )
     Console().print(table)
+    failed = [r for r in summaries if r["status"] == "failed"]
+    for r in failed:
+        typer.echo(f"run {r['run_id']} failed: {r['error'] or 'no reason stored'}", err=True)
+    return [r["run_id"] for r in failed]
 
 
 def status(
@@ -290,6 +302,7 @@ def status(
     from softevo.service.storage.runs import resolve_runs
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.connect() as conn:
         run_ids = resolve_runs(conn, reference)
     if not run_ids:
@@ -313,6 +326,7 @@ def resume(
     from softevo.service.storage.runs import reopen_runs, resolve_runs
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.begin() as conn:
         run_ids = resolve_runs(conn, reference)
         if reference is not None:
@@ -332,6 +346,7 @@ def export(
     from softevo.service.storage.runs import resolve_runs
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.connect() as conn:
         run_ids = resolve_runs(conn, reference)
     for path in export_runs(engine, run_ids, out, fmt):
@@ -345,6 +360,7 @@ def one_individual(db: str | None, reference: str):
     from softevo.service.storage.runs import resolve_individual
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "individual")
     with engine.connect() as conn:
         return engine, resolve_individual(conn, reference)
 
@@ -390,6 +406,7 @@ def best(
     from softevo.service.storage.runs import best_per_world, resolve_run
 
     engine = open_database(db, create=False)
+    say_bare_number(reference, "run")
     with engine.connect() as conn:
         run_id = resolve_run(conn, reference)
         rows = best_per_world(conn, run_id)

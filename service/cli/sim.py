@@ -22,7 +22,7 @@ from typing import Annotated, Any
 import typer
 
 from softevo.errors import UserError
-from softevo.evolution import environments as worlds
+from softevo.evolution import environments as environments
 from softevo.service.cli.options import device_option, engine_option
 from softevo.worker.tasks import default_record_every
 
@@ -65,9 +65,18 @@ def _write_record(out: Path, result: Any) -> int:
     return len(t)
 
 
-def _summary(result: Any, wall_seconds: float, environment: str) -> str:
+def distance_axes(scene: Any) -> str:
+    """How the scene's distance is measured, in words: ``"horizontal"`` or ``"3-D"``. A world
+    without a floor measures 3-D; on a floor the model's ``distance`` option decides (the
+    paper's model measures 3-D there too, ``sim.scene.ModelOptions.distance``)."""
+    axes = environments.get(scene.environment.kind).distance
+    if axes == environments.HORIZONTAL and scene.options.distance == "3d":
+        return environments.THREE_D
+    return axes
+
+
+def _summary(result: Any, wall_seconds: float, environment: str, axes: str) -> str:
     """A few stable-format lines a person can read at a glance."""
-    axes = worlds.get(environment).distance
     lines = [
         f"stable     {'yes' if result.stable else 'NO: ' + str(result.reason)}",
         f"distance   {result.distance:.4g} voxel lengths ({axes}, {environment})",
@@ -110,8 +119,8 @@ def simulate(
     if as_json:
         typer.echo(json.dumps(result.to_dict()))
         return
-    environment = sim.parse_scene(scene_dict).environment.kind
-    typer.echo(_summary(result, wall, environment))
+    scene = sim.parse_scene(scene_dict)
+    typer.echo(_summary(result, wall, scene.environment.kind, distance_axes(scene)))
     if record is not None:
         typer.echo(f"recorded   {n_frames} frames -> {record}")
 

@@ -75,8 +75,17 @@ COORDINATOR_ASK_SECONDS = {"local": 0.041, "rq": 0.05}
 assert set(COORDINATOR_SECONDS) == set(COORDINATOR_ASK_SECONDS) == set(EXECUTOR_KINDS)
 COORDINATOR_POPULATION = 30
 COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
-WORKER_SECONDS_PER_EVALUATION = 0.003
+# - a worker's own work per evaluation: developing the genome (0.2 ms) and its descriptors
+#   (trimesh's surface mesh: 9.6 ms), CPU seconds on random 5^3 genomes (bench/plan_startup.py;
+#   it was 3 ms, measured without descriptors, and the tiny preset came out 1.9x its plan);
+WORKER_SECONDS_PER_EVALUATION = 0.010
 JOB_SECONDS = 0.008
+# - the fixed start of one ``softevo run`` / ``experiment`` (the local executor): the command
+#   and a new SQLite database (1.46 s), the kernel cache check (1.27 s) and a pool process
+#   spawned and warmed, land and water kernels loaded (1.74 s; the processes start side by
+#   side): CPU seconds, medians of 3 (bench/plan_startup.py). A cluster's workers are started
+#   and warm before a plan's experiment is sent: nothing for "rq".
+STARTUP_SECONDS = {"local": 4.5, "rq": 0.0}
 # An H200's rate in the cuda engine: ESTIMATE, NOT MEASURED (a GPU design review's
 # 1.5-2.2e9 voxel-steps/s, docs/gpu.md); replace it once bench/gpu_device_check.sh has run on
 # one.
@@ -170,6 +179,7 @@ class Plan:
     # the wall time were coordinators never waited on (one per run): what the workers and
     # each run's own chain of generations allow; the plan's own wall where they do not limit
     unqueued_wall_seconds: float = 0.0
+    startup_seconds: float = 0.0  # in wall_seconds: the command's fixed start (STARTUP_SECONDS)
 
     def coordinators_needed(self, target: float = COORDINATOR_TARGET) -> int:
         """Coordinator processes that would be busy at most ``target`` of the time at the pace
@@ -248,7 +258,10 @@ def plan(
     runs = sum(t.repetitions for t in treatments)
     if wall > 0 and told / (wall * coordinators) > COORDINATOR_TARGET and coordinators < runs:
         unqueued, _ = dispatch_with(runs, np.random.default_rng(seed))  # they limit: how much?
+    startup = STARTUP_SECONDS[executor]
+    wall, unqueued = wall + startup, unqueued + startup
     return Plan(
+        startup_seconds=startup,
         wall_seconds=wall,
         core_hours=wall * cores / 3600 if cores else 0.0,
         gpu_hours=wall * gpus / 3600 if gpus else 0.0,
@@ -302,6 +315,10 @@ def _assumptions(gpu: bool, coordinator_seconds: float, ask_seconds: float, exec
         f"of a worker's own per evaluation, {JOB_SECONDS * 1000:.0f} ms per job (measured here)",
         "database bytes measured on SQLite for short runs; genomes grow over long runs",
     ]
+    if STARTUP_SECONDS[executor]:
+        notes.append(f"{STARTUP_SECONDS[executor]:g} s to start the command, its database and its pool's "
+                     "processes (measured here, kernels in numba's cache; a first run compiles them, "
+                     "about 100 s more)")
     if gpu:
         notes.append(f"GPU rate {GPU_VOXEL_STEPS_PER_SECOND:.1e} voxel-steps/s: {GPU_RATE_SOURCE}; "
                      "a batch steps in lock-step until its longest robot is done")

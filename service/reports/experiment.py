@@ -18,7 +18,10 @@ by the same ``analysis`` functions on the same ``ExperimentData``.
   question, measure, test, n, statistic, p, p_holm, a12, a12_generation0, detectable_a12,
   verdict);
 - ``statistics``: every row of ``analysis.stats_tables.statistics_table`` (family, test, p,
-  Bonferroni-adjusted p, A12, difference with its interval), the secondary pairwise tests.
+  Bonferroni-adjusted p, A12, difference with its interval), the secondary pairwise tests;
+- ``left_out``: one sentence naming the runs that stopped before the generation their
+  treatment is compared at (cancelled, failed) and are left out, or null
+  (``analysis.matching.left_out_note``).
 
 Floats that are not finite become null. ``analysis_json(db, id)`` is what the API runs in its
 background process (``service.api.expensive``).
@@ -67,6 +70,7 @@ def experiment_analysis(source: str | Engine, experiment_id: int) -> dict[str, A
             "descriptors": descriptors(data),
             "findings": _records(findings_table(data), FINDING_COLUMNS),
             "statistics": statistics(data),
+            "left_out": data.left_out_note,  # runs that stopped early and are left out, or null
         }
     )
 

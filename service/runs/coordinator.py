@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import traceback
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -172,7 +173,28 @@ def tell(run: ActiveRun, results: list[dict[str, Any]], seconds: float) -> Gener
     record.summary = _summary(run, len(results), seconds)
     record.state = run.algorithm.state_to_dict()
     record.finished = run.next_generation + 1 >= run.generations
+    record.failure = failure_reason(run)
     return record
+
+
+FAILED_SHARE_LIMIT = 0.95  # a generation whose simulations fail this often fails its run
+
+
+def failure_reason(run: ActiveRun) -> str | None:
+    """Why the run fails with its generation just told, or None: at least
+    ``FAILED_SHARE_LIMIT`` of the generation's simulations failed (unstable, over the step
+    budget, crashed). Evolution cannot select among failures: every failed robot scores
+    ``FAILED_DISTANCE``, so such a run would go on to its last generation and say
+    "finished" with a best of 0. The reason names the most common error, with an example."""
+    simulated = run.asked or []
+    failed = [ind for ind in simulated if ind.failed]
+    if not simulated or len(failed) < FAILED_SHARE_LIMIT * len(simulated):
+        return None
+    kinds = Counter(str(ind.error).split(":")[0] for ind in failed)
+    kind, count = kinds.most_common(1)[0]
+    example = next(str(ind.error) for ind in failed if str(ind.error).split(":")[0] == kind)
+    return (f"{len(failed)} of {len(simulated)} evaluations of generation {run.next_generation} failed "
+            f"(a run fails at {FAILED_SHARE_LIMIT:.0%}); most often ({count}): {example}")
 
 
 def _individual_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
@@ -265,6 +287,7 @@ def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
         # empty body (survivors are never simulated again in their world: Evolution.ask)
         "reused": run.algorithm.not_simulated["reused"],
         "empty_bodies": run.algorithm.not_simulated["empty"],
+        "passive_bodies": run.algorithm.not_simulated["passive"],  # no active voxel: distance 0
         "mean_voxel_count": float(np.mean([_traits(run, i)["voxel_count"] for i in population])),
         "mean_active_share": float(np.mean([_traits(run, i)["active_share"] for i in population])),
         "best_local_id": population[int(np.argmax(distances))].id,

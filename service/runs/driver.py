@@ -80,6 +80,7 @@ class CoordinatorLoop:
         self.share = 0  # runs this coordinator drives at most (``_claim``)
         self.driven: set[int] = set()  # every run this coordinator has driven
         self._threads: list[threading.Thread] = []
+        self.away: str | None = None  # what cannot be reached now ("Redis", "the database"), said once
 
     # -- control -----------------------------------------------------------------------------
 
@@ -123,7 +124,11 @@ class CoordinatorLoop:
 
         while not self.stop_event.is_set():
             try:
-                if not self.step():
+                driving = self.step()
+                if self.away is not None:
+                    log.warning("%s can be reached again: the runs go on", self.away)
+                    self.away = None
+                if not driving:
                     self.stop_event.wait(self.poll_seconds)
             except ExecutorStopped:
                 break
@@ -139,15 +144,15 @@ class CoordinatorLoop:
             runs = ", ".join(f"r{run.run_id}" for run in self.active) or "none driven now"
             if isinstance(exc, DatabaseUnavailable) or database_unavailable(exc):
                 cause = exc.__cause__ if isinstance(exc, DatabaseUnavailable) else exc
-                log.warning(
-                    "the database cannot be written or reached (%s); runs paused at their last "
-                    "stored generation (%s); retrying every %.0f s, they go on by themselves",
+                self._say_away(
+                    "the database", "the database cannot be written or reached (%s); runs paused at "
+                    "their last stored generation (%s); retrying every %.0f s, they go on by themselves",
                     first_line(cause), runs, retry,
                 )  # fmt: skip
             elif redis_error(exc):
-                log.warning(
-                    "Redis cannot be reached (%s); runs paused (%s); retrying every %.0f s",
-                    first_line(exc), runs, retry,
+                self._say_away(
+                    "Redis", "Redis cannot be reached (%s); runs paused (%s); retrying every %.0f s, "
+                    "said again when it is back", first_line(exc), runs, retry,
                 )  # fmt: skip
             else:
                 log.exception("coordinator round failed (runs %s); reloading them from the database", runs)
@@ -155,6 +160,12 @@ class CoordinatorLoop:
             pass
         self._reset()
         self.stop_event.wait(retry)
+
+    def _say_away(self, what: str, message: str, *args) -> None:
+        """Log ``message`` once while ``what`` stays away (then at DEBUG level, every retry):
+        one line, not one every few seconds; ``_loop`` says when it is back."""
+        log.log(logging.DEBUG if self.away == what else logging.WARNING, message, *args)
+        self.away = what
 
     def step(self) -> bool:
         """Claim new runs, drop finished, cancelled or lost ones, advance the rest one

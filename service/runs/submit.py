@@ -11,7 +11,13 @@ from softevo.errors import UserError
 from softevo.evolution.treatments import Treatment, preset_grid, select_treatments
 from softevo.service.runs.limits import check_experiment, generation_cost
 from softevo.service.settings import Settings
-from softevo.service.storage.experiments import NewRun, NewTreatment, create_experiment, unfinished_work
+from softevo.service.storage.experiments import (
+    NewRun,
+    NewTreatment,
+    create_experiment,
+    lock_new_experiments,
+    unfinished_work,
+)
 
 
 def create(
@@ -43,6 +49,7 @@ def create(
         for t in treatments
     ]
     with engine.begin() as conn:
+        lock_new_experiments(conn)  # the check and the insert as one: concurrent requests queue
         check_experiment(treatments, unfinished_cost(conn), settings)
         return create_experiment(conn, name, new, preset=preset, scale=scale)
 

@@ -27,12 +27,16 @@ import pandas as pd
 from sqlalchemy import Connection, select
 
 from softevo.errors import UserError
+from softevo.evolution import traits
 from softevo.service.storage.models import PopulationMemberRow
 from softevo.service.storage.phylogeny import population_lines
 from softevo.service.storage.rows import finite
 from softevo.service.storage.run_tree import birth_evaluations, run_facts
 
-LINE_TRAITS = ("voxel_count", "active_share", "frequency", "symmetry", "branching", "shape_entropy")
+
+def line_traits() -> tuple[str, ...]:
+    """The traits followed along each line that have columns of their own (``evolution.traits``)."""
+    return tuple(name for name in traits.along_lines() if name in traits.columns())
 
 
 def _members(conn: Connection, run_id: int, generation: int) -> pd.DataFrame:
@@ -54,9 +58,10 @@ def final_ancestry(conn: Connection, run_id: int, generation: int) -> pd.DataFra
 
 
 def _traits(conn: Connection, run_id: int) -> dict[int, dict[str, Any]]:
-    birth = birth_evaluations(run_id, LINE_TRAITS)
+    followed = line_traits()
+    birth = birth_evaluations(run_id, followed)
     rows = conn.execute(select(birth)).mappings()
-    return {int(row["individual_id"]): {name: row[name] for name in LINE_TRAITS} for row in rows}
+    return {int(row["individual_id"]): {name: row[name] for name in followed} for row in rows}
 
 
 def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: int = 0) -> dict[str, Any]:
@@ -138,7 +143,7 @@ def _line(founder, final_id, root_id, ids, born, position, arrival_ids, traits) 
     forward = list(range(position, -1, -1))  # founder .. final member
     at_switch = next((ids[k] for k in reversed(forward) if ids[k] in arrival_ids), None)
     values = {}
-    for trait in LINE_TRAITS:
+    for trait in line_traits():
         start = traits.get(founder, {}).get(trait)
         changed = next(
             (born[k] for k in forward[1:] if traits.get(ids[k], {}).get(trait) != start),

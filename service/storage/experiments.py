@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import pandas as pd
-from sqlalchemy import Connection, Engine, and_, func, or_, select
+from sqlalchemy import Connection, Engine, and_, func, or_, select, text, update
 
 from softevo.errors import UserError
 from softevo.evolution.treatments import Treatment
@@ -82,6 +82,25 @@ def create_experiment(
     return experiment_id, run_ids
 
 
+BUDGET_LOCK = (0x50F8, 0)  # PostgreSQL advisory lock (class, key) of the budget check
+
+
+def lock_new_experiments(conn: Connection) -> None:
+    """Hold, until ``conn``'s transaction ends, the lock that new experiments take: two
+    requests that each read the unfinished work (``unfinished_work``), find room under the
+    server budget and insert would otherwise both pass before either inserts. PostgreSQL: a
+    transaction advisory lock (``BUDGET_LOCK``). SQLite: the write lock, taken by an UPDATE
+    that changes nothing (pysqlite begins a transaction at the first write, so the reads
+    after it see every experiment committed before; another writer waits its
+    ``busy_timeout``)."""
+    if conn.dialect.name == "postgresql":
+        conn.execute(text("SELECT pg_advisory_xact_lock(:lock_class, :key)"),
+                     {"lock_class": BUDGET_LOCK[0], "key": BUDGET_LOCK[1]})
+    elif conn.dialect.name == "sqlite":
+        table = ExperimentRow.__table__
+        conn.execute(update(table).where(table.c.id == -1).values(name=table.c.name))
+
+
 def unfinished_work(conn: Connection) -> list[tuple[dict[str, Any], int]]:
     """(settings, generations left over its pending and running runs) of every treatment with
     such a run: what the server has still to do (``service.runs.submit.unfinished_cost``)."""
@@ -117,9 +136,12 @@ def _insert_run(conn: Connection, treatment_id: int, run: NewRun) -> int:
 
 def resolve_experiment(conn: Connection, reference: str) -> int:
     """The experiment named by ``e2``, ``exp-2``, ``2``, ``latest`` or its name (the newest of
-    that name); UserError if there is none."""
+    that name); UserError if there is none, or for a run (``r5``, ``run-5``: the message names
+    its experiment)."""
     experiments = ExperimentRow.__table__
     kind, number = parse_reference(reference)
+    if kind == "run" and not reference.strip().isdigit():
+        raise UserError(_not_an_experiment(conn, reference, number))
     query = select(func.max(experiments.c.id))
     if kind in ("experiment", "run"):  # a bare number names an experiment here
         query = query.where(experiments.c.id == number)
@@ -129,6 +151,16 @@ def resolve_experiment(conn: Connection, reference: str) -> int:
     if found is None:
         raise UserError(f"no experiment {reference!r}")
     return int(found)
+
+
+def _not_an_experiment(conn: Connection, reference: str, run_id: int) -> str:
+    """Why ``reference`` (a run: ``r5``) names no experiment, with the run's experiment."""
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
+    query = select(treatments.c.experiment_id).join(runs, runs.c.treatment_id == treatments.c.id)
+    experiment_id = conn.execute(query.where(runs.c.id == run_id)).scalar()
+    if experiment_id is None:
+        return f"{reference!r} names a run, and there is no run {run_id}; give an experiment (e2, latest, a name)"
+    return f"{reference!r} names a run, not an experiment; run {run_id} is in experiment e{experiment_id}"
 
 
 # -- the REST API's listings ------------------------------------------------------------------
@@ -344,13 +376,14 @@ def _run_ids(conn: Connection, experiment_id: int) -> list[int]:
 
 
 def _with_last_generation(conn: Connection, runs: pd.DataFrame) -> pd.DataFrame:
+    """``runs`` with each run's last stored ``generation`` and its ``error`` (why it failed)."""
     table = RunRow.__table__
     rows = conn.execute(
-        select(table.c.id.label("run_id"), table.c.generation.label("generation")).where(
+        select(table.c.id.label("run_id"), table.c.generation.label("generation"), table.c.error).where(
             table.c.id.in_([int(i) for i in runs["run_id"]])
         )
     ).all()
-    last = pd.DataFrame(rows, columns=["run_id", "generation"])
+    last = pd.DataFrame(rows, columns=["run_id", "generation", "error"])
     return runs.merge(last, on="run_id", how="left")
 
 

@@ -52,6 +52,7 @@ class GenerationRecord:
     summary: dict[str, Any] = field(default_factory=dict)
     state: dict[str, Any] | None = None
     finished: bool = False
+    failure: str | None = None  # why the run fails with this generation (its evaluations failed)
 
 
 def insert_ignore(conn: Connection, table: Table, rows: Sequence[dict[str, Any]]) -> None:
@@ -143,11 +144,15 @@ def _generation_row(record: GenerationRecord) -> dict[str, Any]:
 
 
 def _advance_run(conn: Connection, record: GenerationRecord) -> None:
-    """Move the run's committed generation forward (never backward) and store the state.
+    """Move the run's committed generation forward (never backward) and store the state;
+    a ``failure`` fails the run with it as its error.
 
     A run cancelled meanwhile (e.g. over HTTP, from another process) stays cancelled."""
     table = RunRow.__table__
     status = RunStatus.FINISHED if record.finished else RunStatus.RUNNING
+    failure = {}
+    if record.failure is not None:
+        status, failure = RunStatus.FAILED, {"error": record.failure}
     cancelled = RunStatus.CANCELLED.value
     conn.execute(
         update(table)
@@ -157,6 +162,7 @@ def _advance_run(conn: Connection, record: GenerationRecord) -> None:
             algorithm_state=record.state,
             status=case((table.c.status == cancelled, cancelled), else_=status.value),
             updated_at=utcnow(),
+            **failure,
         )
     )
 

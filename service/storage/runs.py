@@ -16,6 +16,7 @@ from softevo.errors import UserError
 from softevo.service.storage.models import (
     EvaluationRow,
     ExperimentRow,
+    IndividualRow,
     RunRow,
     RunStatus,
     TreatmentRow,
@@ -210,6 +211,9 @@ def resolve_individual(conn: Connection, reference: str) -> int:
     in its last world (``best_per_world``); UserError if there is none."""
     text = reference.strip()
     if text.isdigit():
+        individuals = IndividualRow.__table__
+        if conn.execute(select(individuals.c.id).where(individuals.c.id == int(text))).first() is None:
+            raise UserError(f"no individual {int(text)}")
         return int(text)
     run_id = resolve_run(conn, text)
     best = best_per_world(conn, run_id)

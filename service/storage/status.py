@@ -77,8 +77,10 @@ def with_best_by_world(
 
 
 def run_summaries(engine: Engine, run_ids: Sequence[int]) -> list[dict[str, Any]]:
-    """Per run, the columns of ``run_summary_select`` and ``best_by_world`` for ``run_ids``."""
-    query = run_summary_select().where(RunRow.__table__.c.id.in_(list(run_ids)))
+    """Per run, the columns of ``run_summary_select``, its ``error`` (why it failed) and
+    ``best_by_world`` for ``run_ids``."""
+    runs = RunRow.__table__
+    query = run_summary_select().add_columns(runs.c.error).where(runs.c.id.in_(list(run_ids)))
     with engine.connect() as conn:
         return with_best_by_world(conn, dict_rows(conn, query), "run_id")
 

@@ -76,9 +76,32 @@ def test_evolve_runs_an_abrupt_transition():
         ({"stiffness_mpa": 100}, "stiffness must be within 0.001..10.0 MPa (got 100)"),
         ({"population": 1}, "population must be an integer >= 2"),
         ({"workspace": (30, 30, 30)}, "SOFTEVO_MAX_VOXELS"),
-        ({"environment": "land", "switch_at": 2}, "--switch-at needs a transition environment"),
+        ({"environment": "land", "switch_at": 2}, "switch_at needs a transition environment"),
     ],
 )
 def test_evolve_checks_its_settings_as_the_cli_does(arguments, message):
     with pytest.raises(UserError, match=re.escape(message)):
         softevo.evolve(**{"environment": "water", "generations": 4, **arguments})
+
+
+@pytest.mark.parametrize("body", ["abc", [[1, 2], [3]], np.zeros((2, 2)), [[[7]]]])
+def test_describe_says_what_a_body_is(body):
+    """Issue 49.13: ``softevo.describe("abc")`` raised NumPy's UFuncTypeError."""
+    with pytest.raises(ValueError, match=re.escape("body must be a 3-D array body[x][y][z] of 0 (empty)")):
+        softevo.describe(body)
+
+
+def test_a_misspelt_objective_is_named():
+    """Issue 49.13: ``objectives=("distnace",)`` said "must include distance"."""
+    with pytest.raises(UserError, match="unknown objective 'distnace'; registered: distance"):
+        softevo.evolve("land", objectives=("distnace",))
+
+
+def test_simulate_of_a_file_name_says_to_load_it(tmp_path):
+    """Issue 49.13: ``softevo.simulate("file.json")`` said "must be a JSON object (got str)"."""
+    from softevo.sim import SceneError
+
+    with pytest.raises(SceneError, match=r"scene: must be a dict.*'walker.json'.*json.load it first"):
+        softevo.simulate("walker.json")
+    with pytest.raises(SceneError, match="json.load it first"):
+        softevo.simulate(tmp_path / "walker.json")

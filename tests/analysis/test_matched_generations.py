@@ -99,3 +99,47 @@ def test_summary_names_each_treatments_generations(data):
     assert shown == pytest.approx(
         {("land S1", 2): 1.5, ("land S3", 2): 20.5, ("land S3", 4): 40.5, ("land-water S3", 4): 100.5}
     )
+
+
+def test_a_run_cancelled_at_generation_0_is_left_out_not_followed(tmp_path):
+    """Issue 49.2: one run cancelled at generation 0 put the whole report at generation 0
+    ("start vs end" compared 0 with itself). The comparison is at the last generation the
+    finished runs share (2), and the report, the page's analysis and the CLI say which run
+    was left out."""
+    import warnings
+
+    from softevo.analysis.report import ReportWarning, write_report
+    from softevo.evolution.treatments import Treatment
+    from softevo.service.reports.experiment import experiment_analysis
+    from softevo.service.storage.experiments import NewRun, NewTreatment, create_experiment
+    from softevo.service.storage.generations import record_generation
+    from softevo.service.storage.models import RunStatus
+    from softevo.service.storage.runs import set_run_status
+
+    engine = open_database(f"sqlite:///{tmp_path / 'cancelled.db'}")
+    treatments = [Treatment("land", 0.001, name="land S1", population=2, generations=3),
+                  Treatment("land", 0.1, name="land S3", population=2, generations=3)]
+    new = [NewTreatment(t.name, t.to_settings(), [NewRun(r, r, t.generations) for r in range(2)]) for t in treatments]
+    with engine.begin() as conn:
+        experiment_id, run_ids = create_experiment(conn, "cancelled", new)
+    cancelled = run_ids[3]  # land S3, repetition 1
+    for run_id, (treatment, repetition) in zip(run_ids, [(t, r) for t in treatments for r in range(2)], strict=True):
+        for generation in range(1 if run_id == cancelled else treatment.generations):
+            with engine.begin() as conn:
+                record_generation(conn, matched._record(run_id, treatment, repetition, generation, matched.value))
+    with engine.begin() as conn:
+        set_run_status(conn, cancelled, RunStatus.CANCELLED)
+
+    data = load_experiment(engine, experiment_id)
+    assert data.static_generation == 2 and data.display_generation("land S3") == 2
+    row = _row(treatment_comparisons(data, ("best_distance",)), "best_distance", "land S1", "land S3")
+    assert row["generation"] == 2 and row["n_b"] == 1  # seed-paired: the cancelled run's seed drops out
+    note = f"r{cancelled} (land S3, cancelled after generation 0)"
+    assert note in data.left_out_note and "left out of the summary and the tests" in data.left_out_note
+    assert note in experiment_analysis(engine, experiment_id)["left_out"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        report = write_report(data, tmp_path / "report", animation=False)
+    assert any(note in str(w.message) for w in caught if issubclass(w.category, ReportWarning))
+    assert note in report.markdown.read_text()
+    engine.dispose()

@@ -76,7 +76,7 @@ def test_the_route_and_the_report_build_the_same_task(tiny, tiny_data):
     transition = tiny_data.final_populations().query("treatment == 'water-land S3'")
     individual_id = int(transition["individual_id"].iloc[0])  # evaluated in water, then on land
     for environment in (None, "water", "land"):
-        task = route.stored_task(services, individual_id, environment)
+        task = route.stored_task_or_404(services, individual_id, environment)
         assert task == report.scene(individual_id, environment)[1]["task"]
         assert task == stored_task(individual_record(tiny.engine, individual_id), environment)
         assert task.environment == (environment or "land")
@@ -91,5 +91,5 @@ def test_the_route_answers_404_where_analysis_says_why(tiny, tiny_data):
         (individual_id, "water", "was never evaluated in water"),
     ):
         with pytest.raises(HTTPException) as caught:
-            route.stored_task(services, missing, environment)
+            route.stored_task_or_404(services, missing, environment)
         assert caught.value.status_code == 404 and why in caught.value.detail

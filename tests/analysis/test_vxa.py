@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from softevo.analysis.robots import record_scene
-from softevo.analysis.vxa import data_layers, scene_to_vxa, value_layers, write_vxa
+from softevo.analysis.vxa import VxaWarning, data_layers, scene_to_vxa, value_layers, write_vxa
 from softevo.service.storage.individuals import individual_record
 from tests.support import softevo
 
@@ -41,7 +41,8 @@ def _parse(text: str) -> ET.Element:
 
 
 def test_known_robot_matches_the_hand_written_file(tmp_path):
-    written = write_vxa(SCENE, tmp_path / "small.vxa")
+    with pytest.warns(VxaWarning, match="the robot's model is voxelyze-2"):
+        written = write_vxa(SCENE, tmp_path / "small.vxa")
     assert written.read_text(encoding="iso-8859-1") == EXPECTED.read_text(encoding="iso-8859-1")
 
 
@@ -144,3 +145,24 @@ def test_export_vxa_mistakes_are_one_line_and_exit_2(capsys, tiny, tmp_path, arg
     code, _, err = softevo(capsys, "export-vxa", *args, "--db", tiny.url)
     assert code == 2
     assert err.startswith("error: ") and err.count("\n") == 1 and message in err
+
+
+def test_a_voxelyze_2_robot_is_exported_with_a_warning_that_its_import_repeats(tmp_path):
+    """Issue 49.6: a voxelyze-2 robot exported and imported again silently became a
+    voxcad-land-water scene (6.313 where the stored distance is 5.222). The export warns,
+    the file says so in a comment, and import-vxa warns again; a paper-model robot is
+    written without either."""
+    from softevo import import_vxa
+
+    with pytest.warns(VxaWarning, match="model is voxelyze-2: a .vxa file holds the paper's engine"):
+        written = write_vxa(SCENE, tmp_path / "v2.vxa")
+    assert "<!-- softevo: written from a voxelyze-2 scene" in written.read_text(encoding="iso-8859-1")
+    with pytest.warns(VxaWarning, match="written from a voxelyze-2 robot: imported, it runs the paper's engine"):
+        assert import_vxa(written)["model"] == "voxcad-land-water"
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VxaWarning)
+        paper = write_vxa({**SCENE, "model": "voxcad-land-water"}, tmp_path / "paper.vxa")
+        import_vxa(paper)
+    assert "softevo: written from" not in paper.read_text(encoding="iso-8859-1")

@@ -134,3 +134,20 @@ def test_every_dashboard_file_is_package_data():
         path for folder in ("static", "templates") for path in (package / folder).rglob("*") if path.is_file()
     }
     assert files - included == set()
+
+
+def test_a_malformed_page_id_is_an_html_page(dashboard_url):
+    """``/dashboard/runs/abc`` is a page saying there is no such page (issue 49.13: a JSON
+    422); the dashboard's JSON helpers stay JSON."""
+    page = get(dashboard_url, "/dashboard/runs/abc")
+    assert page.status_code == 404 and page.headers["content-type"].startswith("text/html")
+    assert "There is no page /dashboard/runs/abc" in page.text and "valid integer" in page.text
+    helper = get(dashboard_url, "/dashboard/api/individuals/abc/body")
+    assert helper.status_code == 422 and helper.json()["detail"].startswith("path.individual_id")
+
+
+def test_the_root_leads_to_the_dashboard(dashboard_url):
+    """``/`` redirects to the dashboard (issue 49.13: a 404)."""
+    answer = get(dashboard_url, "/", follow_redirects=False)
+    assert answer.status_code == 307 and answer.headers["location"] == "/dashboard/"
+    assert get(dashboard_url, "/", follow_redirects=True).text.count("Experiments") >= 1

@@ -71,6 +71,15 @@ def test_plain_summary(tmp_path, capsys):
     for word in ("stable", "yes", "distance", "voxel lengths", "steps", "wall time"):
         assert word in out, out
     assert len(out.strip().splitlines()) <= 6
+    assert "(horizontal, land)" in out, out
+
+
+@pytest.mark.parametrize(("model", "axes"), [("voxelyze-2", "horizontal"), ("voxcad-land-water", "3-D")])
+def test_summary_names_the_models_distance(tmp_path, capsys, model, axes):
+    """The paper's model measures a land distance in 3-D (issue 49.8: it said horizontal)."""
+    proc = softevo_here(capsys, "simulate", str(write(tmp_path, {**TINY, "model": model})))
+    assert proc.returncode == 0, proc.stderr
+    assert f"voxel lengths ({axes}, land)" in proc.stdout, proc.stdout
 
 
 def test_record_default_frames(tmp_path, capsys):

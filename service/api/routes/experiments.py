@@ -63,6 +63,7 @@ RUNS_PAGE = db_experiments.RUNS_PAGE
         **UNAUTHORIZED,
         400: {"model": ErrorOut, "description": "The body is not JSON"},
         413: {"model": ErrorOut, "description": "The body is larger than SOFTEVO_MAX_BODY_BYTES"},
+        503: {"model": ErrorOut, "description": "Redis cannot be reached: nothing is stored"},
     },
 )
 def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
@@ -72,8 +73,16 @@ def submit(body: ExperimentRequest, services: ServicesDep) -> ExperimentCreated:
     ``SOFTEVO_MAX_RUNS_PER_REQUEST``, or more voxel-steps (population x generations x
     repetitions x workspace voxels x steps per evaluation) than
     ``SOFTEVO_MAX_REQUEST_VOXEL_STEPS``, or than ``SOFTEVO_MAX_SERVER_VOXEL_STEPS`` together
-    with the unfinished runs."""
+    with the unfinished runs. 503 (nothing stored) while the server's Redis cannot be
+    reached: no worker could take the runs' jobs, and they would wait pending unsaid."""
     treatments = request_treatments(body)
+    if not services.redis_reachable():
+        raise HTTPException(
+            503, "Redis cannot be reached (SOFTEVO_REDIS_URL), so no worker could run this experiment: "
+            "it is not stored; start Redis and send it again (softevo serve goes on by itself), or "
+            "unset SOFTEVO_REDIS_URL to evaluate in the server's own processes",
+            headers={"Retry-After": "5"},
+        )
     if isinstance(body, PresetIn):
         name = body.name or f"{body.preset}-{body.scale}"
         experiment_id, run_ids = create(

@@ -138,6 +138,27 @@ def test_a_huge_workspace_is_refused(served):
     assert [e["name"] for e in experiments] == ["test"]  # nothing was created
 
 
+@pytest.mark.parametrize(
+    ("body", "detail"),
+    [
+        ({"treatments": [{"environment": "lnd", "stiffness_mpa": 1}]},
+         "body.treatments.0.environment: must be one of land, water"),
+        ({"name": "x", "treatments": [{"environment": "land", "stiffness_mpa": 1, "switch_at": 2}]},
+         "switch_at needs a transition environment (got land)"),
+        ({}, "body.name: Field required (and 1 more problem(s))"),
+    ],
+    ids=["wrong-before-missing", "no-cli-flag", "missing"],
+)  # fmt: skip
+def test_a_422_leads_with_the_value_given_and_names_fields(served, body, detail):
+    """Issue 49.13: every 422 led with ``body.name: Field required`` (a value given wrongly
+    comes first now), said ``Value error, ``, and a treatment's error named ``--switch-at``."""
+    base, _ = served
+    response = httpx.post(f"{base}/experiments", json=body, headers=auth())
+    assert response.status_code == 422
+    assert response.json()["detail"].startswith(detail), response.json()
+    assert "--" not in response.json()["detail"] and "Value error" not in response.json()["detail"]
+
+
 def test_repeated_reads_are_answered_from_memory_until_a_write(served):
     base, _ = served
     url = f"{base}/experiments"

@@ -516,3 +516,39 @@ def test_cancel_ends_the_evaluations_in_flight(tmp_path):
         assert run["status"] == "cancelled" and run["generation"] == -1, run  # nothing stored
     finally:
         group.stop_all()
+
+
+def test_concurrent_experiments_cannot_both_pass_the_budget(db_url, tmp_path):
+    """Issue 49.15 (security review): requests fired together each read the unfinished work
+    before any inserted, so all of them passed a server budget that holds one; the check and
+    the insert are one now (``service.storage.experiments.lock_new_experiments``), on SQLite and
+    PostgreSQL alike."""
+    import asyncio
+
+    from sqlalchemy import func, select
+
+    from softevo.service.storage.models import ExperimentRow
+
+    engine = open_database(db_url)
+    env = service_env(db_url, None, SOFTEVO_COORDINATOR="false",
+                      SOFTEVO_MAX_SERVER_VOXEL_STEPS=str(1.5 * ONE_TREATMENT_COST))  # fmt: skip
+    group = Processes(tmp_path, env)
+    try:
+        _, base = group.serve()
+        body = {"name": "together", "treatments": [{"environment": "land", "stiffness_mpa": 0.1}]}
+
+        async def fire(count: int) -> list[httpx.Response]:
+            async with httpx.AsyncClient(base_url=base, headers=auth(), timeout=120) as client:
+                return await asyncio.gather(*(client.post("/experiments", json=body) for _ in range(count)))
+
+        with ThreadPoolExecutor(1) as pool:  # a loop of its own (a browser test may hold this one's)
+            answers = pool.submit(asyncio.run, fire(12)).result()
+        codes = sorted(answer.status_code for answer in answers)
+        assert codes == [201] + [422] * 11, [a.text[:200] for a in answers]
+        refused = [a.json()["detail"] for a in answers if a.status_code == 422]
+        assert all("SOFTEVO_MAX_SERVER_VOXEL_STEPS" in detail for detail in refused), refused
+        with engine.connect() as conn:
+            assert conn.execute(select(func.count()).select_from(ExperimentRow.__table__)).scalar() == 1
+    finally:
+        group.stop_all()
+        engine.dispose()

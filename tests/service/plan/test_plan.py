@@ -173,6 +173,26 @@ def test_cli_bad_spec_file_is_one_line(capsys, tmp_path):
         assert code == 2 and len(err.strip().splitlines()) == 1, err
 
 
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ({"treatments": [{"environment": "water", "stiffness_mpa": 1.0}]}, "spec.json: name: Field required"),
+        ({"name": "x", "treatments": [{"environment": "lnd", "stiffness_mpa": 1.0}]},
+         "spec.json: treatments.0.environment: must be one of land, water"),
+        ({"name": "x", "treatments": [{"environment": "land", "stiffness_mpa": 1.0, "switch_at": 2}]},
+         "spec.json: switch_at needs a transition environment (got land)"),
+    ],
+)  # fmt: skip
+def test_cli_spec_errors_name_the_field_once(capsys, tmp_path, spec, message):
+    """Issue 49.13: a missing top-level name said ``treatments.name``, and a treatment's
+    field ``treatments.treatments.0...`` with "Value error, " (the union's tag twice)."""
+    path = tmp_path / "spec.json"
+    path.write_text(json.dumps(spec))
+    code, _, err = softevo(capsys, "plan", str(path), "--cores", "2")
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error: "), err
+    assert message in err and "Value error" not in err and "treatments.treatments" not in err, err
+
+
 @pytest.mark.slow
 def test_rest_plan_200_and_422(tmp_path):
     group = Processes(tmp_path, service_env(f"sqlite:///{tmp_path / 'api.db'}", None, SOFTEVO_WORKERS="1"))
@@ -199,3 +219,65 @@ def test_rest_plan_200_and_422(tmp_path):
             assert answer.json()["detail"]
     finally:
         group.stop_all()
+
+
+def test_a_local_plan_counts_the_commands_start():
+    """Issue 49.11: the tiny preset on 2 idle cores took 20-21 s where its plan said 11 s
+    (9.4 s here): the start of the command, its database and its pool's processes (4.5 s,
+    bench/plan_startup.py) and a worker's descriptors per evaluation (10 ms, not 3) were
+    left out. A cluster's workers are already warm: no start-up there."""
+    from softevo.service.plan.model import STARTUP_SECONDS, WORKER_SECONDS_PER_EVALUATION
+
+    grid = paper_grid("tiny")
+    local = plan(grid, cores=2, executor="local")
+    assert local.startup_seconds == STARTUP_SECONDS["local"] == 4.5
+    assert WORKER_SECONDS_PER_EVALUATION == 0.010
+    assert local.wall_seconds >= 14.0, local.wall_seconds  # was 9.4
+    assert plan(grid, cores=2, executor="rq").startup_seconds == 0.0
+    assert any("to start the command" in note for note in local.assumptions)
+
+
+def _table_hours(out: str) -> tuple[list[float], float]:
+    """(the treatments' hours column, the total row's) of ``softevo plan``'s table."""
+    lines = out.splitlines()
+    end = next(k for k, line in enumerate(lines) if line.startswith("total"))
+    column = [float(line.split()[-2]) for line in lines[1:end]]
+    return column, float(lines[end].split()[-2])
+
+
+@pytest.mark.parametrize("device", [("--cores", "2"), ("--gpus", "8")])
+def test_the_hours_column_adds_up_to_the_total(capsys, device):
+    """Issue 49.11: the core-hours column summed the evaluations' own seconds, not the total
+    (wall x cores) printed below it; with --gpus it showed CPU core-hours."""
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", *device)
+    assert code == 0, err
+    header = out.splitlines()[0]
+    assert ("GPU-h" in header) == (device[0] == "--gpus") and ("core-h" in header) == (device[0] == "--cores")
+    column, total = _table_hours(out)
+    assert sum(column) == pytest.approx(total, rel=0.01)
+    unit = "core-hours" if device[0] == "--cores" else "GPU-hours"
+    assert f"{total:.3g}" in out and unit in out
+
+
+def test_eight_gpus_say_why_they_lose_to_a_thousand_cores(capsys):
+    """Issue 49.11: ``--gpus 8`` did not say why 1,000 cores finish sooner."""
+    code, out, _ = softevo(capsys, "plan", "paper", "--scale", "tiny", "--gpus", "8")
+    assert code == 0
+    why = next(line for line in out.splitlines() if line.startswith("why: 8 GPUs step 1.6e+10 voxel-steps/s"))
+    assert "CPU cores at" in why and "waits for its longest robot" in why and "coordinator" in why
+
+
+def test_a_coordinator_bound_plan_says_what_more_coordinators_give(capsys, tmp_path):
+    """Issue 49.11: at 1,000 cores it said "1 coordinator(s) busy 98% of the time"; it says
+    that the plan is coordinator-bound and what ``--coordinators N`` gives."""
+    spec = tmp_path / "many.json"
+    spec.write_text(json.dumps({"name": "many", "treatments": [
+        {"environment": "water", "stiffness_mpa": 0.001, "population": 30, "generations": 50,
+         "repetitions": 400, "workspace": [3, 3, 3], "cycles": 1}]}))  # fmt: skip
+    code, out, err = softevo(capsys, "plan", str(spec), "--cores", "1000")
+    assert code == 0, err
+    line = next(line for line in out.splitlines() if line.startswith("coordinator-bound"))
+    needed = int(line.split("--coordinators ")[1].split()[0])
+    assert needed > 1 and "gives about" in line and "(from 17 min)" in line, line
+    code, more, _ = softevo(capsys, "plan", str(spec), "--cores", "1000", "--coordinators", str(needed))
+    assert code == 0 and "coordinator-bound" not in more

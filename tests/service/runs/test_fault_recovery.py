@@ -526,6 +526,32 @@ def test_health_says_when_jobs_wait_with_no_worker_or_redis_is_away(tmp_path, re
 
 
 @pytest.mark.redis
+def test_serve_without_redis_says_so_once_and_refuses_experiments(tmp_path, redis_server):
+    """Issue 49.9: ``softevo serve`` with its Redis away logged a traceback every 5 s and took
+    experiments that then stayed pending. Now: one line at start, quiet retries, a 503 for
+    a new experiment (nothing stored), and once Redis is back one line and a 201."""
+    redis_server.stop()
+    env = service_env(f"sqlite:///{tmp_path / 'serve.db'}", redis_server.url)
+    group = Processes(tmp_path, env)
+    try:
+        _, base = group.serve()
+        body = {"name": "away", "treatments": [{**TINY_BODY}]}
+        refused = httpx.post(f"{base}/experiments", json=body, headers=auth())
+        assert refused.status_code == 503 and refused.headers["retry-after"] == "5", refused.text
+        assert refused.json()["detail"].startswith("Redis cannot be reached (SOFTEVO_REDIS_URL)")
+        assert "it is not stored" in refused.json()["detail"]
+        assert httpx.get(f"{base}/experiments").json() == []
+        time.sleep(12)  # two more of the loop's retries (every 5 s): said once, not each time
+        log = group.logs()
+        assert log.count("Redis cannot be reached") == 1 and "Traceback" not in log, log
+        redis_server.start()
+        wait_for(lambda: "Redis can be reached again" in group.logs(), 60, "the loop to say Redis is back")
+        assert httpx.post(f"{base}/experiments", json=body, headers=auth()).status_code == 201
+    finally:
+        group.stop_all()
+
+
+@pytest.mark.redis
 def test_sqlite_disk_full_under_softevo_serve(rq_worker, redis_server, tmp_path, reference):
     """``softevo serve`` with an RQ worker on a SQLite file, two runs; the server's writes
     refused (``RLIMIT_FSIZE`` of 1 byte: every file it writes is "full") after a stored

@@ -223,8 +223,8 @@ function showAnalysis(analysis) {
   wireStatistics(analysis.statistics);
   drawStatistics();
   const status = document.getElementById("analysis-status");
-  status.textContent = "";
-  status.hidden = true;
+  status.textContent = analysis.left_out ? `Note: ${analysis.left_out}.` : "";  // runs stopped early
+  status.hidden = !analysis.left_out;
   document.body.dataset.analysis = "ready";
 }
 
