@@ -100,21 +100,32 @@ def warm_up(threads: int | None = 1) -> None:
 
 
 _CACHE_READY = False
+COMPILING_NOTICE = "compiling the simulator's kernels (first use, about 1-2 min; cached after)"
+NOTICE_AFTER_S = 5.0  # loading cached kernels takes 1-3 s; compiling them about 100 s
 
 
-def ensure_compiled() -> None:
+def ensure_compiled(notice_after: float = NOTICE_AFTER_S) -> None:
     """Fill numba's on-disk cache from a short subprocess, once per process, before this
     process runs the simulator.
 
     On a cold cache the kernels are then compiled once, not by every pool process at the
     same time, and every process (a resumed run's included) runs the same cached machine
-    code, whichever process compiled it.
+    code, whichever process compiled it. When the subprocess is still busy after
+    ``notice_after`` seconds (it is compiling: a cold cache, or kernels changed since),
+    ``COMPILING_NOTICE`` goes to stderr, so that a first run does not look hung.
     """
     global _CACHE_READY
     if _CACHE_READY:
         return
     code = "from softevo.worker.evaluate import warm_up; warm_up()"
-    subprocess.run([sys.executable, "-c", code], check=False, capture_output=True)
+    process = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        process.wait(timeout=notice_after)
+    except subprocess.TimeoutExpired:
+        print(COMPILING_NOTICE, file=sys.stderr, flush=True)
+        process.wait()
     _CACHE_READY = True
 
 
