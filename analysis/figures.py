@@ -12,6 +12,7 @@ water->land green), darker for stiffer material.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from softevo.analysis.data import TRAIT_LABELS, TRAITS, ExperimentData  # noqa: E402
 from softevo.analysis.matching import arrival_generation  # noqa: E402
@@ -94,10 +96,24 @@ def _new_figure(name: str, data: ExperimentData, layout: str | None = "constrain
     return plt.figure(figsize=size, dpi=DPI, layout=layout)
 
 
+def _fit_suptitle(fig: Figure) -> None:
+    """Wrap the figure's title onto more lines where it is wider than the figure (a pareto
+    figure of one treatment is one panel wide): the layout then makes room for it."""
+    title = fig._suptitle  # matplotlib keeps the suptitle's Text here
+    if title is None or not title.get_text():
+        return
+    width = title.get_window_extent(fig.canvas.get_renderer()).width
+    room = 0.94 * fig.bbox.width
+    if width > room:
+        text = title.get_text().replace("\n", " ")
+        title.set_text(textwrap.fill(text, max(12, int(len(text) * room / width))))
+
+
 def save(fig: Figure, out_dir: Path, name: str, caption: str) -> FigureFile:
     """Write ``fig`` as ``out_dir/name.png`` and ``.svg`` and close it."""
     out_dir.mkdir(parents=True, exist_ok=True)
     png, svg = out_dir / f"{name}.png", out_dir / f"{name}.svg"
+    _fit_suptitle(fig)
     fig.savefig(png, dpi=DPI)
     fig.set_layout_engine("none")  # keep the layout just computed; do not redo it for the SVG
     fig.savefig(svg)
@@ -153,6 +169,7 @@ def _grid(fig: Figure, n: int, cols: int, **kwargs) -> list[Axes]:
 def _curve(ax: Axes, curve: pd.DataFrame, color, label: str, style: str = "-") -> None:
     ax.plot(curve["generation"], curve["mean"], style, color=color, label=label, lw=1.6)
     ax.fill_between(curve["generation"], curve["low"], curve["high"], color=color, alpha=0.2, lw=0)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # generations: no tick at 0.25
 
 
 def _switch_line(ax: Axes, switch_at) -> None:
