@@ -24,9 +24,15 @@ function facts(run) {
     ["algorithm", s.algorithm],
   ];
   const parts = items.map(([name, value]) => el("span", {}, `${name} `, el("b", {}, String(value))));
-  if (run.best) {
-    parts.push(el("span", {}, "best ", el("a", { href: page(`individuals/${run.best.individual_id}`) },
-      `individual ${run.best.individual_id}`), ` (distance ${fmt(run.best.distance)})`));
+  // the best per world (distances of different worlds are not comparable), its last world's
+  // last; each link opens the individual in that world
+  const bests = run.best_per_world || [];
+  for (const best of bests) {
+    const label = bests.length > 1 ? `best in ${best.environment} ` : "best ";
+    parts.push(el("span", { class: "best", "data-environment": best.environment }, label,
+      el("a", { href: page(`individuals/${best.individual_id}?environment=${encodeURIComponent(best.environment)}`) },
+        `individual ${best.individual_id}`),
+      ` (distance ${fmt(best.distance)}, generation ${best.generation})`));
   }
   if (run.error) parts.push(el("span", { class: "error" }, run.error));
   return parts;

@@ -6,9 +6,10 @@ import { worldRGB as pureRGB } from "./worlds.js";
 
 const runId = Number(document.getElementById("tree-page").dataset.run);
 const HEIGHT = 560;
-const MARGIN = { left: 56, right: 18, top: 26, bottom: 34 };
+const MARGIN = { left: 80, right: 18, top: 26, bottom: 34 }; // left: the y axis labels
 const UNKNOWN_RGB = [120, 120, 120];
 const HIT_PX = 8;
+const Y_LABEL = "lineages (a row per line of descent)";
 
 /** [r, g, b] of a world name; a compound world "a>b@s" mixes a and b by s. */
 function worldRGB(name) {
@@ -101,6 +102,7 @@ function draw(canvas, tree) {
     ctx.fillText(String(g), px(g) - 4, HEIGHT - MARGIN.bottom + 16);
   }
   ctx.fillText("generation", width / 2 - 30, HEIGHT - 4);
+  yAxisLabels(ctx, rowOf, alive, dead, split, span);
   if (tree.switch_at !== null) {
     if (tree.switch_over > 0) {
       ctx.fillStyle = "rgba(130, 90, 200, 0.10)";
@@ -144,6 +146,27 @@ function draw(canvas, tree) {
     }
   }
   return { placed, ms: performance.now() - started };
+}
+
+/** The y axis: what a row is (one per lineage's leaf, parents between their children), and
+ * which band holds the surviving lineages and which the extinct sample. */
+function yAxisLabels(ctx, rowOf, alive, dead, split, span) {
+  ctx.save();
+  ctx.fillStyle = "#667085";
+  ctx.font = "12px system-ui, sans-serif";
+  ctx.translate(14, MARGIN.top + span / 2);
+  ctx.rotate(-Math.PI / 2);
+  ctx.textAlign = "center";
+  ctx.fillText(Y_LABEL, 0, 0);
+  ctx.restore();
+  ctx.save();
+  ctx.fillStyle = "#667085";
+  ctx.font = "11px system-ui, sans-serif";
+  ctx.textAlign = "right";
+  ctx.textBaseline = "middle";
+  if (alive.leaves) ctx.fillText("surviving", MARGIN.left - 4, (rowOf.true(0) + rowOf.true(alive.leaves - 1)) / 2);
+  if (dead.leaves && split < 1) ctx.fillText("extinct", MARGIN.left - 4, (rowOf.false(0) + rowOf.false(dead.leaves - 1)) / 2);
+  ctx.restore();
 }
 
 function nearest(placed, x, y) {
