@@ -95,4 +95,4 @@ def test_the_readme_says_the_next_step_right_after_the_quickstart():
     between = readme[blocks[0] : blocks[1]]
     assert "softevo dashboard --db sqlite:///quickstart.db" in between
     assert "http://127.0.0.1:8000/dashboard/" in between
-    assert re.search(r"takes about \d+ minutes on 2 cores", between)
+    assert re.search(r"takes\s+about\s+\d+\s+minutes\s+on\s+2\s+cores", between)
