@@ -34,3 +34,12 @@ def test_a_cold_cache_says_it_is_compiling(tmp_path):
         os.killpg(process.pid, signal.SIGKILL)
         process.wait()
     assert any(COMPILING_NOTICE in line for line in seen), "".join(seen)
+
+
+def test_cached_kernels_load_without_the_notice():
+    """A second process finds the kernels in numba's cache (the first filled it, if it was
+    cold): loading them says nothing, however long it takes on a busy machine."""
+    code = "from softevo.worker.evaluate import ensure_compiled; ensure_compiled()"
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=900)
+    again = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, timeout=900)
+    assert COMPILING_NOTICE not in again.stderr
