@@ -25,6 +25,7 @@ pytestmark = [
 
 READY_MS = 120_000  # the analysis starts the server's background process
 SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "screenshots.py"
+PAGES = ("experiment-page.png", "transition-run-page.png", "individual-page.png")
 TREATMENTS = len(compared.TREATMENTS)
 
 
@@ -210,7 +211,7 @@ def test_the_statistics_table_shows_p_a12_and_the_interval_without_scrolling(com
         visible = page.locator("#statistics").bounding_box()
         headers = page.locator("#statistics thead th")
         texts = headers.all_inner_texts()
-        for name in ("p", "p (Bonferroni, family size)", "A12", "a − b [95% CI]"):
+        for name in ("p", "p (Bonferroni ×k)", "A12", "a − b [95% CI]"):
             box = headers.nth(texts.index(name)).bounding_box()
             assert box["x"] + box["width"] <= visible["x"] + visible["width"], name
     finally:
@@ -222,17 +223,20 @@ def test_an_unknown_experiment_is_a_404_page(compared_url):
     assert answer.status_code == 404 and "There is no experiment 999." in answer.text
 
 
-def test_the_screenshot_script_saves_the_page(compared_db, tmp_path):
+def test_the_screenshot_script_saves_the_pages(compared_db, tmp_path):
+    """The experiment page whole, the transition run's page and its best individual's page
+    (the hand-built genomes replay nothing: the page says so, and is saved all the same)."""
     from PIL import Image
 
-    out = tmp_path / "experiment-page.png"
     done = subprocess.run(
         [sys.executable, str(SCRIPT), "--db", compared_db.url, "--experiment", compared.NAME,
-         "--out", str(out), "--width", "1200"],
+         "--out-dir", str(tmp_path), "--width", "1200"],
         capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert f"experiment {compared_db.experiment_id}" in done.stdout
-    image = Image.open(out)
-    assert image.width == 1200 and image.height > 2500  # the whole page, every panel
-    assert len(image.convert("RGB").getcolors(1 << 20) or []) > 200  # drawn plots, not a blank page
+    assert done.stdout.count(f"experiment {compared_db.experiment_id}") == 3
+    pages = {name: Image.open(tmp_path / name) for name in PAGES}
+    assert all(image.width == 1200 for image in pages.values())
+    assert pages["experiment-page.png"].height > 2500  # the whole page, every panel
+    for image in pages.values():
+        assert len(image.convert("RGB").getcolors(1 << 20) or []) > 200  # drawn, not a blank page

@@ -106,3 +106,19 @@ def test_the_tree_labels_its_y_axis(transition, open_page):
     assert "generation" in texts
     assert any(text.startswith("lineages") for text in texts), texts
     assert "surviving" in texts
+
+
+def test_the_clock_counts_a_cut_short_cycle(transition, both_worlds, open_page):
+    """An evaluation the guard on seconds cut short of a whole cycle (0.96 s of a 2.03 s
+    period, as at the tiny scale) reads "cycle 1 of 0.5", not "cycle 0 of 0"."""
+    page = open_individual(open_page(transition).page, transition, both_worlds)
+    clock = page.evaluate(
+        """(() => {
+          const r = window.softevoReplay;
+          r.omega = 2 * Math.PI * 0.492;
+          r.end = r.settle + 0.96;
+          r.time = r.end - 0.01;
+          return r.clock();
+        })()"""
+    )
+    assert (clock["settling"], clock["cycle"], clock["cycles"]) == (False, 1, 0.5)

@@ -269,7 +269,7 @@ function drawStatistics() {
   const family = document.getElementById("stats-family").value;
   const rows = state.analysis.statistics.filter((r) => (!metric || r.metric === metric) && (!family || r.family === family));
   fill("statistics", table(
-    ["a", "b", "metric", "generation", "n (a / b)", "p", "p (Bonferroni, family size)", "sig.", "A12",
+    ["a", "b", "metric", "generation", "n (a / b)", "p", "p (Bonferroni ×k)", "sig.", "A12",
       "a − b [95% CI]", "mean a", "mean b", "detectable A12", "test", "comparison", "family"],
     statisticsRows(rows), [3, 5, 6, 8, 9, 10, 11, 12],
   ));

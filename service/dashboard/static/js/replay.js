@@ -310,10 +310,12 @@ export class Replay {
     const cycleTime = this.time - this.settle;
     const settling = cycleTime < 0 || this.omega <= 0;
     const angle = settling ? 0 : this.omega * cycleTime;
-    const cycles = this.omega > 0 ? Math.round(((this.end - this.settle) * this.omega) / (2 * Math.PI)) : 0;
+    // cycles actuated: whole, or a fraction where the guard on seconds cut the evaluation short
+    const exact = this.omega > 0 ? ((this.end - this.settle) * this.omega) / (2 * Math.PI) : 0;
+    const cycles = Math.abs(exact - Math.round(exact)) < 0.05 ? Math.round(exact) : Math.round(exact * 10) / 10;
     return {
       time: this.time, start: this.start, end: this.end, settling, cycles,
-      cycle: settling ? 0 : Math.min(cycles, Math.floor(angle / (2 * Math.PI)) + 1),
+      cycle: settling ? 0 : Math.min(Math.max(1, Math.ceil(cycles)), Math.floor(angle / (2 * Math.PI)) + 1),
       phaseDegrees: settling ? 0 : ((angle * 180) / Math.PI) % 360,
     };
   }
