@@ -122,3 +122,17 @@ def test_the_clock_counts_a_cut_short_cycle(transition, both_worlds, open_page):
         })()"""
     )
     assert (clock["settling"], clock["cycle"], clock["cycles"]) == (False, 1, 0.5)
+
+
+def test_the_run_page_plots_each_world_in_its_own_panel(transition, open_page):
+    """No line joins a land distance to a water one: a panel per world, each with its own
+    axis, the land generations in one, the water ones in the other."""
+    page = open_page(transition).page
+    page.goto(f"{transition}/dashboard/runs/1")
+    page.wait_for_selector("#fitness .scatterlayer .trace", timeout=60_000)
+    assert page.locator("#fitness").get_attribute("data-worlds") == "land,water"
+    traces = page.evaluate("document.getElementById('fitness').data.map((t) => ({x: t.x, yaxis: t.yaxis}))")
+    land = [t["x"] for t in traces if t["yaxis"] == "y"]
+    water = [t["x"] for t in traces if t["yaxis"] == "y2"]
+    assert land == [list(range(SWITCH_AT))] * 2  # best and mean
+    assert water == [list(range(SWITCH_AT, GENERATIONS))] * 2
