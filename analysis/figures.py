@@ -151,12 +151,6 @@ def environment_title(environment: str) -> str:
     return " \u2192 ".join(environment.split(worlds.TRANSITION))
 
 
-def _environments(data: ExperimentData) -> list[str]:
-    present = list(dict.fromkeys(data.treatments["environment"]))
-    order = worlds.environments()
-    return sorted(present, key=lambda e: order.index(e) if e in order else len(order))
-
-
 def _grid(fig: Figure, n: int, cols: int, **kwargs) -> list[Axes]:
     rows = math.ceil(n / cols)
     axes = fig.subplots(rows, cols, squeeze=False, **kwargs).ravel()
@@ -186,21 +180,37 @@ def _switch_line(ax: Axes, switch_at) -> None:
         )
 
 
+GRADUAL_PANEL = "during a gradual switch"  # the fitness panel of the compound worlds
+
+
+def world_panel(environment: str) -> str:
+    """The fitness panel of a world: its own, one for all compound worlds of a gradual switch."""
+    return GRADUAL_PANEL if worlds.is_compound(environment) else environment
+
+
 def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) -> FigureFile:
     """Best distance over generations per treatment: mean over repetitions, 95% CI band;
-    one panel per environment schedule."""
+    one panel per world, each with its own distance axis (distances of different worlds are
+    not comparable): a transition's curve goes on in its new world's panel."""
     fig = _new_figure("fitness", data)
-    environments = _environments(data)
-    axes = _grid(fig, len(environments), min(2, len(environments)), sharey=True)
+    panels = curves["environment"].map(world_panel)
+    names = list(dict.fromkeys(panels))
+    order = worlds.environments()
+    names.sort(key=lambda w: order.index(w) if w in order else len(order))
+    axes = _grid(fig, len(names), min(2, len(names)))
     colors = treatment_colors(data.treatments)
-    for ax, env in zip(axes, environments, strict=True):
-        rows = data.treatments[data.treatments["environment"] == env]
-        for name in rows["name"]:
-            _curve(ax, curves[curves["treatment"] == name], colors[name], name)
-        _switch_line(ax, rows["switch_at"].dropna().iloc[0] if rows["switch_at"].notna().any() else None)
-        ax.set_title(environment_title(env))
+    switches = dict(zip(data.treatments["name"], data.treatments["switch_at"], strict=True))
+    for ax, panel in zip(axes, names, strict=True):
+        in_panel = curves[panels == panel]
+        shown = [name for name in data.treatment_names if (in_panel["treatment"] == name).any()]
+        for name in shown:
+            _curve(ax, in_panel[in_panel["treatment"] == name], colors[name], name)
+        for switch_at in sorted({int(switches[n]) for n in shown if pd.notna(switches[n])}):
+            _switch_line(ax, switch_at)
+        ax.set_title(f"in {panel}" if panel != GRADUAL_PANEL else panel)
         ax.set_xlabel("generation")
         ax.set_ylabel("best distance (voxel lengths)")
+        ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper left")
     fig.suptitle(f"Fitness over generations: mean of {_reps(data)} with 95% t interval")
@@ -209,7 +219,8 @@ def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) ->
         out_dir,
         "fitness",
         "Best distance (voxel lengths) of the population at each generation, mean over "
-        "repetitions with its 95% t confidence band; one panel per environment.",
+        "repetitions with its 95% t confidence band (clipped at 0); one panel per world, each "
+        "with its own axis: a transition's curve goes on in its new world's panel.",
     )
 
 

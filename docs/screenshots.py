@@ -134,7 +134,9 @@ def screenshots(base: str, experiment: int, out_dir: Path, width: int, timeout_s
             page.screenshot(path=str(paths[1]), full_page=True)
 
             if best is not None:
-                page.goto(f"{base}/dashboard/individuals/{best['individual_id']}?environment={best['environment']}")
+                page.goto(
+                    f"{base}/dashboard/individuals/{best['individual_id']}?environment={best['environment']}"
+                )
                 page.wait_for_function(
                     "window.softevoReplay !== undefined"
                     " || document.getElementById('viewer-status').classList.contains('error')",

@@ -117,3 +117,22 @@ def test_fitness_ticks_are_whole_generations(inputs, tmp_path, monkeypatch):
     monkeypatch.setattr(figures, "save", checked)
     figures.fitness_figure(data, curves, tmp_path)
     assert ticks and all(float(t).is_integer() for t in ticks)
+
+
+def test_the_fitness_figure_has_a_panel_per_world(inputs, tmp_path, monkeypatch):
+    """Water and land distances never share an axis: the water-land transition's curve is in
+    the water panel before its switch and in the land panel after it (issue 49.4)."""
+    data, _, curves = inputs
+    kept = []
+    monkeypatch.setattr(figures.plt, "close", kept.append)
+    figures.fitness_figure(data, curves, tmp_path)
+    (fig,) = kept
+    panels = {ax.get_title(): ax for ax in fig.axes if ax.get_visible() and ax.get_title()}
+    assert set(panels) == {"in land", "in water"}
+    switch_at, generations = 2, 3  # tests/analysis/conftest.py
+    for title, ax in panels.items():
+        transition = next(line.get_xdata() for line in ax.get_lines() if line.get_label() == "water-land S3")
+        expected = range(switch_at) if title == "in water" else range(switch_at, generations)
+        assert list(transition) == list(expected)
+    assert "land S3" in {line.get_label() for line in panels["in land"].get_lines()}
+    assert "land S3" not in {line.get_label() for line in panels["in water"].get_lines()}

@@ -96,9 +96,7 @@ def test_the_statistics_table_shows_each_p_with_its_family(compared_url, compare
     # statistics drop a metric that is constant or identical to another (issue 46)
     assert {r["metric"] for r in rows} == {"best_distance", "voxel_count"}
     assert table.count() == len(rows) == 16
-    assert page.locator("#statistics tbody tr td:last-child").all_inner_texts() == [
-        r["family"] for r in rows
-    ]
+    assert page.locator("#statistics tbody tr td:last-child").all_inner_texts() == [r["family"] for r in rows]
     page.select_option("#stats-metric", "best_distance")
     chosen = [r for r in rows if r["metric"] == "best_distance"]
     assert table.count() == len(chosen) == 8  # one per pair, and one start vs end per treatment
@@ -201,7 +199,9 @@ def test_the_plotly_toolbar_leaves_small_panel_titles_visible(compared_url, comp
         assert not _overlap(toolbar.bounding_box(), title.bounding_box()), title.inner_text()
 
 
-def test_the_statistics_table_shows_p_a12_and_the_interval_without_scrolling(compared_url, compared_db, browser):
+def test_the_statistics_table_shows_p_a12_and_the_interval_without_scrolling(
+    compared_url, compared_db, browser
+):
     """At 1400 px the columns a reader looks for are inside the table's visible box."""
     context = browser.new_context(viewport={"width": 1400, "height": 900})
     try:

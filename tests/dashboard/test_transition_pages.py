@@ -83,7 +83,9 @@ def test_a_water_replay_draws_no_floor_grid(transition, both_worlds, open_page):
     page = open_individual(open_page(transition).page, transition, both_worlds, "?environment=water")
     assert page.evaluate("window.softevoReplay.grid === null")
     page.select_option("#environment", "land")
-    page.wait_for_function("window.softevoReplay && window.softevoReplay.grid !== null", timeout=REPLAY_READY_MS)
+    page.wait_for_function(
+        "window.softevoReplay && window.softevoReplay.grid !== null", timeout=REPLAY_READY_MS
+    )
     assert page.locator("#replay-environment").inner_text().startswith("land ·")
 
 

@@ -41,5 +41,7 @@ def test_cached_kernels_load_without_the_notice():
     cold): loading them says nothing, however long it takes on a busy machine."""
     code = "from softevo.worker.evaluate import ensure_compiled; ensure_compiled()"
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=900)
-    again = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, timeout=900)
+    again = subprocess.run(
+        [sys.executable, "-c", code], check=True, capture_output=True, text=True, timeout=900
+    )
     assert COMPILING_NOTICE not in again.stderr
