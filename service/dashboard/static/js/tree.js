@@ -95,13 +95,13 @@ function draw(canvas, tree) {
   ctx.fillStyle = "#667085";
   ctx.font = "12px system-ui, sans-serif";
   ctx.lineWidth = 1;
-  const ticks = Math.min(10, lastGeneration);
-  for (let k = 0; k <= ticks; k++) {
-    const g = Math.round((k / ticks) * lastGeneration);
+  ctx.textAlign = "center";
+  for (const g of generationTicks(lastGeneration)) {
     ctx.beginPath(); ctx.moveTo(px(g), MARGIN.top - 6); ctx.lineTo(px(g), HEIGHT - MARGIN.bottom); ctx.stroke();
-    ctx.fillText(String(g), px(g) - 4, HEIGHT - MARGIN.bottom + 16);
+    ctx.fillText(String(g), px(g), HEIGHT - MARGIN.bottom + 14);
   }
-  ctx.fillText("generation", width / 2 - 30, HEIGHT - 4);
+  ctx.fillText("generation", MARGIN.left + (width - MARGIN.left - MARGIN.right) / 2, HEIGHT - 3);
+  ctx.textAlign = "left";
   yAxisLabels(ctx, rowOf, alive, dead, split, span);
   if (tree.switch_at !== null) {
     if (tree.switch_over > 0) {
@@ -146,6 +146,16 @@ function draw(canvas, tree) {
     }
   }
   return { placed, ms: performance.now() - started };
+}
+
+/** Generations 0..last at a round step (1, 2 or 5 x 10^k), at most about 10 of them. */
+function generationTicks(last) {
+  const rough = Math.max(1, last / 10);
+  const power = 10 ** Math.floor(Math.log10(rough));
+  const step = [1, 2, 5, 10].map((m) => m * power).find((s) => s >= rough);
+  const ticks = [];
+  for (let g = 0; g <= last; g += step) ticks.push(g);
+  return ticks;
 }
 
 /** The y axis: what a row is (one per lineage's leaf, parents between their children), and
