@@ -12,6 +12,7 @@ water->land green), darker for stiffer material.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from softevo.analysis.data import ExperimentData  # noqa: E402
 from softevo.analysis.matching import arrival_generation  # noqa: E402
@@ -94,10 +96,24 @@ def _new_figure(name: str, data: ExperimentData, layout: str | None = "constrain
     return plt.figure(figsize=size, dpi=DPI, layout=layout)
 
 
+def _fit_suptitle(fig: Figure) -> None:
+    """Wrap the figure's title onto more lines where it is wider than the figure (a pareto
+    figure of one treatment is one panel wide): the layout then makes room for it."""
+    title = fig._suptitle  # matplotlib keeps the suptitle's Text here
+    if title is None or not title.get_text():
+        return
+    width = title.get_window_extent(fig.canvas.get_renderer()).width
+    room = 0.94 * fig.bbox.width
+    if width > room:
+        text = title.get_text().replace("\n", " ")
+        title.set_text(textwrap.fill(text, max(12, int(len(text) * room / width))))
+
+
 def save(fig: Figure, out_dir: Path, name: str, caption: str) -> FigureFile:
     """Write ``fig`` as ``out_dir/name.png`` and ``.svg`` and close it."""
     out_dir.mkdir(parents=True, exist_ok=True)
     png, svg = out_dir / f"{name}.png", out_dir / f"{name}.svg"
+    _fit_suptitle(fig)
     fig.savefig(png, dpi=DPI)
     fig.set_layout_engine("none")  # keep the layout just computed; do not redo it for the SVG
     fig.savefig(svg)
@@ -135,12 +151,6 @@ def environment_title(environment: str) -> str:
     return " \u2192 ".join(environment.split(environments.TRANSITION))
 
 
-def _environments(data: ExperimentData) -> list[str]:
-    present = list(dict.fromkeys(data.treatments["environment"]))
-    order = environments.environments()
-    return sorted(present, key=lambda e: order.index(e) if e in order else len(order))
-
-
 def _grid(fig: Figure, n: int, cols: int, **kwargs) -> list[Axes]:
     rows = math.ceil(n / cols)
     axes = fig.subplots(rows, cols, squeeze=False, **kwargs).ravel()
@@ -153,6 +163,7 @@ def _grid(fig: Figure, n: int, cols: int, **kwargs) -> list[Axes]:
 def _curve(ax: Axes, curve: pd.DataFrame, color, label: str, style: str = "-") -> None:
     ax.plot(curve["generation"], curve["mean"], style, color=color, label=label, lw=1.6)
     ax.fill_between(curve["generation"], curve["low"], curve["high"], color=color, alpha=0.2, lw=0)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # generations: no tick at 0.25
 
 
 def _switch_line(ax: Axes, switch_at) -> None:
@@ -169,21 +180,37 @@ def _switch_line(ax: Axes, switch_at) -> None:
         )
 
 
+GRADUAL_PANEL = "during a gradual switch"  # the fitness panel of the compound worlds
+
+
+def world_panel(environment: str) -> str:
+    """The fitness panel of a world: its own, one for all compound worlds of a gradual switch."""
+    return GRADUAL_PANEL if environments.is_compound(environment) else environment
+
+
 def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) -> FigureFile:
     """Best distance over generations per treatment: mean over repetitions, 95% CI band;
-    one panel per environment schedule."""
+    one panel per world, each with its own distance axis (distances of different worlds are
+    not comparable): a transition's curve goes on in its new world's panel."""
     fig = _new_figure("fitness", data)
-    shown = _environments(data)
-    axes = _grid(fig, len(shown), min(2, len(shown)), sharey=True)
+    panels = curves["environment"].map(world_panel)
+    names = list(dict.fromkeys(panels))
+    order = environments.environments()
+    names.sort(key=lambda w: order.index(w) if w in order else len(order))
+    axes = _grid(fig, len(names), min(2, len(names)))
     colors = treatment_colors(data.treatments)
-    for ax, env in zip(axes, shown, strict=True):
-        rows = data.treatments[data.treatments["environment"] == env]
-        for name in rows["name"]:
-            _curve(ax, curves[curves["treatment"] == name], colors[name], name)
-        _switch_line(ax, rows["switch_at"].dropna().iloc[0] if rows["switch_at"].notna().any() else None)
-        ax.set_title(environment_title(env))
+    switches = dict(zip(data.treatments["name"], data.treatments["switch_at"], strict=True))
+    for ax, panel in zip(axes, names, strict=True):
+        in_panel = curves[panels == panel]
+        shown = [name for name in data.treatment_names if (in_panel["treatment"] == name).any()]
+        for name in shown:
+            _curve(ax, in_panel[in_panel["treatment"] == name], colors[name], name)
+        for switch_at in sorted({int(switches[n]) for n in shown if pd.notna(switches[n])}):
+            _switch_line(ax, switch_at)
+        ax.set_title(f"in {panel}" if panel != GRADUAL_PANEL else panel)
         ax.set_xlabel("generation")
         ax.set_ylabel("best distance (voxel lengths)")
+        ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper left")
     fig.suptitle(f"Fitness over generations: mean of {_reps(data)} with 95% t interval")
@@ -192,7 +219,8 @@ def fitness_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) ->
         out_dir,
         "fitness",
         "Best distance (voxel lengths) of the population at each generation, mean over "
-        "repetitions with its 95% t confidence band; one panel per environment.",
+        "repetitions with its 95% t confidence band (clipped at 0); one panel per world, each "
+        "with its own axis: a transition's curve goes on in its new world's panel.",
     )
 
 

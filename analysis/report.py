@@ -150,11 +150,29 @@ class Document:
         self.blocks.append(("table", frame))
 
 
+NUMERICAL_ZERO = 1e-9  # |x| below this is floating-point noise around 0 (3.93e-16), shown as 0
+
+
+def number(value: float, digits: int = 3) -> str:
+    """``value`` to ``digits`` significant digits, a numerically-zero value as ``0``."""
+    return "0" if abs(value) < NUMERICAL_ZERO else f"{value:.{digits}g}"
+
+
+def interval_cell(mean: float, low: float, high: float) -> str:
+    """``mean [low, high]``; ``mean (n = 1: no interval)`` where there is one value only
+    (its bounds are NaN); empty without a value."""
+    if not np.isfinite(mean):
+        return ""
+    if not (np.isfinite(low) and np.isfinite(high)):
+        return f"{number(mean)} (n = 1: no interval)"
+    return f"{number(mean)} [{number(low)}, {number(high)}]"
+
+
 def _cell(value: Any) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return ""
     if isinstance(value, float | np.floating):
-        return f"{value:.4g}"
+        return number(float(value), 4)
     return str(value)
 
 
@@ -371,7 +389,7 @@ def summary_pivot(summary: pd.DataFrame, names: list[str]) -> pd.DataFrame:
     """Treatments as rows, metrics as columns, cells ``mean [low, high]``."""
     cells = summary.assign(
         cell=[
-            f"{m:.3g} [{lo:.3g}, {hi:.3g}]" if np.isfinite(m) else ""
+            interval_cell(m, lo, hi)
             for m, lo, hi in zip(summary["mean"], summary["low"], summary["high"], strict=True)
         ]
     )
@@ -411,7 +429,7 @@ def _statistics_display(stats: pd.DataFrame) -> pd.DataFrame:
     labels = metric_labels()
     shown["metric"] = [labels.get(m, m) for m in shown["metric"]]
     shown["a - b [95% CI]"] = [
-        f"{d:.3g} [{lo:.3g}, {hi:.3g}]" if np.isfinite(d) else ""
+        interval_cell(d, lo, hi)
         for d, lo, hi in zip(
             stats["difference"], stats["difference_low"], stats["difference_high"], strict=True
         )

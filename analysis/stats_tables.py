@@ -151,10 +151,31 @@ def welch_interval(a: Sequence[float], b: Sequence[float], confidence: float = C
     return difference, difference - half, difference + half
 
 
+# What a measure can be (inclusive): its intervals are clipped to this range, so that a
+# distance's band never goes below 0 (a t interval of a few skewed values easily does).
+MEASURE_RANGES: dict[str, tuple[float, float]] = {
+    "best_distance": (0.0, math.inf),
+    "distance": (0.0, math.inf),
+    "active_share": (0.0, 1.0),
+    "passive_share": (0.0, 1.0),
+    "voxel_count": (0.0, math.inf),
+    "frequency": (0.0, math.inf),
+    "frequency_active": (0.0, math.inf),
+}
+
+
+def clipped(low: float, high: float, measure: str | None) -> tuple[float, float]:
+    """(low, high) of an interval of ``measure`` clipped to ``MEASURE_RANGES``."""
+    bottom, top = MEASURE_RANGES.get(measure or "", (-math.inf, math.inf))
+    return min(max(low, bottom), top), max(min(high, top), bottom)
+
+
 def ci_table(
     frame: pd.DataFrame, value: str, by: str | Sequence[str], confidence: float = CONFIDENCE
 ) -> pd.DataFrame:
-    """Per group of ``by``: n, mean, low, high of column ``value`` (``t_interval``).
+    """Per group of ``by``: n, mean, low, high of column ``value`` (``t_interval``), the
+    bounds clipped to what the measure allows (``clipped``: the measure is ``value``, or the
+    group's ``metric`` where ``by`` holds one).
 
     Missing values are dropped; a group with no value gets NaN mean and bounds.
     """
@@ -163,16 +184,10 @@ def ci_table(
     for key, group in frame.groupby(keys, sort=False, dropna=False):
         values = group[value].dropna().to_numpy(dtype=float)
         mean, low, high = t_interval(values, confidence)
-        key = key if isinstance(key, tuple) else (key,)
-        rows.append(
-            {
-                **dict(zip(keys, key, strict=True)),
-                "n": int(values.size),
-                "mean": mean,
-                "low": low,
-                "high": high,
-            }
-        )
+        labels = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
+        if np.isfinite(low):
+            low, high = clipped(low, high, labels.get("metric", value))
+        rows.append({**labels, "n": int(values.size), "mean": mean, "low": low, "high": high})
     return pd.DataFrame(rows, columns=[*keys, "n", "mean", "low", "high"])
 
 
@@ -459,10 +474,11 @@ def plotted_generations(generations: np.ndarray, switches: Sequence[int], max_po
 
 def fitness_curves(data: ExperimentData, max_points: int = MAX_CURVE_POINTS) -> pd.DataFrame:
     """Per treatment and generation: mean best distance over repetitions with its t
-    interval (columns treatment, generation, n, mean, low, high). Long runs are thinned to about
-    ``max_points`` generations (``plotted_generations``)."""
+    interval (columns treatment, generation, environment, n, mean, low, high; a generation
+    whose runs were evaluated in different worlds has a row per world). Long runs are thinned
+    to about ``max_points`` generations (``plotted_generations``)."""
     frame = data.generations
     switches = [int(s) for s in data.treatments["switch_at"].dropna()]
     kept = plotted_generations(frame["generation"].to_numpy(), switches, max_points)
     frame = frame[frame["generation"].isin(kept)]
-    return ci_table(frame, "best_distance", ["treatment", "generation"])
+    return ci_table(frame, "best_distance", ["treatment", "generation", "environment"])

@@ -84,3 +84,15 @@ def test_the_readme_names_the_scale_and_model_of_docs_results():
     grid = preset_grid("paper", scale)
     assert len(runs) - 1 == sum(t.repetitions for t in grid)
     assert f"{grid[0].repetitions} repetitions" in results
+
+
+def test_the_readme_says_the_next_step_right_after_the_quickstart():
+    """Between the quickstart and the test command: how to look at the result (the
+    dashboard on the quickstart's database, with its URL) and how long the bare defaults
+    take (issue 49.15)."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = [m.start() for m in re.finditer(r"^```bash", readme, flags=re.MULTILINE)]
+    between = readme[blocks[0] : blocks[1]]
+    assert "softevo dashboard --db sqlite:///quickstart.db" in between
+    assert "http://127.0.0.1:8000/dashboard/" in between
+    assert re.search(r"takes\s+about\s+\d+\s+minutes\s+on\s+2\s+cores", between)

@@ -124,6 +124,29 @@ def warm_up(threads: int | None = 1) -> None:
 
 
 _CACHE_READY = False
+COMPILING_NOTICE = "compiling the simulator's kernels (first use, about 1-2 min; cached after)"
+COMPILING = "compiling"  # what the warm-up subprocess writes to stdout when numba compiles
+# The warm-up subprocess: it registers, before anything of softevo is imported (and perhaps
+# compiled), a listener of numba's "numba:compile" event, which fires for a compilation and
+# never for a kernel loaded from the cache; the first one writes COMPILING to stdout.
+WARM_UP_CODE = f"""
+from numba.core import event
+
+class FirstCompilation(event.Listener):
+    announced = False
+
+    def on_start(self, _event):
+        if not self.announced:
+            self.announced = True
+            print({COMPILING!r}, flush=True)
+
+    def on_end(self, _event):
+        pass
+
+event.register("numba:compile", FirstCompilation())
+from softevo.worker.evaluate import warm_up
+warm_up()
+"""
 
 
 def ensure_compiled() -> None:
@@ -132,13 +155,20 @@ def ensure_compiled() -> None:
 
     On a cold cache the kernels are then compiled once, not by every pool process at the
     same time, and every process (a resumed run's included) runs the same cached machine
-    code, whichever process compiled it.
+    code, whichever process compiled it. When the subprocess compiles (a cold cache, or
+    kernels changed since), ``COMPILING_NOTICE`` goes to stderr, so that a first run does
+    not look hung; loading cached kernels says nothing.
     """
     global _CACHE_READY
     if _CACHE_READY:
         return
-    code = "from softevo.worker.evaluate import warm_up; warm_up()"
-    subprocess.run([sys.executable, "-c", code], check=False, capture_output=True)
+    process = subprocess.Popen(
+        [sys.executable, "-c", WARM_UP_CODE], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    )
+    for line in process.stdout:  # type: ignore[union-attr]
+        if line.strip() == COMPILING:
+            print(COMPILING_NOTICE, file=sys.stderr, flush=True)
+    process.wait()
     _CACHE_READY = True
 
 

@@ -366,7 +366,14 @@ class RunOut(BaseModel):
     repetition: int
     seed: int
     treatment: TreatmentOut
-    best: BestOut | None
+    best: BestOut | None = Field(
+        description="the best evaluation (greatest distance) in the run's last world so far: "
+        "distances of different worlds are not comparable (None: none yet)"
+    )
+    best_per_world: list[BestOut] = Field(
+        description="the best evaluation in each world the run was evaluated in, the worlds in "
+        "the order the run met them (the last is ``best``); the same as GET /runs/{id}/best"
+    )
     error: str | None
     created_at: datetime | None
     updated_at: datetime | None

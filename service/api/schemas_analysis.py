@@ -45,9 +45,13 @@ class AnalysisTreatment(BaseModel):
 class Curve(BaseModel):
     treatment: str
     generation: list[int]
+    environment: list[str] = Field(
+        description="the world each generation was evaluated in (distances of different worlds "
+        "are not comparable: the dashboard draws one panel per world)"
+    )
     n: list[int] = Field(description="runs that stored the generation")
     mean: list[float | None] = Field(description="mean best distance over runs (voxel lengths)")
-    low: list[float | None]
+    low: list[float | None] = Field(description="95% t interval, clipped at 0 (a distance is never negative)")
     high: list[float | None]
 
 

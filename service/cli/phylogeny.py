@@ -152,6 +152,7 @@ def _exaptation_tables(s: dict) -> None:
     for f in s["founder_lines"]:
         founders.add_row(str(f["founder_id"]), str(f["lines"]), str(f["front_lines"]))
     console.print(founders)
+    console.print(lines_note(s))
     # a row per line and trait, so that the table fits 80 columns
     title = "surviving lines: each trait at the founder, the switch and the end"
     lines = Table("founder > final", "root", "trait", "founder", "switch", "end", "changed", title=title)
@@ -165,6 +166,18 @@ def _exaptation_tables(s: dict) -> None:
             values = (_cell(t["founder"]), _cell(t["switch"]), _cell(t["end"]), changed)
             lines.add_row(*ids, header, *values, end_section=k == len(TRAIT_HEADERS) - 1)
     console.print(lines)
+
+
+def lines_note(s: dict) -> str:
+    """Why the founders' lines can add up to more than the final population: founders kept
+    at the switch can descend from one another, and a final member counts once under each
+    founder in its ancestry."""
+    total = sum(f["lines"] for f in s["founder_lines"])
+    return (
+        f"lines to the end: {total} over {s['final_population']} final members; a final member "
+        "counts once under each founder among its ancestors (a founder can descend from another "
+        "founder kept at the switch), so the column can add up to more than the final population"
+    )
 
 
 def _cell(value) -> str:

@@ -130,13 +130,17 @@ def treatments(data: ExperimentData) -> list[dict[str, Any]]:
 
 
 def curves(data: ExperimentData) -> list[dict[str, Any]]:
-    """Per treatment: generations and the mean best distance over its runs with the 95% t
-    interval (``fitness_curves``) and the number of runs at each generation."""
+    """Per treatment: generations, the world each was evaluated in, and the mean best
+    distance over its runs with the 95% t interval (``fitness_curves``, clipped at 0) and the
+    number of runs at each generation."""
     table = fitness_curves(data)
     return [
         {
             "treatment": name,
-            **_columns(table[table["treatment"] == name], ("generation", "n", "mean", "low", "high")),
+            **_columns(
+                table[table["treatment"] == name],
+                ("generation", "environment", "n", "mean", "low", "high"),
+            ),
         }
         for name in data.treatment_names
     ]

@@ -100,7 +100,8 @@ def run_detail(conn: Connection, run_id: int) -> dict[str, Any] | None:
         return None
     row = rows[0]
     row["treatment"] = {"name": row.pop("treatment_name"), "settings": row.pop("settings")}
-    row["best"] = best_of_run(conn, run_id)
+    row["best_per_world"] = best_per_world(conn, run_id)
+    row["best"] = row["best_per_world"][-1] if row["best_per_world"] else None  # its last world's
     return row
 
 

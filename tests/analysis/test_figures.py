@@ -87,3 +87,52 @@ def test_pareto_front_is_the_non_dominated_staircase():
     assert front["individual_id"].tolist() == [5, 2, 3, 1]  # 4 is dominated by 2 and 3
     picks = figures.front_samples(front, 3)
     assert picks["individual_id"].tolist() == [1, 3, 2]  # the robot that never moved is left out
+
+
+def test_one_treatment_pareto_title_fits_the_figure(inputs, tmp_path, monkeypatch):
+    """A pareto figure of one treatment is one panel wide: its title wraps instead of running
+    off both edges (issue 49.15)."""
+    data, _, _ = inputs
+    one = data.treatment_names[:1]
+    single = dataclasses.replace(data, treatments=data.treatments[data.treatments["name"].isin(one)])
+    kept = []
+    monkeypatch.setattr(figures.plt, "close", kept.append)  # keep the saved figure to measure it
+    figures.pareto_figure(single, tmp_path)
+    (fig,) = kept
+    box = fig._suptitle.get_window_extent(fig.canvas.get_renderer())
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width
+
+
+def test_fitness_ticks_are_whole_generations(inputs, tmp_path, monkeypatch):
+    """A run of a few generations gets ticks at whole generations, not at 0.25 (issue 49.15)."""
+    data, _, curves = inputs
+    ticks = []
+    original = figures.save
+
+    def checked(fig, out_dir, name, caption):
+        fig.canvas.draw()
+        ticks.extend(t for ax in fig.axes if ax.get_visible() for t in ax.get_xticks())
+        return original(fig, out_dir, name, caption)
+
+    monkeypatch.setattr(figures, "save", checked)
+    figures.fitness_figure(data, curves, tmp_path)
+    assert ticks and all(float(t).is_integer() for t in ticks)
+
+
+def test_the_fitness_figure_has_a_panel_per_world(inputs, tmp_path, monkeypatch):
+    """Water and land distances never share an axis: the water-land transition's curve is in
+    the water panel before its switch and in the land panel after it (issue 49.4)."""
+    data, _, curves = inputs
+    kept = []
+    monkeypatch.setattr(figures.plt, "close", kept.append)
+    figures.fitness_figure(data, curves, tmp_path)
+    (fig,) = kept
+    panels = {ax.get_title(): ax for ax in fig.axes if ax.get_visible() and ax.get_title()}
+    assert set(panels) == {"in land", "in water"}
+    switch_at, generations = 2, 3  # tests/analysis/conftest.py
+    for title, ax in panels.items():
+        transition = next(line.get_xdata() for line in ax.get_lines() if line.get_label() == "water-land S3")
+        expected = range(switch_at) if title == "in water" else range(switch_at, generations)
+        assert list(transition) == list(expected)
+    assert "land S3" in {line.get_label() for line in panels["in land"].get_lines()}
+    assert "land S3" not in {line.get_label() for line in panels["in water"].get_lines()}

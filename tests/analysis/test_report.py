@@ -166,3 +166,15 @@ def test_the_methods_paragraph_comes_from_each_treatments_settings(report):
     assert "physics model voxelyze-2; frequency: one evolved frequency mapped linearly onto 1-5 Hz" in page
     assert "land S3: physics model" in page and "water-land S3: physics model" in page
     assert "2 actuation cycles per evaluation, no cap on seconds" in page
+
+
+def test_report_numbers_say_zero_and_no_interval_plainly():
+    """Floating-point noise around 0 reads 0, and one run has no interval instead of
+    ``[nan, nan]`` (issue 49.15)."""
+    from softevo.analysis.report import _cell, interval_cell
+
+    assert _cell(3.93e-16) == "0" and _cell(-2e-17) == "0" and _cell(0.0001234) == "0.0001234"
+    assert interval_cell(1.5, float("nan"), float("nan")) == "1.5 (n = 1: no interval)"
+    assert interval_cell(3.93e-16, -1e-16, 2e-16) == "0 [0, 0]"
+    assert interval_cell(2.0, 1.25, 2.75) == "2 [1.25, 2.75]"
+    assert interval_cell(float("nan"), float("nan"), float("nan")) == ""

@@ -48,6 +48,21 @@ def test_ci_table_single_value_and_missing_values():
     assert table.loc["b", "n"] == 0 and np.isnan(table.loc["b", "mean"])
 
 
+def test_ci_table_clips_an_interval_to_what_the_measure_allows():
+    """A distance is never negative, a share lies in [0, 1]: the t interval of a few skewed
+    values is clipped there (the unclipped one here runs below 0; issue 49.4)."""
+    frame = pd.DataFrame(
+        {"metric": ["distance"] * 3 + ["active_share"] * 3 + ["symmetry"] * 3,
+         "value": [0.1, 0.2, 5.0, 0.0, 0.05, 0.99, 0.1, 0.2, 5.0]}
+    )  # fmt: skip
+    by_metric = ci_table(frame, "value", "metric").set_index("metric")
+    assert by_metric.loc["distance", "low"] == 0.0 and by_metric.loc["distance", "high"] > 5.0
+    assert (by_metric.loc["active_share", "low"], by_metric.loc["active_share", "high"]) == (0.0, 1.0)
+    assert by_metric.loc["symmetry", "low"] < 0  # no known range: the t interval as it is
+    distances = frame[frame["metric"] == "distance"].rename(columns={"value": "best_distance"})
+    assert ci_table(distances, "best_distance", "metric")["low"].tolist() == [0.0]
+
+
 def test_welch_interval_matches_scipy():
     a, b = [1.1, 2.3, 2.9, 4.0, 5.2, 3.3, 2.0], [3.4, 6.1, 7.7, 8.0, 9.5, 10.2, 4.4]
     reference = scipy_stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)

@@ -157,9 +157,12 @@ def test_the_analysis_has_one_curve_front_and_box_per_treatment(analysis):
 
 
 def test_the_curves_are_t_intervals_over_the_runs(analysis):
-    """At every generation: the mean of the runs' best distances and mean -+ t sd / sqrt(n)."""
+    """At every generation: its world, the mean of the runs' best distances and mean -+ t sd
+    / sqrt(n), clipped at 0 (a distance is never negative; issue 49.4)."""
+    clipped = 0
     for treatment, curve in zip(compared.TREATMENTS, analysis["curves"], strict=True):
         assert curve["generation"] == list(range(treatment.generations))
+        assert curve["environment"] == [treatment.environment_at(g) for g in curve["generation"]]
         for k, generation in enumerate(curve["generation"]):
             values = np.array(
                 [compared.value(treatment.name, r, generation) for r in range(compared.REPETITIONS)]
@@ -168,8 +171,10 @@ def test_the_curves_are_t_intervals_over_the_runs(analysis):
             assert curve["n"][k] == compared.REPETITIONS
             assert curve["mean"][k] == pytest.approx(values.mean())
             assert (curve["low"][k], curve["high"][k]) == pytest.approx(
-                (values.mean() - half, values.mean() + half)
+                (max(0.0, values.mean() - half), values.mean() + half)
             )
+            clipped += values.mean() - half < 0
+    assert clipped > 0  # the water curves' t intervals reach below 0: these are clipped
 
 
 def test_the_fronts_are_the_non_dominated_members(analysis):
@@ -204,3 +209,20 @@ def test_the_statistics_table_holds_every_family(analysis, compared_db):
     best = next(r for r in rows if r["family"] == "stiffness in land | best_distance")
     assert (best["a"], best["b"], best["A12"], best["family_size"]) == ("land S1", "land S3", 0.0, 1)
     assert best["test"].startswith("Wilcoxon signed-rank")
+
+
+def test_a_transition_runs_best_is_its_last_worlds(compared_url, compared_db):
+    """A land -> water run's ``best`` is its best robot in water, the world it ended in, not
+    the land robot of greater distance (distances of two worlds are not comparable); every
+    world's best is listed too (issue 49.4)."""
+    names = [t.name for t in compared.TREATMENTS]
+    run_id = names.index("land-water S3") * compared.REPETITIONS + compared.REPETITIONS  # its last run
+    repetition = compared.REPETITIONS - 1
+    run = get(compared_url, f"/runs/{run_id}").json()
+    assert run["treatment"]["name"] == "land-water S3"
+    assert (run["best"]["environment"], run["best"]["generation"]) == ("water", 4)
+    assert run["best"]["distance"] == pytest.approx(compared.value("land-water S3", repetition, 4))
+    worlds = [(b["environment"], b["generation"]) for b in run["best_per_world"]]
+    assert worlds == [("land", 2), ("water", 4)]
+    assert run["best_per_world"] == get(compared_url, f"/runs/{run_id}/best").json()
+    assert run["best_per_world"][0]["distance"] > run["best"]["distance"]  # the land one goes further

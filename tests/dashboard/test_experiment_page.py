@@ -25,6 +25,7 @@ pytestmark = [
 
 READY_MS = 120_000  # the analysis starts the server's background process
 SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "screenshots.py"
+PAGES = ("experiment-page.png", "transition-run-page.png", "individual-page.png")
 TREATMENTS = len(compared.TREATMENTS)
 
 
@@ -65,7 +66,8 @@ def test_the_page_shows_every_treatment_side_by_side(compared_url, compared_db, 
     # fitness: one legend entry and one mean curve per treatment, each with its interval band
     assert page.locator("#fitness .legend .traces").count() == TREATMENTS
     assert page.locator("#fitness .legend .traces").all_text_contents() == names
-    assert page.locator("#fitness .scatterlayer .trace").count() == 2 * TREATMENTS
+    # a curve and a band per treatment and world: the transition has a part in each world
+    assert page.locator("#fitness .scatterlayer .trace").count() == 2 * (TREATMENTS + 1)
     # one front panel per treatment, each with every member of its runs and its front
     panels = page.locator("#fronts .small-plot")
     assert panels.count() == TREATMENTS
@@ -94,9 +96,7 @@ def test_the_statistics_table_shows_each_p_with_its_family(compared_url, compare
     # statistics drop a metric that is constant or identical to another (issue 46)
     assert {r["metric"] for r in rows} == {"best_distance", "voxel_count"}
     assert table.count() == len(rows) == 16
-    assert page.locator("#statistics tbody tr td:first-child").all_inner_texts() == [
-        r["family"] for r in rows
-    ]
+    assert page.locator("#statistics tbody tr td:last-child").all_inner_texts() == [r["family"] for r in rows]
     page.select_option("#stats-metric", "best_distance")
     chosen = [r for r in rows if r["metric"] == "best_distance"]
     assert table.count() == len(chosen) == 8  # one per pair, and one start vs end per treatment
@@ -104,10 +104,11 @@ def test_the_statistics_table_shows_each_p_with_its_family(compared_url, compare
     assert table.count() == 1
     cells = table.first.locator("td").all_inner_texts()
     best = next(r for r in rows if r["family"] == "stiffness in land | best_distance")
-    assert cells[0] == best["family"] and cells[6] == best["test"]
-    assert cells[10] == shown(best["p"])
-    assert cells[11] == f"{shown(best['p_bonferroni'])} (×1)"
-    assert cells[13] == shown(best["A12"])
+    assert (cells[0], cells[1]) == (best["a"], best["b"])
+    assert cells[-1] == best["family"] and cells[-3] == best["test"]
+    assert cells[5] == shown(best["p"])
+    assert cells[6] == f"{shown(best['p_bonferroni'])} (×1)"
+    assert cells[8] == shown(best["A12"])
     assert page.locator("#stats-count").inner_text() == f"1 of {len(rows)} rows"
 
 
@@ -163,22 +164,79 @@ def test_the_plotly_toolbar_leaves_the_legend_visible(compared_url, open_page, p
     assert not _overlap(toolbar.bounding_box(), legend)
 
 
+def test_the_fitness_plot_has_a_panel_per_world(compared_url, compared_db, open_page):
+    """Land and water distances never share an axis: the transition's curve goes on in the
+    water panel after its switch, and no band reaches below 0 (issue 49.4)."""
+    page = open_experiment(open_page(compared_url), compared_url, compared_db.experiment_id)
+    assert page.locator("#fitness").get_attribute("data-worlds") == "land,water"
+    traces = page.evaluate(
+        "document.getElementById('fitness').data.map((t) => ({name: t.name, x: t.x, y: t.y, yaxis: t.yaxis}))"
+    )
+    axes = {"land": "y", "water": "y2"}
+    for trace in traces:
+        if trace["name"] == "land-water S3":
+            world = "land" if trace["yaxis"] == "y" else "water"
+            expected = [g for g in range(5) if (g >= compared.SWITCH_AT) == (world == "water")]
+            assert trace["x"] == expected
+        elif trace["name"] in ("land S1", "land S3", "water S3"):
+            assert trace["yaxis"] == axes[trace["name"].split()[0]]
+        assert min(y for y in trace["y"] if y is not None) >= 0  # bands clipped at 0
+    assert sum(trace["name"] == "land-water S3" for trace in traces) == 2
+
+
+@pytest.mark.parametrize("panels", ["#fronts", "#descriptors"])
+def test_the_plotly_toolbar_leaves_small_panel_titles_visible(compared_url, compared_db, open_page, panels):
+    page = open_experiment(open_page(compared_url), compared_url, compared_db.experiment_id)
+    figures = page.locator(f"{panels} figure.small-panel")
+    assert figures.count() > 0
+    for k in range(figures.count()):
+        figure = figures.nth(k)
+        title = figure.locator(".small-title")
+        assert title.inner_text().strip()
+        figure.locator(".nsewdrag").first.hover()
+        toolbar = figure.locator(".modebar")
+        toolbar.wait_for(state="visible")
+        assert not _overlap(toolbar.bounding_box(), title.bounding_box()), title.inner_text()
+
+
+def test_the_statistics_table_shows_p_a12_and_the_interval_without_scrolling(
+    compared_url, compared_db, browser
+):
+    """At 1400 px the columns a reader looks for are inside the table's visible box."""
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    try:
+        page = context.new_page()
+        page.goto(f"{compared_url}/dashboard/experiments/{compared_db.experiment_id}")
+        page.wait_for_selector("body[data-analysis=ready]", timeout=READY_MS)
+        visible = page.locator("#statistics").bounding_box()
+        headers = page.locator("#statistics thead th")
+        texts = headers.all_inner_texts()
+        for name in ("p", "p (Bonferroni ×k)", "A12", "a − b [95% CI]"):
+            box = headers.nth(texts.index(name)).bounding_box()
+            assert box["x"] + box["width"] <= visible["x"] + visible["width"], name
+    finally:
+        context.close()
+
+
 def test_an_unknown_experiment_is_a_404_page(compared_url):
     answer = httpx.get(f"{compared_url}/dashboard/experiments/999")
     assert answer.status_code == 404 and "There is no experiment 999." in answer.text
 
 
-def test_the_screenshot_script_saves_the_page(compared_db, tmp_path):
+def test_the_screenshot_script_saves_the_pages(compared_db, tmp_path):
+    """The experiment page whole, the transition run's page and its best individual's page
+    (the hand-built genomes replay nothing: the page says so, and is saved all the same)."""
     from PIL import Image
 
-    out = tmp_path / "experiment-page.png"
     done = subprocess.run(
         [sys.executable, str(SCRIPT), "--db", compared_db.url, "--experiment", compared.NAME,
-         "--out", str(out), "--width", "1200"],
+         "--out-dir", str(tmp_path), "--width", "1200"],
         capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert f"experiment {compared_db.experiment_id}" in done.stdout
-    image = Image.open(out)
-    assert image.width == 1200 and image.height > 2500  # the whole page, every panel
-    assert len(image.convert("RGB").getcolors(1 << 20) or []) > 200  # drawn plots, not a blank page
+    assert done.stdout.count(f"experiment {compared_db.experiment_id}") == 3
+    pages = {name: Image.open(tmp_path / name) for name in PAGES}
+    assert all(image.width == 1200 for image in pages.values())
+    assert pages["experiment-page.png"].height > 2500  # the whole page, every panel
+    for image in pages.values():
+        assert len(image.convert("RGB").getcolors(1 << 20) or []) > 200  # drawn, not a blank page

@@ -18,6 +18,7 @@ from tests.dashboard import synthetic
 from tests.dashboard.chromium import browser_missing
 from tests.dashboard.conftest import softevo
 from tests.dashboard.test_browser import pixels
+from tests.dashboard.test_transition_pages import RECORD_CANVAS_TEXT
 
 pytestmark = pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
 
@@ -97,6 +98,7 @@ def test_tree_of_a_paper_sized_run_stays_bounded(tree_server, open_page):
     base, big = tree_server
     recorded = open_page(base)
     page = recorded.page
+    page.add_init_script(RECORD_CANVAS_TEXT)
     started = time.perf_counter()
     drawn = open_tree(page, base, big.run_id)
     seconds = time.perf_counter() - started
@@ -106,3 +108,5 @@ def test_tree_of_a_paper_sized_run_stays_bounded(tree_server, open_page):
     assert drawn["ms"] < 2000 and seconds < 30
     assert {n["id"] for n in drawn["nodes"] if n["surviving"]} >= set(big.final)
     page.locator("#tree").screenshot(path=str(DOCS / "phylogeny-tree-9000.png"))
+    ticks = [int(text) for text in page.evaluate("window.canvasTexts") if text.isdigit()]
+    assert ticks and all(tick % 1000 == 0 for tick in ticks), ticks  # round steps, not 5399

@@ -202,3 +202,14 @@ def test_the_report_has_an_exaptation_section(served, tmp_path):
     block(doc, stats)
     markdown = to_markdown(doc, tmp_path)
     assert "## Exaptation across the switch" in markdown and str(summary["founders_surviving"]) in markdown
+
+
+def test_the_founders_lines_say_why_they_can_sum_past_the_population(served, capsys):
+    """A final member counts under each founder among its ancestors: the table says so,
+    with the sum and the final population it is compared with (issue 49.15)."""
+    engine, url, run_id, base = served
+    summary = json.loads(cli(capsys, "exaptation", f"r{run_id}", "--json", "--db", url))
+    total = sum(f["lines"] for f in summary["founder_lines"])
+    out = " ".join(cli(capsys, "exaptation", f"r{run_id}", "--db", url).split())
+    assert f"lines to the end: {total} over {summary['final_population']} final members" in out
+    assert "counts once under each founder among its ancestors" in out

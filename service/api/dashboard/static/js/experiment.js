@@ -10,7 +10,7 @@ const LIVE_POLL_MS = 30000; // the analysis is an expensive read: recomputed onc
 const IDLE_POLL_MS = null;
 const TABLES = ["runs", "individuals", "populations"];
 const FORMATS = ["csv", "parquet"];
-const SMALL_MARGIN = { l: 50, r: 10, t: 36, b: 40 };
+const SMALL_MARGIN = { l: 50, r: 10, t: 28, b: 40 }; // the toolbar sits in the top margin; titles above the plot
 
 const state = { analysis: null };
 
@@ -70,43 +70,113 @@ function switchLines(treatments) {
   }));
 }
 
-function drawFitness(analysis) {
+/** The panel of a world: its own name, or one panel for the compound worlds of a gradual
+ * switch (land>water@0.250, ...). */
+function panelOf(environment) {
+  return environment.includes(">") ? "during a gradual switch" : environment;
+}
+
+/** Panels of the fitness plot, one per world in the order the curves meet them: distances
+ * of different worlds are not comparable, so a transition's curve is split at its switch. */
+function fitnessPanels(curves) {
+  const panels = [];
+  for (const curve of curves) {
+    for (const environment of curve.environment) {
+      if (!panels.includes(panelOf(environment))) panels.push(panelOf(environment));
+    }
+  }
+  return panels.length ? panels : ["–"];
+}
+
+/** The points of `curve` in world panel `panel`: {x, mean, low, high, n}. */
+function curveIn(curve, panel) {
+  const keep = curve.generation.map((_, i) => panelOf(curve.environment[i]) === panel);
+  const pick = (values) => values.filter((_, i) => keep[i]);
+  return { x: pick(curve.generation), mean: pick(curve.mean), low: pick(curve.low), high: pick(curve.high), n: pick(curve.n) };
+}
+
+function fitnessTraces(analysis, panels) {
   const colors = Object.fromEntries(analysis.treatments.map((t) => [t.name, t.color]));
   const traces = [];
+  const legended = new Set();
   for (const curve of analysis.curves) {
     const color = colors[curve.treatment];
-    const banded = curve.generation.map((g, i) => [g, curve.low[i], curve.high[i]]).filter(([, low]) => low !== null);
-    if (banded.length > 0) {
+    panels.forEach((panel, k) => {
+      const part = curveIn(curve, panel);
+      if (part.x.length === 0) return;
+      const yaxis = k === 0 ? "y" : `y${k + 1}`;
+      const banded = part.x.map((g, i) => [g, part.low[i], part.high[i]]).filter(([, low]) => low !== null);
+      if (banded.length > 0) {
+        traces.push({
+          x: [...banded.map((b) => b[0]), ...banded.map((b) => b[0]).reverse()],
+          y: [...banded.map((b) => b[2]), ...banded.map((b) => b[1]).reverse()],
+          yaxis, fill: "toself", fillcolor: withAlpha(color, 0.18), line: { width: 0 }, mode: "lines",
+          hoverinfo: "skip", showlegend: false, legendgroup: curve.treatment, name: `${curve.treatment} 95% CI`,
+        });
+      }
       traces.push({
-        x: [...banded.map((b) => b[0]), ...banded.map((b) => b[0]).reverse()],
-        y: [...banded.map((b) => b[2]), ...banded.map((b) => b[1]).reverse()],
-        fill: "toself", fillcolor: withAlpha(color, 0.18), line: { width: 0 }, mode: "lines",
-        hoverinfo: "skip", showlegend: false, legendgroup: curve.treatment, name: `${curve.treatment} 95% CI`,
+        x: part.x, y: part.mean, yaxis, name: curve.treatment, legendgroup: curve.treatment,
+        showlegend: !legended.has(curve.treatment), mode: part.x.length > 1 ? "lines" : "lines+markers",
+        line: { color, width: 2 }, customdata: part.n.map((n, i) => [n, part.low[i], part.high[i]]),
+        hovertemplate: `${curve.treatment} (${panel})<br>generation %{x}<br>mean best %{y:.3f}` +
+          "<br>95% CI [%{customdata[1]:.3f}, %{customdata[2]:.3f}]<br>runs %{customdata[0]}<extra></extra>",
       });
-    }
-    traces.push({
-      x: curve.generation, y: curve.mean, name: curve.treatment, legendgroup: curve.treatment, mode: "lines",
-      line: { color, width: 2 }, customdata: curve.n.map((n, i) => [n, curve.low[i], curve.high[i]]),
-      hovertemplate: `${curve.treatment}<br>generation %{x}<br>mean best %{y:.3f}` +
-        "<br>95% CI [%{customdata[1]:.3f}, %{customdata[2]:.3f}]<br>runs %{customdata[0]}<extra></extra>",
+      legended.add(curve.treatment);
     });
   }
+  return traces;
+}
+
+const PANEL_HEIGHT = 300; // px per world panel of the fitness plot
+const PANEL_GAP = 0.08; // of the plot's height, between panels
+
+function drawFitness(analysis) {
+  const panels = fitnessPanels(analysis.curves);
+  const div = document.getElementById("fitness");
+  div.style.height = `${Math.max(460, 100 + PANEL_HEIGHT * panels.length)}px`;
+  div.dataset.worlds = panels.join(",");
   const layout = {
     font: FONT, margin: { ...MARGIN, r: 10 }, hovermode: "closest", legend: LEGEND_RIGHT,
-    xaxis: { title: { text: "generation" }, zeroline: false },
-    yaxis: { title: { text: "best distance (voxel lengths)" }, rangemode: "tozero" },
+    xaxis: { title: { text: "generation" }, zeroline: false, tickformat: "d", anchor: panels.length > 1 ? `y${panels.length}` : "y" },
     shapes: switchLines(analysis.treatments),
+    annotations: [],
   };
-  Plotly.react("fitness", traces, layout, PLOT_CONFIG);
+  const span = (1 - PANEL_GAP * (panels.length - 1)) / panels.length;
+  panels.forEach((panel, k) => {
+    const top = 1 - k * (span + PANEL_GAP);
+    const name = k === 0 ? "yaxis" : `yaxis${k + 1}`;
+    layout[name] = {
+      domain: [Math.max(0, top - span), top], rangemode: "tozero", zeroline: false,
+      title: { text: `best distance, ${panel}` },
+    };
+    layout.annotations.push({
+      xref: "paper", yref: "paper", x: 0, y: top, xanchor: "left", yanchor: "bottom", showarrow: false,
+      text: `<b>${panel}</b>`, font: { size: 12, color: "#667085" },
+    });
+  });
+  Plotly.react("fitness", fitnessTraces(analysis, panels), layout, PLOT_CONFIG);
   document.getElementById("fitness-hint").textContent =
-    `Best distance of each run's population per generation: mean over the runs of each treatment, band: ${analysis.interval}. ` +
-    "Dashed lines: a transition's switch.";
+    `Best distance of each run's population per generation: mean over the runs of each treatment, band: ${analysis.interval}` +
+    " (clipped at 0: a distance is never negative). One panel per world: distances of different worlds are not " +
+    "comparable, so a transition's curve continues in its new world's panel. Dashed lines: a transition's switch.";
+}
+
+/** A small plot under its own title: a title above the plot, not in it, where Plotly's
+ * toolbar (top right, on hover) would cover it. Returns [figure, plot div]. */
+function smallPanel(attributes) {
+  const plot = el("div", { class: "small-plot", ...attributes });
+  const title = el("div", { class: "small-title" });
+  return [el("figure", { class: "small-panel" }, title, plot), plot];
+}
+
+function setTitle(plot, text) {
+  plot.previousElementSibling.textContent = text;
 }
 
 function frontPanels(treatments) {
-  const panels = treatments.map((t, i) => el("div", { class: "small-plot", id: `front-${i}`, "data-treatment": t.name }));
-  fill("fronts", panels);
-  return panels;
+  const made = treatments.map((t, i) => smallPanel({ id: `front-${i}`, "data-treatment": t.name }));
+  fill("fronts", made.map(([figure]) => figure));
+  return made.map(([, plot]) => plot);
 }
 
 /** The final world of a schedule (land-water -> water): the fronts of one world share
@@ -144,10 +214,10 @@ function drawFronts(analysis) {
     const sampled = front.points.individual_id.length < front.members ? ` · ${front.points.individual_id.length} of ${front.members} shown` : "";
     const layout = {
       font: FONT, margin: SMALL_MARGIN, showlegend: false, hovermode: "closest",
-      title: { text: `${front.treatment} (generation ${front.generation ?? "–"}${sampled})`, font: { size: 12 }, x: 0, xanchor: "left" },
       xaxis: { title: { text: "active share (energy, min)" }, range: [-0.05, 1.05], zeroline: false },
       yaxis: { title: { text: "distance (max)" }, range: [0, top * 1.08] }, // one range per world
     };
+    setTitle(panels[i], `${front.treatment} (generation ${front.generation ?? "–"}${sampled})`);
     Plotly.react(panels[i], traces, layout, PLOT_CONFIG);
     panels[i].on("plotly_click", (event) => {
       const clicked = event.points && event.points[0];
@@ -158,8 +228,9 @@ function drawFronts(analysis) {
 
 function drawDescriptors(analysis) {
   const colors = analysis.treatments.map((t) => t.color);
-  const panels = analysis.descriptors.map((d) => el("div", { class: "small-plot", "data-metric": d.metric }));
-  fill("descriptors", panels);
+  const made = analysis.descriptors.map((d) => smallPanel({ "data-metric": d.metric }));
+  fill("descriptors", made.map(([figure]) => figure));
+  const panels = made.map(([, plot]) => plot);
   analysis.descriptors.forEach((descriptor, i) => {
     const traces = descriptor.treatments.map((t, k) => ({
       type: "box", name: t.treatment, y: t.values, customdata: t.run_id, boxpoints: "all", jitter: 0.4, pointpos: 0,
@@ -168,9 +239,9 @@ function drawDescriptors(analysis) {
     }));
     const layout = {
       font: FONT, margin: { ...SMALL_MARGIN, b: 80 }, showlegend: false,
-      title: { text: `${descriptor.label} (per run)`, font: { size: 12 }, x: 0, xanchor: "left" },
       xaxis: { tickangle: -40, tickfont: { size: 10 } },
     };
+    setTitle(panels[i], `${descriptor.label} (per run)`);
     Plotly.react(panels[i], traces, layout, PLOT_CONFIG);
   });
 }
@@ -181,11 +252,16 @@ function difference(row) {
   return `${fmt(row.difference)} [${fmt(row.difference_low)}, ${fmt(row.difference_high)}]`;
 }
 
+const WRAP = (text) => el("span", { class: "wrap" }, text);
+
+/** The table's rows: the pair and metric, then p, adjusted p, A12 and the interval (what a
+ * reader looks for first, visible without scrolling), then the details. */
 function statisticsRows(rows) {
   return rows.map((r) => [
-    r.family, r.comparison, r.metric_label, r.a, r.b, r.generation ?? "–", r.test, `${r.n_a} / ${r.n_b}`,
-    fmt(r.mean_a), fmt(r.mean_b), fmt(r.p), r.p_bonferroni === null ? "–" : `${fmt(r.p_bonferroni)} (×${r.family_size})`,
-    r.significance, fmt(r.A12), fmt(r.detectable_A12), difference(r),
+    WRAP(r.a), WRAP(r.b), WRAP(r.metric_label), r.generation ?? "–", `${r.n_a} / ${r.n_b}`,
+    fmt(r.p), r.p_bonferroni === null ? "–" : `${fmt(r.p_bonferroni)} (×${r.family_size})`,
+    r.significance, fmt(r.A12), difference(r), fmt(r.mean_a), fmt(r.mean_b), fmt(r.detectable_A12),
+    r.test, r.comparison, r.family,
   ]);
 }
 
@@ -194,9 +270,9 @@ function drawStatistics() {
   const family = document.getElementById("stats-family").value;
   const rows = state.analysis.statistics.filter((r) => (!metric || r.metric === metric) && (!family || r.family === family));
   fill("statistics", table(
-    ["family", "comparison", "metric", "a", "b", "generation", "test", "n (a / b)", "mean a", "mean b", "p",
-      "p (Bonferroni, family size)", "sig.", "A12", "detectable A12", "a − b [95% CI]"],
-    statisticsRows(rows), [5, 8, 9, 10, 11, 13, 14],
+    ["a", "b", "metric", "generation", "n (a / b)", "p", "p (Bonferroni ×k)", "sig.", "A12",
+      "a − b [95% CI]", "mean a", "mean b", "detectable A12", "test", "comparison", "family"],
+    statisticsRows(rows), [3, 5, 6, 8, 9, 10, 11, 12],
   ));
   document.getElementById("stats-count").textContent = `${rows.length} of ${state.analysis.statistics.length} rows`;
 }

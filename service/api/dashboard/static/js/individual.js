@@ -12,11 +12,15 @@ const TRAIT_LABELS = JSON.parse(document.body.dataset.traits || "{}");
 
 let replay = null;
 
-function showObjectives(individual) {
-  const o = individual.objectives;
+/** The objectives of the individual's last evaluation in `environment` (the world shown):
+ * a distance is read in its own world. */
+function showObjectives(individual, environment) {
+  const inWorld = individual.evaluations.filter((e) => e.environment === environment);
+  const o = inWorld.length ? inWorld.at(-1) : individual.objectives;
   if (!o) return fill("objectives", el("p", { class: "muted" }, "not evaluated"));
+  const where = inWorld.length ? ` in ${environment}` : "";
   fill("objectives", keyValues([
-    ["distance (voxel lengths, maximised)", fmt(o.distance)],
+    [`distance${where} (voxel lengths, maximised)`, fmt(o.distance)],
     ["active share (minimised)", fmt(o.active_share)],
     ["voxels (minimised)", o.voxel_count],
   ]));
@@ -99,7 +103,7 @@ async function loadReplay(environment) {
   status.textContent = "Simulating the evaluation again to record its motion…";
   document.getElementById("play").disabled = true;
   if (replay) { replay.dispose(); replay = null; }
-  const query = `environment=${environment}`;
+  const query = `environment=${encodeURIComponent(environment)}`;
   try {
     const [buffer, body] = await Promise.all([
       getBinary(`/individuals/${individualId}/frames?max_frames=${MAX_FRAMES}&${query}`),
@@ -132,17 +136,26 @@ function wireReplayControls() {
   document.getElementById("speed").addEventListener("change", (e) => replay?.setSpeed(Number(e.target.value)));
   document.getElementById("follow").addEventListener("change", (e) => replay?.setFollow(e.target.checked));
   document.getElementById("scrub").addEventListener("input", (e) => replay?.seek(Number(e.target.value) / 1000));
-  document.getElementById("environment").addEventListener("change", (e) => loadReplay(e.target.value));
+  document.getElementById("environment").addEventListener("change", (e) => {
+    showObjectives(state.individual, e.target.value);
+    loadReplay(e.target.value);
+  });
 }
 
+const state = { individual: null };
+
+/** The world shown first: the one the link named (?environment=, as the run page's best in
+ * each world links), else the individual's last. */
 function environmentChoice(individual) {
   const environments = [...new Set(individual.evaluations.map((e) => e.environment))];
+  const named = new URLSearchParams(window.location.search).get("environment");
   const latest = environments.length ? individual.evaluations.at(-1).environment : null;
+  const shown = environments.includes(named) ? named : latest;
   if (environments.length > 1) {
-    fill("environment", environments.map((env) => el("option", { value: env, selected: env === latest }, env)));
+    fill("environment", environments.map((env) => el("option", { value: env, selected: env === shown }, env)));
     document.getElementById("environment-choice").hidden = false;
   }
-  return latest;
+  return shown;
 }
 
 async function main() {
@@ -157,12 +170,13 @@ async function main() {
   }
   document.getElementById("individual-title").textContent =
     `run ${individual.run_id} · local id ${individual.local_id} · born in generation ${individual.generation_born}`;
-  showObjectives(individual);
+  state.individual = individual;
+  const environment = environmentChoice(individual);
+  showObjectives(individual, environment);
   showDescriptors(individual);
   showGenome(individual);
   showEvaluations(individual);
   showLineage(individual);
-  const environment = environmentChoice(individual);
   if (environment) loadReplay(environment);
   else document.getElementById("viewer-status").textContent = "Never evaluated: nothing to replay.";
 }

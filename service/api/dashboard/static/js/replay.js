@@ -168,7 +168,7 @@ export class Replay {
     controls.addEventListener("change", () => { this._needsRender = true; });
 
     this.grid = this._floor(environment, centre);
-    scene.add(this.grid);
+    if (this.grid) scene.add(this.grid);
     this.mesh = this._surface();
     scene.add(this.mesh);
     Object.assign(this, { renderer, scene, camera, controls, container });
@@ -179,16 +179,13 @@ export class Replay {
     this._fit();
   }
 
-  /** Grid in voxel lengths: the floor at z = 0 in a world with one, else a reference plane below. */
+  /** The floor as a grid in voxel lengths, at z = 0, in a world with a floor; null in one
+   * without (water): a grid there would read as a floor the robot swims above. */
   _floor(environment, centre) {
-    const land = world(environment).floor;
-    const z = land ? 0 : centre.z - 4 * this.voxelSize;
+    if (!world(environment).floor) return null;
     const cells = Math.max(GRID_CELLS, 2 * Math.ceil((4 * this._radius) / this.voxelSize));
-    const grid = new THREE.LineSegments(
-      gridSegments(cells, this.voxelSize),
-      new THREE.LineBasicMaterial({ color: land ? 0xaab3c2 : 0xa7c4da }),
-    );
-    grid.position.set(centre.x, centre.y, z);
+    const grid = new THREE.LineSegments(gridSegments(cells, this.voxelSize), new THREE.LineBasicMaterial({ color: 0xaab3c2 }));
+    grid.position.set(centre.x, centre.y, 0);
     return grid;
   }
 
@@ -297,8 +294,10 @@ export class Replay {
    * the grid jumps by whole cells to stay under the robot (its lines stay put in the world). */
   _followRobot() {
     const com = this._centreOfMass(new THREE.Vector3());
-    this.grid.position.x = Math.round(com.x / this.voxelSize) * this.voxelSize;
-    this.grid.position.y = Math.round(com.y / this.voxelSize) * this.voxelSize;
+    if (this.grid) {
+      this.grid.position.x = Math.round(com.x / this.voxelSize) * this.voxelSize;
+      this.grid.position.y = Math.round(com.y / this.voxelSize) * this.voxelSize;
+    }
     if (this.follow) {
       const shift = com.clone().sub(this._com);
       this.camera.position.add(shift);
@@ -311,10 +310,12 @@ export class Replay {
     const cycleTime = this.time - this.settle;
     const settling = cycleTime < 0 || this.omega <= 0;
     const angle = settling ? 0 : this.omega * cycleTime;
-    const cycles = this.omega > 0 ? Math.round(((this.end - this.settle) * this.omega) / (2 * Math.PI)) : 0;
+    // cycles actuated: whole, or a fraction where the guard on seconds cut the evaluation short
+    const exact = this.omega > 0 ? ((this.end - this.settle) * this.omega) / (2 * Math.PI) : 0;
+    const cycles = Math.abs(exact - Math.round(exact)) < 0.05 ? Math.round(exact) : Math.round(exact * 10) / 10;
     return {
       time: this.time, start: this.start, end: this.end, settling, cycles,
-      cycle: settling ? 0 : Math.min(cycles, Math.floor(angle / (2 * Math.PI)) + 1),
+      cycle: settling ? 0 : Math.min(Math.max(1, Math.ceil(cycles)), Math.floor(angle / (2 * Math.PI)) + 1),
       phaseDegrees: settling ? 0 : ((angle * 180) / Math.PI) % 360,
     };
   }

@@ -24,9 +24,15 @@ function facts(run) {
     ["algorithm", s.algorithm],
   ];
   const parts = items.map(([name, value]) => el("span", {}, `${name} `, el("b", {}, String(value))));
-  if (run.best) {
-    parts.push(el("span", {}, "best ", el("a", { href: page(`individuals/${run.best.individual_id}`) },
-      `individual ${run.best.individual_id}`), ` (distance ${fmt(run.best.distance)})`));
+  // the best per world (distances of different worlds are not comparable), its last world's
+  // last; each link opens the individual in that world
+  const bests = run.best_per_world || [];
+  for (const best of bests) {
+    const label = bests.length > 1 ? `best in ${best.environment} ` : "best ";
+    parts.push(el("span", { class: "best", "data-environment": best.environment }, label,
+      el("a", { href: page(`individuals/${best.individual_id}?environment=${encodeURIComponent(best.environment)}`) },
+        `individual ${best.individual_id}`),
+      ` (distance ${fmt(best.distance)}, generation ${best.generation})`));
   }
   if (run.error) parts.push(el("span", { class: "error" }, run.error));
   return parts;
@@ -62,21 +68,56 @@ function environmentBands(generations) {
   return { shapes, annotations };
 }
 
+/** The panel of a world: its own name, or one panel for the compound worlds of a gradual
+ * switch (land>water@0.250, ...). */
+function panelOf(environment) {
+  return environment.includes(">") ? "during a gradual switch" : environment;
+}
+
+const PANEL_HEIGHT = 260; // px per world panel when a run met several worlds
+const PANEL_GAP = 0.1; // of the plot's height, between panels
+
+/** Best and mean distance per generation; a run that met several worlds gets a panel per
+ * world (distances of different worlds are not comparable: no line across the switch). */
 function drawFitness(generations) {
-  const x = generations.map((g) => g.generation);
-  const traces = [
-    { x, y: generations.map((g) => g.best_distance), name: "best distance", mode: "lines+markers",
-      line: { color: "#e8322b", width: 2.5 } },
-    { x, y: generations.map((g) => g.mean_distance), name: "mean distance", mode: "lines+markers",
-      line: { color: "#1f6feb", width: 2, dash: "dot" } },
-  ];
+  const panels = [...new Set(generations.map((g) => panelOf(g.environment)))];
+  const div = document.getElementById("fitness");
+  div.dataset.worlds = panels.join(",");
+  if (panels.length > 1) div.style.height = `${100 + PANEL_HEIGHT * panels.length}px`;
+  const traces = [];
+  const span = (1 - PANEL_GAP * (panels.length - 1)) / Math.max(1, panels.length);
   const layout = {
-    font: FONT, margin: MARGIN, hovermode: "x unified",
-    xaxis: { title: { text: "generation" }, dtick: generations.length <= 20 ? 1 : undefined, zeroline: false },
+    font: FONT, margin: MARGIN, hovermode: "x unified", legend: LEGEND_TOP,
+    xaxis: { title: { text: "generation" }, dtick: generations.length <= 20 ? 1 : undefined, zeroline: false,
+      anchor: panels.length > 1 ? `y${panels.length}` : "y" },
     yaxis: { title: { text: "distance (voxel lengths)" }, rangemode: "tozero" },
-    legend: LEGEND_TOP,
-    ...environmentBands(generations),
   };
+  panels.forEach((panel, k) => {
+    const part = generations.filter((g) => panelOf(g.environment) === panel);
+    const x = part.map((g) => g.generation);
+    const yaxis = k === 0 ? "y" : `y${k + 1}`;
+    traces.push(
+      { x, y: part.map((g) => g.best_distance), yaxis, name: "best distance", legendgroup: "best", showlegend: k === 0,
+        mode: "lines+markers", line: { color: "#e8322b", width: 2.5 } },
+      { x, y: part.map((g) => g.mean_distance), yaxis, name: "mean distance", legendgroup: "mean", showlegend: k === 0,
+        mode: "lines+markers", line: { color: "#1f6feb", width: 2, dash: "dot" } },
+    );
+    if (panels.length > 1) {
+      const top = 1 - k * (span + PANEL_GAP);
+      layout[k === 0 ? "yaxis" : `yaxis${k + 1}`] = {
+        domain: [Math.max(0, top - span), top], rangemode: "tozero",
+        title: { text: `distance, ${panel}` },
+      };
+    }
+  });
+  if (panels.length > 1) {
+    layout.annotations = panels.map((panel, k) => ({
+      xref: "paper", yref: "paper", x: 1, y: 1 - k * (span + PANEL_GAP), xanchor: "right", yanchor: "bottom",
+      showarrow: false, text: `<b>${panel}</b>`, font: { size: 12, color: world(panel).colour },
+    }));
+  } else {
+    Object.assign(layout, environmentBands(generations));
+  }
   if (generations.length === 0) layout.annotations = [{ text: "no generation stored yet", showarrow: false, xref: "paper", yref: "paper", x: 0.5, y: 0.5 }];
   Plotly.react("fitness", traces, layout, PLOT_CONFIG);
 }

@@ -6,9 +6,10 @@ import { worldRGB as pureRGB } from "./worlds.js";
 
 const runId = Number(document.getElementById("tree-page").dataset.run);
 const HEIGHT = 560;
-const MARGIN = { left: 56, right: 18, top: 26, bottom: 34 };
+const MARGIN = { left: 80, right: 18, top: 26, bottom: 34 }; // left: the y axis labels
 const UNKNOWN_RGB = [120, 120, 120];
 const HIT_PX = 8;
+const Y_LABEL = "lineages (a row per line of descent)";
 
 /** [r, g, b] of a world name; a compound world "a>b@s" mixes a and b by s. */
 function worldRGB(name) {
@@ -94,13 +95,14 @@ function draw(canvas, tree) {
   ctx.fillStyle = "#667085";
   ctx.font = "12px system-ui, sans-serif";
   ctx.lineWidth = 1;
-  const ticks = Math.min(10, lastGeneration);
-  for (let k = 0; k <= ticks; k++) {
-    const g = Math.round((k / ticks) * lastGeneration);
+  ctx.textAlign = "center";
+  for (const g of generationTicks(lastGeneration)) {
     ctx.beginPath(); ctx.moveTo(px(g), MARGIN.top - 6); ctx.lineTo(px(g), HEIGHT - MARGIN.bottom); ctx.stroke();
-    ctx.fillText(String(g), px(g) - 4, HEIGHT - MARGIN.bottom + 16);
+    ctx.fillText(String(g), px(g), HEIGHT - MARGIN.bottom + 14);
   }
-  ctx.fillText("generation", width / 2 - 30, HEIGHT - 4);
+  ctx.fillText("generation", MARGIN.left + (width - MARGIN.left - MARGIN.right) / 2, HEIGHT - 3);
+  ctx.textAlign = "left";
+  yAxisLabels(ctx, rowOf, alive, dead, split, span);
   if (tree.switch_at !== null) {
     if (tree.switch_over > 0) {
       ctx.fillStyle = "rgba(130, 90, 200, 0.10)";
@@ -144,6 +146,37 @@ function draw(canvas, tree) {
     }
   }
   return { placed, ms: performance.now() - started };
+}
+
+/** Generations 0..last at a round step (1, 2 or 5 x 10^k), at most about 10 of them. */
+function generationTicks(last) {
+  const rough = Math.max(1, last / 10);
+  const power = 10 ** Math.floor(Math.log10(rough));
+  const step = [1, 2, 5, 10].map((m) => m * power).find((s) => s >= rough);
+  const ticks = [];
+  for (let g = 0; g <= last; g += step) ticks.push(g);
+  return ticks;
+}
+
+/** The y axis: what a row is (one per lineage's leaf, parents between their children), and
+ * which band holds the surviving lineages and which the extinct sample. */
+function yAxisLabels(ctx, rowOf, alive, dead, split, span) {
+  ctx.save();
+  ctx.fillStyle = "#667085";
+  ctx.font = "12px system-ui, sans-serif";
+  ctx.translate(14, MARGIN.top + span / 2);
+  ctx.rotate(-Math.PI / 2);
+  ctx.textAlign = "center";
+  ctx.fillText(Y_LABEL, 0, 0);
+  ctx.restore();
+  ctx.save();
+  ctx.fillStyle = "#667085";
+  ctx.font = "11px system-ui, sans-serif";
+  ctx.textAlign = "right";
+  ctx.textBaseline = "middle";
+  if (alive.leaves) ctx.fillText("surviving", MARGIN.left - 4, (rowOf.true(0) + rowOf.true(alive.leaves - 1)) / 2);
+  if (dead.leaves && split < 1) ctx.fillText("extinct", MARGIN.left - 4, (rowOf.false(0) + rowOf.false(dead.leaves - 1)) / 2);
+  ctx.restore();
 }
 
 function nearest(placed, x, y) {
