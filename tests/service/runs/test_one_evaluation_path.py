@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from sqlalchemy import create_engine, func, select
+from sqlalchemy import create_engine, select
 
 import softevo
 from softevo.service.storage.models import EvaluationRow, IndividualRow, PopulationMemberRow
@@ -24,23 +24,22 @@ def stored_members(url: str) -> dict[int, list[tuple[int, float, float | None]]]
     engine = create_engine(url)
     members, individuals, evaluations = (
         PopulationMemberRow.__table__, IndividualRow.__table__, EvaluationRow.__table__)
-    latest = (
-        select(func.max(evaluations.c.generation))
-        .where(evaluations.c.individual_id == members.c.individual_id,
-               evaluations.c.generation <= members.c.generation)
-        .scalar_subquery()
-    )
     query = (
-        select(members.c.generation, individuals.c.local_id, evaluations.c.distance, evaluations.c.symmetry)
+        select(members.c.generation, individuals.c.local_id, evaluations.c.generation,
+               evaluations.c.distance, evaluations.c.symmetry)
         .join(individuals, individuals.c.id == members.c.individual_id)
         .join(evaluations, (evaluations.c.individual_id == members.c.individual_id)
-              & (evaluations.c.generation == latest))
+              & (evaluations.c.generation <= members.c.generation))
+        .order_by(evaluations.c.generation)
     )
-    found: dict[int, list] = {}
+    latest: dict[tuple[int, int], tuple[float, float | None]] = {}
     with engine.connect() as conn:
-        for generation, local_id, distance, symmetry in conn.execute(query):
-            found.setdefault(int(generation), []).append((int(local_id), float(distance), symmetry))
+        for generation, local_id, _, distance, symmetry in conn.execute(query):  # later ones win
+            latest[int(generation), int(local_id)] = (float(distance), symmetry)
     engine.dispose()
+    found: dict[int, list] = {}
+    for (generation, local_id), (distance, symmetry) in latest.items():
+        found.setdefault(generation, []).append((local_id, distance, symmetry))
     return {g: sorted(rows) for g, rows in found.items()}
 
 
@@ -61,7 +60,8 @@ def test_evolve_and_run_keep_the_same_survivors_and_distances_at_every_generatio
         assert [(i, d) for i, d, _ in stored[row["generation"]]] == row["members"]
     assert max(d for _, d in local.history[-1]["members"]) > 0  # something moved
     # the same descriptors: the workers' evaluation computes them in both
-    final = {ind.id: ind.descriptors["symmetry"] for ind in local.evolution.population}
+    final = {ind.id: (ind.descriptors or {}).get("symmetry") for ind in local.evolution.population}
+    assert any(value is not None for value in final.values())
     assert {i: s for i, _, s in stored[3]} == pytest.approx(final)
 
 

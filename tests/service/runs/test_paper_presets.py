@@ -102,7 +102,7 @@ def test_paper_presets_run_50_cycles_guarded_in_seconds(scale, cycles, cap):
     _, parts = scenes_of(dataclasses.replace(task, evaluation=task.evaluation.in_world("land>water@0.250")))
     assert [p["duration"]["max_seconds"] for p in parts] == pytest.approx([0.75 * cap, 0.25 * cap])
     old = {k: v for k, v in treatment.to_settings().items() if k != "max_seconds"}
-    assert Task.from_stored(7, genome.to_dict(), old, "water", 1e3).max_seconds is None
+    assert Task.from_stored(7, genome.to_dict(), old, "water", 1e3).evaluation.max_seconds is None
     # the evosoro mapping has no lowest frequency: the guard bounds the cost
     tighter = dataclasses.replace(treatment, max_seconds=cap / 10)
     assert evaluation_steps(tighter) < evaluation_steps(treatment)
