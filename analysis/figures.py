@@ -414,6 +414,27 @@ def transition_controls(treatments: pd.DataFrame) -> dict[str, list[str]]:
     return controls
 
 
+def _transition_curves(
+    axes, curves: pd.DataFrame, treatments: pd.DataFrame, name: str, static: list[str], colors: dict
+) -> None:
+    """A transition's fitness in two panels, one per world, each with its own axis: in the
+    first, its generations before the switch beside the static control of that world; in the
+    second, the rest (a gradual switch's compound generations too) beside the other control."""
+    first, second = treatments.loc[name, "environment"].split(worlds.TRANSITION)
+    switch_at = treatments.loc[name, "switch_at"]
+    own = curves[curves["treatment"] == name]
+    before = own["generation"] < switch_at
+    for ax, world, part in ((axes[0], first, own[before]), (axes[1], second, own[~before])):
+        _curve(ax, part, colors[name], name, ".-")  # dots: a part of one generation shows too
+        for control in (c for c in static if treatments.loc[c, "environment"] == world):
+            _curve(ax, curves[curves["treatment"] == control], colors[control], control, "--")
+        _switch_line(ax, switch_at)
+        ax.set(xlabel="generation", ylabel=f"best distance in {world}", title=f"{name} in {world}")
+        ax.set_ylim(bottom=0)
+        ax.legend(fontsize=8, loc="upper left")
+        ax.grid(alpha=0.3)
+
+
 def transitions_figure(
     data: ExperimentData, curves: pd.DataFrame, tests: pd.DataFrame, out_dir: Path
 ) -> FigureFile | None:
@@ -424,22 +445,14 @@ def transitions_figure(
     if not controls:
         return None
     fig = _new_figure("transitions", data)
-    axes = fig.subplots(len(controls), 3, squeeze=False, width_ratios=[2, 1, 1])
+    axes = fig.subplots(len(controls), 4, squeeze=False)
     colors = treatment_colors(data.treatments)
-    switch = dict(zip(data.treatments["name"], data.treatments["switch_at"], strict=True))
+    treatments = data.treatments.set_index("name")
     for row, (name, static) in zip(axes, controls.items(), strict=True):
         group = [name, *static]
-        for member in group:
-            style = "-" if member == name else "--"
-            _curve(row[0], curves[curves["treatment"] == member], colors[member], member, style)
-        _switch_line(row[0], switch[name])
-        row[0].set(
-            xlabel="generation", ylabel="best distance (voxel lengths)", title=f"{name} vs static controls"
-        )
-        row[0].legend(fontsize=8, loc="upper left")
-        row[0].grid(alpha=0.3)
+        _transition_curves(row[:2], curves, treatments, name, static, colors)
         at = {m: data.end_generation(name) if m == name else data.pair_generation(name, m) for m in group}
-        for ax, metric in zip(row[1:], ("best_distance", "active_share"), strict=True):
+        for ax, metric in zip(row[2:], ("best_distance", "active_share"), strict=True):
             samples = []
             for m in group:
                 values = data.run_values(at[m]) if at[m] is not None else data.run_values(-1)
@@ -463,7 +476,9 @@ def transitions_figure(
         "transitions",
         "Each transition treatment against the static treatments of the same stiffness "
         "in its first and second environment: best distance over generations (mean, "
-        "95% CI; dashed line: the switch) and each run's best distance (the primary measure) "
+        "95% CI; dashed line: the switch), a panel per world with its own axis (the transition "
+        "before its switch beside its first world's control, after it beside its second's), "
+        "and each run's best distance (the primary measure) "
         "and population mean of active share at the generation the pair is compared at (the "
         "last both stored). Stars: the pairwise tests (secondary; the findings table holds "
         "the headline tests).",

@@ -136,3 +136,23 @@ def test_the_fitness_figure_has_a_panel_per_world(inputs, tmp_path, monkeypatch)
         assert list(transition) == list(expected)
     assert "land S3" in {line.get_label() for line in panels["in land"].get_lines()}
     assert "land S3" not in {line.get_label() for line in panels["in water"].get_lines()}
+
+
+def test_the_transitions_figure_plots_each_world_on_its_own_axis(inputs, tmp_path, monkeypatch):
+    """The transition before its switch beside nothing of the other world, after it beside
+    its new world's control (issue 49.4: fitness plots split by world)."""
+    data, tests, curves = inputs
+    kept = []
+    monkeypatch.setattr(figures.plt, "close", kept.append)
+    figures.transitions_figure(data, curves, tests, tmp_path)
+    (fig,) = kept
+    panels = {ax.get_title(): ax for ax in fig.axes if ax.get_title().startswith("water-land S3 in")}
+    assert set(panels) == {"water-land S3 in water", "water-land S3 in land"}
+
+    def lines(title):
+        return {line.get_label(): list(line.get_xdata()) for line in panels[title].get_lines()}
+
+    assert lines("water-land S3 in water")["water-land S3"] == [0, 1]
+    assert "land S3" not in lines("water-land S3 in water")
+    assert lines("water-land S3 in land")["water-land S3"] == [2]
+    assert lines("water-land S3 in land")["land S3"] == [0, 1, 2]

@@ -182,6 +182,8 @@ def test_the_fitness_plot_has_a_panel_per_world(compared_url, compared_db, open_
             assert trace["yaxis"] == axes[trace["name"].split()[0]]
         assert min(y for y in trace["y"] if y is not None) >= 0  # bands clipped at 0
     assert sum(trace["name"] == "land-water S3" for trace in traces) == 2
+    ticks = page.locator("#fitness .xtick text").all_text_contents()
+    assert ticks == [str(g) for g in range(5)]  # whole generations, each once (issue 49.15)
 
 
 @pytest.mark.parametrize("panels", ["#fronts", "#descriptors"])

@@ -132,12 +132,14 @@ const PANEL_GAP = 0.08; // of the plot's height, between panels
 
 function drawFitness(analysis) {
   const panels = fitnessPanels(analysis.curves);
+  const lastGeneration = Math.max(0, ...analysis.curves.flatMap((c) => c.generation));
   const div = document.getElementById("fitness");
   div.style.height = `${Math.max(460, 100 + PANEL_HEIGHT * panels.length)}px`;
   div.dataset.worlds = panels.join(",");
   const layout = {
     font: FONT, margin: { ...MARGIN, r: 10 }, hovermode: "closest", legend: LEGEND_RIGHT,
-    xaxis: { title: { text: "generation" }, zeroline: false, tickformat: "d", anchor: panels.length > 1 ? `y${panels.length}` : "y" },
+    xaxis: { title: { text: "generation" }, zeroline: false, tickformat: "d", dtick: lastGeneration <= 20 ? 1 : undefined,
+      anchor: panels.length > 1 ? `y${panels.length}` : "y" }, // whole generations, never 0.25
     shapes: switchLines(analysis.treatments),
     annotations: [],
   };
