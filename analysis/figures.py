@@ -420,7 +420,7 @@ def _transition_curves(
     """A transition's fitness in two panels, one per world, each with its own axis: in the
     first, its generations before the switch beside the static control of that world; in the
     second, the rest (a gradual switch's compound generations too) beside the other control."""
-    first, second = treatments.loc[name, "environment"].split(worlds.TRANSITION)
+    first, second = treatments.loc[name, "environment"].split(environments.TRANSITION)
     switch_at = treatments.loc[name, "switch_at"]
     own = curves[curves["treatment"] == name]
     before = own["generation"] < switch_at
