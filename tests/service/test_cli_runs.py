@@ -145,7 +145,8 @@ def test_a_run_whose_evaluations_all_fail_ends_failed_and_says_why(capsys, tmp_p
     assert "failed" in out and "1/5" in out, out  # stopped after generation 0
     import re
 
-    found = re.search(r"run 1 failed: (\d+) of \1 evaluations of generation 0 failed \(a run fails at 95%\)", err)
+    pattern = r"run 1 failed: (\d+) of \1 evaluations of generation 0 failed \(a run fails at 95%\)"
+    found = re.search(pattern, err)
     assert found and "step budget exceeded" in err, err  # every simulated one (passive bodies are not)
     reason = found.group(0)
     code, out, err = softevo(capsys, "status", "--db", db)
