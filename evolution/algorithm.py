@@ -275,7 +275,7 @@ class Evolution:
             elif phenotype.active_share == 0:
                 # no active voxel: it cannot move itself, and what a simulation would measure is
                 # its fall (a tower toppling after settling travels 1.6 voxel lengths): 0
-                self._record(ind, Evaluation(PASSIVE_DISTANCE, True, None))
+                self._record(ind, Evaluation(PASSIVE_DISTANCE, True, None), describe=True)
                 self.not_simulated["passive"] += 1
             elif twin is not None:
                 self.not_simulated["reused"] += 1
@@ -284,13 +284,15 @@ class Evolution:
                 ind.environment, ind.stable, ind.error = self.environment, twin.stable, twin.error
                 ind.evaluated_generation = self.generation
 
-    def _record(self, ind: Individual, evaluation: Evaluation) -> None:
+    def _record(self, ind: Individual, evaluation: Evaluation, describe: bool = False) -> None:
+        """Give ``ind`` an evaluation made here, not by a worker; its descriptors too with
+        ``config.descriptors`` or ``describe`` (a passive body: no worker describes it)."""
         phenotype = ind.phenotype(self.config.encoding)
         ind.objectives = objective_values(self.config.objectives, evaluation, phenotype)
         ind.environment = self.environment
         ind.stable, ind.error = evaluation.stable, evaluation.error
         ind.evaluated_generation = self.generation
-        if self.config.descriptors and phenotype.voxel_count:
+        if (self.config.descriptors or describe) and phenotype.voxel_count:
             from softevo.evolution.descriptors import describe_phenotype
 
             ind.descriptors = describe_phenotype(phenotype)

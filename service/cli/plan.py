@@ -105,7 +105,8 @@ def coordinator_bound(result) -> bool:
     would keep each under it."""
     from softevo.service.plan.model import COORDINATOR_TARGET
 
-    return result.coordinator_utilisation > COORDINATOR_TARGET and result.coordinators_needed() > result.coordinators
+    busy = result.coordinator_utilisation > COORDINATOR_TARGET
+    return busy and result.coordinators_needed() > result.coordinators
 
 
 def plan_text(result, more=None) -> str:
@@ -123,14 +124,16 @@ def plan_text(result, more=None) -> str:
         share = total_hours * weight / sum(weights) if sum(weights) else 0.0
         rows.append(f"{t.name:<24} {t.runs:>5} {t.generations:>6} {t.evaluations:>12,} {spread:>20} "
                     f"{share:>9.3g} {t.database_bytes / GB:>7.3g}")
-    rows.append(f"{'total':<24} {sum(t.runs for t in result.treatments):>5} {'':>6} {result.evaluations:>12,} "
+    runs = sum(t.runs for t in result.treatments)
+    rows.append(f"{'total':<24} {runs:>5} {'':>6} {result.evaluations:>12,} "
                 f"{'':>20} {total_hours:>9.3g} {result.database_bytes / GB:>7.3g}")
     device = f"{result.cores} cores" if result.cores else f"{result.gpus} GPUs"
     evaluation_hours = sum(t.core_seconds for t in result.treatments) / 3600
     rows += [
         "",
         f"on {device} ({result.dispatch} dispatch): wall {result.wall_hours:,.4g} hours, "
-        f"{total_hours:,.4g} {unit.replace('-h', '-hours')} (wall x {device}), utilisation {result.utilisation:.0%}",
+        f"{total_hours:,.4g} {unit.replace('-h', '-hours')} (wall x {device}), "
+        f"utilisation {result.utilisation:.0%}",
         f"{result.evaluations:,} evaluations, {result.voxel_steps:.3g} voxel-steps, "
         f"database {result.database_bytes / GB:,.3g} GB",
     ]

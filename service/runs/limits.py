@@ -48,7 +48,9 @@ def check_treatment(treatment: Treatment) -> None:
         raise UserError(f"workspace sides must be at most {MAX_WORKSPACE_SIDE} voxels (got "
                         f"{','.join(map(str, treatment.workspace))})")
     if treatment.max_seconds is not None and treatment.max_seconds > MAX_EVALUATION_SECONDS:
-        raise UserError(f"max_seconds must be at most {MAX_EVALUATION_SECONDS:g} (got {treatment.max_seconds:g})")
+        raise UserError(
+            f"max_seconds must be at most {MAX_EVALUATION_SECONDS:g} (got {treatment.max_seconds:g})"
+        )
     check_workspace(treatment.workspace)
 
 

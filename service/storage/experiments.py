@@ -159,7 +159,8 @@ def _not_an_experiment(conn: Connection, reference: str, run_id: int) -> str:
     query = select(treatments.c.experiment_id).join(runs, runs.c.treatment_id == treatments.c.id)
     experiment_id = conn.execute(query.where(runs.c.id == run_id)).scalar()
     if experiment_id is None:
-        return f"{reference!r} names a run, and there is no run {run_id}; give an experiment (e2, latest, a name)"
+        return (f"{reference!r} names a run, and there is no run {run_id}; give an experiment (e2, latest, "
+                "a name)")
     return f"{reference!r} names a run, not an experiment; run {run_id} is in experiment e{experiment_id}"
 
 

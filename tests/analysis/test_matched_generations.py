@@ -119,14 +119,17 @@ def test_a_run_cancelled_at_generation_0_is_left_out_not_followed(tmp_path):
     engine = open_database(f"sqlite:///{tmp_path / 'cancelled.db'}")
     treatments = [Treatment("land", 0.001, name="land S1", population=2, generations=3),
                   Treatment("land", 0.1, name="land S3", population=2, generations=3)]
-    new = [NewTreatment(t.name, t.to_settings(), [NewRun(r, r, t.generations) for r in range(2)]) for t in treatments]
+    new = [NewTreatment(t.name, t.to_settings(), [NewRun(r, r, t.generations) for r in range(2)])
+           for t in treatments]
     with engine.begin() as conn:
         experiment_id, run_ids = create_experiment(conn, "cancelled", new)
     cancelled = run_ids[3]  # land S3, repetition 1
-    for run_id, (treatment, repetition) in zip(run_ids, [(t, r) for t in treatments for r in range(2)], strict=True):
+    runs = [(t, r) for t in treatments for r in range(2)]
+    for run_id, (treatment, repetition) in zip(run_ids, runs, strict=True):
         for generation in range(1 if run_id == cancelled else treatment.generations):
+            record = matched._record(run_id, treatment, repetition, generation, matched.value)
             with engine.begin() as conn:
-                record_generation(conn, matched._record(run_id, treatment, repetition, generation, matched.value))
+                record_generation(conn, record)
     with engine.begin() as conn:
         set_run_status(conn, cancelled, RunStatus.CANCELLED)
 

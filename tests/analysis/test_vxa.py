@@ -157,7 +157,8 @@ def test_a_voxelyze_2_robot_is_exported_with_a_warning_that_its_import_repeats(t
     with pytest.warns(VxaWarning, match="model is voxelyze-2: a .vxa file holds the paper's engine"):
         written = write_vxa(SCENE, tmp_path / "v2.vxa")
     assert "<!-- softevo: written from a voxelyze-2 scene" in written.read_text(encoding="iso-8859-1")
-    with pytest.warns(VxaWarning, match="written from a voxelyze-2 robot: imported, it runs the paper's engine"):
+    imported = "written from a voxelyze-2 robot: imported, it runs the paper's engine"
+    with pytest.warns(VxaWarning, match=imported):
         assert import_vxa(written)["model"] == "voxcad-land-water"
     import warnings
 

@@ -41,9 +41,13 @@ def real_runs(tmp_path_factory):
     return simulated, os.path.getsize(path) - before
 
 
-def test_evaluations_equal_a_real_runs(real_runs):
+def test_evaluations_within_10_percent_of_a_real_runs(real_runs):
+    """Passive bodies are not simulated (issue 49.7), and which offspring are passive depends
+    on which parents the results select: the plan's instant fake results no longer give the
+    exact count (they did: 66 here against 61)."""
     simulated, _ = real_runs
-    assert plan([TINY, GRADUAL], cores=1).evaluations == simulated
+    predicted = plan([TINY, GRADUAL], cores=1).evaluations
+    assert abs(predicted - simulated) <= 0.1 * simulated, (predicted, simulated)
 
 
 def test_database_bytes_within_30_percent_of_a_real_runs(real_runs):

@@ -53,5 +53,6 @@ def test_survivors_are_simulated_again_only_in_a_new_world(tmp_path):
     assert len(rows) == 5
     for generation, evaluations, stats in rows:
         assert evaluations == per_generation[generation]
-        assert evaluations + stats["reused"] + stats["empty_bodies"] + stats["passive_bodies"] == stored[generation]
+        not_simulated = stats["reused"] + stats["empty_bodies"] + stats["passive_bodies"]
+        assert evaluations + not_simulated == stored[generation]
     engine.dispose()
