@@ -89,10 +89,13 @@ def tell_generation(algorithm: Evolution, asked: Sequence[Individual], results: 
         result = results.get(ind.id)
         if isinstance(result, Mapping) and "descriptors" in result:
             ind.descriptors = result["descriptors"]
+    generation, evaluated = algorithm.generation, list(algorithm.pending)
     algorithm.tell({ind.id: results.get(ind.id) for ind in asked})
-    for ind in asked:  # the registered traits (evolution.traits), measured on the phenotype
+    # the registered traits (evolution.traits), measured on the phenotype of every individual
+    # evaluated at this generation: asked, or evaluated without a simulation (a twin, a passive body)
+    for ind in evaluated:
         extra = traits.computed(ind.phenotype(algorithm.config.encoding))
-        if extra:
+        if extra and ind.evaluated_generation == generation:
             ind.descriptors = {**(ind.descriptors or {}), **extra}
 
 
