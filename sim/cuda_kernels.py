@@ -93,10 +93,14 @@ params = device(params_of)
 
 @device
 def listed(near, width, i, j):
-    """Whether row i of ``near`` (``width`` entries per row) holds j."""
+    """Whether row i of ``near`` (``width`` entries per row, ascending, -1 pads at the end:
+    ``system.nearby``) holds j, scanning only up to the first entry past j."""
     for q in range(width):
-        if near[i * width + q] == j:
+        w = near[i * width + q]
+        if w == j:
             return True
+        if w > j or w < 0:
+            return False
     return False
 
 

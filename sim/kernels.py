@@ -482,10 +482,14 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
 
 @njit(**INLINE)
 def listed(near, i, j):
-    """Whether row i of ``near`` holds j."""
+    """Whether row i of ``near`` holds j (its rows ascending, -1 pads at the end:
+    ``system.nearby``), scanning only up to the first entry past j."""
     for q in range(near.shape[1]):
-        if near[i, q] == j:
+        w = near[i, q]
+        if w == j:
             return True
+        if w > j or w < 0:
+            return False
     return False
 
 
