@@ -84,6 +84,7 @@ else:
 dot3, qrot, rotation_matrix, waveform = phys.dot3, phys.qrot, phys.rotation_matrix, phys.waveform
 actuated_size, link_geometry, small_frame = phys.actuated_size, phys.link_geometry, phys.small_frame
 large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
+frame_damping = phys.frame_damping
 link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
 contact_overlap, candidate_radius = phys.contact_overlap, phys.candidate_radius
 mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
@@ -291,7 +292,7 @@ def link_forces(p, t, nt, m, neg, lpos, laxis, lstiff, ldamp, pos, quat, size, l
         if mode >= 0.0:
             W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
                 R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-            damp = damp if mode != 0.0 else 0.0
+            damp = frame_damping(mode, damp)
             mode = 1.0
             if leave:  # computed again in the other frame, undamped
                 W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
