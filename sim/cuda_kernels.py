@@ -84,6 +84,7 @@ else:
 dot3, qrot, rotation_matrix, waveform = phys.dot3, phys.qrot, phys.rotation_matrix, phys.waveform
 actuated_size, link_geometry, small_frame = phys.actuated_size, phys.link_geometry, phys.small_frame
 large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
+frame_damping = phys.frame_damping
 link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
 contact_overlap, candidate_radius = phys.contact_overlap, phys.candidate_radius
 mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
@@ -93,10 +94,14 @@ params = device(params_of)
 
 @device
 def listed(near, width, i, j):
-    """Whether row i of ``near`` (``width`` entries per row) holds j."""
+    """Whether row i of ``near`` (``width`` entries per row, ascending, -1 pads at the end:
+    ``system.nearby``) holds j, scanning only up to the first entry past j."""
     for q in range(width):
-        if near[i * width + q] == j:
+        w = near[i * width + q]
+        if w == j:
             return True
+        if w > j or w < 0:
+            return False
     return False
 
 
@@ -250,34 +255,32 @@ def sample(k, p, t, nt, n, r, VC, pos, frames, frame0, com, n_com):
 
 
 @substep
-def actuate(k, p, t, nt, n, v0, voxels, FL, VC, size):
-    """Every voxel's size at step k (``kernels.actuate_kernel``); ``voxels``: the batch's
-    (the robot's from voxel v0)."""
-    phase, cos_phase, sin_phase = voxels.phase, voxels.cos_phase, voxels.sin_phase
+def actuate(k, p, t, nt, n, FL, VC, phase, cos_phase, sin_phase, size):
+    """Every voxel's size at step k (``kernels.actuate_kernel``)."""
     time = (k - p.act_start) * p.dt
     s_wt, c_wt = math.sin(p.omega * time), math.cos(p.omega * time)
     for v in range(t, n, nt):
         size[v] = p.L
         if time >= 0.0 and FL[v] & FLAG_ACTIVE:
             if p.freq_field:
-                w = waveform(p.wave, VC[v * N_VCONST + V_OMEGA] * time + phase[v0 + v])
+                w = waveform(p.wave, VC[v * N_VCONST + V_OMEGA] * time + phase[v])
             elif p.wave == 0:  # sin(wt + phi) without libm per voxel
-                w = s_wt * cos_phase[v0 + v] + c_wt * sin_phase[v0 + v]
+                w = s_wt * cos_phase[v] + c_wt * sin_phase[v]
             else:
-                w = waveform(p.wave, p.omega * time + phase[v0 + v])
+                w = waveform(p.wave, p.omega * time + phase[v])
             size[v] = actuated_size(p.L, p.amp, w)
 
 
 @substep
-def link_forces(p, t, nt, m, l0, links, pos, quat, size, ls, loads, flag):
+def link_forces(p, t, nt, m, neg, lpos, laxis, lstiff, ldamp, pos, quat, size, ls, loads, flag):
     """Every link's loads in world axes into ``loads`` (``kernels.link_kernel`` and
     ``change_frames``): each link in the co-rotational frame it is in (mode +1 small, -1
     large, 0 new), computed again undamped in the other frame when it outgrows it; flag[0]
-    set if a link diverged. ``links``: the batch's (the robot's from link l0)."""
+    set if a link diverged."""
     L = p.L
     for j in range(t, m, nt):
-        a, b = links.neg[l0 + j], links.pos[l0 + j]
-        axis = links.axis[l0 + j]
+        a, b = neg[j], lpos[j]
+        axis = laxis[j]
         rest = 0.5 * (size[a] + size[b])
         R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
             quat[4 * a], quat[4 * a + 1], quat[4 * a + 2], quat[4 * a + 3],
@@ -285,11 +288,11 @@ def link_forces(p, t, nt, m, l0, links, pos, quat, size, ls, loads, flag):
             pos[3 * b] - pos[3 * a], pos[3 * b + 1] - pos[3 * a + 1],
             pos[3 * b + 2] - pos[3 * a + 2], axis)
         mode = ls[LINK_STATE * j + 8]
-        damp = links.damp[l0 + j]
+        damp = ldamp[j]
         if mode >= 0.0:
             W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
                 R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-            damp = damp if mode != 0.0 else 0.0
+            damp = frame_damping(mode, damp)
             mode = 1.0
             if leave:  # computed again in the other frame, undamped
                 W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
@@ -313,7 +316,7 @@ def link_forces(p, t, nt, m, l0, links, pos, quat, size, ls, loads, flag):
         O = LINK_LOADS * j
         (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
          loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
-            W, links.stiff[l0 + j], rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y, e1z, e2x,
+            W, lstiff[j], rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y, e1z, e2x,
             e2y, e2z)
         if link_diverged(dx, rest):
             flag[0] = 1.0
@@ -452,12 +455,10 @@ def gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm,
 
 
 @substep
-def voxel_updates(world, t, nt, n, v0, voxels, FL, VC, ST, pos, quat, lm, am, size, force,
+def voxel_updates(world, t, nt, n, FL, VC, exposed, ext, ST, pos, quat, lm, am, size, force,
                   moment, flag):
     """Every voxel's own forces and its step (``kernels.voxel_kernel``); returns the largest
-    squared speed of this thread's voxels; flag[1] set if one left the sane range.
-    ``voxels``: the batch's (the robot's from voxel v0)."""
-    exposed, ext = voxels.exposed, voxels.ext
+    squared speed of this thread's voxels; flag[1] set if one left the sane range."""
     fastest = 0.0
     sane_all = True
     for v in range(t, n, nt):
@@ -470,9 +471,9 @@ def voxel_updates(world, t, nt, n, v0, voxels, FL, VC, ST, pos, quat, lm, am, si
          sane) = voxel_update(
             world, (VC[c0 + V_MASS], VC[c0 + V_INV_MASS], VC[c0 + V_INV_INERTIA],
                     VC[c0 + V_CGLIN], VC[c0 + V_CGANG], VC[c0 + V_KFLOOR],
-                    VC[c0 + V_CCOLL]), exposed[v0 + v], size[v],
-            force[3 * v] + ext[3 * (v0 + v)], force[3 * v + 1] + ext[3 * (v0 + v) + 1],
-            force[3 * v + 2] + ext[3 * (v0 + v) + 2], moment[3 * v], moment[3 * v + 1],
+                    VC[c0 + V_CCOLL]), exposed[v], size[v],
+            force[3 * v] + ext[3 * v], force[3 * v + 1] + ext[3 * v + 1],
+            force[3 * v + 2] + ext[3 * v + 2], moment[3 * v], moment[3 * v + 1],
             moment[3 * v + 2], pos[3 * v], pos[3 * v + 1], pos[3 * v + 2],
             quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3],
             lm[3 * v], lm[3 * v + 1], lm[3 * v + 2], am[3 * v], am[3 * v + 1],
@@ -569,9 +570,12 @@ def rollout_kernel(shared: bool, threads: int):
             if k == p.steps:
                 finished = True
                 break
-            actuate(k, p, t, nt, n, v0, voxels, FL, VC, size)
+            actuate(k, p, t, nt, n, FL, VC, voxels.phase[v0:v0 + n],
+                    voxels.cos_phase[v0:v0 + n], voxels.sin_phase[v0:v0 + n], size)
             cuda.syncthreads()
-            link_forces(p, t, nt, m, l0, links, pos, quat, size, ls, loads, flag)
+            link_forces(p, t, nt, m, links.neg[l0:l0 + m], links.pos[l0:l0 + m],
+                        links.axis[l0:l0 + m], links.stiff[l0:l0 + m], links.damp[l0:l0 + m],
+                        pos, quat, size, ls, loads, flag)
             if p.mesh_drag > 0.0:
                 mesh_vertices(p, t, nt, nv, m0, mesh.vert, NB, pos, quat, size, mesh.points)
             if p.collide and 2.0 * travel >= physics.COLLIDE_MARGIN * p.L:
@@ -581,7 +585,8 @@ def rollout_kernel(shared: bool, threads: int):
             gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm, size,
                    loads, force, moment)
             cuda.syncthreads()
-            fastest = voxel_updates(world, t, nt, n, v0, voxels, FL, VC, ST, pos, quat, lm, am,
+            fastest = voxel_updates(world, t, nt, n, FL, VC, voxels.exposed[v0:v0 + n],
+                                    voxels.ext[3 * v0:3 * (v0 + n)], ST, pos, quat, lm, am,
                                     size, force, moment, flag)
             if p.collide:
                 red[t] = fastest

@@ -138,6 +138,7 @@ dot3, qmul, qrot, rotvec = _phys.dot3, _phys.qmul, _phys.qrot, _phys.rotvec
 quat_from_rotvec, rotation_matrix, waveform = _phys.quat_from_rotvec, _phys.rotation_matrix, _phys.waveform
 actuated_size, link_geometry_of, small_frame_of = _phys.actuated_size, _phys.link_geometry, _phys.small_frame
 large_frame_of, damped, link_loads = _phys.large_frame, _phys.damped, _phys.link_loads
+frame_damping = _phys.frame_damping
 link_diverged, contact_push, facet_drag = _phys.link_diverged, _phys.contact_push, _phys.facet_drag
 contact_overlap, candidate_radius = _phys.contact_overlap, _phys.candidate_radius
 mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
@@ -405,7 +406,7 @@ def link_kernel(p, ends, split, pos, quat, size, B):
         lo, hi = 0, max(0, min(LINK_TILE, ns - first))
         for lane in range(lo, hi):  # mode +1, or 0 before the first step (nothing to damp)
             J = tile + U(lane)
-            damp = B[at(ROW_DAMP, J)] if B[at(ROW_MODE, J)] != 0.0 else 0.0
+            damp = frame_damping(B[at(ROW_MODE, J)], B[at(ROW_DAMP, J)])
             flag, leave = small_frame(p, B, J, damp)
             B[at(ROW_MODE, J)] = LEAVES if leave else 1.0
             count += MOVED if leave else flag
@@ -482,10 +483,14 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
 
 @njit(**INLINE)
 def listed(near, i, j):
-    """Whether row i of ``near`` holds j."""
+    """Whether row i of ``near`` holds j (its rows ascending, -1 pads at the end:
+    ``system.nearby``), scanning only up to the first entry past j."""
     for q in range(near.shape[1]):
-        if near[i, q] == j:
+        w = near[i, q]
+        if w == j:
             return True
+        if w > j or w < 0:
+            return False
     return False
 
 

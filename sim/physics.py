@@ -276,6 +276,16 @@ def large_frame(R, axis, rx, ry, rz, ow, ox, oy, oz, rest):
     return W, length - rest, 0.0, 0.0, t1y, t1z, t2x, t2y, t2z, enter
 
 
+def frame_damping(mode, damp):
+    """The bond damping of a link in the co-rotational frame it is in (``mode``: +1 small,
+    -1 large, 0 before its first step): ``damp``, or none before the first step, when there
+    is no previous deformation to damp against. (A link that has just changed frame is
+    computed undamped too: its previous deformation was measured in the other frame.) The
+    frames' bounds and their hysteresis are ``small_frame``'s ``leave`` and
+    ``large_frame``'s ``enter``."""
+    return damp if mode != 0.0 else 0.0
+
+
 def damped(damp, d, previous):
     """A deformation d seen with bond damping: d plus damp times its change since the previous
     step (damp = gamma_link / (2 dt), 0 with nothing to damp against)."""
@@ -522,7 +532,8 @@ def voxel_world(p):
 PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
     "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
-    "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "damped",
+    "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "frame_damping",
+    "damped",
     "link_loads", "link_diverged", "candidate_radius", "contact_overlap", "contact_push", "facet_drag",
     "mesh_corner", "corner_point", "load_sum", "centre_of_mass", "face_drag", "voxel_update", "voxel_world",
 )

@@ -416,10 +416,12 @@ def scene_steps(scene: Scene) -> int:
 
 def nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
     """Each voxel's voxels within ``hops`` bond hops, itself left out (the paper's engine:
-    CalcNearby, walking bonds only, never across a gap): rows sorted, padded with -1. One hop
-    is ``nbr`` itself (the face neighbours, i.e. the bonded voxels)."""
+    CalcNearby, walking bonds only, never across a gap): each row ascending, padded with -1
+    at its end (the kernels' ``listed`` stops at the first entry past the one it looks for).
+    One hop: the face neighbours ``nbr`` (the bonded voxels), sorted."""
     if hops <= 1:
-        return nbr
+        rows = np.sort(np.where(nbr >= 0, nbr, np.iinfo(np.int64).max), axis=1)
+        return np.where(rows == np.iinfo(np.int64).max, -1, rows).astype(np.int64)
     from .tables import within_hops  # numba: loaded by the engines, not by sim's users
 
     return within_hops(np.ascontiguousarray(nbr, dtype=np.int64), int(hops))

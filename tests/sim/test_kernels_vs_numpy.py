@@ -221,7 +221,7 @@ def test_collision_pairs_and_forces_match_brute_force():
     size, force, _m, _s, pairs = _work(batch, n)[:5]
     size[:] = 0.05
     reach = 0.06
-    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, reach, pairs,
+    count = kernels.collision_pairs(batch.surface, state.pos, batch.near, reach, pairs,
                                     np.zeros(n, np.int64))
     got = {tuple(sorted(p)) for p in pairs[:count]}
     want = set()
@@ -257,7 +257,7 @@ def test_candidates_are_rebuilt_only_when_a_surface_voxel_moved_half_the_margin(
 
     def collide(travel):
         return kernels.collide_kernel(p, kernels.Contacts(count, travel), voxels.surface,
-                                      voxels.nbr, mine.pos, mine.lin_mom, work.size,
+                                      voxels.near, mine.pos, mine.lin_mom, work.size,
                                       voxels.vconst, work.pairs, work.partners, work.built,
                                       work.force)
 
@@ -330,7 +330,7 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     n = len(state.pos)
     size, force, _m, _s, pairs = _work(batch, n)[:5]
     size[:] = 0.05
-    count = kernels.collision_pairs(batch.surface, state.pos, batch.nbr, 0.06, pairs,
+    count = kernels.collision_pairs(batch.surface, state.pos, batch.near, 0.06, pairs,
                                     np.zeros(len(state.pos), np.int64))
     force[:] = 0.0
     kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)

@@ -269,3 +269,21 @@ def test_a_sliding_voxel_stops_where_coulomb_friction_says():
     assert result.displacement[0] == pytest.approx(want, rel=0.03)
     x = result.frames["positions"][:, 0, 0]
     assert x[-1] == x[-2]  # at rest
+
+
+def test_nearby_rows_ascend_with_their_pads_at_the_end():
+    """``kernels.listed`` stops at the first entry past the voxel it looks for, so every row
+    of ``near`` ascends and its -1 pads come last, for one hop (the face neighbours) as for
+    more; and ``listed`` agrees with set membership on every pair."""
+    body = np.ones((3, 4, 3), int)
+    body[1, 1:3, 1] = 0
+    robot = system.build_robot(parse_scene({"body": body.tolist()}))
+    for hops in (1, 2, 3):
+        near = system.nearby(robot.nbr, hops)
+        for v, row in enumerate(near):
+            kept = row[row >= 0]
+            assert np.all(np.diff(kept) > 0) and np.all(row[len(kept):] == -1)
+            members = {int(w) for w in kept}
+            assert members == _walk(robot.nbr, v, hops)
+            for j in range(len(near)):
+                assert kernels.listed(near, v, j) == (j in members)
