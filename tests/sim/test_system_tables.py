@@ -11,9 +11,11 @@ from softevo.sim.system import FACE_TRIANGLES, _lattice, largest_component, near
 
 
 def reference_nearby(nbr: np.ndarray, hops: int) -> np.ndarray:
-    """Reachability by sparse matrix powers, each row sorted, padded with -1."""
+    """Reachability by sparse matrix powers, each row ascending, padded with -1 at its end
+    (one hop: the face neighbours, sorted the same way)."""
     if hops <= 1:
-        return nbr
+        rows = [sorted(u for u in row if u >= 0) for row in nbr.tolist()]
+        return np.array([row + [-1] * (nbr.shape[1] - len(row)) for row in rows], dtype=np.int64)
     n = len(nbr)
     rows, cols = np.nonzero(nbr >= 0)
     adj = sparse.csr_matrix((np.ones(len(rows), np.int8), (rows, nbr[rows, cols])), shape=(n, n))
