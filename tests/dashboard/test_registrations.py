@@ -13,10 +13,15 @@ from sqlalchemy import create_engine, select
 
 from softevo.evolution.genotype import EncodingConfig, Genotype, develop
 from softevo.service.storage.models import EvaluationRow, IndividualRow, TreatmentRow
-from tests.service.plugin_height import height
 from tests.support import softevo_process
 
 ROOT = Path(__file__).resolve().parents[2]
+
+
+def height(phenotype) -> float:
+    """The plugin's trait, recomputed here (importing the plugin would register it in this
+    process, and every other test of the session would see a trait more)."""
+    return float(phenotype.body.any(axis=(0, 1)).sum())
 PLUGIN = {"SOFTEVO_PLUGINS": "tests.service.plugin_height", "PYTHONPATH": str(ROOT)}
 WORKSPACE = (4, 4, 4)
 
