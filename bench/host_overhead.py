@@ -45,6 +45,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from softevo.evolution import environments as worlds
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable
 from softevo.worker.evaluate import evaluate_batch
@@ -197,7 +198,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--worlds", default="land,water")
+    parser.add_argument("--worlds", default=",".join(worlds.PAPER))
     parser.add_argument("--modulus", type=float, default=1e5, help="Pa (the paper's S3: 0.1 MPa)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1)

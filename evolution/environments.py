@@ -21,7 +21,9 @@ with three decimals and read back from the name, so the name alone (stored in
 from __future__ import annotations
 
 from softevo.sim.worlds import (
+    HORIZONTAL,
     KINDS,
+    THREE_D,
     LAND,
     VOID,
     WATER,
@@ -35,7 +37,7 @@ from softevo.sim.worlds import (
 )
 
 __all__ = [
-    "KINDS", "LAND", "PAPER", "VOID", "WATER", "World", "added", "all_worlds", "get", "names", "register",
+    "HORIZONTAL", "KINDS", "LAND", "PAPER", "THREE_D", "VOID", "WATER", "World", "added", "all_worlds", "get", "names", "register",
     "unregister",
     "between", "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts",
     "schedule_entries", "share_at", "transition",

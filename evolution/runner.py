@@ -86,11 +86,11 @@ def tell_generation(algorithm: Evolution, asked: Sequence[Individual], results: 
     is a dict with ``descriptors`` (a worker's ``TaskResult`` JSON) gives its individual
     those, and each registered trait (``evolution.traits.computed``) joins them."""
     for ind in asked:
-        result = results.get(ind.id)
+        result = results[ind.id]  # KeyError for a lost result: a bug, never a silent failure
         if isinstance(result, Mapping) and "descriptors" in result:
             ind.descriptors = result["descriptors"]
     generation, evaluated = algorithm.generation, list(algorithm.pending)
-    algorithm.tell({ind.id: results.get(ind.id) for ind in asked})
+    algorithm.tell({ind.id: results[ind.id] for ind in asked})
     # the registered traits (evolution.traits), measured on the phenotype of every individual
     # evaluated at this generation: asked, or evaluated without a simulation (a twin, a passive body)
     for ind in evaluated:

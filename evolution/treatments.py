@@ -62,7 +62,7 @@ from softevo.evolution.selection import Objective, objectives_named
 from softevo.sim import models
 from softevo.sim import worlds as sim_worlds
 from softevo.sim.models import DEFAULT as DEFAULT_MODEL
-from softevo.sim.scene import DEFAULT_CYCLES
+from softevo.sim.scene import DEFAULT_CYCLES, MAX_SIDE
 
 
 def model_names() -> tuple[str, ...]:
@@ -148,6 +148,8 @@ class Treatment:
         _positive("genomes_per_task", self.genomes_per_task)
         if len(self.workspace) != 3 or any(int(n) < 1 for n in self.workspace):
             raise UserError(f"workspace must be three positive sizes X,Y,Z (got {self.workspace})")
+        if any(int(n) > MAX_SIDE for n in self.workspace):
+            raise UserError(f"workspace sides must be at most {MAX_SIDE} voxels (got {self.workspace})")
         if self.seed < 0:
             raise UserError(f"seed must be >= 0 (got {self.seed})")
         if self.algorithm not in ALGORITHMS:
@@ -313,7 +315,7 @@ class Treatment:
 
 # The quick start's treatment (README: ``softevo run --env land --stiffness 1 --population 8
 # --generations 8 --workspace 5,5,5 --cycles 4``): ``softevo.evolve``'s defaults.
-QUICK_START = dict(environment="land", stiffness_mpa=1.0, population=8, generations=8,
+QUICK_START = dict(environment=environments.LAND.name, stiffness_mpa=1.0, population=8, generations=8,
                    workspace=(5, 5, 5), cycles=4)
 
 DERIVED_SETTINGS = ("settle_seconds",)  # written by to_settings for the record, never read

@@ -109,13 +109,14 @@ def warm_up(threads: int | None = 1) -> None:
     the contact neighbourhoods and the drag mesh too; the shape descriptors are compiled
     unless on the sleep engine (which describes no shapes)."""
     from softevo import sim
+    from softevo.sim import worlds
 
     body = [[[2]], [[1]]]
     options = engine_options()
     scenes = [{"body": body, "duration": {"cycles": 1}}]
     if not options:
         scenes.append({"body": body, "duration": {"cycles": 1}, "model": "voxcad-land-water",
-                       "environment": {"kind": "water"}})
+                       "environment": {"kind": worlds.WATER.name}})
     sim.simulate_many(scenes, threads=threads, **options)
     if options.get("engine") != "sleep":
         from softevo.evolution.descriptors import describe

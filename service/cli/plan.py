@@ -75,7 +75,7 @@ def plan(
     as_json: JsonOption = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
-    from softevo.service.plan.model import model as planner
+    from softevo.service.plan import model as planner
     from softevo.worker.physics import MEASURED
     from softevo.worker.physics import measure as measure_rates
 

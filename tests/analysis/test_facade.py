@@ -75,7 +75,7 @@ def test_evolve_runs_an_abrupt_transition():
         ({"environment": "moon"}, "unknown environment 'moon'"),
         ({"stiffness_mpa": 100}, "stiffness must be within 0.001..10.0 MPa (got 100)"),
         ({"population": 1}, "population must be an integer >= 2"),
-        ({"workspace": (30, 30, 30)}, "SOFTEVO_MAX_VOXELS"),
+        ({"workspace": (65, 65, 65)}, "workspace sides must be at most 64 voxels"),
         ({"environment": "land", "switch_at": 2}, "switch_at needs a transition environment"),
     ],
 )

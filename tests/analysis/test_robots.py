@@ -39,11 +39,11 @@ def test_the_task_is_the_evaluations_own_world_and_stiffness(best_record):
     """A run whose stiffness changed replays each evaluation at the stiffness it ran with."""
     record = _record(best_record, [("water", 1e5), ("land", 2e5), ("land", 3e5), ("water", 4e5)])
     latest = stored_task(record)
-    assert (latest.environment, latest.youngs_modulus) == ("water", 4e5)
+    assert (latest.environment, latest.evaluation.youngs_modulus) == ("water", 4e5)
     on_land = stored_task(record, "land")
-    assert (on_land.environment, on_land.youngs_modulus) == ("land", 3e5)
+    assert (on_land.environment, on_land.evaluation.youngs_modulus) == ("land", 3e5)
     settings = best_record["treatment"].to_settings()
-    assert (on_land.id, on_land.genome, on_land.cycles) == (
+    assert (on_land.id, on_land.genome, on_land.evaluation.cycles) == (
         best_record["id"],
         best_record["genome"],
         settings["cycles"],
@@ -64,7 +64,7 @@ def test_elsewhere_puts_it_in_a_world_it_never_ran_in(best_record):
     a world it ran in still replays that evaluation."""
     record = _record(best_record, [("land", 1e5), ("land", 2e5)])
     what_if = stored_task(record, "water", elsewhere=True)
-    assert (what_if.environment, what_if.youngs_modulus) == ("water", 2e5)
+    assert (what_if.environment, what_if.evaluation.youngs_modulus) == ("water", 2e5)
     assert stored_task(record, "land", elsewhere=True) == stored_task(record, "land")
     with pytest.raises(UserError, match="environment must be land or water"):
         stored_task(record, "moon", elsewhere=True)

@@ -127,7 +127,7 @@ def test_every_dashboard_file_is_package_data():
     import tomllib
 
     package = Path(STATIC_DIR).parent
-    pyproject = tomllib.loads((package.parents[1] / "pyproject.toml").read_text())
+    pyproject = tomllib.loads((package.parents[2] / "pyproject.toml").read_text())
     patterns = pyproject["tool"]["setuptools"]["package-data"]["softevo.service.api.dashboard"]
     included = {path for pattern in patterns for path in package.glob(pattern)}
     files = {
