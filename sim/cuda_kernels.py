@@ -87,6 +87,7 @@ large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
 frame_damping = phys.frame_damping
 link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
 contact_overlap, candidate_radius = phys.contact_overlap, phys.candidate_radius
+displacement_spread = phys.displacement_spread
 mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
 corner_point, load_sum, centre_of_mass = phys.corner_point, phys.load_sum, phys.centre_of_mass
 params = device(params_of)
@@ -348,28 +349,42 @@ def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
         points[3 * (m0 + kv) + 2] = sz / count
 
 
+@device
+def displacement_range(t, nt, ns, surface, pos, built, c, red):
+    """The smallest and the largest axis-c displacement of the surface voxels from ``built``
+    (NaN-propagating, as ``kernels.surface_moved``), by two fixed-order trees; every thread of
+    the block calls it."""
+    top, bottom = -math.inf, -math.inf  # the largest d and the largest -d
+    for q in range(t, ns, nt):
+        d = pos[3 * surface[q] + c] - built[3 * q + c]
+        top = d if not (d <= top) else top
+        bottom = -d if not (-d <= bottom) else bottom
+    red[t] = top
+    cuda.syncthreads()
+    tree_max(red, t, nt)
+    hi = red[0]
+    cuda.syncthreads()
+    red[t] = bottom
+    cuda.syncthreads()
+    tree_max(red, t, nt)
+    lo = -red[0]
+    cuda.syncthreads()
+    return lo, hi
+
+
 @substep
 def contact_list(p, t, nt, ns, s0, contacts, near, width, pos, red, flag, travel):
     """The self-contact candidates (``kernels.collide_kernel``), rebuilt once the surface
-    voxels may have closed half the margin and did; flag[2] set if a voxel has more than
-    MAX_CONTACTS (the policy). Returns the new bound on the surface's travel. Every thread
-    calls it (it reduces over the block). ``contacts``: the batch's (the robot's surface
-    from s0); ``near``: the robot's rows."""
+    voxels' displacements may have spread over the margin and did (``displacement_spread``);
+    flag[2] set if a voxel has more than MAX_CONTACTS (the policy). Returns the new bound on
+    half the spread. Every thread calls it (it reduces over the block). ``contacts``: the
+    batch's (the robot's surface from s0); ``near``: the robot's rows."""
     surface, cand = contacts.surface[s0:s0 + ns], contacts.cand[s0 * MAX_CONTACTS:]
     ncand, built = contacts.ncand[s0:s0 + ns], contacts.built[3 * s0:3 * (s0 + ns)]
-    most = 0.0
-    for q in range(t, ns, nt):
-        v = surface[q]
-        dx = pos[3 * v] - built[3 * q]
-        dy = pos[3 * v + 1] - built[3 * q + 1]
-        dz = pos[3 * v + 2] - built[3 * q + 2]
-        d2 = dx * dx + dy * dy + dz * dz
-        most = d2 if not (d2 <= most) else most
-    red[t] = most
-    cuda.syncthreads()
-    tree_max(red, t, nt)
-    travel = math.sqrt(red[0])
-    cuda.syncthreads()
+    lo_x, hi_x = displacement_range(t, nt, ns, surface, pos, built, 0, red)
+    lo_y, hi_y = displacement_range(t, nt, ns, surface, pos, built, 1, red)
+    lo_z, hi_z = displacement_range(t, nt, ns, surface, pos, built, 2, red)
+    travel = displacement_spread(lo_x, hi_x, lo_y, hi_y, lo_z, hi_z)
     if not (2.0 * travel < physics.COLLIDE_MARGIN * p.L):
         reach = candidate_radius(p.L, p.contact_reach, p.amp)
         reach2 = reach * reach

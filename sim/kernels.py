@@ -63,6 +63,7 @@ Maths conventions: quaternions are (w, x, y, z); a link's local frame has x alon
 
 from __future__ import annotations
 
+import inspect
 import math
 from typing import NamedTuple
 
@@ -71,7 +72,7 @@ import llvmlite.ir
 import numpy as np
 from numba import njit, prange, types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 from . import physics
 from .physics import COLLIDE_MARGIN, MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine reports MAX_STRAIN)
@@ -109,38 +110,70 @@ INLINE = dict(inline="always", **JIT)
 # budget of 128 (one per pair of link rows that could overlap); a process-wide setting that only
 # lets the vectorizer take loops it would otherwise leave scalar.
 llvmlite.binding.set_option("softevo", "-vectorize-memory-check-threshold=1024")
+llvmlite.binding.set_option("softevo", "-vectorizer-maximize-bandwidth")
 
 
 @intrinsic
 def fma(typingctx, a, b, c):
     """a * b + c with one rounding (LLVM's fma: one instruction on CPUs with FMA, vectorized
     with the loop). Explicit, so its results do not depend on how or when a kernel was
-    compiled, as LLVM's own contraction ('contract' above) would."""
+    compiled, as LLVM's own contraction ('contract' above) would. In float32 when all three
+    are float32 (the mixed precision's link loop), else in float64."""
     if not all(isinstance(t, types.Float) for t in (a, b, c)):
         return None
-    sig = types.float64(types.float64, types.float64, types.float64)
+    single = all(t == types.float32 for t in (a, b, c))
+    real = types.float32 if single else types.float64
+    sig = real(real, real, real)
 
     def codegen(context, builder, signature, args):
-        args = [context.cast(builder, v, t, types.float64)
+        args = [context.cast(builder, v, t, real)
                 for v, t in zip(args, signature.args, strict=True)]
-        f64 = llvmlite.ir.DoubleType()
+        ir_real = llvmlite.ir.FloatType() if single else llvmlite.ir.DoubleType()
         fn = cgutils.get_or_insert_function(
-            builder.module, llvmlite.ir.FunctionType(f64, [f64, f64, f64]), "llvm.fma.f64")
+            builder.module, llvmlite.ir.FunctionType(ir_real, [ir_real] * 3),
+            "llvm.fma.f32" if single else "llvm.fma.f64")
         return builder.call(fn, args)
 
     return sig, codegen
 
 
+# The physics, compiled for this target (``sim.physics``): inlined into the loops below, in
+# float64, and the link's pieces in float32 too for the mixed precision (``by_precision``).
+_INLINE_PHYSICS = njit(inline="always", fastmath=FASTMATH, error_model="numpy")
+_phys = physics.compiled(_INLINE_PHYSICS, fma)
+_phys32 = physics.compiled(_INLINE_PHYSICS, fma, real=np.float32)
 
-# The physics, compiled for this target (``sim.physics``): inlined into the loops below.
-_phys = physics.compiled(njit(inline="always", fastmath=FASTMATH, error_model="numpy"), fma)
+
+def _single(t) -> bool:
+    """Whether the numba type t is float32 or a tuple holding one."""
+    return t == types.float32 or (isinstance(t, types.BaseTuple) and types.float32 in t.types)
+
+
+def by_precision(name):
+    """The physics piece ``name`` in both precisions as one function: its float32 copy when any
+    argument is float32 (a link of the mixed precision: its buffer is float32), else its
+    float64 one. The choice is made when a caller is compiled, per argument types."""
+    f64, f32 = getattr(_phys, name), getattr(_phys32, name)
+    params = ", ".join(inspect.signature(getattr(physics, name)).parameters)
+    scope: dict = {"pick": lambda args: (f32 if any(map(_single, args)) else f64).py_func}
+    exec(f"def {name}({params}):\n    raise NotImplementedError('compiled code only')\n"
+         f"def choose({params}):\n    return pick(({params},))", scope)
+    stub = scope[name]
+    overload(stub, inline="always", jit_options=dict(fastmath=FASTMATH, error_model="numpy"))(
+        scope["choose"])
+    return stub
+
+
 dot3, qmul, qrot, rotvec = _phys.dot3, _phys.qmul, _phys.qrot, _phys.rotvec
 quat_from_rotvec, rotation_matrix, waveform = _phys.quat_from_rotvec, _phys.rotation_matrix, _phys.waveform
-actuated_size, link_geometry_of, small_frame_of = _phys.actuated_size, _phys.link_geometry, _phys.small_frame
-large_frame_of, damped, link_loads = _phys.large_frame, _phys.damped, _phys.link_loads
-frame_damping = _phys.frame_damping
-link_diverged, contact_push, facet_drag = _phys.link_diverged, _phys.contact_push, _phys.facet_drag
+actuated_size = _phys.actuated_size
+link_geometry_of, small_frame_of = by_precision("link_geometry"), by_precision("small_frame")
+large_frame_of, damped = by_precision("large_frame"), by_precision("damped")
+link_loads = by_precision("link_loads")
+frame_damping, link_diverged = by_precision("frame_damping"), by_precision("link_diverged")
+contact_push, facet_drag = _phys.contact_push, _phys.facet_drag
 contact_overlap, candidate_radius = _phys.contact_overlap, _phys.candidate_radius
+displacement_spread = _phys.displacement_spread
 mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
 corner_point, load_sum, centre_of_mass = _phys.corner_point, _phys.load_sum, _phys.centre_of_mass
 voxel_world = _phys.voxel_world
@@ -258,10 +291,11 @@ def beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
     B[at(S + 4, J)], B[at(S + 5, J)] = t1y, t1z
     B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = t2x, t2y, t2z
     O = ROW_OUT
+    real = B.dtype.type  # the link's precision: the robot's constants in it
     (B[at(O, J)], B[at(O + 1, J)], B[at(O + 2, J)], B[at(O + 3, J)], B[at(O + 4, J)],
      B[at(O + 5, J)], B[at(O + 6, J)], B[at(O + 7, J)], B[at(O + 8, J)]) = link_loads(
-        W, B[at(ROW_STIFF, J)], rest, p.L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y,
-        e1z, e2x, e2y, e2z)
+        W, B[at(ROW_STIFF, J)], rest, real(p.L), real(p.a1), real(p.a2), real(p.b1),
+        real(p.b2), real(p.b3), ex, ey, ez, e1y, e1z, e2x, e2y, e2z)
     return link_diverged(dx, rest)
 
 
@@ -332,10 +366,10 @@ def change_frames(p, B, ends, vlink, link_id, split, moved):
                 J = tile + np.uint64(lane)
                 mode = B[at(ROW_MODE, J)]
                 if mode == LEAVES:
-                    bad += large_frame(p, B, J, 0.0)[0]
+                    bad += large_frame(p, B, J, B.dtype.type(0.0))[0]
                     B[at(ROW_MODE, J)] = -1.0
                 elif mode == RETURNS:
-                    bad += small_frame(p, B, J, 0.0)[0]
+                    bad += small_frame(p, B, J, B.dtype.type(0.0))[0]
                     B[at(ROW_MODE, J)] = 1.0
                 else:
                     continue
@@ -525,15 +559,18 @@ def collision_forces(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5,
 
 @njit(**JIT)
 def surface_moved(surface, pos, built):
-    """The largest distance any surface voxel has moved from ``built`` (its positions when
-    the candidate list was built); NaN before the first build (``built`` holds NaN)."""
-    most = 0.0
+    """Half the spread of the surface voxels' displacements from ``built`` (their positions
+    when the candidate list was built; ``physics.displacement_spread``): a motion the whole
+    surface shares does not count. NaN before the first build (``built`` holds NaN)."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
     for a in range(len(surface)):
         v = surface[a]
-        dx, dy, dz = pos[v, 0] - built[a, 0], pos[v, 1] - built[a, 1], pos[v, 2] - built[a, 2]
-        d2 = dx * dx + dy * dy + dz * dz
-        most = d2 if not (d2 <= most) else most  # NaN propagates
-    return math.sqrt(most)
+        for c in range(3):
+            d = pos[v, c] - built[a, c]
+            lo[c] = d if not (d >= lo[c]) else lo[c]  # NaN propagates
+            hi[c] = d if not (d <= hi[c]) else hi[c]
+    return displacement_spread(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
 
 
 @njit(**JIT)
@@ -542,11 +579,12 @@ def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs
     """Self-collision forces when the robot has them on; returns the updated ``Contacts``
     (``count`` -1: a voxel has more candidates than the policy keeps, and the run stops).
 
-    ``contacts.travel`` bounds how far any surface voxel has moved since the candidate list
-    was built (the step adds the largest voxel speed times dt). Once two voxels may have
-    closed the margin by it, the surface voxels' actual displacement is measured: the list is
-    rebuilt only if that too reaches half the margin, otherwise the bound restarts from it
-    (a voxel that vibrates fast but goes nowhere does not force rebuilds)."""
+    ``contacts.travel`` bounds half the spread of the surface voxels' displacements since the
+    candidate list was built (the step adds the largest voxel speed times dt). Once two
+    voxels may have closed the margin by it, the spread is measured (``surface_moved``): the
+    list is rebuilt only if that too reaches the margin, otherwise the bound restarts from it
+    (a voxel that vibrates fast but goes nowhere, or a body that moves as a whole, does not
+    force rebuilds)."""
     if not p.collide:
         return contacts
     count, travel = contacts.count, contacts.travel
@@ -841,12 +879,13 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, links, n_pairs, n_surface, n_vert=0):
+def robot_work(n_voxels, links, n_pairs, n_surface, n_vert, real):
     """``Work`` of one robot's run: static friction flags set, every link in the small-angle
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
-    built yet (NaN positions), everything else zero."""
+    built yet (NaN positions), everything else zero. The link buffer has ``real``'s dtype
+    (an empty array: float64, or float32 for the mixed precision)."""
     m = len(links.neg)
-    buf = np.zeros(link_buffer_size(m))
+    buf = np.zeros(link_buffer_size(m), real.dtype)
     for j in range(m):
         J = place(j)
         buf[at(ROW_AXIS, J)], buf[at(ROW_STIFF, J)] = links.axis[j], links.stiff[j]
@@ -872,7 +911,7 @@ def com(pos, vconst, out, row):
 
 
 @njit(**JIT)
-def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
+def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, real):
     """Run robot r of the batch to its step count or to divergence, recording frames and
     centre-of-mass samples.
 
@@ -884,7 +923,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
     own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r],
-                          len(own_voxels.surface), len(own_voxels.mesh_vert))
+                          len(own_voxels.surface), len(own_voxels.mesh_vert), real)
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)
     body, work = borrow(own_body), borrow(own_work)
@@ -929,7 +968,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done):
 
 
 @njit(parallel=True, **JIT)
-def run_batch(batch, state, frames, com_traj, com_count, status, steps_done):
-    """Run every robot of the batch, one robot per parallel task."""
+def run_batch(batch, state, frames, com_traj, com_count, status, steps_done, real):
+    """Run every robot of the batch, one robot per parallel task, their links in ``real``'s
+    dtype (an empty float64 array, or float32 for the mixed precision: ``robot_work``)."""
     for r in prange(len(batch.voff) - 1):
-        run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done)
+        run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, real)

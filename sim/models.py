@@ -33,6 +33,13 @@ from typing import Any
 
 from .registry import Registry
 
+# The arithmetic of a run: "float64" throughout (Voxelyze 2.0's, and the paper's engine's: its
+# ``vfloat`` is double in the builds it ships, docs/fidelity.md), or "mixed": each link's
+# geometry, deformation and loads in float32, positions, orientations, momenta, contacts and
+# drag in float64 (halves the link loop's memory and doubles its SIMD width; docs/fidelity.md
+# has its agreement with float64 and with the fork).
+PRECISIONS = ("float64", "mixed")
+
 
 @dataclass(frozen=True)
 class ModelOptions:
@@ -51,6 +58,7 @@ class ModelOptions:
     contact: str = "voxelyze-2"  # self-contact: "voxelyze-2" or the fork's 1.5-voxel "voxcad" spheres
     actuation_lag: int = 0  # steps by which the sizes lag the clock (the fork: 1)
     friction: str = "voxelyze-2"  # the floor's static/kinetic rule: "voxelyze-2" or "voxcad"
+    precision: str = "float64"  # "float64", or "mixed": each link's beam in float32 (sim.kernels)
 
     def replace(self, **changes: Any) -> ModelOptions:
         """A copy with ``changes`` (each checked by ``Option.check``; ValueError otherwise)."""
@@ -101,6 +109,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("contact", ("voxelyze-2", "voxcad")),
     Option("actuation_lag", low=0, whole=True),
     Option("friction", ("voxelyze-2", "voxcad")),
+    Option("precision", PRECISIONS),
 )
 _OPTIONS = {o.name: o for o in OPTIONS}
 assert tuple(_OPTIONS) == tuple(f.name for f in fields(ModelOptions)), "one Option per field"

@@ -37,7 +37,8 @@ MIN_SIZE = 0.1  # smallest actuated size, as a fraction of the voxel size
 FRICTION_EPS = 1e-9  # horizontal speeds below this many voxel lengths per step count as 0
 # The self-contact policy, both engines: candidates are unbonded surface pairs within the
 # largest contact distance plus COLLIDE_MARGIN voxel lengths (``candidate_radius``); the list
-# is rebuilt once surface voxels have moved half the margin. A voxel keeps at most
+# is rebuilt once the surface voxels' displacements since it was built spread over half the
+# margin (``displacement_spread``: what they share, a walk or a swim, does not count). A voxel keeps at most
 # MAX_CONTACTS candidates (``sim.system``, which sizes the lists): a run in which one has more
 # stops, its ``Result.reason`` says so (no contact is dropped silently). Full-size voxels of
 # the paper's model (spheres of 1.5 voxels, amplitude 0.14) have at most about 50 voxel
@@ -334,6 +335,16 @@ def candidate_radius(L, reach, amp):
     return 2.0 * reach * L * (1.0 + amp) + COLLIDE_MARGIN * L
 
 
+def displacement_spread(lo_x, hi_x, lo_y, hi_y, lo_z, hi_z):
+    """Half the diagonal of the box (lo, hi) that holds every surface voxel's displacement since
+    the contact candidates were listed: no two voxels' distance has changed by more than
+    twice this, whatever motion they share (|d_ij' - d_ij| = |u_j - u_i|, both u in the box),
+    so the list holds every touching pair while it stays below half the margin (the policy).
+    NaN in, NaN out."""
+    sx, sy, sz = hi_x - lo_x, hi_y - lo_y, hi_z - lo_z
+    return 0.5 * math.sqrt(sx * sx + sy * sy + sz * sz)
+
+
 def contact_push(overlap, dist, dx, dy, dz, vx, vy, vz, ki, kj, ci, cj, stiff, damp):
     """Penalty contact of touching voxels i and j (``contact_overlap``; d = x_j - x_i,
     v = v_j - v_i): the force on j (i gets its opposite). Stiffness ``stiff`` times the
@@ -533,21 +544,49 @@ PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
     "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
     "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "frame_damping",
-    "damped",
-    "link_loads", "link_diverged", "candidate_radius", "contact_overlap", "contact_push", "facet_drag",
+    "damped", "link_loads", "link_diverged", "candidate_radius", "contact_overlap",
+    "displacement_spread", "contact_push", "facet_drag",
     "mesh_corner", "corner_point", "load_sum", "centre_of_mass", "face_drag", "voxel_update", "voxel_world",
 )
 
 
-def compiled(jit, fma_impl) -> SimpleNamespace:
+def compiled(jit, fma_impl, real=None) -> SimpleNamespace:
     """The functions of ``PIECES`` compiled by ``jit`` (a decorator; the identity gives the
     plain functions), each calling the others' compiled versions and ``fma_impl`` for
-    ``fma``. Compilation itself is lazy, at a piece's first use in a compiled caller."""
+    ``fma``. Compilation itself is lazy, at a piece's first use in a compiled caller.
+
+    ``real``: None (float64, the functions as written) or a scalar type such as
+    ``numpy.float32``, which every float constant of the copies (their literals and the
+    module's float constants, ``ANGLE_OVER_SIN`` included) becomes, so that a copy given
+    float32 arguments computes in float32 (a float64 literal would promote every expression
+    it enters to float64). Integer literals stay integers: the pieces never multiply a float
+    by one."""
     space = dict(globals())
     space["fma"] = fma_impl
+    if real is not None:
+        space.update({key: _as_real(value, real) for key, value in globals().items()
+                      if _is_float_constant(value)})
     for name in PIECES:
         f = globals()[name]
-        copy = types.FunctionType(f.__code__, space, name, f.__defaults__, f.__closure__)
+        code = f.__code__
+        if real is not None:
+            code = code.replace(co_consts=tuple(_as_real(c, real) if _is_float_constant(c) else c
+                                                for c in code.co_consts))
+        copy = types.FunctionType(code, space, name, f.__defaults__, f.__closure__)
         copy.__doc__, copy.__qualname__, copy.__module__ = f.__doc__, f.__qualname__, __name__
         space[name] = jit(copy)
     return SimpleNamespace(**{name: space[name] for name in PIECES})
+
+
+def _is_float_constant(value) -> bool:
+    """A float, or a non-empty tuple of floats (``ANGLE_OVER_SIN``)."""
+    if type(value) is float:
+        return True
+    return type(value) is tuple and bool(value) and all(type(v) is float for v in value)
+
+
+def _as_real(value, real):
+    """``value`` (``_is_float_constant``) as ``real``."""
+    if type(value) is tuple:
+        return tuple(real(v) for v in value)
+    return real(value)

@@ -48,7 +48,8 @@ def test_the_cost_grows_with_stiffness_and_is_higher_in_water():
     seconds = {}
     for environment in ("land", "water"):
         for pa in (1e5, 1e7):
-            task = Task.from_genome(genome, EvaluationSpec(environment, pa, 8, model="voxcad-land-water", encoding=config), id=0)
+            spec = EvaluationSpec(environment, pa, 8, model="voxcad-land-water", encoding=config)
+            task = Task.from_genome(genome, spec, id=0)
             seconds[environment, pa] = MEASURED.scene_seconds(parse_scene(scenes_of(task)[1][0]))
     assert seconds["land", 1e7] > seconds["land", 1e5] > 0
     assert seconds["water", 1e5] > seconds["land", 1e5]

@@ -48,7 +48,8 @@ def _links(batch):
 
 
 def _work(batch, n):
-    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), len(batch.surface))
+    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), len(batch.surface), 0,
+                              np.zeros(0))
 
 
 def _rows(work, first, count):
@@ -242,10 +243,8 @@ def test_collision_pairs_and_forces_match_brute_force():
     assert (force[j] - force[i]) @ (state.pos[j] - state.pos[i]) > 0, "contacts push apart"
 
 
-def test_candidates_are_rebuilt_only_when_a_surface_voxel_moved_half_the_margin():
-    """The travel bound triggers a measurement, not a rebuild: the list is rebuilt once the
-    surface has actually moved half the margin (0.2 L / 2 = 5 mm here), and then holds every
-    pair within reach of the moved voxels."""
+def _contact_case():
+    """A cup of 4^3 voxels (L = 5 cm), its parts for ``collide_kernel``, and a call of it."""
     body = np.ones((4, 4, 4), int)
     body[1:3, 1:3, 1:] = 0
     scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
@@ -255,27 +254,61 @@ def test_candidates_are_rebuilt_only_when_a_surface_voxel_moved_half_the_margin(
     work.size[:] = 0.05
     margin = kernels.COLLIDE_MARGIN * p.L
 
-    def collide(travel):
-        return kernels.collide_kernel(p, kernels.Contacts(count, travel), voxels.surface,
-                                      voxels.near, mine.pos, mine.lin_mom, work.size,
-                                      voxels.vconst, work.pairs, work.partners, work.built,
-                                      work.force)
+    def collide(contacts):
+        return kernels.collide_kernel(p, contacts, voxels.surface, voxels.near, mine.pos,
+                                      mine.lin_mom, work.size, voxels.vconst, work.pairs,
+                                      work.partners, work.built, work.force)
 
-    count = 0
-    first = collide(margin)  # the first step: NaN positions, so a build
+    return p, voxels, mine, work, margin, collide
+
+
+def test_candidates_are_rebuilt_only_when_the_surface_spread_over_the_margin():
+    """The travel bound triggers a measurement, not a rebuild: the list is rebuilt once the
+    surface voxels' displacements actually spread over the margin (one voxel moved by it:
+    0.2 L = 10 mm here; half the spread is what ``travel`` holds), and then holds every pair
+    within reach of the moved voxels."""
+    p, voxels, mine, work, margin, collide = _contact_case()
+    first = collide(kernels.Contacts(0, margin))  # the first step: NaN positions, so a build
     count = first.count
     assert first.travel == 0.0 and count > 0
     np.testing.assert_array_equal(work.built, mine.pos[voxels.surface])
     inner = voxels.surface[0]
-    mine.pos[inner, 0] += 0.4 * margin  # moved less than half the margin: no rebuild
-    kept = collide(margin)
+    mine.pos[inner, 0] += 0.8 * margin  # spread 0.8 of the margin: no rebuild
+    kept = collide(kernels.Contacts(count, margin))
     assert kept.travel == pytest.approx(0.4 * margin) and kept.count == count
-    np.testing.assert_array_equal(work.built[0], mine.pos[inner] - [0.4 * margin, 0, 0])
-    mine.pos[inner, 0] += 0.2 * margin  # now 0.6 of the margin: rebuilt
-    rebuilt = collide(margin)
+    np.testing.assert_array_equal(work.built[0], mine.pos[inner] - [0.8 * margin, 0, 0])
+    mine.pos[inner, 0] += 0.4 * margin  # now 1.2 of the margin: rebuilt
+    rebuilt = collide(kernels.Contacts(count, margin))
     assert rebuilt.travel == 0.0
     np.testing.assert_array_equal(work.built, mine.pos[voxels.surface])
     assert kernels.surface_moved(voxels.surface, mine.pos, work.built) == 0.0
+
+
+def test_a_body_moving_as_a_whole_keeps_its_candidates_and_they_hold_every_touching_pair():
+    """A walk or a swim (every voxel moved alike, here by 5 margins, with a deformation that
+    spreads the displacements over less than the margin on top) forces no rebuild, and the
+    kept list still holds every pair that touches, against a brute-force search (the
+    policy's guarantee: ``displacement_spread``)."""
+    p, voxels, mine, work, margin, collide = _contact_case()
+    work.size[:] = p.L * (1.0 + p.amp)  # fully expanded: diagonal neighbours nearly touch
+    count = collide(kernels.Contacts(0, margin)).count
+    listed_before = {tuple(sorted(pq)) for pq in work.pairs[:count]}
+    built = work.built.copy()
+    rng = np.random.default_rng(3)
+    mine.pos[:] += [5 * margin, -3 * margin, 0.5 * margin]
+    mine.pos[:] += rng.uniform(-0.2 * margin, 0.2 * margin, mine.pos.shape)  # spread < margin
+    kept = collide(kernels.Contacts(count, margin))
+    assert kept.count == count and 0.0 < kept.travel < 0.5 * margin
+    np.testing.assert_array_equal(work.built, built)  # not rebuilt
+    assert {tuple(sorted(pq)) for pq in work.pairs[:count]} == listed_before
+    near = {(int(i), int(j)) for i in range(len(voxels.near)) for j in voxels.near[i] if j >= 0}
+    surface = [int(v) for v in voxels.surface]
+    touching = {(i, j) for a, i in enumerate(surface) for j in surface[a + 1:]
+                if (i, j) not in near and (j, i) not in near
+                and np.linalg.norm(mine.pos[i] - mine.pos[j])
+                < p.contact_reach * (work.size[i] + work.size[j])}
+    assert touching, "the deformed cup must have touching unbonded pairs"
+    assert touching <= {tuple(sorted((int(i), int(j)))) for i, j in work.pairs[:count]}
 
 
 def test_rotation_vector_matches_scipy():
