@@ -8,11 +8,12 @@ A robot whose state fits in a block's shared memory runs there, a larger one on 
 arrays (the same kernel source, built for each). Every model and option of the CPU engine
 is supported (the physics is the same code, ``sim.physics``).
 
-Precision: float64 (float32 is refused until it has passed the accuracy tests on a GPU).
-numba-cuda is imported on first use only. ``NUMBA_ENABLE_CUDASIM=1`` (set before anything
-imports ``numba.cuda``) runs the same kernels on numba-cuda's simulator, in Python, on any
-machine: slow, for small robots. Without numba-cuda, or without the device asked for,
-``EngineUnavailable`` says so in one line.
+Precision: each scene's ``model_options.precision`` (``sim.models.PRECISIONS``): float64, or
+"mixed", whose links compute in float32 (``cuda_kernels.LINK_FORCES``); a batch of both runs
+as one launch series per precision. numba-cuda is imported on first use only.
+``NUMBA_ENABLE_CUDASIM=1`` (set before anything imports ``numba.cuda``) runs the same kernels
+on numba-cuda's simulator, in Python, on any machine: slow, for small robots. Without
+numba-cuda, or without the device asked for, ``EngineUnavailable`` says so in one line.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .engines import EngineUnavailable
+from .models import PRECISIONS
 from .physics import COLLIDE_MARGIN
 from .result import Result, from_run, prepare
 from .scene import Scene
@@ -35,7 +37,6 @@ DEFAULT_DEVICE = "cuda:0"
 CHUNK_STEPS = 5000  # steps per launch on a GPU (a 7^3 robot: a few milliseconds)
 THREADS = {"gpu": 256, "simulator": 4}  # threads per block (SOFTEVO_CUDA_THREADS overrides)
 SHARED_DEFAULT = 48 * 1024  # bytes of shared memory a block may use without opting in
-PRECISIONS = ("float64", "float32")  # float32 is refused until it passes on a GPU
 SIMULATOR_SWITCH_SECONDS = 5e-5  # the GIL's switch interval while the simulator runs (5x faster)
 
 
@@ -83,21 +84,18 @@ def device_of(name: str | None):
 
 
 def simulate_many(scenes: list[dict | Scene], device: str | None = None,
-                  precision: str = "float64", chunk: int | None = None) -> list[Result]:
-    """Simulate many robots in one batch on a CUDA device; results in the order of
-    ``scenes``. ``chunk``: steps per launch (default ``CHUNK_STEPS``; the simulator runs a
-    batch in one launch)."""
-    if precision not in PRECISIONS:
-        raise EngineUnavailable(f"precision: must be one of {', '.join(PRECISIONS)} (got {precision!r})")
-    if precision != "float64":
-        raise EngineUnavailable(
-            "precision: the cuda engine runs float64 only (float32 has not yet passed the "
-            "accuracy tests on a GPU)")
+                  chunk: int | None = None) -> list[Result]:
+    """Simulate many robots in one batch on a CUDA device (one per precision of their
+    ``model_options.precision``); results in the order of ``scenes``. ``chunk``: steps per
+    launch (default ``CHUNK_STEPS``; the simulator runs a batch in one launch)."""
     dev = device_of(device)
     parsed, robots, results, runnable = prepare(scenes)
-    if runnable:
-        out = run_batch([robots[k] for k in runnable], dev, precision, chunk)
-        for r, k in enumerate(runnable):
+    groups: dict[str, list[int]] = {}
+    for k in runnable:
+        groups.setdefault(parsed[k].options.precision, []).append(k)
+    for precision, members in groups.items():
+        out = run_batch([robots[k] for k in members], dev, precision, chunk)
+        for r, k in enumerate(members):
             results[k] = from_run(parsed[k], robots[k], 0, *out.robot(r))
     return results  # type: ignore[return-value]
 
@@ -241,12 +239,15 @@ def kernel_inputs(batch, state) -> tuple:
 
 def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None = None,
               memory: str = "auto") -> BatchOutput:
-    """Run the built robots (``sim.system.Robot``) to the end on CUDA device ``dev``.
-    ``memory``: "auto" (each robot in shared memory if it fits, else global) or "global"
-    (every robot on the global arrays, for tests of that path)."""
+    """Run the built robots (``sim.system.Robot``) to the end on CUDA device ``dev``, their
+    links in ``precision`` (``sim.models.PRECISIONS``). ``memory``: "auto" (each robot in
+    shared memory if it fits, else global) or "global" (every robot on the global arrays,
+    for tests of that path)."""
     cuda = cuda_module()
     from . import cuda_kernels as ck
 
+    if precision not in PRECISIONS:
+        raise EngineUnavailable(f"precision: must be one of {', '.join(PRECISIONS)} (got {precision!r})")
     batch, state = pack(robots)
     R = len(robots)
     host = kernel_inputs(batch, state)
@@ -261,8 +262,8 @@ def run_batch(robots: list, dev, precision: str = "float64", chunk: int | None =
     scratch = 8 * (threads + ck.SCRATCH_WORDS)  # every block's reductions and flags
     need = np.array([shared_bytes(int(n), int(m)) for n, m in zip(counts, links, strict=True)])
     need = need + scratch
-    in_shared = ck.rollout_kernel(True, threads)
-    in_global = ck.rollout_kernel(False, threads)
+    in_shared = ck.rollout_kernel(True, threads, precision)
+    in_global = ck.rollout_kernel(False, threads, precision)
     total = int(batch.iparams[:, I_STEPS].max(initial=0)) + 1
     chunk = total if sim_mode else max(1, int(chunk or CHUNK_STEPS))
 

@@ -28,6 +28,7 @@ import math
 from functools import cache
 from typing import Any, NamedTuple
 
+import numpy as np
 from numba import cuda, float64
 from numba.cuda import config as cuda_config
 
@@ -76,16 +77,17 @@ if SIMULATOR:  # the plain functions: the simulator runs kernels as Python
 
     substep = device
     phys = physics.compiled(device, physics.fma)
+    phys32 = physics.compiled(device, physics.fma, real=np.float32)
 else:
     device = cuda.jit(device=True)
     substep = cuda.jit(device=True, forceinline=True)  # the step's sub-steps, inlined by NVVM
-    phys = physics.compiled(device, device(_fma_device))
+    _fma = device(_fma_device)
+    phys = physics.compiled(device, _fma)
+    phys32 = physics.compiled(device, _fma, real=np.float32)
 
 dot3, qrot, rotation_matrix, waveform = phys.dot3, phys.qrot, phys.rotation_matrix, phys.waveform
-actuated_size, link_geometry, small_frame = phys.actuated_size, phys.link_geometry, phys.small_frame
-large_frame, damped, link_loads = phys.large_frame, phys.damped, phys.link_loads
-frame_damping = phys.frame_damping
-link_diverged, contact_push, facet_drag = phys.link_diverged, phys.contact_push, phys.facet_drag
+actuated_size = phys.actuated_size
+contact_push, facet_drag = phys.contact_push, phys.facet_drag
 contact_overlap, candidate_radius = phys.contact_overlap, phys.candidate_radius
 displacement_spread = phys.displacement_spread
 mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
@@ -272,55 +274,71 @@ def actuate(k, p, t, nt, n, FL, VC, phase, cos_phase, sin_phase, size):
             size[v] = actuated_size(p.L, p.amp, w)
 
 
-@substep
-def link_forces(p, t, nt, m, neg, lpos, laxis, lstiff, ldamp, pos, quat, size, ls, loads, flag):
-    """Every link's loads in world axes into ``loads`` (``kernels.link_kernel`` and
-    ``change_frames``): each link in the co-rotational frame it is in (mode +1 small, -1
-    large, 0 new), computed again undamped in the other frame when it outgrows it; flag[0]
-    set if a link diverged."""
-    L = p.L
-    for j in range(t, m, nt):
-        a, b = neg[j], lpos[j]
-        axis = laxis[j]
-        rest = 0.5 * (size[a] + size[b])
-        R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
-            quat[4 * a], quat[4 * a + 1], quat[4 * a + 2], quat[4 * a + 3],
-            quat[4 * b], quat[4 * b + 1], quat[4 * b + 2], quat[4 * b + 3],
-            pos[3 * b] - pos[3 * a], pos[3 * b + 1] - pos[3 * a + 1],
-            pos[3 * b + 2] - pos[3 * a + 2], axis)
-        mode = ls[LINK_STATE * j + 8]
-        damp = ldamp[j]
-        if mode >= 0.0:
-            W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-            damp = frame_damping(mode, damp)
-            mode = 1.0
-            if leave:  # computed again in the other frame, undamped
-                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
+def _link_forces(ph, real):
+    """The links' sub-step with the physics ``ph`` (``physics.compiled``) in the precision
+    ``real`` casts to (float: float64; numpy.float32: the mixed precision, as the numba
+    engine's float32 link buffer rounds the same inputs)."""
+
+    @substep
+    def link_forces(p, t, nt, m, neg, lpos, laxis, lstiff, ldamp, pos, quat, size, ls, loads,
+                    flag):
+        """Every link's loads in world axes into ``loads`` (``kernels.link_kernel`` and
+        ``change_frames``): each link in the co-rotational frame it is in (mode +1 small, -1
+        large, 0 new), computed again undamped in the other frame when it outgrows it;
+        flag[0] set if a link diverged."""
+        L, zero = real(p.L), real(0.0)
+        a1, a2, b1, b2, b3 = real(p.a1), real(p.a2), real(p.b1), real(p.b2), real(p.b3)
+        for j in range(t, m, nt):
+            a, b = neg[j], lpos[j]
+            axis = laxis[j]
+            rest = real(0.5 * (size[a] + size[b]))
+            R, rx, ry, rz, ow, ox, oy, oz = ph.link_geometry(
+                real(quat[4 * a]), real(quat[4 * a + 1]), real(quat[4 * a + 2]),
+                real(quat[4 * a + 3]), real(quat[4 * b]), real(quat[4 * b + 1]),
+                real(quat[4 * b + 2]), real(quat[4 * b + 3]), real(pos[3 * b] - pos[3 * a]),
+                real(pos[3 * b + 1] - pos[3 * a + 1]), real(pos[3 * b + 2] - pos[3 * a + 2]),
+                axis)
+            mode = ls[LINK_STATE * j + 8]
+            damp = real(ldamp[j])
+            if mode >= 0.0:
+                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = ph.small_frame(
                     R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                damp, mode = 0.0, -1.0
-        else:
-            W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
-                R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-            mode = -1.0
-            if back:
-                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
+                damp = ph.frame_damping(real(mode), damp)
+                mode = 1.0
+                if leave:  # computed again in the other frame, undamped
+                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = ph.large_frame(
+                        R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+                    damp, mode = zero, -1.0
+            else:
+                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = ph.large_frame(
                     R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                damp, mode = 0.0, 1.0
-        S = LINK_STATE * j
-        ex, ey, ez = damped(damp, dx, ls[S]), damped(damp, dy, ls[S + 1]), damped(damp, dz, ls[S + 2])
-        e1y, e1z = damped(damp, t1y, ls[S + 3]), damped(damp, t1z, ls[S + 4])
-        e2x, e2y = damped(damp, t2x, ls[S + 5]), damped(damp, t2y, ls[S + 6])
-        e2z = damped(damp, t2z, ls[S + 7])
-        ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
-        ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
-        O = LINK_LOADS * j
-        (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
-         loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
-            W, lstiff[j], rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, ex, ey, ez, e1y, e1z, e2x,
-            e2y, e2z)
-        if link_diverged(dx, rest):
-            flag[0] = 1.0
+                mode = -1.0
+                if back:
+                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = ph.small_frame(
+                        R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+                    damp, mode = zero, 1.0
+            S = LINK_STATE * j
+            ex = ph.damped(damp, dx, real(ls[S]))
+            ey = ph.damped(damp, dy, real(ls[S + 1]))
+            ez = ph.damped(damp, dz, real(ls[S + 2]))
+            e1y, e1z = ph.damped(damp, t1y, real(ls[S + 3])), ph.damped(damp, t1z, real(ls[S + 4]))
+            e2x, e2y = ph.damped(damp, t2x, real(ls[S + 5])), ph.damped(damp, t2y, real(ls[S + 6]))
+            e2z = ph.damped(damp, t2z, real(ls[S + 7]))
+            ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
+            ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
+            O = LINK_LOADS * j
+            (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
+             loads[O + 6], loads[O + 7], loads[O + 8]) = ph.link_loads(
+                W, real(lstiff[j]), rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x,
+                e2y, e2z)
+            if ph.link_diverged(dx, rest):
+                flag[0] = 1.0
+
+    return link_forces
+
+
+# the links' sub-step of each precision (``sim.models.PRECISIONS``)
+LINK_FORCES = {"float64": _link_forces(phys, float), "mixed": _link_forces(phys32, np.float32)}
 
 
 @substep
@@ -513,12 +531,15 @@ def copy(t, nt, count, src, dst):
 
 
 @cache
-def rollout_kernel(shared: bool, threads: int):
+def rollout_kernel(shared: bool, threads: int, precision: str = "float64"):
     """The rollout kernel with the robot's state in shared memory (``shared``) or global
-    memory, for blocks of ``threads`` threads (its reduction scratch is sized for them).
+    memory, for blocks of ``threads`` threads (its reduction scratch is sized for them), its
+    links in ``precision`` (``LINK_FORCES``).
     Its arguments: ``chunk`` (steps per launch), ``which`` (the robot of each block) and the
     groups ``Robots``, ``VoxelData``, ``LinkData``, ``ContactData``, ``MeshData``,
     ``BodyState``, ``Scratch``, ``Output`` (``sim.cuda_engine.kernel_inputs`` fills them)."""
+
+    link_forces = LINK_FORCES[precision]
 
     @cuda.jit
     def rollout(chunk, which, robots, voxels, links, contacts, mesh, body, scratch, out):

@@ -65,6 +65,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import warnings
 from typing import NamedTuple
 
 import llvmlite.binding
@@ -72,6 +73,7 @@ import llvmlite.ir
 import numpy as np
 from numba import njit, prange, types
 from numba.core import cgutils
+from numba.core.errors import NumbaIRAssumptionWarning
 from numba.extending import intrinsic, overload
 
 from . import physics
@@ -147,6 +149,13 @@ _phys32 = physics.compiled(_INLINE_PHYSICS, fma, real=np.float32)
 def _single(t) -> bool:
     """Whether the numba type t is float32 or a tuple holding one."""
     return t == types.float32 or (isinstance(t, types.BaseTuple) and types.float32 in t.types)
+
+
+# Inlining the pieces that ``by_precision`` dispatches trips a pedantic check of numba's IR
+# (a variable of an inlined piece "not in scope"); the compiled code is right (the kernels'
+# tests), so that one warning is not shown to every user who compiles the kernels.
+warnings.filterwarnings("ignore", message="variable '.*' is not in scope",
+                        category=NumbaIRAssumptionWarning)
 
 
 def by_precision(name):
@@ -460,22 +469,36 @@ def link_sums(vlink, B, force, moment):
     ``vlink[v, 2a + 1]`` is the offset (``place``) of the link on v's +a face (v its negative
     end), ``vlink[v, 2a]`` of the one on its -a face (v its positive end); a face without a
     link holds that of place m, which stays zero in every row of the link buffer B, so every
-    voxel sums six entries per row without a branch.
+    voxel sums six entries per row without a branch. The sums are float64 in either
+    precision, so that a link's equal and opposite forces still cancel in the total.
     """
     U = np.uint64
     R0, R1, R2 = at(ROW_OUT, U(0)), at(ROW_OUT + 1, U(0)), at(ROW_OUT + 2, U(0))
     R3, R4, R5 = at(ROW_OUT + 3, U(0)), at(ROW_OUT + 4, U(0)), at(ROW_OUT + 5, U(0))
     R6, R7, R8 = at(ROW_OUT + 6, U(0)), at(ROW_OUT + 7, U(0)), at(ROW_OUT + 8, U(0))
     o = B
+    F = np.float64  # the loads summed in float64 in either precision (the forces balance)
     for v in range(len(vlink)):
         p0, p1, p2 = U(vlink[v, 1]), U(vlink[v, 3]), U(vlink[v, 5])
         n0, n1, n2 = U(vlink[v, 0]), U(vlink[v, 2]), U(vlink[v, 4])
-        force[v, 0] = load_sum(o[R0 + p0], o[R0 + p1], o[R0 + p2], o[R0 + n0], o[R0 + n1], o[R0 + n2], -1.0)
-        force[v, 1] = load_sum(o[R1 + p0], o[R1 + p1], o[R1 + p2], o[R1 + n0], o[R1 + n1], o[R1 + n2], -1.0)
-        force[v, 2] = load_sum(o[R2 + p0], o[R2 + p1], o[R2 + p2], o[R2 + n0], o[R2 + n1], o[R2 + n2], -1.0)
-        moment[v, 0] = load_sum(o[R3 + p0], o[R3 + p1], o[R3 + p2], o[R6 + n0], o[R6 + n1], o[R6 + n2], 1.0)
-        moment[v, 1] = load_sum(o[R4 + p0], o[R4 + p1], o[R4 + p2], o[R7 + n0], o[R7 + n1], o[R7 + n2], 1.0)
-        moment[v, 2] = load_sum(o[R5 + p0], o[R5 + p1], o[R5 + p2], o[R8 + n0], o[R8 + n1], o[R8 + n2], 1.0)
+        force[v, 0] = load_sum(
+            F(o[R0 + p0]), F(o[R0 + p1]), F(o[R0 + p2]),
+            F(o[R0 + n0]), F(o[R0 + n1]), F(o[R0 + n2]), -1.0)
+        force[v, 1] = load_sum(
+            F(o[R1 + p0]), F(o[R1 + p1]), F(o[R1 + p2]),
+            F(o[R1 + n0]), F(o[R1 + n1]), F(o[R1 + n2]), -1.0)
+        force[v, 2] = load_sum(
+            F(o[R2 + p0]), F(o[R2 + p1]), F(o[R2 + p2]),
+            F(o[R2 + n0]), F(o[R2 + n1]), F(o[R2 + n2]), -1.0)
+        moment[v, 0] = load_sum(
+            F(o[R3 + p0]), F(o[R3 + p1]), F(o[R3 + p2]),
+            F(o[R6 + n0]), F(o[R6 + n1]), F(o[R6 + n2]), 1.0)
+        moment[v, 1] = load_sum(
+            F(o[R4 + p0]), F(o[R4 + p1]), F(o[R4 + p2]),
+            F(o[R7 + n0]), F(o[R7 + n1]), F(o[R7 + n2]), 1.0)
+        moment[v, 2] = load_sum(
+            F(o[R5 + p0]), F(o[R5 + p1]), F(o[R5 + p2]),
+            F(o[R8 + n0]), F(o[R8 + n1]), F(o[R8 + n2]), 1.0)
 
 
 # ---------------------------------------------------------------- self-collisions

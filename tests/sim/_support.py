@@ -44,14 +44,23 @@ def _fmt(v: Any) -> str:
 # Keyword arguments of ``sim.simulate`` for the engine under test: empty is the default
 # (numba) engine; ``test_cuda_engine`` runs some analytic tests again with the cuda engine.
 ENGINE: dict[str, Any] = {}
+# The precision under test (``sim.models.PRECISIONS``): the closed-form suite runs in each
+# (the ``precision`` fixture of tests/sim/conftest.py sets it).
+PRECISION = "float64"
+
+
+def with_precision(scene: dict, precision: str | None = None) -> dict:
+    """``scene`` with ``model_options.precision`` set (default: the one under test)."""
+    options = {**scene.get("model_options", {}), "precision": precision or PRECISION}
+    return {**scene, "model_options": options}
 
 
 def simulate(scene: dict) -> Any:
-    """Run ``scene`` on the engine under test (``ENGINE``) and insist it stayed stable (a
-    physics test never expects a blow-up)."""
+    """Run ``scene`` on the engine under test (``ENGINE``) in the precision under test
+    (``PRECISION``) and insist it stayed stable (a physics test never expects a blow-up)."""
     from softevo import sim
 
-    result = sim.simulate(scene, **ENGINE)
+    result = sim.simulate(with_precision(scene), **ENGINE)
     assert result.stable, f"unstable: {result.reason}"
     return result
 
