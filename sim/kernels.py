@@ -585,15 +585,21 @@ def surface_moved(surface, pos, built):
     """Half the spread of the surface voxels' displacements from ``built`` (their positions
     when the candidate list was built; ``physics.displacement_spread``): a motion the whole
     surface shares does not count. NaN before the first build (``built`` holds NaN)."""
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
+    lo_x = lo_y = lo_z = math.inf
+    hi_x = hi_y = hi_z = -math.inf
     for a in range(len(surface)):
         v = surface[a]
-        for c in range(3):
-            d = pos[v, c] - built[a, c]
-            lo[c] = d if not (d >= lo[c]) else lo[c]  # NaN propagates
-            hi[c] = d if not (d <= hi[c]) else hi[c]
-    return displacement_spread(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
+        dx, dy, dz = pos[v, 0] - built[a, 0], pos[v, 1] - built[a, 1], pos[v, 2] - built[a, 2]
+        lo_x, hi_x = widen(lo_x, hi_x, dx)
+        lo_y, hi_y = widen(lo_y, hi_y, dy)
+        lo_z, hi_z = widen(lo_z, hi_z, dz)
+    return displacement_spread(lo_x, hi_x, lo_y, hi_y, lo_z, hi_z)
+
+
+@njit(**INLINE)
+def widen(lo, hi, d):
+    """The range [lo, hi] widened to hold d (NaN propagates to both ends)."""
+    return (d if not (d >= lo) else lo), (d if not (d <= hi) else hi)
 
 
 @njit(**JIT)
