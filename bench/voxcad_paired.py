@@ -1,6 +1,7 @@
 """softevo against the paper's engine (the VoxCAD fork in evosoro), paired on the same VXA robots.
 
 Usage: python bench/voxcad_paired.py [--repeat 3] [--seconds S] [--only REGEX] [--profile]
+       [--precision float64|mixed]
 
 The robots are the fork's 8 sample robots (their VXA text in tests/sim/reference/voxcad/
 sample_*.json), each in its own world (4 on land, 4 in water), self-collisions on, as shipped
@@ -106,10 +107,14 @@ def run_fork(driver: str, vxa: str, work: Path, name: str) -> dict:
     }
 
 
+PRECISION = "float64"  # ``--precision``: the model option the imported scenes run with
+
+
 def scene_of(vxa: str) -> dict:
     from softevo.analysis.vxa_import import vxa_to_scene
 
-    return vxa_to_scene(vxa.encode("latin-1")).scene
+    scene = vxa_to_scene(vxa.encode("latin-1")).scene
+    return {**scene, "model_options": {**scene["model_options"], "precision": PRECISION}}
 
 
 def warm_up(scene: dict) -> None:
@@ -140,7 +145,8 @@ def paired(args, driver: str, robots: list[dict]) -> None:
     work = args.build / "paired"
     print(
         f"{args.repeat} pairs per robot (fork, then softevo), one core each; medians, ratios "
-        f"pair by pair; {'as shipped' if args.seconds is None else f'{args.seconds:g} s simulated'}"
+        f"pair by pair; {'as shipped' if args.seconds is None else f'{args.seconds:g} s simulated'}; "
+        f"softevo in {PRECISION}"
     )
     print(
         f"{'robot':<30}{'world':<7}{'vox':>5}{'steps fork':>11}{'ours':>9}{'sim s':>7}"
@@ -384,6 +390,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, help="simulated seconds per robot (default: as shipped)")
     parser.add_argument("--only", help="regex: only the matching sample robots")
     parser.add_argument("--profile", action="store_true", help="also say where the time goes")
+    parser.add_argument("--precision", default="float64", choices=("float64", "mixed"),
+                        help="softevo's arithmetic (model_options.precision; the fork's is float64)")
     parser.add_argument(
         "--profile-seconds", type=float, default=0.3, help="simulated seconds of the fork's callgrind runs"
     )
@@ -391,6 +399,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.seconds is not None and args.seconds <= 0.5:
         sys.exit("error: --seconds must exceed 0.5 (the land robots settle for 0.5 s)")
+    global PRECISION
+    PRECISION = args.precision
     info = ref.build(args.evosoro, args.build / "O3")
     robots = samples(args.only)
     if not args.no_paired:

@@ -5,6 +5,7 @@ change behind one door:
 - ``simulate(scene)``, ``parse_scene``, ``scene_steps`` and ``SceneError``: one scene run
   (``softevo simulate``) or sized before anything is run (``service.runs.limits``);
 - ``EngineUnavailable``: the error of an engine that cannot run here;
+- ``PRECISIONS``: the arithmetic a scene may ask for (``model_options.precision``);
 - ``lattice_mesh``: the surface mesh of a body, for the replay frames of the REST API;
 - the cost model of ``softevo plan``: ``CostModel``, ``MEASURED``, ``voxel_steps``,
   ``measure``.
@@ -16,9 +17,11 @@ from softevo.sim import SceneError, parse_scene, scene_steps, simulate
 from softevo.sim.cost import MEASURED, CostModel, measure, voxel_steps
 from softevo.sim.engines import EngineUnavailable
 from softevo.sim.mesh import lattice_mesh
+from softevo.sim.models import PRECISIONS
 
 __all__ = [
     "MEASURED",
+    "PRECISIONS",
     "CostModel",
     "EngineUnavailable",
     "SceneError",

@@ -100,12 +100,24 @@ def simulate(
     ] = None,
     engine: engine_option("default numba") = None,
     device: device_option("default cuda:0 with --engine cuda") = None,
+    precision: Annotated[
+        str | None,
+        typer.Option("--precision", metavar="float64|mixed",
+                     help="The arithmetic, over the scene's model_options.precision: float64, or "
+                          "mixed (each link's beam in float32; docs/fidelity.md)."),
+    ] = None,
 ) -> None:
     """Simulate one scene and print its result."""
     from softevo.service.runs.limits import check_scene
     from softevo.worker import physics as sim
 
     scene_dict = _read_scene(scene_path)
+    if precision is not None:
+        if precision not in sim.PRECISIONS:
+            raise UserError(f"--precision: must be one of {', '.join(sim.PRECISIONS)} (got {precision!r})")
+        options = scene_dict.get("model_options")
+        scene_dict = {**scene_dict, "model_options": {
+            **(options if isinstance(options, dict) else {}), "precision": precision}}
     check_scene(scene_dict)  # fail fast, before compiling anything: malformed, too large or too long
     if record is not None and "record" not in scene_dict:
         scene_dict = {**scene_dict, "record": {"every": default_record_every(scene_dict)}}

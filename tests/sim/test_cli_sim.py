@@ -64,6 +64,23 @@ def test_json_output_is_exactly_the_result(tmp_path):
     assert printed == json.loads(json.dumps(sim.simulate(TINY).to_dict()))
 
 
+def test_precision_option_runs_the_scene_in_that_precision(tmp_path, capsys):
+    """``--precision mixed`` is the scene with ``model_options.precision`` "mixed": the same
+    result as simulating that scene, near float64's but not equal to it; a wrong value is
+    one line."""
+    path = write(tmp_path, TINY)
+    proc = softevo_here(capsys, "simulate", str(path), "--json", "--precision", "mixed")
+    assert proc.returncode == 0, proc.stderr
+    mixed = json.loads(proc.stdout)
+    expected = sim.simulate({**TINY, "model_options": {"precision": "mixed"}}).to_dict()
+    assert mixed == json.loads(json.dumps(expected))
+    float64 = sim.simulate(TINY)
+    assert mixed["final_positions"] != np.asarray(float64.final_positions).tolist()
+    assert mixed["distance"] == pytest.approx(float64.distance, rel=1e-3)
+    assert_user_error(softevo_here(capsys, "simulate", str(path), "--precision", "half"),
+                      "--precision: must be one of float64, mixed (got 'half')")
+
+
 def test_plain_summary(tmp_path, capsys):
     proc = softevo_here(capsys, "simulate", str(write(tmp_path, TINY)))
     assert proc.returncode == 0, proc.stderr
