@@ -107,9 +107,9 @@ SOFTEVO_CUDA_TEST_DEVICE=$DEVICE SOFTEVO_CUDA_RANDOM_ROBOTS=$ROBOTS SOFTEVO_AGRE
   | grep -E "passed|failed|error|Error|ERROR|skipped|cuda\.|s call|s setup" | head -30
 echo "tests: exit ${PIPESTATUS[0]} (124: stopped at $TEST_LIMIT s)"
 
-say "throughput bench on $DEVICE: 100, 1,000, 10,000 robots, land and water, float64 (limit $BENCH_LIMIT s)"
+say "throughput bench on $DEVICE: 100, 1,000, 10,000 robots, land and water, float64 and mixed (limit $BENCH_LIMIT s)"
 timeout -k 5 "$BENCH_LIMIT" "$PY" bench/gpu_throughput.py --device "$DEVICE" --batches 100,1000,10000 \
   --max-batch 10000 --steps "$STEPS" --numba-max-batch 100 --worlds land,water --moduli "$MODULI" \
-  --precisions float64 2>&1 | tee "$LOGS/bench.txt"
+  --precisions float64,mixed 2>&1 | tee "$LOGS/bench.txt"
 echo "bench: exit ${PIPESTATUS[0]} (124: stopped at $BENCH_LIMIT s)"
 say "done"

@@ -1,7 +1,7 @@
 """CUDA engine throughput against batch size, side by side with the numba engine.
 
 Usage: python bench/gpu_throughput.py [--device cuda:0] [--max-batch 10000] [--steps 2000]
-           [--numba-max-batch 100] [--batches 1,10,100,1000,10000] [--precisions float64]
+           [--numba-max-batch 100] [--batches 1,10,100,1000,10000] [--precisions float64,mixed]
            [--side 7] [--accuracy 0]
 
 Paper-like robots: random 7^3 bodies (about 2/3 full, half the voxels active), the scene
@@ -17,11 +17,10 @@ loop's (``cuda_engine.run_batch``'s ``seconds``); "end-to-end" adds building the
 packing, copying and the results (numba's rate is end-to-end: its building is a small part
 of its time). Compilation is timed apart (one warm-up call per precision).
 
-float64 only: the engine refuses float32 (``EngineUnavailable``) until float32 passes the
-accuracy check on a GPU; ``--precisions float64,float32`` prints the refusal in one line and
-goes on with float64. ``--accuracy N`` runs N whole evaluations per stiffness and world in
-float64 and float32 and prints how far float32's distances are from float64's (the float32
-policy of docs/gpu.md), or the refusal.
+``--precisions float64,mixed`` times both precisions (``model_options.precision``; "mixed":
+the links in float32); a precision the engine refuses is printed in one line and dropped.
+``--accuracy N`` runs N whole evaluations per stiffness and world in float64 and mixed and
+prints how far mixed's distances are from float64's (docs/gpu.md).
 
 On numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``, pure Python) keep everything tiny:
 ``NUMBA_ENABLE_CUDASIM=1 python bench/gpu_throughput.py --max-batch 1 --steps 5
@@ -98,6 +97,11 @@ def device_name(dev) -> str:
     return name or str(dev)
 
 
+def in_precision(scene: dict, precision: str) -> dict:
+    """``scene`` run in ``precision`` (its ``model_options.precision``)."""
+    return {**scene, "model_options": {**scene.get("model_options", {}), "precision": precision}}
+
+
 def usable_precisions(requested: list[str], device: str) -> list[str]:
     """The precisions the engine accepts (one tiny run each); a refusal is printed in one
     line, and the precision dropped."""
@@ -105,7 +109,8 @@ def usable_precisions(requested: list[str], device: str) -> list[str]:
     usable = []
     for precision in requested:
         try:
-            seconds, _ = timed(lambda s, p=precision: cuda_engine.simulate_many(s, device, p), warm)
+            seconds, _ = timed(lambda s, p=precision: cuda_engine.simulate_many(
+                [in_precision(x, p) for x in s], device), warm)
         except EngineUnavailable as exc:
             print(f"{precision}: refused by the engine: {exc}")
             continue
@@ -127,12 +132,12 @@ def main() -> None:
     parser.add_argument(
         "--batches", default=",".join(map(str, BATCHES)), help="batch sizes (those up to --max-batch run)"
     )
-    parser.add_argument("--precisions", default="float64", help="float64 (float32 is refused for now)")
+    parser.add_argument("--precisions", default="float64,mixed", help="float64, mixed, or both")
     parser.add_argument("--side", type=int, default=7, help="robots' side in voxels (7: the paper's)")
     parser.add_argument("--worlds", default=",".join(PAPER))
     parser.add_argument("--moduli", default="1e6,1e7", help="Young's moduli, Pa")
     parser.add_argument(
-        "--accuracy", type=int, default=0, help="whole evaluations per case for float32 vs float64"
+        "--accuracy", type=int, default=0, help="whole evaluations per case for mixed vs float64"
     )
     args = parser.parse_args()
 
@@ -211,14 +216,14 @@ def main() -> None:
 
 
 def accuracy(rng, world: str, modulus: float, n: int, device: str, side: int = 7) -> None:
-    """float32 against float64 over ``n`` whole evaluations, or the engine's refusal."""
+    """mixed against float64 over ``n`` whole evaluations, or the engine's refusal."""
     scenes = [paper_robot(rng, world, modulus, side) for _ in range(n)]
     try:
-        f32 = cuda_engine.simulate_many(scenes, device, "float32")
+        f32 = cuda_engine.simulate_many([in_precision(s, "mixed") for s in scenes], device)
     except EngineUnavailable as exc:
-        print(f"accuracy {world} {modulus / 1e6:g} MPa: float32 refused by the engine: {exc}")
+        print(f"accuracy {world} {modulus / 1e6:g} MPa: mixed refused by the engine: {exc}")
         return
-    f64 = cuda_engine.simulate_many(scenes, device, "float64")
+    f64 = cuda_engine.simulate_many(scenes, device)
     rel = [
         abs(a.distance - b.distance) / max(a.distance, 1e-3)
         for a, b in zip(f64, f32, strict=True)
@@ -226,7 +231,7 @@ def accuracy(rng, world: str, modulus: float, n: int, device: str, side: int = 7
     ]
     flags = sum(a.stable != b.stable for a, b in zip(f64, f32, strict=True))
     print(
-        f"accuracy {world} {modulus / 1e6:g} MPa: float32 vs float64 distance over "
+        f"accuracy {world} {modulus / 1e6:g} MPa: mixed vs float64 distance over "
         f"{len(rel)} robots: median {np.median(rel):.3g}, max {np.max(rel):.3g}; "
         f"stability mismatches {flags}"
     )

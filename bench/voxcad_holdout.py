@@ -8,13 +8,16 @@ on and off, are written as VXA files in the paper's layout (``bench/voxcad_refer
 - by the paper's engine, built from source by ``bench/voxcad_reference.py`` (its driver; the
   build is reused when present), and
 - by ours exactly as a user would: ``softevo import-vxa FILE.vxa --out SCENE.json`` then
-  ``softevo simulate SCENE.json --json`` (its ``distance``).
+  ``softevo simulate SCENE.json --json --precision P`` (its ``distance``), once per precision
+  of ``--precisions``.
 
-It prints each robot's two normAbsoluteDisplacements and their ratio, then the median
-|log ratio|, the rank correlation and the shares within 10% and 30%, to set beside the spread
-of tests/sim/test_voxcad_reference.py (docs/fidelity.md).
+It prints each robot's normAbsoluteDisplacement and ours in each precision with the ratio,
+then per precision the median |log ratio|, the rank correlation and the shares within 10% and
+30%, to set beside the spread of tests/sim/test_voxcad_reference.py (docs/fidelity.md), and
+how far the precisions are from each other (median and largest |log ratio|).
 
     python bench/voxcad_holdout.py [--robots 20] [--seed 7000] [--workspace 7] [--cycles 8]
+           [--precisions float64,mixed]
 """
 
 from __future__ import annotations
@@ -49,13 +52,22 @@ def softevo_cli() -> list[str]:
     return [sys.executable, "-c", "from softevo.service.cli import main; main()"]
 
 
-def ours(cli: list[str], vxa_path: Path) -> dict:
+def ours(cli: list[str], vxa_path: Path, precision: str) -> dict:
     scene = vxa_path.with_suffix(".json")
-    subprocess.run([*cli, "import-vxa", str(vxa_path), "--out", str(scene)], check=True,
-                   capture_output=True, text=True)
-    out = subprocess.run([*cli, "simulate", str(scene), "--json"], check=True,
-                         capture_output=True, text=True).stdout
+    if not scene.exists():
+        subprocess.run([*cli, "import-vxa", str(vxa_path), "--out", str(scene)], check=True,
+                       capture_output=True, text=True)
+    out = subprocess.run([*cli, "simulate", str(scene), "--json", "--precision", precision],
+                         check=True, capture_output=True, text=True).stdout
     return json.loads(out)
+
+
+def summary(label: str, theirs: list[float], mine: list[float]) -> None:
+    log = np.abs(np.log(np.asarray(mine) / np.asarray(theirs)))
+    rho = stats.spearmanr(theirs, mine)[0]
+    print(f"{label}: robots {len(mine)}, median |log ratio| {np.median(log):.3f}, Spearman "
+          f"{rho:.3f}, within 10% {np.mean(log < math.log(1.1)):.0%}, within 30% "
+          f"{np.mean(log < math.log(1.3)):.0%}, worst ratio {math.exp(log.max()):.2f}")
 
 
 def main() -> None:
@@ -66,14 +78,18 @@ def main() -> None:
     parser.add_argument("--cycles", type=float, default=8.0)
     parser.add_argument("--evosoro", type=Path, default=reference.MIRROR)
     parser.add_argument("--build", type=Path, default=Path("/tmp/voxcad-build"))
+    parser.add_argument("--precisions", default="float64",
+                        help="comma-separated: ours in each (simulate --precision)")
     args = parser.parse_args()
+    precisions = args.precisions.split(",")
     info = reference.build(args.evosoro, args.build / "O3")  # reused when built
     cli = softevo_cli()
     rng = np.random.default_rng(args.seed)
     rows = []
     seed = args.seed
     work = Path(tempfile.mkdtemp(prefix="softevo-holdout-"))
-    print(f"{'robot':<28}{'vox':>5}{'steps':>8}{'paper engine':>14}{'softevo':>10}{'ratio':>8}")
+    print(f"{'robot':<28}{'vox':>5}{'steps':>8}{'paper engine':>14}"
+          + "".join(f"{p:>10}{'ratio':>8}" for p in precisions))
     for k in range(args.robots):
         level, youngs = LEVELS[k % len(LEVELS)]
         env = PAPER[(k // len(LEVELS)) % 2]
@@ -88,17 +104,17 @@ def main() -> None:
         fork = reference.run_driver(info["driver"], vxa, work, name, every=0)
         theirs = fork["fitness_file"]["normAbsoluteDisplacement"]
         path = work / f"{name}.vxa"
-        result = ours(cli, path)
-        ratio = result["distance"] / theirs if theirs > 0 else math.inf
-        rows.append((name, theirs, result["distance"], ratio))
-        print(f"{name:<28}{fork['result']['voxels']:>5}{fork['result']['steps']:>8}"
-              f"{theirs:>14.4f}{result['distance']:>10.4f}{ratio:>8.3f}", flush=True)
-    log = np.abs(np.log([r[3] for r in rows]))
-    rho = stats.spearmanr([r[1] for r in rows], [r[2] for r in rows])[0]
-    print(f"robots {len(rows)}: median |log ratio| {np.median(log):.3f}, Spearman {rho:.3f}, "
-          f"within 10% {np.mean(log < math.log(1.1)):.0%}, within 30% "
-          f"{np.mean(log < math.log(1.3)):.0%}, worst ratio {math.exp(log.max()):.2f}")
-    shutil.rmtree(work, ignore_errors=True)
+        mine = [ours(cli, path, p)["distance"] for p in precisions]
+        rows.append((name, theirs, mine))
+        print(f"{name:<28}{fork['result']['voxels']:>5}{fork['result']['steps']:>8}{theirs:>14.4f}"
+              + "".join(f"{d:>10.4f}{d / theirs if theirs > 0 else math.inf:>8.3f}" for d in mine),
+              flush=True)
+    for q, precision in enumerate(precisions):
+        summary(precision, [r[1] for r in rows], [r[2][q] for r in rows])
+    for q in range(1, len(precisions)):
+        between = np.abs(np.log([r[2][q] / r[2][0] for r in rows]))
+        print(f"{precisions[q]} against {precisions[0]}: median |log ratio| "
+              f"{np.median(between):.2e}, largest {between.max():.2e}")
 
 
 if __name__ == "__main__":

@@ -635,7 +635,7 @@ def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs
 # ---------------------------------------------------------------- drag on the surface mesh
 @njit(**JIT)
 def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vconst, size,
-                     vert_pos, axes, force):
+                     vert_pos, corners, facet_force, force):
     """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
     surface mesh (``sim.system.surface_mesh``) moving into the fluid, -``drag`` A (v.n)^2 n,
     A its area, n its unit normal and v the velocity of the voxel whose face it covers
@@ -643,11 +643,25 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
     voxel's centre plus its corner, rotated; as in the fork, a corner sits half the voxel's
     current size out along an axis where the voxel has a neighbour on that side, and half
     the nominal size L out where that face is exposed (the fork places corners by the bonds'
-    strains, and an exposed face has none). ``axes`` (n, 9): scratch for each voxel's
-    rotation matrix, computed once per step."""
-    for v in range(len(axes)):
-        (axes[v, 0], axes[v, 1], axes[v, 2], axes[v, 3], axes[v, 4], axes[v, 5], axes[v, 6],
-         axes[v, 7], axes[v, 8]) = rotation_matrix(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
+    strains, and an exposed face has none).
+
+    Three loops without branches, so that they vectorize, around two small gathers: every
+    voxel's 8 corners in world axes into ``corners`` (component, corner, voxel: one SIMD lane
+    per voxel; ``physics.corner_point``); each
+    vertex the mean of its voxels' corners (in ``mesh_vert``'s order) into ``vert_pos``; each
+    triangle's drag into ``facet_force``, then added to its voxel's force in triangle order
+    (the same sums, in the same order, as one pass of ``corner_point`` per vertex and voxel)."""
+    for v in range(len(pos)):
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(
+            quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
+        x, y, z, s = pos[v, 0], pos[v, 1], pos[v, 2], size[v]
+        has = (nbr[v, 0] >= 0, nbr[v, 1] >= 0, nbr[v, 2] >= 0, nbr[v, 3] >= 0,
+               nbr[v, 4] >= 0, nbr[v, 5] >= 0)  # a neighbour on each side (-x, +x, ...)
+        for c in range(8):
+            ox, oy, oz = mesh_corner(c, s, L, has[(c >> 2) & 1], has[2 + ((c >> 1) & 1)],
+                                     has[4 + (c & 1)])
+            corners[0, c, v], corners[1, c, v], corners[2, c, v] = corner_point(
+                x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
     for k in range(len(mesh_vert)):
         ax, ay, az, count = 0.0, 0.0, 0.0, 0
         for slot in range(8):
@@ -655,12 +669,7 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
             if code < 0:
                 break
             v, c = code >> 3, code & 7
-            ox, oy, oz = mesh_corner(c, size[v], L, nbr[v, (c >> 2) & 1] >= 0,
-                                     nbr[v, 2 + ((c >> 1) & 1)] >= 0, nbr[v, 4 + (c & 1)] >= 0)
-            cx, cy, cz = corner_point(pos[v, 0], pos[v, 1], pos[v, 2], axes[v, 0], axes[v, 1],
-                                      axes[v, 2], axes[v, 3], axes[v, 4], axes[v, 5], axes[v, 6],
-                                      axes[v, 7], axes[v, 8], ox, oy, oz)
-            ax, ay, az = ax + cx, ay + cy, az + cz
+            ax, ay, az = ax + corners[0, c, v], ay + corners[1, c, v], az + corners[2, c, v]
             count += 1
         vert_pos[k, 0], vert_pos[k, 1], vert_pos[k, 2] = ax / count, ay / count, az / count
     for t in range(len(mesh_face)):
@@ -670,11 +679,14 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
         wx, wy, wz = vert_pos[c, 0] - vert_pos[a, 0], vert_pos[c, 1] - vert_pos[a, 1], \
             vert_pos[c, 2] - vert_pos[a, 2]
         nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx  # 2 A n
-        fx, fy, fz = facet_drag(drag, lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz,
-                                vconst[v, V_INV_MASS], nx, ny, nz)
-        force[v, 0] += fx
-        force[v, 1] += fy
-        force[v, 2] += fz
+        (facet_force[t, 0], facet_force[t, 1], facet_force[t, 2]) = facet_drag(
+            drag, lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz,
+            vconst[v, V_INV_MASS], nx, ny, nz)
+    for t in range(len(mesh_face)):
+        v = mesh_face[t, 3]
+        force[v, 0] += facet_force[t, 0]
+        force[v, 1] += facet_force[t, 1]
+        force[v, 2] += facet_force[t, 2]
 
 
 # ---------------------------------------------------------------- voxels
@@ -785,7 +797,8 @@ class Work(NamedTuple):
     split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
     changed: np.ndarray  # (m,) scratch of ``change_frames``
     vert_pos: np.ndarray  # (nv, 3) surface-mesh vertex positions (``mesh_drag_kernel``)
-    axes: np.ndarray  # (n, 9) each voxel's rotation matrix (``mesh_drag_kernel``; n 0 on land)
+    corners: np.ndarray  # (3, 8, n) every voxel's corners (``mesh_drag_kernel``; n 0 on land)
+    facet_force: np.ndarray  # (nf, 3) each surface-mesh triangle's drag (``mesh_drag_kernel``)
 
 
 class Contacts(NamedTuple):
@@ -848,7 +861,7 @@ def step(t, p, voxels, links, body, work, contacts):
     if p.mesh_drag > 0.0:
         mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face, voxels.nbr, p.L,
                          body.pos, body.quat, body.lin_mom, voxels.vconst, work.size,
-                         work.vert_pos, work.axes, work.force)
+                         work.vert_pos, work.corners, work.facet_force, work.force)
     speed2 = voxel_update(p, voxels, body, work)
     travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
     return bad, speed2, Contacts(contacts.count, travel)
@@ -908,7 +921,7 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, links, n_pairs, n_surface, n_vert, real):
+def robot_work(n_voxels, links, n_pairs, n_surface, n_vert, n_face, real):
     """``Work`` of one robot's run: static friction flags set, every link in the small-angle
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), everything else zero. The link buffer has ``real``'s dtype
@@ -929,7 +942,7 @@ def robot_work(n_voxels, links, n_pairs, n_surface, n_vert, real):
                 np.full((n_surface, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
                 np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)),
-                np.zeros((n_voxels if n_vert else 0, 9)))
+                np.zeros((3, 8, n_voxels if n_vert else 0)), np.zeros((n_face, 3)))
 
 
 @njit(**JIT)
@@ -952,7 +965,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, 
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
     own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r],
-                          len(own_voxels.surface), len(own_voxels.mesh_vert), real)
+                          len(own_voxels.surface), len(own_voxels.mesh_vert),
+                          len(own_voxels.mesh_face), real)
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)
     body, work = borrow(own_body), borrow(own_work)

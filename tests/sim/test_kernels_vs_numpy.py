@@ -48,7 +48,7 @@ def _links(batch):
 
 
 def _work(batch, n):
-    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), len(batch.surface), 0,
+    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), len(batch.surface), 0, 0,
                               np.zeros(0))
 
 

@@ -188,7 +188,7 @@ def test_vertex_mean_is_the_drag_kernels():
     quat = rng.normal(size=(n, 4)) * [1, 0.1, 0.1, 0.1]
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     size = L * (1 + rng.uniform(-0.2, 0.2, n))
-    vert_pos, axes_scratch = np.zeros((len(mesh_vert), 3)), np.zeros((n, 9))
+    vert_pos, corner_scratch = np.zeros((len(mesh_vert), 3)), np.zeros((3, 8, n))
     vconst = np.ones((n, N_VCONST))
     kernels.mesh_drag_kernel(
         0.0,
@@ -202,7 +202,8 @@ def test_vertex_mean_is_the_drag_kernels():
         vconst,
         size,
         vert_pos,
-        axes_scratch,
+        corner_scratch,
+        np.zeros((len(mesh_face), 3)),
         np.zeros((n, 3)),
     )
     corners = np.zeros((n, 8, 3))
@@ -212,3 +213,4 @@ def test_vertex_mean_is_the_drag_kernels():
             extent = [size[v] if nbr[v, 2 * a + (signs[a] > 0)] >= 0 else L for a in range(3)]
             corners[v, c] = pos[v] + turn @ (signs * extent)
     assert mesh_vertices(mesh_vert, corners) == pytest.approx(vert_pos, abs=1e-12)
+    assert corner_scratch.transpose(2, 1, 0) == pytest.approx(corners, abs=1e-12)
