@@ -5,8 +5,9 @@ the simulator runs but the GPU would refuse fails here first.
 Usage: python bench/cuda_compile_check.py [--cc 9.0] [--threads 256]
 
 Needs NVVM and libdevice (``pip install 'numba-cuda[cu13]'``; not in the lock, and not
-needed by CI). Prints, per kernel (state in shared or in global memory), its PTX size and
-the count of double-precision FMA instructions, and fails if a kernel does not compile.
+needed by CI). Prints, per kernel (each precision, state in shared or in global memory), its
+PTX size and the count of double- and single-precision FMA instructions, and fails if a
+kernel does not compile.
 With ptxas too (``pip install nvidia-cuda-nvcc``, or on PATH) it assembles the PTX and
 prints the registers, spills and stack per thread: what bounds the blocks per multiprocessor.
 """
@@ -31,6 +32,7 @@ import numba.cuda.dispatcher as dispatcher  # noqa: E402
 from numba import cuda  # noqa: E402
 
 from softevo.sim import cuda_engine, cuda_kernels  # noqa: E402
+from softevo.sim.models import PRECISIONS  # noqa: E402
 from softevo.sim.scene import parse_scene  # noqa: E402
 from softevo.sim.system import build_robot, pack  # noqa: E402
 from softevo.sim.worlds import WATER  # noqa: E402
@@ -50,11 +52,13 @@ def main() -> None:
     host = cuda_engine.kernel_inputs(batch, state)
     which = host[0].voff[:1]  # the kernel's groups (``cuda_kernels.Robots`` ...) as typed tuples
     sig = tuple(numba.typeof(x) for x in (numba.int32(1), which, *host))
-    for shared in (True, False):
-        kernel = cuda_kernels.rollout_kernel(shared, args.threads)
-        ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=cc)
-        print(f"rollout shared={shared}: {len(ptx) / 1e3:.0f} kB of PTX, "
-              f"{ptx.count('fma.rn.f64')} fma.rn.f64, {ptx.count('bar.sync')} bar.sync")
+    for precision in PRECISIONS:
+        for shared in (True, False):
+            kernel = cuda_kernels.rollout_kernel(shared, args.threads, precision)
+            ptx, _ = cuda.compile_ptx(kernel.py_func, sig, cc=cc)
+            print(f"rollout {precision} shared={shared}: {len(ptx) / 1e3:.0f} kB of PTX, "
+                  f"{ptx.count('fma.rn.f64')} fma.rn.f64, {ptx.count('fma.rn.f32')} fma.rn.f32, "
+                  f"{ptx.count('bar.sync')} bar.sync")
         lines = [assemble(ptxas, ptx, cc) for ptxas in find_ptxas()]
         ok = [line for line in lines if not line.startswith("ptxas failed")]
         if ok or lines:

@@ -55,7 +55,8 @@ PAPER_ENCODING = EncodingConfig(
     workspace=(7, 7, 7), control_mapping="evosoro-bounded", body_rule="evosoro"
 )
 PAPER_MODEL = "voxcad-land-water"
-ENGINES = ("softevo.sim.numba_engine", "softevo.sim.engine")  # the numba engine's module, new or old
+ENGINES = ("softevo.sim.result", "softevo.sim.numba_engine", "softevo.sim.engine")  # where the
+# numba engine looks up parse_scene and build_robot: now, and in older versions
 STAGES = {  # name: [(module, attribute)] where the worker's code looks the function up
     "decode": [("softevo.worker.tasks", "Task.from_json")],
     "develop": [("softevo.evolution.genotype", "develop")],
@@ -152,7 +153,8 @@ def paper_tasks(world: str, robots: int, modulus: float, seed: int) -> list[dict
     tasks = []
     for k in range(robots):
         genome, _ = random_viable(rng, PAPER_ENCODING)
-        spec = EvaluationSpec(world, modulus, 1, model=PAPER_MODEL, max_seconds=0.005, encoding=PAPER_ENCODING)
+        spec = EvaluationSpec(world, modulus, 1, model=PAPER_MODEL, max_seconds=0.005,
+                              encoding=PAPER_ENCODING)
         task = Task.from_genome(genome, spec, id=k)
         tasks.append(task.to_json())
     return tasks
