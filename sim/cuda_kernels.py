@@ -278,6 +278,10 @@ def _link_forces(ph, real):
     """The links' sub-step with the physics ``ph`` (``physics.compiled``) in the precision
     ``real`` casts to (float: float64; numpy.float32: the mixed precision, as the numba
     engine's float32 link buffer rounds the same inputs)."""
+    # the pieces as plain names: a kernel can close over functions, not over a namespace
+    link_geometry, small_frame, large_frame = ph.link_geometry, ph.small_frame, ph.large_frame
+    frame_damping, damped, link_loads = ph.frame_damping, ph.damped, ph.link_loads
+    link_diverged = ph.link_diverged
 
     @substep
     def link_forces(p, t, nt, m, neg, lpos, laxis, lstiff, ldamp, pos, quat, size, ls, loads,
@@ -292,7 +296,7 @@ def _link_forces(ph, real):
             a, b = neg[j], lpos[j]
             axis = laxis[j]
             rest = real(0.5 * (size[a] + size[b]))
-            R, rx, ry, rz, ow, ox, oy, oz = ph.link_geometry(
+            R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
                 real(quat[4 * a]), real(quat[4 * a + 1]), real(quat[4 * a + 2]),
                 real(quat[4 * a + 3]), real(quat[4 * b]), real(quat[4 * b + 1]),
                 real(quat[4 * b + 2]), real(quat[4 * b + 3]), real(pos[3 * b] - pos[3 * a]),
@@ -301,37 +305,37 @@ def _link_forces(ph, real):
             mode = ls[LINK_STATE * j + 8]
             damp = real(ldamp[j])
             if mode >= 0.0:
-                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = ph.small_frame(
+                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
                     R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                damp = ph.frame_damping(real(mode), damp)
+                damp = frame_damping(real(mode), damp)
                 mode = 1.0
                 if leave:  # computed again in the other frame, undamped
-                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = ph.large_frame(
+                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
                         R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
                     damp, mode = zero, -1.0
             else:
-                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = ph.large_frame(
+                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
                     R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
                 mode = -1.0
                 if back:
-                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = ph.small_frame(
+                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
                         R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
                     damp, mode = zero, 1.0
             S = LINK_STATE * j
-            ex = ph.damped(damp, dx, real(ls[S]))
-            ey = ph.damped(damp, dy, real(ls[S + 1]))
-            ez = ph.damped(damp, dz, real(ls[S + 2]))
-            e1y, e1z = ph.damped(damp, t1y, real(ls[S + 3])), ph.damped(damp, t1z, real(ls[S + 4]))
-            e2x, e2y = ph.damped(damp, t2x, real(ls[S + 5])), ph.damped(damp, t2y, real(ls[S + 6]))
-            e2z = ph.damped(damp, t2z, real(ls[S + 7]))
+            ex = damped(damp, dx, real(ls[S]))
+            ey = damped(damp, dy, real(ls[S + 1]))
+            ez = damped(damp, dz, real(ls[S + 2]))
+            e1y, e1z = damped(damp, t1y, real(ls[S + 3])), damped(damp, t1z, real(ls[S + 4]))
+            e2x, e2y = damped(damp, t2x, real(ls[S + 5])), damped(damp, t2y, real(ls[S + 6]))
+            e2z = damped(damp, t2z, real(ls[S + 7]))
             ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
             ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
             O = LINK_LOADS * j
             (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
-             loads[O + 6], loads[O + 7], loads[O + 8]) = ph.link_loads(
+             loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
                 W, real(lstiff[j]), rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x,
                 e2y, e2z)
-            if ph.link_diverged(dx, rest):
+            if link_diverged(dx, rest):
                 flag[0] = 1.0
 
     return link_forces
