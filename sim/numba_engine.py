@@ -15,13 +15,17 @@ import numba
 import numpy as np
 
 from . import kernels
-from .cache import drop_foreign_entries
+from .cache import drop_foreign_entries, drop_stale_entries
 from .engines import EngineUnavailable
 from .result import Result, from_run, prepare
 from .scene import Scene
 from .system import COM_SAMPLES, I_N_FRAMES, I_STEPS, pack
 
-drop_foreign_entries(Path(kernels.__file__).parent / "__pycache__")
+_HERE = Path(kernels.__file__).parent
+# the sources whose constants and inlined functions the cached kernels hold
+KERNEL_SOURCES = [_HERE / name for name in ("kernels.py", "physics.py", "system.py")]
+drop_foreign_entries(_HERE / "__pycache__")
+drop_stale_entries(_HERE / "__pycache__", KERNEL_SOURCES)
 
 # each precision's link dtype, as the empty array ``kernels.run_batch`` takes it (``real``)
 REALS = {"float64": np.zeros(0, np.float64), "mixed": np.zeros(0, np.float32)}

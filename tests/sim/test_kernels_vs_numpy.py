@@ -265,7 +265,7 @@ def _contact_case():
 def test_candidates_are_rebuilt_only_when_the_surface_spread_over_the_margin():
     """The travel bound triggers a measurement, not a rebuild: the list is rebuilt once the
     surface voxels' displacements actually spread over the margin (one voxel moved by it:
-    0.2 L = 10 mm here; half the spread is what ``travel`` holds), and then holds every pair
+    0.3 L = 15 mm here; half the spread is what ``travel`` holds), and then holds every pair
     within reach of the moved voxels."""
     p, voxels, mine, work, margin, collide = _contact_case()
     first = collide(kernels.Contacts(0, margin))  # the first step: NaN positions, so a build
@@ -276,7 +276,8 @@ def test_candidates_are_rebuilt_only_when_the_surface_spread_over_the_margin():
     mine.pos[inner, 0] += 0.8 * margin  # spread 0.8 of the margin: no rebuild
     kept = collide(kernels.Contacts(count, margin))
     assert kept.travel == pytest.approx(0.4 * margin) and kept.count == count
-    np.testing.assert_array_equal(work.built[0], mine.pos[inner] - [0.8 * margin, 0, 0])
+    np.testing.assert_allclose(work.built[0], mine.pos[inner] - [0.8 * margin, 0, 0], rtol=0,
+                               atol=1e-15)  # the positions it was built from (to rounding)
     mine.pos[inner, 0] += 0.4 * margin  # now 1.2 of the margin: rebuilt
     rebuilt = collide(kernels.Contacts(count, margin))
     assert rebuilt.travel == 0.0
