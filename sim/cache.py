@@ -68,7 +68,10 @@ def drop_stale_entries(cache_dir: Path, sources: list[Path], stem: str = "kernel
         pass
     dropped = 0
     for path in [*cache_dir.glob(f"{stem}.*.nbi"), *cache_dir.glob(f"{stem}.*.nbc")]:
-        path.unlink(missing_ok=True)
+        try:
+            path.unlink(missing_ok=True)
+        except OSError:  # read-only: numba caches elsewhere (its user-wide directory)
+            continue
         dropped += 1
     try:
         cache_dir.mkdir(parents=True, exist_ok=True)

@@ -67,3 +67,18 @@ def test_the_engine_names_every_source_its_kernels_import():
     named = {p.stem for p in numba_engine.KERNEL_SOURCES}
     assert imported <= named, imported - named
     assert "kernels" in named
+
+
+def test_files_that_cannot_be_removed_or_written_do_not_fail_the_import(tmp_path):
+    """An installed package may sit where no one may write: the check must not fail the import
+    there (numba then caches in its user-wide directory). Stood in for, as root too, by an
+    entry and a stamp that are directories (unlink and write raise OSError)."""
+    physics = tmp_path / "physics.py"
+    physics.write_text("COLLIDE_MARGIN = 0.3\n")
+    cache = tmp_path / "__pycache__"
+    (cache / "kernels.run_batch-700.py311.nbi").mkdir(parents=True)
+    (cache / "kernels.sources").mkdir()
+    (cache / "kernels.step-300.py311.1.nbc").write_bytes(b"machine code")
+    assert drop_stale_entries(cache, [physics]) == 1  # the one file that could go
+    assert sorted(p.name for p in cache.iterdir()) == ["kernels.run_batch-700.py311.nbi",
+                                                      "kernels.sources"]
