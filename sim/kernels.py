@@ -649,12 +649,12 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
     the nominal size L out where that face is exposed (the fork places corners by the bonds'
     strains, and an exposed face has none).
 
-    Three loops without branches, so that they vectorize, around two small gathers: every
-    voxel's 8 corners in world axes into ``corners`` (component, corner, voxel: one SIMD lane
-    per voxel; ``physics.corner_point``); each
-    vertex the mean of its voxels' corners (in ``mesh_vert``'s order) into ``vert_pos``; each
-    triangle's drag into ``facet_force``, then added to its voxel's force in triangle order
-    (the same sums, in the same order, as one pass of ``corner_point`` per vertex and voxel)."""
+    In four loops: every voxel's 8 corners in world axes into ``corners`` (component, corner,
+    voxel: one branch-free loop over the voxels, one SIMD lane each; ``physics.corner_point``);
+    each vertex the mean of its voxels' corners (in ``mesh_vert``'s order) into ``vert_pos``;
+    each triangle's drag into ``facet_force``; those added to their voxels' forces in triangle
+    order (the same sums, in the same order, as one pass of ``corner_point`` per vertex and
+    voxel)."""
     for v in range(len(pos)):
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(
             quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
