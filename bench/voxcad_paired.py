@@ -107,14 +107,12 @@ def run_fork(driver: str, vxa: str, work: Path, name: str) -> dict:
     }
 
 
-PRECISION = "float64"  # ``--precision``: the model option the imported scenes run with
-
-
-def scene_of(vxa: str) -> dict:
+def scene_of(vxa: str, precision: str) -> dict:
+    """The VXA imported as a user would, run in ``precision`` (``--precision``)."""
     from softevo.analysis.vxa_import import vxa_to_scene
 
     scene = vxa_to_scene(vxa.encode("latin-1")).scene
-    return {**scene, "model_options": {**scene["model_options"], "precision": PRECISION}}
+    return {**scene, "model_options": {**scene["model_options"], "precision": precision}}
 
 
 def warm_up(scene: dict) -> None:
@@ -146,7 +144,7 @@ def paired(args, driver: str, robots: list[dict]) -> None:
     print(
         f"{args.repeat} pairs per robot (fork, then softevo), one core each; medians, ratios "
         f"pair by pair; {'as shipped' if args.seconds is None else f'{args.seconds:g} s simulated'}; "
-        f"softevo in {PRECISION}"
+        f"softevo in {args.precision}"
     )
     print(
         f"{'robot':<30}{'world':<7}{'vox':>5}{'steps fork':>11}{'ours':>9}{'sim s':>7}"
@@ -157,7 +155,7 @@ def paired(args, driver: str, robots: list[dict]) -> None:
     steps_seen = []
     for robot in robots:
         vxa = cut(robot["vxa"], args.seconds)
-        scene = scene_of(vxa)
+        scene = scene_of(vxa, args.precision)
         warm_up(scene)
         fork, ours = [], []
         for _ in range(args.repeat):
@@ -353,7 +351,7 @@ def profile(args, driver: str, robots: list[dict]) -> None:
     for robot in robots:
         vxa = cut(robot["vxa"], args.seconds)
         nocol_vxa = tag(vxa, "SelfColEnabled", "0")
-        scene = scene_of(vxa)
+        scene = scene_of(vxa, args.precision)
         nocol = {**scene, "self_collisions": False}
         faces = {**scene, "model_options": {**scene["model_options"], "drag": "faces"}}
         variants = {"ours": scene, "nocol": nocol}
@@ -399,8 +397,6 @@ def main() -> None:
     args = parser.parse_args()
     if args.seconds is not None and args.seconds <= 0.5:
         sys.exit("error: --seconds must exceed 0.5 (the land robots settle for 0.5 s)")
-    global PRECISION
-    PRECISION = args.precision
     info = ref.build(args.evosoro, args.build / "O3")
     robots = samples(args.only)
     if not args.no_paired:
