@@ -6,8 +6,9 @@ Settling is read from the scenes the treatment's evaluations build (``evolution.
 evaluation_scenes`` with the treatment's model, cycles and cap, in each world of its
 schedule), not written here: it depends on the model and the world. The mappings are
 described from ``evolution.genotype`` (``CONTROL_MAPPINGS``, and per evosoro variant
-whether it is bounded at ``EVOSORO_MAX_FREQUENCY`` and whether a negative frequency is
-invalid); a name this module does not know is named as it is stored.
+whether it reads the output through the logistic, whether it is bounded at
+``EVOSORO_MAX_FREQUENCY`` and whether a negative frequency is invalid); a name this module does
+not know is named as it is stored.
 """
 
 from __future__ import annotations
@@ -28,9 +29,12 @@ def mapping_text(name: str, frequency_range: tuple[float, float] = (1.0, 5.0)) -
     if name == "linear":
         low, high = frequency_range
         return f"one evolved frequency mapped linearly onto {low:g}-{high:g} Hz"
-    variants = getattr(genotype, "EVOSORO_MAPPINGS", {"evosoro": (False, False)})
+    variants = genotype.EVOSORO_MAPPINGS
     if name in variants:
-        bounded, positive_only = variants[name]
+        logistic, bounded, positive_only = variants[name]
+        if logistic:
+            return (f"the evosoro scripts' frequency 10 / (mean(1/s') + 1.5) Hz of the output read through "
+                    f"the logistic, s' = (1 + s) / 2: below {genotype.EVOSORO_MAX_FREQUENCY:g} Hz")
         bound = f"at most {genotype.EVOSORO_MAX_FREQUENCY:g} Hz" if bounded else "unbounded"
         negative = "a negative f makes the robot invalid" if positive_only else "a negative f runs at |f|"
         return f"the evosoro scripts' frequency 10 / (mean(1/s) + 1.5) Hz, {bound}; {negative}"

@@ -165,6 +165,8 @@ class CompoundOutcome:
     distance: float
     stable: bool
     reason: str | None
+    steps: int = 0  # the parts' steps and simulated seconds, summed (what it cost)
+    simulated_seconds: float = 0.0
 
 
 def compound_outcome(outcomes: list[Any]) -> Any:
@@ -184,7 +186,15 @@ def compound_outcome(outcomes: list[Any]) -> Any:
         distance=float(sum(distance for distance, _, _ in parts)),
         stable=not unstable,
         reason=unstable[0] if unstable else None,
+        steps=int(sum(_cost(outcome, "steps") for outcome in outcomes)),
+        simulated_seconds=float(sum(_cost(outcome, "simulated_seconds") for outcome in outcomes)),
     )
+
+
+def _cost(outcome: Any, name: str) -> float:
+    """``steps`` or ``simulated_seconds`` of one part's outcome (0 where it has none)."""
+    value = outcome.get(name) if isinstance(outcome, Mapping) else getattr(outcome, name, None)
+    return float(value or 0)
 
 
 def _distance_stable_reason(outcome: Any) -> tuple[float, bool, str | None]:

@@ -24,7 +24,7 @@ Options beyond the paper, off by default (``EncodingConfig``):
   ``Phenotype.frequency`` stays the mapped mean output over present voxels (a descriptor).
 
 The paper's own choices, named and off by default (what the paper presets use):
-- ``control_mapping="evosoro-bounded"`` (what the paper presets run) and its variants: the
+- ``control_mapping="evosoro-logistic"`` (what the paper presets run) and its variants: the
   control outputs as the paper-era evosoro scripts read them (examples/swimming_complex.py:67-71,
   101-104 and land_continuous.py:67-70,94-97 of skriegman/evosoro;
   tools/read_write_voxelyze.py:48,151; the fork's _voxcad_land_water/Voxelyze/VXS_Voxel.cpp:230).
@@ -36,7 +36,14 @@ The paper's own choices, named and off by default (what the paper presets use):
   becomes PhaseOffset p = pi (1 + s) (``rescaled_positive_sigmoid`` onto (0, 2 pi)), which the
   fork reads in *cycles*: sin(2 pi (t / TempPeriod + p)), so the phase in radians is 2 pi p
   (stored modulo 2 pi). The four mappings differ in two choices the scripts leave open
-  (``EVOSORO_MAPPINGS``):
+  (``EVOSORO_MAPPINGS``), and the presets' reading of the output:
+  - ``evosoro-logistic`` (the presets'): the frequency output read through the logistic,
+    s' = (1 + s) / 2 in (0, 1), before the formula, so f lies in (0, 4) Hz and reaches 4 Hz
+    only as every output tends to 1. An inference with its evidence in docs/algorithm.md: the
+    formula maps (0, 1] exactly onto (0, 4] Hz with ``MAX_FREQUENCY`` at s = 1; the same
+    network's other output, the phase, goes through the scripts' ``rescaled_positive_sigmoid``
+    (the logistic, examples/swimming_complex.py:98-104); the paper's sample robots run at
+    2.4-4.0 Hz. The four readings below apply the formula to the bipolar output itself;
   - bounded or not: ``-bounded`` clips the frequency at ``EVOSORO_MAX_FREQUENCY`` (4 Hz). An
     inference, not the scripts' text (their formula is unbounded under a bipolar sigmoid):
     the constant is named a maximum, and the paper's own sample robots run at 2.4-4.0 Hz
@@ -61,7 +68,7 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -73,11 +80,20 @@ from softevo.sim.models import defaults as model_defaults
 from softevo.sim.scene import DEFAULT_CYCLES, Material, Scene
 from softevo.sim.system import largest_component
 
-EVOSORO_MAPPINGS: dict[str, tuple[bool, bool]] = {  # name: (bounded at 4 Hz, negative f invalid)
-    "evosoro": (False, False),
-    "evosoro-bounded": (True, False),
-    "evosoro-positive": (False, True),
-    "evosoro-bounded-positive": (True, True),
+class EvosoroMapping(NamedTuple):
+    """How an evosoro mapping reads the scripts' frequency formula (module doc)."""
+
+    logistic: bool  # the frequency output read through the logistic: s' = (1 + s) / 2 in (0, 1)
+    bounded: bool  # clipped at EVOSORO_MAX_FREQUENCY (4 Hz)
+    positive_only: bool  # a negative f makes the body invalid (else it runs at |f|)
+
+
+EVOSORO_MAPPINGS: dict[str, EvosoroMapping] = {
+    "evosoro-logistic": EvosoroMapping(logistic=True, bounded=False, positive_only=False),
+    "evosoro": EvosoroMapping(logistic=False, bounded=False, positive_only=False),
+    "evosoro-bounded": EvosoroMapping(logistic=False, bounded=True, positive_only=False),
+    "evosoro-positive": EvosoroMapping(logistic=False, bounded=False, positive_only=True),
+    "evosoro-bounded-positive": EvosoroMapping(logistic=False, bounded=True, positive_only=True),
 }
 CONTROL_MAPPINGS = ("linear", *EVOSORO_MAPPINGS)
 BODY_RULES: dict[str, tuple[float, float]] = {  # (min full, min active) shares of the workspace
@@ -307,10 +323,17 @@ def _map_linear(value: np.ndarray | float, bounds: tuple[float, float]) -> np.nd
     return low + (np.asarray(value) + 1.0) / 2.0 * (high - low)
 
 
+def logistic_reading(output: np.ndarray) -> np.ndarray:
+    """A bipolar output s in (-1, 1) read as the logistic 1 / (1 + e^-x) of the same
+    activation: (1 + s) / 2 in (0, 1) (tanh(x / 2) = 2 logistic(x) - 1)."""
+    return (1.0 + np.asarray(output, dtype=np.float64)) / 2.0
+
+
 def evosoro_frequency(output: np.ndarray) -> float:
     """The paper scripts' signed frequency (Hz) of a robot from its ``frequency`` output s
     at every workspace voxel: 4 * 2.5 / (mean(1 / s) + 1.5) (module doc); 0 when an output
-    is exactly 0 (no period), +-inf when the denominator is 0."""
+    is exactly 0 (no period), +-inf when the denominator is 0. For s in (0, 1] it lies in
+    (0, 4] Hz, 4 Hz at s = 1 everywhere."""
     with np.errstate(divide="ignore", invalid="ignore"):
         denominator = float(np.mean(1.0 / np.asarray(output, dtype=np.float64))) + 1.5
         return float(EVOSORO_MAX_FREQUENCY * 2.5 / np.float64(denominator))
@@ -326,10 +349,12 @@ def _evosoro_control(
     control_out: dict[str, np.ndarray], kept: np.ndarray, mapping: str
 ) -> tuple[np.ndarray, float]:
     """(phase in radians, frequency in Hz) of the evosoro ``mapping`` (``EVOSORO_MAPPINGS``):
+    ``-logistic`` reads the frequency output through the logistic first (always in (0, 4) Hz);
     a negative frequency runs at |f| with phase pi - 2 pi p, or is returned as it is (an
     invalid body) under a ``-positive`` mapping; a ``-bounded`` one clips at 4 Hz (module doc)."""
-    bounded, positive_only = EVOSORO_MAPPINGS[mapping]
-    signed = evosoro_frequency(control_out["frequency"])
+    logistic, bounded, positive_only = EVOSORO_MAPPINGS[mapping]
+    output = control_out["frequency"]
+    signed = evosoro_frequency(logistic_reading(output) if logistic else output)
     angle = 2.0 * np.pi * evosoro_phase_cycles(control_out["phase"])
     if signed < 0 and not positive_only:
         angle = np.pi - angle

@@ -20,9 +20,10 @@ Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
 names for its algorithm's loss of diversity); ``model`` is the physics model of every
 evaluation's scene (``sim.models.names()``: ``voxelyze-2``, or ``voxcad-land-water``, the
 paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
-encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-bounded`` (the
-scripts' frequency f = 10 / (mean(1/s) + 1.5) Hz bounded at their MAX_FREQUENCY of 4 Hz, a
-negative f run at |f|, and phase offsets in cycles; ``evosoro`` is the unbounded variant) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
+encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-logistic`` (the
+scripts' frequency f = 10 / (mean(1/s') + 1.5) Hz of the frequency output read through the
+logistic, s' = (1 + s) / 2, so within (0, 4) Hz, and phase offsets in cycles;
+``evosoro-bounded`` clips the bipolar reading at 4 Hz, ``evosoro`` leaves it unbounded) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
 workspace full or 10% active are drawn or mutated again). Plain treatments default to AFPO,
 ``voxelyze-2``, the linear 1-5 Hz mapping and any non-empty body, so stored runs and the
 quick start keep their meaning (stored settings without these fields read so too);
@@ -73,7 +74,7 @@ PAPER_TRANSITIONS = tuple(environments.TRANSITION.join(pair) for pair in (PAPER_
 PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
     "algorithm": "pareto",
     "model": "voxcad-land-water",
-    "control_mapping": "evosoro-bounded",
+    "control_mapping": "evosoro-logistic",
     "body_rule": "evosoro",
 }
 GENOMES_PER_TASK = 4  # genomes per RQ job or pool task: queue overhead against balance
@@ -357,7 +358,8 @@ class Scale:
 PILOT = Scale(8, 10, 40, (5, 5, 5), PAPER_CYCLES, 3, switch_over=4)
 STUDY_REPETITIONS = 6  # what fits about 2 hours of a 2-core machine (softevo plan; docs/results)
 STUDY_SWITCH_GENERATIONS = 50  # 25 + 25: the switch at the pilot's knee, 24-26 (docs/results)
-STUDY_GRID_GENERATIONS = 6  # the grid's other treatments: what 2 hours allow beside the transitions
+STUDY_GRID_GENERATIONS = 20  # the grid's other treatments: what about 1.25 hours allow beside the
+# transitions on the logistic mapping (softevo plan: docs/results)
 PRESET_SCALES: dict[str, Scale] = {
     "tiny": Scale(6, 6, 6, (5, 5, 5), 2, 1, switch_over=2, max_seconds=1.0),
     "pilot": PILOT,

@@ -96,3 +96,14 @@ def test_the_readme_says_the_next_step_right_after_the_quickstart():
     assert "softevo dashboard --db sqlite:///quickstart.db" in between
     assert "http://127.0.0.1:8000/dashboard/" in between
     assert re.search(r"takes\s+about\s+\d+\s+minutes\s+on\s+2\s+cores", between)
+
+
+def test_the_mapping_table_of_docs_algorithm_is_the_csv_its_script_wrote():
+    """docs/algorithm.md's table of random robots' frequencies per mapping holds the rows of
+    docs/results/mapping_table.csv (written by docs/results/mapping_table.py), number for number."""
+    rows = (ROOT / "docs" / "results" / "mapping_table.csv").read_text(encoding="utf-8").splitlines()
+    header, *rows = [row.split(",") for row in rows]
+    assert header[:3] == ["workspace", "mapping", "n"] and len(rows) == 6
+    text = (ROOT / "docs" / "algorithm.md").read_text(encoding="utf-8")
+    for workspace, mapping, *numbers in rows:
+        assert f"| {workspace} | `{mapping}` | {' | '.join(numbers)} |" in text, (workspace, mapping)

@@ -153,7 +153,9 @@ class TaskResult:
     frequency: float | None = None
     descriptors: dict[str, Any] | None = None
     phenotype: dict[str, Any] | None = field(default=None, repr=False)  # body arrays: not in repr
-    seconds: float = 0.0
+    seconds: float = 0.0  # wall seconds: the batch's simulator call over its robots
+    steps: int = 0  # the simulator's steps (all parts of a compound world)
+    simulated_seconds: float = 0.0  # simulated time, settling included
 
     @property
     def ok(self) -> bool:
@@ -185,6 +187,8 @@ class TaskResult:
             evaluation.error,
             **_phenotype_fields(phenotype, describe),
             seconds=seconds,
+            steps=int(getattr(outcome, "steps", 0) or 0),
+            simulated_seconds=float(getattr(outcome, "simulated_seconds", 0.0) or 0.0),
         )
 
 

@@ -35,7 +35,8 @@ from softevo.service.cli.options import (
 
 ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
 MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
-CONTROL_MAPPING_HELP = ("linear (1-5 Hz) | evosoro-bounded (the paper scripts', at most 4 Hz) | evosoro "
+CONTROL_MAPPING_HELP = ("linear (1-5 Hz) | evosoro-logistic (the paper scripts' formula on the logistic "
+                        "output, 0-4 Hz) | evosoro-bounded (the bipolar output, clipped at 4 Hz) | evosoro "
                         "(unbounded) | evosoro-positive, evosoro-bounded-positive (a negative f invalid)")
 
 
@@ -220,7 +221,7 @@ def experiment(
     ] = None,
     control_mapping: Annotated[
         str | None,
-        typer.Option("--control-mapping", help=f"{CONTROL_MAPPING_HELP} (default evosoro-bounded)"),
+        typer.Option("--control-mapping", help=f"{CONTROL_MAPPING_HELP} (default evosoro-logistic)"),
     ] = None,
     treatments: Annotated[
         str | None,

@@ -14,9 +14,9 @@ by the same ``analysis`` functions on the same ``ExperimentData``.
   even sample; the front is always whole);
 - ``descriptors``: one value per run (its population's mean of the trait, or its best
   distance) per treatment at its display generation (``ExperimentData.display_run_values``);
-- ``findings``: the headline findings, one test each (``analysis.findings.findings_table``:
-  question, measure, test, n, statistic, p, p_holm, a12, a12_generation0, detectable_a12,
-  verdict);
+- ``findings``: the findings, one test each, with their verdicts (``analysis.findings.
+  findings_table``'s columns; power, detectable A12 and runs needed are null here: they
+  take seconds to simulate, and the report has them);
 - ``statistics``: every row of ``analysis.stats_tables.statistics_table`` (family, test, p,
   Bonferroni-adjusted p, A12, difference with its interval), the secondary pairwise tests;
 - ``left_out``: one sentence naming the runs that stopped before the generation their
@@ -68,7 +68,7 @@ def experiment_analysis(source: str | Engine, experiment_id: int) -> dict[str, A
             "curves": curves(data),
             "fronts": fronts(data),
             "descriptors": descriptors(data),
-            "findings": _records(findings_table(data), FINDING_COLUMNS),
+            "findings": _records(findings_table(data, design_figures=False), FINDING_COLUMNS),
             "statistics": statistics(data),
             "left_out": data.left_out_note,  # runs that stopped early and are left out, or null
         }

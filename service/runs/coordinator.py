@@ -239,6 +239,8 @@ def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
         "stable": bool(ind.stable),
         "error": ind.error,
         "seconds": result.get("seconds") if result else None,
+        "steps": result.get("steps") if result else None,
+        "simulated_seconds": result.get("simulated_seconds") if result else None,
     }
 
 

@@ -39,6 +39,7 @@ RUN_COLUMNS = [
     "stiffness_pa",
     "population",
     "generations",
+    "generations_run",
     "status",
     "workspace",
     "switch_at",
@@ -63,9 +64,13 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per run: treatment settings flattened to the export columns (the evaluation's
     protocol included: cycles, the cap on seconds, settling per world as ``land:0.5``, model,
-    control mapping, body rule, algorithm, and the switch generation of a transition)."""
+    control mapping, body rule, algorithm, and the switch generation of a transition).
+    ``generations`` is what the treatment planned, ``generations_run`` what the run stored
+    (its last stored generation + 1; 0 before generation 0): less for a run that stopped
+    early (failed, cancelled, interrupted)."""
     query = run_summary_select().add_columns(TreatmentRow.__table__.c.settings)
     frame = _read(conn, query.where(RunRow.__table__.c.id.in_(list(run_ids))))
+    frame["generations_run"] = pd.array([max(int(g) + 1, 0) for g in frame["generation"]], dtype="Int64")
     settings = [Treatment.from_settings(s) for s in frame.pop("settings")]
     frame["environment_schedule"] = [t.schedule_text() for t in settings]
     frame["stiffness_pa"] = [t.stiffness_pa for t in settings]
@@ -88,8 +93,14 @@ IDENTITY_COLUMNS = ["individual_id", "run_id", "parent_id", "generation", "gener
 def individual_columns() -> list[str]:
     """The columns of the export's ``individuals`` file (one row per evaluation): the
     individual and evaluation, every trait (``evolution.traits``, the registered ones read
-    from the evaluation's ``descriptors``), ``stable`` and ``error``."""
-    return [*IDENTITY_COLUMNS, *traits.names(), "stable", "error"]
+    from the evaluation's ``descriptors``), ``stable``, ``error`` and its cost
+    (``COST_COLUMNS``)."""
+    return [*IDENTITY_COLUMNS, *traits.names(), "stable", "error", *COST_COLUMNS]
+
+
+COST_COLUMNS = ["steps", "simulated_seconds", "wall_seconds"]
+"""What an evaluation cost: simulator steps, simulated seconds (settling included) and wall
+seconds (its batch's simulator call over the batch's robots); empty where not stored."""
 
 
 def with_registered_traits(frame: pd.DataFrame) -> pd.DataFrame:
@@ -123,6 +134,9 @@ def evaluation_rows(where) -> Select:
             *[evaluations.c[name] for name in traits.columns()],
             evaluations.c.stable,
             evaluations.c.error,
+            evaluations.c.steps,
+            evaluations.c.simulated_seconds,
+            evaluations.c.seconds.label("wall_seconds"),
             evaluations.c.descriptors,
         )
         .join(individuals, evaluations.c.individual_id == individuals.c.id)

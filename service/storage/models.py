@@ -66,6 +66,8 @@ EVALUATION_FIELDS = (
     "stable",
     "error",
     "seconds",
+    "steps",
+    "simulated_seconds",
 )
 
 
@@ -178,7 +180,9 @@ class EvaluationRow(Base):
     objectives: Mapped[dict[str, float] | None] = mapped_column(JSON)
     stable: Mapped[bool] = mapped_column(Boolean, default=True)
     error: Mapped[str | None] = mapped_column(Text)
-    seconds: Mapped[float | None] = mapped_column(Float)
+    seconds: Mapped[float | None] = mapped_column(Float)  # wall seconds (the batch's mean)
+    steps: Mapped[int | None] = mapped_column(Integer)  # simulator steps (None: stored before 0003)
+    simulated_seconds: Mapped[float | None] = mapped_column(Float)
 
 
 class GenerationRow(Base):

@@ -8,7 +8,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from softevo.analysis.findings import FINDING_COLUMNS, findings_display, findings_table, headline_findings
+from softevo.analysis.findings import (
+    FINDING_COLUMNS,
+    VERDICTS,
+    findings_display,
+    findings_table,
+    headline_findings,
+)
 from softevo.analysis.rank_tests import holm, jonckheere_terpstra, mann_whitney
 from softevo.analysis.run_summary import SUMMARY_COLUMNS, capped, evaluation_seconds, run_summary
 from softevo.evolution import environments
@@ -20,16 +26,28 @@ LEVEL = {f"S{k}": k for k in range(1, 6)}
 
 
 def paper_like(name: str, repetition: int, generation: int) -> tuple[float, float]:
-    """Land distance rises and water distance falls with stiffness, land frequency falls and
-    water frequency rises, every value distinct; transitions end between their controls."""
+    """Land distance rises and water distance falls with stiffness by the same amount at
+    every generation (present in random bodies: the gain is alike at every level); land
+    frequency falls and water frequency rises, and evolution widens that (the change from
+    generation 0 follows the trend: evolved); every value distinct; transitions end
+    between their controls."""
     world, level = name.split(" ")
     k = LEVEL[level]
     noise = 0.37 * repetition + 0.011 * k * repetition
     distance = (k if world == LAND else 6 - k) * 2 + noise + 0.5 * generation
-    frequency = (6 - k if world == LAND else k) * 2 + noise + 0.001 * generation
+    rank = 6 - k if world == LAND else k  # the frequency's order in the paper
+    frequency = rank * 2 + noise + generation * (0.1 * rank + 0.003 * repetition)
     if environments.is_transition(world):
         distance = 3.0 + noise + 0.2 * generation + 0.003 * len(world)
     return distance, frequency
+
+
+def evolving(name: str, repetition: int, generation: int) -> tuple[float, float]:
+    """As ``paper_like``, the distance gain also growing along the paper's order."""
+    distance, frequency = paper_like(name, repetition, generation)
+    world, level = name.split(" ")
+    k = LEVEL[level]
+    return distance + 0.3 * generation * (k if world == LAND else 6 - k), frequency
 
 
 @pytest.fixture(scope="module")
@@ -37,21 +55,38 @@ def grid():
     return grid_data(paper_like)
 
 
-def test_one_row_per_finding_with_the_columns_asked_for(grid):
-    table = findings_table(grid)
+@pytest.fixture(scope="module")
+def table(grid):
+    return findings_table(grid)
+
+
+def test_one_row_per_finding_with_the_columns_asked_for(table):
     assert list(table.columns) == FINDING_COLUMNS
-    assert len(table) == 4 + 2 + 2  # four trends, two paper contrasts, two equal-time contrasts
+    # primary: four trends, two paper contrasts; gain: two trends x (absolute, log);
+    # secondary: two frequency levels, two equal-time contrasts
+    assert table["family"].tolist() == ["primary"] * 6 + ["gain"] * 4 + ["secondary"] * 4
     assert (
         table["question"].iloc[0].startswith(f"{LAND} distance rises")
         and "(S2, S3, S4, S5)" in table["question"].iloc[0]
     )
     assert "(S1, S2, S3, S4, S5)" in table["question"].iloc[1]
-    assert table["verdict"].iloc[:4].str.startswith("supported").all()
-    assert table["question"].iloc[6:].str.contains("secondary").all()
+    assert table["measure"].iloc[2].startswith("population's mean actuation frequency, final minus")
+    assert table["question"].iloc[10:].str.contains("secondary").all()
+    assert table["verdict"].str.split(";").str[0].isin(VERDICTS).all()
 
 
-def test_the_trend_is_the_jt_test_over_the_final_run_values(grid):
-    row = findings_table(grid).iloc[1]  # water distance falls with stiffness, S1..S5
+def test_verdicts_tell_random_bodies_from_evolution(table):
+    verdicts = table["verdict"].str.split(";").str[0]
+    # distance: the trend is there at generation 0 and the gain is alike at every level
+    assert verdicts.iloc[:2].tolist() == ["present in random bodies"] * 2
+    # frequency: the change from generation 0 follows the paper's order
+    assert verdicts.iloc[2:4].tolist() == ["evolved"] * 2
+    evolved = findings_table(grid_data(evolving), design_figures=False)
+    assert evolved["verdict"].str.startswith("evolved").iloc[:2].all()
+
+
+def test_the_trend_is_the_jt_test_over_the_final_run_values(grid, table):
+    row = table.iloc[1]  # water distance falls with stiffness, S1..S5
     final = grid.generations[grid.generations["generation"] == 5]
     groups = [
         final.loc[final["treatment"] == f"{WATER} S{k}", "best_distance"].to_numpy() for k in (5, 4, 3, 2, 1)
@@ -60,20 +95,38 @@ def test_the_trend_is_the_jt_test_over_the_final_run_values(grid):
     assert (row["statistic"], row["p"]) == pytest.approx((expected.statistic, expected.p))
     assert row["n"] == "5+5+5+5+5" and "exact" in row["test"]
     assert row["a12"] == pytest.approx(vargha_delaney(groups[-1], groups[0]))  # S1 over S5
+    assert row["a12_low"] <= row["a12"] <= row["a12_high"]
     start = grid.generations[grid.generations["generation"] == 0]
     s1, s5 = (start.loc[start["treatment"] == f"{WATER} S{k}", "best_distance"].to_numpy() for k in (1, 5))
     assert row["a12_generation0"] == pytest.approx(vargha_delaney(s1, s5))
+    assert row["adjacent_a12"] == "S4 over S5 1.00; S3 over S4 1.00; S2 over S3 1.00; S1 over S2 1.00"
 
 
-def test_holm_runs_over_the_headline_findings_and_apart_over_the_secondary(grid):
-    table = findings_table(grid)
-    assert table["p_holm"].iloc[:6].to_numpy() == pytest.approx(holm(table["p"].iloc[:6]))
-    assert table["p_holm"].iloc[6:].to_numpy() == pytest.approx(holm(table["p"].iloc[6:]))
-    assert (table["detectable_a12"].iloc[:6] > 0.5).all()
+def test_the_gain_rows_are_per_run_differences(grid, table):
+    row = table[table["family"] == "gain"].iloc[0]  # land distance gain, S2..S5
+    gens = grid.generations
+    groups = []
+    for k in (2, 3, 4, 5):
+        runs = gens[gens["treatment"] == f"{LAND} S{k}"].set_index(["run_id", "generation"])["best_distance"]
+        groups.append((runs.xs(5, level="generation") - runs.xs(0, level="generation")).to_numpy())
+    assert row["p"] == pytest.approx(jonckheere_terpstra(groups).p)
+    log_row = table[table["family"] == "gain"].iloc[1]
+    assert "log gain" in log_row["question"] and log_row["measure"].startswith("log(")
 
 
-def test_the_transition_contrasts(grid):
-    table = findings_table(grid).set_index("question")
+def test_holm_runs_within_each_family(table):
+    for family in ("primary", "gain", "secondary"):
+        rows = table[table["family"] == family]
+        assert rows["p_holm"].to_numpy() == pytest.approx(holm(rows["p"]))
+        m = len(rows)
+        ranks = rows["p"].rank(method="first").astype(int).to_numpy()
+        assert rows["holm_threshold"].to_numpy() == pytest.approx(0.05 / (m - ranks + 1))
+    primary = table[table["family"] == "primary"]
+    assert (primary["detectable_a12"] > 0.5).all() and primary["runs_needed_a12_071"].notna().all()
+
+
+def test_the_transition_contrasts(grid, table):
+    table = table.set_index("question")
     lw = f"{LAND}-{WATER} S3"
     paper = table.loc[[q for q in table.index if q.startswith(lw) and "total" in q][0]]
     equal = table.loc[[q for q in table.index if q.startswith(lw) and "equal time" in q][0]]
@@ -86,18 +139,19 @@ def test_the_transition_contrasts(grid):
         expected = mann_whitney(transition, control["best_distance"])
         assert row["p"] == pytest.approx(expected.p) and row["statistic"] == expected.statistic
         assert row["a12"] == pytest.approx(vargha_delaney(transition, control["best_distance"]))
-    assert paper["a12"] == 0.0 and paper["verdict"].startswith("supported")  # paper: land->water worse
+    assert paper["a12"] == 0.0 and paper["verdict"].startswith("evolved")  # paper: land->water worse
     wl = [q for q in table.index if q.startswith(f"{WATER}-{LAND}") and "total" in q][0]
-    assert table.loc[wl, "verdict"].startswith("opposite direction")  # the paper: a trend to better
+    assert table.loc[wl, "verdict"].startswith("reversed")  # the paper: a trend to better
 
 
 def test_missing_treatments_give_only_the_findings_held():
     no_transitions = grid_data(paper_like, keep=lambda name: not environments.is_transition(name.split(" ")[0]))
-    table = findings_table(no_transitions)
-    assert len(table) == 4 and table["p_holm"].to_numpy() == pytest.approx(holm(table["p"]))
+    table = findings_table(no_transitions, design_figures=False)
+    primary = table[table["family"] == "primary"]
+    assert len(primary) == 4 and primary["p_holm"].to_numpy() == pytest.approx(holm(primary["p"]))
     land_only = grid_data(paper_like, keep=lambda name: name in (f"{LAND} S2", f"{LAND} S5", f"{LAND} S1"))
-    table = findings_table(land_only)
-    assert len(table) == 2 and table["question"].str.contains(r"\(S2, S5\)").all()
+    table = findings_table(land_only, design_figures=False)
+    assert len(table) == 5 and table["question"].str.contains(r"\(S2, S5\)").all()
     assert findings_table(grid_data(paper_like, keep=lambda name: name == f"{WATER} S1")).empty
 
 
@@ -105,21 +159,32 @@ def test_ties_fall_back_to_the_normal_approximation_and_an_absent_trend_is_not_d
     flat = grid_data(
         lambda name, r, g: (float(r % 2), 1.0 + r), keep=lambda name: name.startswith(f"{LAND} ")
     )
-    table = findings_table(flat)
+    table = findings_table(flat, design_figures=False)
     assert "normal approximation" in table["test"].iloc[0]
-    assert table["verdict"].iloc[0] == "not detected"
+    assert table["verdict"].iloc[0].startswith("not detected")
 
 
-def test_an_opposite_trend_is_called_so():
+def test_an_opposite_trend_is_reversed():
     reverse = grid_data(lambda name, r, g: (-paper_like(name, r, g)[0], 1.0 + r + 0.01 * LEVEL[name[-2:]]))
-    assert findings_table(reverse)["verdict"].iloc[0] == "opposite direction"
+    assert findings_table(reverse, design_figures=False)["verdict"].iloc[0].startswith("reversed")
 
 
-def test_the_display_puts_each_finding_beside_its_start_and_gain(grid):
-    display = findings_display(headline_findings(grid))
+def test_a_trend_that_turns_between_adjacent_levels_says_so():
+    def turning(name, r, g):
+        distance, frequency = evolving(name, r, g)
+        return (distance - 30.0 if name == f"{LAND} S5" else distance), frequency
+
+    row = findings_table(grid_data(turning), design_figures=False).iloc[0]
+    assert "turns between S4 and S5" in row["verdict"] and "S5 over S4 0.00" in row["adjacent_a12"]
+
+
+def test_the_display_puts_each_finding_beside_its_start(grid):
+    display = findings_display(headline_findings(grid, design_figures=False))
     first = display.iloc[0]
     assert first["groups"] == " | ".join(f"{LAND} S{k}" for k in (2, 3, 4, 5))
-    assert first["gain"] == " | ".join(["2.5"] * 4)  # 0.5 per generation over 5 generations
+    final = [float(v) for v in first["measure (mean)"].split(" | ")]
+    start = [float(v) for v in first["start (mean)"].split(" | ")]
+    assert [f - s for f, s in zip(final, start, strict=True)] == pytest.approx([2.5] * 4, abs=0.05)
 
 
 def test_run_summary_has_one_row_per_run(grid):

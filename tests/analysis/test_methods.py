@@ -22,9 +22,10 @@ def _row(treatment: Treatment) -> pd.Series:
 def test_mappings_are_described_from_the_genotype_module():
     assert mapping_text("linear") == "one evolved frequency mapped linearly onto 1-5 Hz"
     assert "unbounded; a negative f runs at |f|" in mapping_text("evosoro")
-    for name, (bounded, positive_only) in getattr(genotype, "EVOSORO_MAPPINGS", {}).items():
+    for name, (logistic, bounded, positive_only) in genotype.EVOSORO_MAPPINGS.items():
         text = mapping_text(name)
         assert ("at most 4 Hz" in text) == bounded and ("invalid" in text) == positive_only, name
+        assert ("logistic" in text) == logistic and ("below 4 Hz" in text) == logistic, name
     assert mapping_text("made-up") == "control mapping 'made-up' (unknown to this version)"
 
 

@@ -61,7 +61,9 @@ def test_findings_and_per_run_summary_on_the_tiny_paper_grid(capsys, tmp_path, p
     )
     assert code == 0, err
     findings = pd.read_csv(out / "findings.csv")
-    assert len(findings) == 4 + 2 + 2  # four trends, each transition's two contrasts
+    # primary: four trends and the transitions' paper contrasts; gain: the distance trends'
+    # absolute and log gains; secondary: the frequency levels and the equal-time contrasts
+    assert findings["family"].tolist() == ["primary"] * 6 + ["gain"] * 4 + ["secondary"] * 4
     assert findings["p_holm"].iloc[:6].notna().all() and findings["verdict"].notna().all()
     summary = pd.read_csv(out / "summary.csv")
     assert len(summary) == 12 and summary["run_id"].is_unique

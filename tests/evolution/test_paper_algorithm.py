@@ -19,6 +19,7 @@ from softevo.evolution.genotype import (
     develop,
     evosoro_frequency,
     is_viable,
+    logistic_reading,
     mutate_genotype,
     random_viable_genotype,
 )
@@ -148,7 +149,7 @@ def test_the_four_evosoro_mappings_bound_and_sign_as_named(mapping, weight):
     s_f = math.tanh(weight / 2)
     signed = 10.0 / (1.0 / s_f + 1.5)
     phenotype = develop(Genotype(full_body(), control(weight, 0.3)), config)
-    bounded, positive_only = EVOSORO_MAPPINGS[mapping]
+    _, bounded, positive_only = EVOSORO_MAPPINGS[mapping]
     if positive_only and signed < 0:
         assert not is_viable(phenotype, config)
         return
@@ -166,6 +167,48 @@ def test_bounded_mapping_keeps_every_random_robot_at_or_below_4_hz(rng):
     assert max(frequencies) <= 4.0 and min(frequencies) > 0
     unbounded = [develop(random_viable_genotype(rng, PAPER), PAPER).frequency for _ in range(60)]
     assert max(unbounded) > 4.0  # the earlier mapping runs away (about 40% of random robots)
+
+
+def test_the_presets_mapping_is_the_only_logistic_one():
+    assert EVOSORO_MAPPINGS["evosoro-logistic"] == (True, False, False)
+    assert [name for name, m in EVOSORO_MAPPINGS.items() if m.logistic] == ["evosoro-logistic"]
+    assert np.allclose(logistic_reading(np.array([-1.0, 0.0, 0.5, 1.0])), [0.0, 0.5, 0.75, 1.0])
+    # the logistic of the activation: (1 + tanh(x / 2)) / 2 = 1 / (1 + e^-x)
+    assert logistic_reading(math.tanh(0.7 / 2)) == pytest.approx(1 / (1 + math.exp(-0.7)))
+
+
+@pytest.mark.parametrize("weight", [3.0, 1.0, 0.2, 0.05, 0.0, -0.6, -1.0, -3.0])
+def test_logistic_mapping_applies_the_formula_to_the_logistic_reading(weight):
+    """A full body whose frequency output is tanh(w / 2) everywhere: f = 10 / (1/s' + 1.5)
+    with s' = (1 + s) / 2, always in (0, 4) Hz and so never run backwards; the phase is the
+    other evosoro mappings' phase, where their f is positive."""
+    config = dataclasses.replace(PAPER, control_mapping="evosoro-logistic")
+    s_f, s_p = math.tanh(weight / 2), math.tanh(0.3 / 2)
+    reading = (1 + s_f) / 2
+    phenotype = develop(Genotype(full_body(), control(weight, 0.3)), config)
+    assert phenotype.frequency == pytest.approx(10.0 / (1.0 / reading + 1.5))
+    assert 0 < phenotype.frequency < 4.0 and is_viable(phenotype, config)
+    angle = (2 * math.pi * math.pi * (1 + s_p)) % (2 * math.pi)  # PhaseOffset pi (1 + s) in cycles
+    assert np.allclose(phenotype.phase, angle)
+    if s_f > 0:  # a positive bipolar f: no mapping flips the phase
+        for other in ("evosoro", "evosoro-bounded", "evosoro-positive", "evosoro-bounded-positive"):
+            developed = develop(Genotype(full_body(), control(weight, 0.3)),
+                                dataclasses.replace(PAPER, control_mapping=other))
+            assert np.array_equal(developed.phase, phenotype.phase), other
+
+
+def test_logistic_mapping_spreads_random_robots_below_4_hz_without_a_pile_at_the_bound():
+    """200 random viable robots of the presets' encoding (5x5x5): every f in (0, 4) Hz and no
+    two alike; the clipped bipolar reading puts a share of them exactly at 4 Hz."""
+    logistic = dataclasses.replace(PAPER, control_mapping="evosoro-logistic")
+    rng = np.random.default_rng(2026)
+    frequencies = [develop(random_viable_genotype(rng, logistic), logistic).frequency for _ in range(200)]
+    assert all(0 < f < 4.0 for f in frequencies)
+    assert len(set(frequencies)) == 200
+    bounded = dataclasses.replace(PAPER, control_mapping="evosoro-bounded")
+    rng = np.random.default_rng(2026)
+    clipped = [develop(random_viable_genotype(rng, bounded), bounded).frequency for _ in range(200)]
+    assert max(clipped) == 4.0 and sum(f == 4.0 for f in clipped) >= 20
 
 
 def test_linear_mapping_is_unchanged_by_default():

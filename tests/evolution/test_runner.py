@@ -3,6 +3,8 @@ compound world as the workers do (``evolution.evaluation``: one scene per part, 
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 from softevo.evolution import Evaluation, Evolution, Schedule, run
@@ -62,6 +64,16 @@ def test_a_compound_outcome_fails_with_its_first_failing_part():
     assert compound_outcome(evaluations_) == CompoundOutcome(1.0, False, "strain")
     crash = RuntimeError("boom")
     assert compound_outcome([unstable, crash]) is crash
+
+
+def test_a_compound_outcome_costs_the_sum_of_its_parts():
+    land = {"distance": 1.5, "stable": True, "reason": None, "steps": 300, "simulated_seconds": 0.75}
+    water = SimpleNamespace(distance=0.5, stable=True, reason=None, steps=100, simulated_seconds=0.25)
+    joined = compound_outcome([land, water])
+    assert joined == CompoundOutcome(2.0, True, None, steps=400, simulated_seconds=1.0)
+    assert isinstance(joined.steps, int)
+    # a part without a cost (an outcome stored before it was kept) adds nothing
+    assert compound_outcome([land, {"distance": 1.0, "stable": True}]).steps == 300
 
 
 def test_a_crashing_evaluate_fails_every_part_of_the_batch():

@@ -49,6 +49,16 @@ def test_compound_distance_is_the_sum_of_its_parts(genome):
         scene_of(compound)
 
 
+def test_a_compound_evaluation_costs_the_sum_of_its_parts(genome):
+    compound = task(genome, "land>water@0.250", cycles=4)
+    _, scenes = scenes_of(compound)
+    parts = sim.simulate_many(scenes, threads=1)
+    (result,) = evaluate_batch([compound.to_json()], threads=1)
+    assert all(p.steps > 0 for p in parts)
+    assert result["steps"] == sum(p.steps for p in parts)
+    assert result["simulated_seconds"] == pytest.approx(sum(p.simulated_seconds for p in parts))
+
+
 def test_replay_joins_the_parts(genome):
     motion = replay(task(genome, "water>land@0.500"), every=200)
     assert np.all(np.diff(motion["t"]) > 0)

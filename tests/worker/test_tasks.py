@@ -9,6 +9,7 @@ import types
 import numpy as np
 import pytest
 
+from softevo import sim
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
 from softevo.evolution.individual import FAILED_DISTANCE
@@ -56,6 +57,7 @@ def test_failed_is_the_worst_fitness_with_the_reason():
         assert result.to_json() == {
             "id": 7, "distance": FAILED_DISTANCE, "stable": False, "error": "boom", "voxel_count": 0,
             "active_share": 0.0, "frequency": None, "descriptors": None, "phenotype": None, "seconds": 0.0,
+            "steps": 0, "simulated_seconds": 0.0,
         }  # fmt: skip
 
 
@@ -67,6 +69,28 @@ def test_nan_or_unstable_scores_the_failed_distance():
     for outcome, error in ((nan, "non-finite distance"), (unstable, "diverged")):
         result = TaskResult.of(task, phenotype, outcome, 0.1)
         assert (result.distance, result.stable, result.error) == (FAILED_DISTANCE, False, error)
+
+
+@pytest.mark.parametrize("max_seconds", [None, 0.2])
+def test_a_result_carries_the_steps_and_simulated_seconds_it_cost(max_seconds):
+    """steps: the engine's step count of the scene (settling included); simulated_seconds:
+    those steps at the scene's dt, the settling plus ``cycles / f`` when the guard on seconds
+    does not bind, the settling plus the guard when it does."""
+    task = _task(max_seconds=max_seconds)
+    (result,) = evaluate.evaluate_batch([task.to_json()], threads=1)
+    _, scene = scene_of(task)
+    parsed = sim.parse_scene(scene)
+    assert result["stable"] and isinstance(result["steps"], int)
+    assert result["steps"] == sim.scene_steps(parsed) > 0
+    assert result["simulated_seconds"] == pytest.approx(result["steps"] * sim.scene_dt(parsed), rel=1e-6)
+    settle, actuated = scene["settle_seconds"], task.evaluation.cycles / result["frequency"]
+    if max_seconds is None:
+        assert result["simulated_seconds"] >= settle + actuated - sim.scene_dt(parsed)
+        assert result["simulated_seconds"] == pytest.approx(settle + actuated, rel=1e-3)
+    else:
+        assert actuated > max_seconds
+        assert result["simulated_seconds"] == pytest.approx(settle + max_seconds, rel=1e-3)
+    assert result["seconds"] > 0  # the wall seconds, apart from the simulated ones
 
 
 @pytest.fixture(scope="module")
@@ -133,6 +157,32 @@ def test_the_scene_of_a_stored_genome_is_the_one_evaluated(stored):
             _, scene = scene_of(_task_of(engine, row))
             assert json_ready(scene) == simulated[key]
             compared += 1
+    assert compared >= 3
+
+
+def test_stored_evaluations_keep_what_they_cost(stored):
+    """The coordinator stores each evaluation's steps and simulated seconds: those of the
+    scene it simulated."""
+    from sqlalchemy import select
+
+    from softevo.service.storage.models import EvaluationRow, IndividualRow
+
+    engine, run_id, simulated = stored
+    ind, ev = IndividualRow.__table__, EvaluationRow.__table__
+    query = (
+        select(ind.c.local_id, ev.c.generation, ev.c.steps, ev.c.simulated_seconds, ev.c.seconds)
+        .join(ind, ev.c.individual_id == ind.c.id)
+        .where(ev.c.run_id == run_id)
+    )
+    with engine.connect() as conn:
+        rows = {(row.local_id, row.generation): row for row in conn.execute(query)}
+    compared = 0
+    for key, scene in simulated.items():
+        parsed = sim.parse_scene(scene)
+        row = rows[key]
+        assert row.steps == sim.scene_steps(parsed) > 0 and row.seconds is not None
+        assert row.simulated_seconds == pytest.approx(row.steps * sim.scene_dt(parsed), rel=1e-6)
+        compared += 1
     assert compared >= 3
 
 

@@ -27,7 +27,7 @@ def choices(treatment: Treatment) -> tuple[str, str, str, str]:
 @pytest.mark.parametrize("preset", ["paper", "gradual"])
 def test_presets_run_the_papers_choices_unless_told_otherwise(preset):
     paper = tuple(PAPER_CHOICES.values())
-    assert paper == ("pareto", "voxcad-land-water", "evosoro-bounded", "evosoro")
+    assert paper == ("pareto", "voxcad-land-water", "evosoro-logistic", "evosoro")
     assert {choices(t) for t in preset_grid(preset, "tiny")} == {paper}
     afpo = {choices(t) for t in preset_grid(preset, "tiny", algorithm="afpo")}
     assert afpo == {("afpo", *paper[1:])}
@@ -84,7 +84,7 @@ def test_paper_presets_run_50_cycles_guarded_in_seconds(scale, cycles, cap):
     uncapped. Settling is the world's (0.5 s on land, 0 s in water), in the stored settings."""
     grid = preset_grid("paper", scale) + preset_grid("gradual", scale)
     assert {t.max_seconds for t in grid} == {cap} and {t.cycles for t in grid} == {cycles}
-    assert {t.control_mapping for t in grid} == {"evosoro-bounded"}
+    assert {t.control_mapping for t in grid} == {"evosoro-logistic"}
     settings = {t.name: t.to_settings() for t in grid}
     assert settings["water S1"]["settle_seconds"] == {"water": 0.0}
     assert settings["land S1"]["settle_seconds"] == {"land": 0.5}
@@ -139,7 +139,7 @@ def test_rest_presets_and_treatments_take_algorithm_and_model(server):
     assert created.status_code == 201, created.text
     settings = settings_of(server, created.json()["runs"][0])
     assert (settings["algorithm"], settings["model"]) == ("pareto", "voxcad-land-water")
-    assert (settings["control_mapping"], settings["body_rule"]) == ("evosoro-bounded", "evosoro")
+    assert (settings["control_mapping"], settings["body_rule"]) == ("evosoro-logistic", "evosoro")
     body = {"preset": "gradual", "algorithm": "afpo", "model": "voxelyze-2", "name": "g"}
     created = httpx.post(f"{server}/experiments", json=body, headers=auth())
     settings = settings_of(server, created.json()["runs"][0])
