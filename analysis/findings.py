@@ -287,7 +287,8 @@ def _adjust(family: list[Finding], design_figures: bool) -> None:
     ):
         row = finding.row
         row["p_holm"], row["holm_threshold"], row["p_generation0_holm"] = p_holm, threshold, start_holm
-        row["a12_low"], row["a12_high"] = design.a12_interval(finding.final[-1], finding.final[0])
+        high, low = (finding.final[-1], finding.final[0]) if finding.one_sided else finding.final
+        row["a12_low"], row["a12_high"] = design.a12_interval(high, low)  # as ``a12``
         if finding.trend is not None:
             row["adjacent_a12"] = adjacent_text(finding)
         if design_figures and m:

@@ -21,7 +21,9 @@ from softevo.analysis.run_summary import capped
 from softevo.evolution import environments, genotype
 from softevo.evolution.evaluation import DEFAULT_MODEL, evaluation_scenes
 
-METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "capped", "counted"]
+METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "capped", "counted",
+                  "at_bound", "below_low"]
+LOW_FREQUENCY_HZ = 0.5  # the report counts the evaluations below it
 
 
 def mapping_text(name: str, frequency_range: tuple[float, float] = (1.0, 5.0)) -> str:
@@ -78,13 +80,26 @@ def cap_cuts(treatment: pd.Series, evaluations: pd.DataFrame) -> tuple[int, int]
     return int(flags.sum()), int(flags.size)
 
 
+def frequency_shares(treatment: pd.Series, evaluations: pd.DataFrame) -> tuple[int, int]:
+    """(evaluations at a bound: at the mapping's 4 Hz clip or cut by the cap on seconds,
+    evaluations below ``LOW_FREQUENCY_HZ``) among the treatment's evaluations with a frequency."""
+    mine = evaluations[evaluations["treatment"] == treatment["name"]].dropna(subset=["frequency"])
+    frequency = mine["frequency"].abs().to_numpy(float)
+    bounded = genotype.EVOSORO_MAPPINGS.get(str(treatment.get("control_mapping", "linear")))
+    clipped = frequency >= genotype.EVOSORO_MAX_FREQUENCY if bounded is not None and bounded.bounded else False
+    cut = capped(frequency, float(treatment["cycles"]), _cap(treatment))
+    return int((clipped | cut).sum()), int((frequency < LOW_FREQUENCY_HZ).sum())
+
+
 def evaluation_methods(treatments: pd.DataFrame, evaluations: pd.DataFrame, phenotype) -> pd.DataFrame:
-    """One row per treatment (``METHOD_COLUMNS``): its model, mapping, settling, cycles, cap
-    and the evaluations the cap cut (``capped``) of those counted in ``evaluations``."""
+    """One row per treatment (``METHOD_COLUMNS``): its model, mapping, settling, cycles, cap,
+    the evaluations the cap cut (``capped``) of those counted in ``evaluations``, those at a
+    bound (the clip or the cap: ``at_bound``) and those below 0.5 Hz (``below_low``)."""
     rows = []
     for _, t in treatments.iterrows():
         cap = _cap(t)
         cut, counted = cap_cuts(t, evaluations)
+        at_bound, below = frequency_shares(t, evaluations)
         rows.append(
             {
                 "treatment": t["name"],
@@ -95,6 +110,8 @@ def evaluation_methods(treatments: pd.DataFrame, evaluations: pd.DataFrame, phen
                 "cap": "none" if cap is None else f"{cap:g} s",
                 "capped": cut,
                 "counted": counted,
+                "at_bound": at_bound,
+                "below_low": below,
             }
         )
     return pd.DataFrame(rows, columns=METHOD_COLUMNS)
@@ -102,7 +119,7 @@ def evaluation_methods(treatments: pd.DataFrame, evaluations: pd.DataFrame, phen
 
 def methods_text(methods: pd.DataFrame) -> str:
     """The methods as sentences, treatments with the same evaluation grouped."""
-    keys = [c for c in METHOD_COLUMNS if c not in ("treatment", "capped", "counted")]
+    keys = [c for c in METHOD_COLUMNS if c not in ("treatment", "capped", "counted", "at_bound", "below_low")]
     sentences = []
     for values, group in methods.groupby(keys, sort=False):
         setting: dict[str, Any] = dict(zip(keys, values, strict=True))
@@ -113,9 +130,13 @@ def methods_text(methods: pd.DataFrame) -> str:
             if cap != "none"
             else ", no cap on seconds"
         )
+        counted = max(int(group["counted"].sum()), 1)
+        shares = (f" Of its evaluations {100 * group['at_bound'].sum() / counted:.1f}% sit at a bound of the "
+                  f"frequency (the mapping's clip or the cap) and {100 * group['below_low'].sum() / counted:.1f}% "
+                  f"run below {LOW_FREQUENCY_HZ:g} Hz.")
         sentences.append(
             f"{', '.join(group['treatment'])}: physics model {setting['model']}; frequency: "
             f"{setting['frequency']}; settling {setting['settling']}; {setting['cycles']} "
-            f"actuation cycles per evaluation{capped_text}."
+            f"actuation cycles per evaluation{capped_text}.{shares}"
         )
     return " ".join(sentences)

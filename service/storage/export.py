@@ -10,17 +10,19 @@ from it, ``service.storage.export_stream`` streams it over REST, so both give th
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import pandas as pd
-from sqlalchemy import Boolean, Connection, Engine, Float, Integer, Select, select
+from sqlalchemy import Boolean, Connection, Engine, Float, Integer, Select, func, select
 
 from softevo.errors import UserError
 from softevo.evolution import traits
 from softevo.evolution.treatments import Treatment
 from softevo.service.storage.models import (
     EvaluationRow,
+    GenerationRow,
     IndividualRow,
     PopulationMemberRow,
     RunRow,
@@ -50,6 +52,8 @@ RUN_COLUMNS = [
     "control_mapping",
     "body_rule",
     "algorithm",
+    "created_at",
+    "last_stored_at",
 ]
 POPULATION_COLUMNS = ["run_id", "generation", "individual_id", "front_rank"]
 TABLES = ("runs", "individuals", "populations")
@@ -83,7 +87,32 @@ def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
                                for t in settings]
     for name in ("model", "control_mapping", "body_rule", "algorithm"):
         frame[name] = [getattr(t, name) for t in settings]
+    frame = frame.merge(_times(conn, run_ids), on="run_id", how="left")
     return frame[RUN_COLUMNS]
+
+
+def _times(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
+    """Per run: ``created_at`` (submitted) and ``last_stored_at`` (its last generation
+    stored; empty before any), ISO 8601 in UTC: the experiment's wall time is the span from
+    the first to the last."""
+    runs, generations = RunRow.__table__, GenerationRow.__table__
+    last = (select(generations.c.run_id, func.max(generations.c.created_at).label("last_stored_at"))
+            .group_by(generations.c.run_id).subquery())
+    query = (select(runs.c.id.label("run_id"), runs.c.created_at, last.c.last_stored_at)
+             .outerjoin(last, last.c.run_id == runs.c.id).where(runs.c.id.in_(list(run_ids))))
+    frame = _read(conn, query)
+    for column in ("created_at", "last_stored_at"):
+        frame[column] = pd.array([_iso(v) for v in frame[column]], dtype="string")
+    return frame
+
+
+def _iso(value) -> str | None:
+    """A stored time as ISO 8601 in UTC (SQLite gives it back without a zone)."""
+    if value is None or value is pd.NaT or (isinstance(value, float) and math.isnan(value)):
+        return None
+    stamp = pd.Timestamp(value)
+    stamp = stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
+    return stamp.isoformat()
 
 
 IDENTITY_COLUMNS = ["individual_id", "run_id", "parent_id", "generation", "generation_born", "age",

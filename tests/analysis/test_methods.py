@@ -6,7 +6,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from softevo.analysis.methods import cap_cuts, evaluation_methods, mapping_text, methods_text, settling_text
+from softevo.analysis.methods import (
+    cap_cuts,
+    evaluation_methods,
+    frequency_shares,
+    mapping_text,
+    methods_text,
+    settling_text,
+)
 from softevo.evolution import environments, genotype
 from softevo.evolution.genotype import Phenotype
 from softevo.evolution.treatments import Treatment
@@ -65,3 +72,14 @@ def test_treatments_with_the_same_evaluation_share_a_sentence():
     assert text.startswith("a, b: physics model voxelyze-2")
     assert "50 actuation cycles per evaluation, at most 60 s after settling (the cap cut 1 of the 2" in text
     assert "c: physics model" in text and "8 actuation cycles per evaluation, no cap on seconds." in text
+
+
+def test_frequency_shares_count_the_clip_the_cap_and_slow_robots():
+    clipped = _row(Treatment(LAND, 0.1, name="t", cycles=50, max_seconds=100.0, control_mapping="evosoro-bounded"))
+    logistic = _row(Treatment(LAND, 0.1, name="t", cycles=50, max_seconds=100.0, control_mapping="evosoro-logistic"))
+    evaluations = pd.DataFrame({"treatment": ["t"] * 5, "frequency": [4.0, 4.0, 0.4, 2.0, None]})
+    # the clip holds the two at 4 Hz; 50 cycles at 0.4 Hz last 125 s > 100: the cap cuts it
+    assert frequency_shares(clipped, evaluations) == (3, 1)
+    assert frequency_shares(logistic, evaluations) == (1, 1)  # no clip under the logistic reading
+    text = methods_text(evaluation_methods(pd.DataFrame([clipped]), evaluations, ROBOT))
+    assert "75.0% sit at a bound of the frequency" in text and "25.0% run below 0.5 Hz" in text
