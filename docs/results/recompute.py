@@ -242,12 +242,14 @@ def designs(rows: list[dict]) -> pd.DataFrame:
         if r["family"] == "secondary":
             continue
         for effect, n in (("seen", r.get("runs_needed")), ("A12 0.71", r.get("runs_needed_a12_071"))):
-            figures = {"core_hours": math.nan, "wall_hours": math.nan, "evaluations": math.nan}
+            figures = {"core_hours": math.nan, "evaluation_core_hours": math.nan, "wall_hours": math.nan,
+                       "evaluations": math.nan}
             if n is not None and not pd.isna(n):
                 treatments = select_treatments(preset_grid("paper", "study", repetitions=int(n)), r["names"])
                 plan = planner.plan(treatments, cores=DESIGN_CORES, executor="rq")
-                figures = {"core_hours": plan.core_hours, "wall_hours": plan.wall_hours,
-                           "evaluations": plan.evaluations}
+                figures = {"core_hours": plan.core_hours,
+                           "evaluation_core_hours": sum(t.core_seconds for t in plan.treatments) / 3600,
+                           "wall_hours": plan.wall_hours, "evaluations": plan.evaluations}
             out.append({"question": r["question"], "effect": effect, "a12": r["a12"],
                         "runs_per_treatment": None if n is None or pd.isna(n) else int(n),
                         "treatments": len(r["names"]), "cores": DESIGN_CORES, **figures})
@@ -265,7 +267,8 @@ def check_designs(results: Path, frame: pd.DataFrame) -> int:
     differ = int(len(stored) != len(frame))
     for (_, a), (_, b) in zip(stored.iterrows(), frame.iterrows(), strict=False):
         differ += int(a["question"] != b["question"] or not all(
-            same(a[k], b[k]) for k in ("runs_per_treatment", "core_hours", "wall_hours", "evaluations")))
+            same(a[k], b[k]) for k in ("runs_per_treatment", "core_hours", "evaluation_core_hours", "wall_hours",
+                                       "evaluations")))
     print(f"designs.csv: {len(frame) - differ} of {len(frame)} designs recomputed")
     return differ
 
@@ -326,6 +329,10 @@ def p_text(value) -> str:
     return "-" if pd.isna(value) else f"{float(value):.2g}"
 
 
+def runs_text(n) -> str:
+    return "> 4000" if n is None or pd.isna(n) else f"{int(n):,}"
+
+
 def findings_markdown(rows: list[dict], family: str) -> str:
     lines = ["| finding | means at the end, per level or group | n | p | p (Holm) | Holm's threshold | "
              "A12 [95% interval] | A12 at generation 0 | power | runs needed (seen, A12 0.71) | verdict |",
@@ -334,8 +341,7 @@ def findings_markdown(rows: list[dict], family: str) -> str:
         means = ", ".join(f"{n.split()[-1] if r['one_sided'] else n} {g3(v)}"
                           for n, v in zip(r["names"], r["means"], strict=True))
         n = "+".join(str(len(g)) for g in r["groups"])
-        needed = f"{g3(r.get('runs_needed')) if r.get('runs_needed') is not None else '> 4000'}, " \
-                 f"{r.get('runs_needed_a12_071')}"
+        needed = f"{runs_text(r.get('runs_needed'))}, {runs_text(r.get('runs_needed_a12_071'))}"
         turns = "; turns between " + ", ".join(r["turns"]) if r.get("turns") else ""
         lines.append(f"| {r['question']} | {means} | {n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
                      f"{p_text(r['holm_threshold'])} | {r['a12']:.2f} [{r['a12_low']:.2f}, {r['a12_high']:.2f}] | "
@@ -353,13 +359,14 @@ def adjacent_markdown(rows: list[dict]) -> str:
 
 
 def designs_markdown(frame: pd.DataFrame) -> str:
-    lines = ["| finding | effect | runs a treatment | evaluations | core-hours | wall on 1,000 cores (h) |",
-             "| --- | --- | ---: | ---: | ---: | ---: |"]
+    lines = ["| finding | A12 seen | effect planned for | runs a treatment | evaluations | core-hours evaluating | "
+             "core-hours booked (wall x 1,000) | wall on 1,000 cores (h) |",
+             "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |"]
     for _, d in frame.iterrows():
-        runs = "more than 4000" if pd.isna(d["runs_per_treatment"]) else f"{int(d['runs_per_treatment'])}"
+        runs = runs_text(d["runs_per_treatment"])
         evaluations = "-" if pd.isna(d["evaluations"]) else f"{int(d['evaluations']):,}"
-        lines.append(f"| {d['question']} | {d['effect']} (A12 {d['a12']:.2f} seen) | {runs} | {evaluations} | "
-                     f"{g3(d['core_hours'])} | {g3(d['wall_hours'])} |")
+        lines.append(f"| {d['question']} | {d['a12']:.2f} | {d['effect']} | {runs} | {evaluations} | "
+                     f"{g3(d['evaluation_core_hours'])} | {g3(d['core_hours'])} | {g3(d['wall_hours'])} |")
     return "\n".join(lines)
 
 
