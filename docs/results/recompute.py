@@ -163,8 +163,9 @@ def findings(runs, values, design_figures: bool = True) -> list[dict]:
             r.update(p_holm=p_holm, holm_threshold=threshold, p_generation0_holm=start, m=m)
             high, low = (r["groups"][-1], r["groups"][0]) if r["one_sided"] else r["pair"]
             r["a12_low"], r["a12_high"] = design.a12_interval(high, low)
-            if design_figures:
-                groups, n, two_sided = r["groups"], min(len(g) for g in r["groups"]), not r["one_sided"]
+            groups = [g for g in r["groups"] if len(g)]
+            if design_figures and len(groups) >= 2 and min(len(g) for g in groups) >= 2:
+                n, two_sided = min(len(g) for g in groups), not r["one_sided"]
                 seen = design.observed_effect(groups)
                 r.update(power=design.power(seen, n, ALPHA / m, two_sided),
                          detectable_a12=design.detectable_a12(len(groups), n, ALPHA / m, two_sided),

@@ -68,3 +68,34 @@ def test_findings_and_per_run_summary_on_the_tiny_paper_grid(capsys, tmp_path, p
     summary = pd.read_csv(out / "summary.csv")
     assert len(summary) == 12 and summary["run_id"].is_unique
     assert summary["distance_per_second"].notna().all()
+
+
+@pytest.mark.slow
+def test_recompute_gives_every_number_of_the_results_page_from_the_export(capsys, tmp_path, paper_tiny):
+    """docs/results/recompute.py on the tiny grid's report and export: --write fills the
+    template; the check then finds every finding, design and number again (exit 0), and
+    exits 1 when a number of the page or of findings.csv is changed."""
+    import runpy
+    import shutil
+    from pathlib import Path
+
+    results = tmp_path / "results"
+    code, _, err = softevo(capsys, "report", "paper-tiny", "--out", str(results), "--db", paper_tiny,
+                           "--quiet", "--no-animation")
+    assert code == 0, err
+    code, _, err = softevo(capsys, "export", "latest", "--out", str(results / "export"), "--db", paper_tiny)
+    assert code == 0, err
+    docs = Path(__file__).resolve().parents[2] / "docs" / "results"
+    shutil.copy(docs / "README.template.md", results)
+    recompute = runpy.run_path(str(docs / "recompute.py"))
+    assert recompute["main"](results, write=True) == 0
+    assert recompute["main"](results) == 0
+    page = (results / "README.md").read_text()
+    assert "{" not in page and "| land distance rises with stiffness (S2, S3, S4, S5) |" in page
+    (results / "README.md").write_text(page.replace("evaluations (", "evaluations (1", 1))
+    assert recompute["main"](results) == 1
+    (results / "README.md").write_text(page)
+    findings = pd.read_csv(results / "findings.csv")
+    findings.loc[0, "p"] = findings.loc[0, "p"] * 0.5
+    findings.to_csv(results / "findings.csv", index=False)
+    assert recompute["main"](results) == 1
