@@ -410,7 +410,17 @@ def cost_numbers(runs, evaluations) -> dict[str, str]:
     start = pd.to_datetime(runs["created_at"]).min()
     end = pd.to_datetime(runs["last_stored_at"]).max()
     planned = planner.plan(preset_grid("paper", "study"), cores=2, executor="local")
+    rows = ["| treatment | evaluations planned, run | seconds an evaluation, planned (mean per world) | "
+            "measured (mean wall) | simulated seconds (mean) | steps (mean) |",
+            "| --- | --- | --- | ---: | ---: | ---: |"]
+    for t in planned.treatments:
+        mine = simulated[simulated["run_id"].isin(runs.loc[runs["treatment"] == t.name, "run_id"])]
+        worlds = ", ".join(f"{w} {v['mean']:.3g}" for w, v in t.seconds_per_evaluation.items())
+        ran = int(evaluations["run_id"].isin(runs.loc[runs["treatment"] == t.name, "run_id"]).sum())
+        rows.append(f"| {t.name} | {t.evaluations:,}, {ran:,} | {worlds} | {mine['wall_seconds'].mean():.3g} | "
+                    f"{mine['simulated_seconds'].mean():.3g} | {mine['steps'].mean():.3g} |")
     return {
+        "plan_table": "\n".join(rows),
         "evaluations": f"{len(evaluations):,}",
         "runs": f"{len(runs)}",
         "simulated": f"{len(simulated):,}",
