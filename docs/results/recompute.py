@@ -16,6 +16,7 @@ simulation (analysis.design) on the values recomputed here.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import sys
@@ -246,7 +247,8 @@ def designs(rows: list[dict]) -> pd.DataFrame:
             figures = {"core_hours": math.nan, "evaluation_core_hours": math.nan, "wall_hours": math.nan,
                        "evaluations": math.nan}
             if n is not None and not pd.isna(n):
-                treatments = select_treatments(preset_grid("paper", "study", repetitions=int(n)), r["names"])
+                treatments = [dataclasses.replace(t, repetitions=int(n))  # the plan does not depend on seeds
+                              for t in select_treatments(preset_grid("paper", "study"), r["names"])]
                 plan = planner.plan(treatments, cores=DESIGN_CORES, executor="rq")
                 figures = {"core_hours": plan.core_hours,
                            "evaluation_core_hours": sum(t.core_seconds for t in plan.treatments) / 3600,
@@ -335,16 +337,16 @@ def runs_text(n) -> str:
 
 
 def findings_markdown(rows: list[dict], family: str) -> str:
-    lines = ["| finding | means at the end, per level or group | n | p | p (Holm) | Holm's threshold | "
+    lines = ["| finding | generation | means there, per level or group | n | p | p (Holm) | Holm's threshold | "
              "A12 [95% interval] | A12 at generation 0 | power | runs needed (seen, A12 0.71) | verdict |",
-             "| --- | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | --- | --- |"]
+             "| --- | ---: | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | --- | --- |"]
     for r in (r for r in rows if r["family"] == family):
         means = ", ".join(f"{n.split()[-1] if r['one_sided'] else n} {g3(v)}"
                           for n, v in zip(r["names"], r["means"], strict=True))
         n = "+".join(str(len(g)) for g in r["groups"])
         needed = f"{runs_text(r.get('runs_needed'))}, {runs_text(r.get('runs_needed_a12_071'))}"
         turns = "; turns between " + ", ".join(r["turns"]) if r.get("turns") else ""
-        lines.append(f"| {r['question']} | {means} | {n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
+        lines.append(f"| {r['question']} | {r['generation']} | {means} | {n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
                      f"{p_text(r['holm_threshold'])} | {r['a12']:.2f} [{r['a12_low']:.2f}, {r['a12_high']:.2f}] | "
                      f"{r['a12_generation0']:.2f} | {r.get('power', math.nan):.2f} | {needed} | "
                      f"{r['verdict']}{turns} |")
