@@ -3,9 +3,10 @@
     python bench/host_overhead.py [--robots 60] [--repeats 5] [--worlds land,water]
                                   [--modulus 1e5] [--seed 0] [--threads 1] [--clock cpu|wall]
 
-Random genomes of the paper presets' encoding (``evolution.treatments.PAPER_CHOICES``: a 7^3
-workspace, the ``evosoro-bounded`` control mapping, the ``evosoro`` body rule: every body
-holds at least 30% of the workspace) go through ``worker.evaluate.evaluate_batch`` exactly as
+Random genomes of the paper presets' encoding as it was when this bench was written (a 7^3
+workspace, the ``evosoro-bounded`` control mapping, which the presets have since replaced by
+``evosoro-logistic``, and the ``evosoro`` body rule: every body holds at least 30% of the
+workspace; kept so that its figures stay comparable) go through ``worker.evaluate.evaluate_batch`` exactly as
 a worker runs them, in the paper's model, one batch of ``--robots`` tasks per world. The
 simulation is one cycle capped at a few milliseconds: the kernel's time is measured and left
 out, so the duration changes nothing below.
