@@ -724,7 +724,8 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
     U, nc = np.uint64, np.uint64(vconst.shape[1])
     P, Q, LM, AM = pos.reshape(-1), quat.reshape(-1), lin_mom.reshape(-1), ang_mom.reshape(-1)
     F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vconst.reshape(-1)
-    X, Y, Z, W = U(0), U(1), U(2), U(3)
+    X, Y, Z = U(0), U(1), U(2)  # a vector's components
+    QW, QX, QY, QZ = U(0), U(1), U(2), U(3)  # a quaternion's, stored (w, x, y, z)
     for v in range(len(flags)):
         a, q, c = U(3) * U(v), U(4) * U(v), nc * U(v)
         if flags[v] & FLAG_FIXED:
@@ -741,14 +742,14 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
                     VC[c + U(V_CCOLL)]), exposed, size[v],
             F[a + X] + E[a + X], F[a + Y] + E[a + Y], F[a + Z] + E[a + Z],
             M[a + X], M[a + Y], M[a + Z], P[a + X], P[a + Y], P[a + Z],
-            Q[q + X], Q[q + Y], Q[q + Z], Q[q + W], LM[a + X], LM[a + Y], LM[a + Z],
+            Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ], LM[a + X], LM[a + Y], LM[a + Z],
             AM[a + X], AM[a + Y], AM[a + Z], static[v])
         static[v] = still
         contact[v] = touch
         LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
         P[a + X], P[a + Y], P[a + Z] = x, y, z
         AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
-        Q[q + X], Q[q + Y], Q[q + Z], Q[q + W] = qw, qx, qy, qz
+        Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ] = qw, qx, qy, qz
         speed2 = max(speed2, v2)
         ok = ok and sane
     return speed2 if ok else -1.0
