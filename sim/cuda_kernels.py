@@ -3,8 +3,10 @@
 ``rollout_kernel(shared, threads)`` builds the kernel that steps the robots of a batch for up
 to ``chunk`` steps, block r for robot ``which[r]``. A block's threads share the robot's
 voxels and links (thread t takes voxels t, t + T, ... and links likewise) and meet at block
-syncs between the sub-steps of a step, which are those of ``sim.kernels`` and call the same
-``sim.physics`` pieces:
+syncs between the sub-steps of a step. They take the steps of ``sim.kernels`` in the same order
+under other names, call the same ``sim.physics`` formulas, and write the orchestration around
+them (frame transitions, contact list, facet normals, vertex means, the scatter of link loads)
+a second time:
 
     actuate | links (+ surface-mesh vertices, + the self-contact list when it is stale)
     | gather (link sums, contacts, facet drag) | voxel update | reductions
