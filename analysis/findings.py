@@ -117,6 +117,7 @@ TREND_MEASURES = {  # (family, measure) per trend metric, the primary first
     "frequency": ((PRIMARY, "frequency_change"), (SECONDARY_FAMILY, "frequency")),
 }
 GAIN_OF = {"best_distance": "distance_gain", "frequency": "frequency_change"}  # the verdict's gain test
+CHANGES = ("distance_gain", "distance_log_gain", "frequency_change")  # measures of a run's change from 0
 
 
 @dataclass
@@ -170,7 +171,7 @@ def run_values(data: ExperimentData, name: str, generation: int | None, metric: 
     of the ratio to, the same run's value at generation 0), in run order."""
     level = LEVEL_OF.get(metric, metric)
     final = run_series(data, name, generation, level)
-    if metric in ("distance_gain", "frequency_change", "distance_log_gain"):
+    if metric in CHANGES:
         start = run_series(data, name, 0, level)
         final, start = final.align(start, join="inner")
         if metric == "distance_log_gain":
@@ -298,9 +299,7 @@ def _adjust(family: list[Finding], design_figures: bool) -> None:
 def rising_groups(finding: Finding) -> tuple[np.ndarray, ...]:
     """The finding's groups in the order its hypothesis says values rise (a transition the
     paper expects below its control first)."""
-    if finding.one_sided or finding.expected_above:
-        return finding.final if finding.one_sided else finding.final[::-1]
-    return finding.final
+    return finding.final[::-1] if not finding.one_sided and finding.expected_above else finding.final
 
 
 def design_row(finding: Finding, alpha: float) -> dict:
@@ -362,8 +361,7 @@ def verdict(finding: Finding, family: Sequence[Finding], findings: Sequence[Find
     if finding.reverse is not None and finding.reverse.p < ALPHA / m:
         text = f"reversed; the test against the paper's direction p {finding.reverse.p:.2g} < {ALPHA / m:.2g}"
     else:
-        gain = finding if finding.measure in ("frequency_change", "distance_gain", "distance_log_gain") else (
-            _partner(finding, findings, GAIN_OF.get(finding.measure, "")))
+        gain = finding if finding.measure in CHANGES else _partner(finding, findings, GAIN_OF[finding.measure])
         start_holds = np.isfinite(row.get("p_generation0_holm", math.nan)) and row["p_generation0_holm"] < ALPHA
         gain_text = "" if gain is finding or gain is None else f", its gain p_holm {gain.row['p_holm']:.2g}"
         start_text = f"generation 0 p {row['p_generation0']:.2g}"

@@ -191,12 +191,16 @@ def compound_outcome(outcomes: list[Any]) -> Any:
     )
 
 
+def _field(outcome: Any, name: str) -> Any:
+    """Field ``name`` of one part's outcome, a mapping or an object (None where it has none)."""
+    return outcome.get(name) if isinstance(outcome, Mapping) else getattr(outcome, name, None)
+
+
 def _cost(outcome: Any, name: str) -> float:
     """``steps`` or ``simulated_seconds`` of one part's outcome (0 where it has none)."""
-    value = outcome.get(name) if isinstance(outcome, Mapping) else getattr(outcome, name, None)
-    return float(value or 0)
+    return float(_field(outcome, name) or 0)
 
 
 def _distance_stable_reason(outcome: Any) -> tuple[float, bool, str | None]:
-    get = outcome.get if isinstance(outcome, Mapping) else lambda name: getattr(outcome, name, None)
-    return float(get("distance")), bool(get("stable")), get("reason") or get("error")
+    return (float(_field(outcome, "distance")), bool(_field(outcome, "stable")),
+            _field(outcome, "reason") or _field(outcome, "error"))

@@ -5,7 +5,6 @@ evaluation, served by the REST API and shown in the report of a real tiny run; a
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
 
 import pytest
 import sqlalchemy as sa
@@ -29,6 +28,7 @@ from softevo.service.storage import make_engine, open_database
 from softevo.service.storage.individuals import individual
 from softevo.service.storage.migrate import upgrade
 from softevo.service.storage.models import EvaluationRow, PopulationMemberRow, RunRow
+from tests.service.old_schema import store_one_evaluation
 
 TOY = "voxel_count_squared"
 TOKEN = "objectives-test-token"
@@ -138,19 +138,7 @@ def test_migration_0002_gives_stored_evaluations_their_objectives(db_url):
     meta = sa.MetaData()
     meta.reflect(engine)
     assert "objectives" not in meta.tables["evaluations"].c
-    now = datetime.now(UTC)
-    with engine.begin() as conn:
-        t = meta.tables
-        conn.execute(t["experiments"].insert().values(id=1, name="old", created_at=now))
-        conn.execute(t["treatments"].insert().values(id=1, experiment_id=1, name="land",
-                                                     settings={"environment": "land", "stiffness_mpa": 0.1}))
-        conn.execute(t["runs"].insert().values(id=1, treatment_id=1, repetition=0, seed=0, status="finished",
-                                               generation=0, generations=1, created_at=now, updated_at=now))
-        conn.execute(t["individuals"].insert().values(id=1, run_id=1, local_id=0, generation_born=0,
-                                                      genome={}))
-        conn.execute(t["evaluations"].insert().values(
-            id=1, individual_id=1, run_id=1, generation=0, age=0, environment="land", stiffness=1e5,
-            distance=2.5, active_share=0.25, voxel_count=12, stable=True))
+    store_one_evaluation(engine)
     upgrade(engine)
     with engine.connect() as conn:
         stored = conn.execute(sa.select(EvaluationRow.__table__.c.objectives)).scalar_one()

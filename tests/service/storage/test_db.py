@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
 
 import pandas as pd
 import pytest
@@ -25,6 +24,7 @@ from softevo.service.storage.models import (
 )
 from softevo.service.storage.runs import count_rows, resolve_runs, run_row
 from tests.service import handbuilt
+from tests.service.old_schema import store_one_evaluation
 
 
 def test_migrations_have_no_drift(engine):
@@ -40,20 +40,7 @@ def test_migration_0003_keeps_old_evaluations_with_no_cost(db_url, tmp_path):
     meta = sa.MetaData()
     meta.reflect(engine)
     assert "steps" not in meta.tables["evaluations"].c
-    now = datetime.now(UTC)
-    t = meta.tables
-    with engine.begin() as conn:
-        conn.execute(t["experiments"].insert().values(id=1, name="old", created_at=now))
-        conn.execute(t["treatments"].insert().values(id=1, experiment_id=1, name="land",
-                                                     settings={"environment": "land", "stiffness_mpa": 0.1}))
-        conn.execute(t["runs"].insert().values(id=1, treatment_id=1, repetition=0, seed=0, status="finished",
-                                               generation=0, generations=1, created_at=now, updated_at=now))
-        conn.execute(t["individuals"].insert().values(id=1, run_id=1, local_id=0, generation_born=0,
-                                                      genome={}))
-        conn.execute(t["evaluations"].insert().values(
-            id=1, individual_id=1, run_id=1, generation=0, age=0, environment="land", stiffness=1e5,
-            distance=2.5, active_share=0.25, voxel_count=12, stable=True, seconds=0.125,
-            objectives={"distance": 2.5}))
+    store_one_evaluation(engine, seconds=0.125, objectives={"distance": 2.5})
     upgrade(engine)
     evaluations = EvaluationRow.__table__
     with engine.connect() as conn:
