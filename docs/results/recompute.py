@@ -332,21 +332,48 @@ def p_text(value) -> str:
     return "-" if pd.isna(value) else f"{float(value):.2g}"
 
 
+PAPER = {  # the paper's own result, by the start of a finding's question
+    "land distance": "stiffer walks farther; S1 non-functional",
+    "water distance": "softer swims farther",
+    "land frequency": "falls with stiffness",
+    "water frequency": "rises with stiffness (stiff swimmers flap)",
+    "land-water": "worse than water only (significant)",
+    "water-land": "a trend to better, not significant",
+}
+
+
+def paper_result(question: str) -> str:
+    return next((text for start, text in PAPER.items() if question.startswith(start)), "-")
+
+
+def turning_text(rows: list[dict]) -> str:
+    """The adjacent levels whose A12 is below 0.5 (against the hypothesis) in the primary and
+    gain rows, significant or not."""
+    found = []
+    for r in rows:
+        if r["one_sided"] and r["family"] != "secondary":
+            against = [part for part in r["adjacent_a12"].split("; ") if float(part.rsplit(" ", 1)[1]) < 0.5]
+            if against:
+                found.append(f"{r['question']}: {', '.join(against)}")
+    return "; ".join(found) if found else "none"
+
+
 def runs_text(n) -> str:
     return "> 4000" if n is None or pd.isna(n) else f"{int(n):,}"
 
 
 def findings_markdown(rows: list[dict], family: str) -> str:
-    lines = ["| finding | generation | means there, per level or group | n | p | p (Holm) | Holm's threshold | "
-             "A12 [95% interval] | A12 at generation 0 | power | runs needed (seen, A12 0.71) | verdict |",
-             "| --- | ---: | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | --- | --- |"]
+    lines = ["| finding | the paper | generation | means there, per level or group | n | p | p (Holm) | "
+             "Holm's threshold | A12 [95% interval] | A12 at generation 0 | power | runs needed (seen, A12 0.71) | "
+             "verdict |",
+             "| --- | --- | ---: | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | --- | --- |"]
     for r in (r for r in rows if r["family"] == family):
         means = ", ".join(f"{n.split()[-1] if r['one_sided'] else n} {g3(v)}"
                           for n, v in zip(r["names"], r["means"], strict=True))
         n = "+".join(str(len(g)) for g in r["groups"])
         needed = f"{runs_text(r.get('runs_needed'))}, {runs_text(r.get('runs_needed_a12_071'))}"
         turns = "; turns between " + ", ".join(r["turns"]) if r.get("turns") else ""
-        lines.append(f"| {r['question']} | {r['generation']} | {means} | {n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
+        lines.append(f"| {r['question']} | {paper_result(r['question'])} | {r['generation']} | {means} | {n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
                      f"{p_text(r['holm_threshold'])} | {r['a12']:.2f} [{r['a12_low']:.2f}, {r['a12_high']:.2f}] | "
                      f"{r['a12_generation0']:.2f} | {r.get('power', math.nan):.2f} | {needed} | "
                      f"{r['verdict']}{turns} |")
@@ -468,6 +495,7 @@ def numbers(results: Path, rows, design_frame, sensitivity_frame) -> dict[str, s
     out["findings_gain"] = findings_markdown(rows, "gain")
     out["findings_secondary"] = findings_markdown(rows, "secondary")
     out["adjacent"] = adjacent_markdown(rows)
+    out["turning"] = turning_text(rows)
     out["designs"] = designs_markdown(design_frame)
     out["means"] = means_markdown(runs, values)
     out["sensitivity"] = sensitivity_markdown(sensitivity_frame) if sensitivity_frame is not None else ""
