@@ -11,17 +11,22 @@ value is computed from the phenotype when the generation is told
 (``evolution.runner.tell_generation``, as the coordinator and ``softevo.evolve`` both tell),
 kept in the evaluation's ``descriptors`` (the JSON column ``evaluations.descriptors``), and
 read from there into the analyses' columns, the REST ``traits`` of each evaluation, the
+phylogeny and lineage (REST and ``softevo phylogeny``), the exaptation analysis, the
 dashboard and the report::
 
     from softevo.evolution import traits
     traits.register(traits.Trait("height", "height (voxels)", lambda p: float(p.body.any((0, 1)).sum())))
 
 ``along_lines``: the exaptation analysis follows it along each founder's line (distance,
-which changes with the world, does not).
+which changes with the world, does not). ``integer`` (a count), ``required`` (every
+evaluation has a value, a failed one its worst) and ``header`` (a short column title for
+tables) say how storage, REST and the command line show it: the built-in columns and the
+REST fields of a trait are generated from these records, never written out again.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -39,16 +44,24 @@ class Trait:
     compute: Callable[[Any], float | None] | None = None
     along_lines: bool = True
     column: bool = False
+    integer: bool = False
+    required: bool = False
+    header: str = ""
+
+    @property
+    def title(self) -> str:
+        """The short column title of tables (``header``, else the name)."""
+        return self.header or self.name
 
 
 BUILT_IN = (
-    Trait("distance", "distance (voxel lengths)", along_lines=False, column=True),
-    Trait("active_share", "active share", column=True),
-    Trait("voxel_count", "voxel count", column=True),
-    Trait("frequency", "frequency (Hz)", column=True),
-    Trait("symmetry", "symmetry index", column=True),
-    Trait("branching", "branching index", column=True),
-    Trait("shape_entropy", "shape entropy (bits)", column=True),
+    Trait("distance", "distance (voxel lengths)", along_lines=False, column=True, required=True),
+    Trait("active_share", "active share", column=True, required=True, header="active"),
+    Trait("voxel_count", "voxel count", column=True, integer=True, required=True, header="voxels"),
+    Trait("frequency", "frequency (Hz)", column=True, header="freq"),
+    Trait("symmetry", "symmetry index", column=True, header="symm"),
+    Trait("branching", "branching index", column=True, header="branch"),
+    Trait("shape_entropy", "shape entropy (bits)", column=True, header="entropy"),
 )
 _REGISTRY: Registry[Trait] = Registry("trait", BUILT_IN)
 unregister, get, names, all_traits = _REGISTRY.unregister, _REGISTRY.get, _REGISTRY.names, _REGISTRY.records
@@ -59,8 +72,9 @@ def register(trait: Trait) -> Trait:
     that does not compute itself)."""
     if not trait.name.isidentifier() or not trait.name.islower():
         raise ValueError(f"trait names are lower-case identifiers (got {trait.name!r})")
-    if trait.compute is None or trait.column:
-        raise ValueError("a registered trait computes itself from the phenotype and has no column")
+    if trait.compute is None or trait.column or trait.required:
+        raise ValueError("a registered trait computes itself from the phenotype, has no column and may "
+                         "have no value")
     return _REGISTRY.register(trait)
 
 
@@ -69,9 +83,19 @@ def columns() -> tuple[str, ...]:
     return tuple(trait.name for trait in _REGISTRY.records() if trait.column)
 
 
+def column_traits() -> tuple[Trait, ...]:
+    """The records of the traits with SQL columns of their own, in registry order."""
+    return tuple(trait for trait in _REGISTRY.records() if trait.column)
+
+
 def along_lines() -> tuple[str, ...]:
     """The traits the exaptation analysis follows along each line."""
     return tuple(trait.name for trait in _REGISTRY.records() if trait.along_lines)
+
+
+def headers() -> dict[str, str]:
+    """{name: short column title} of every trait (``Trait.title``)."""
+    return {trait.name: trait.title for trait in _REGISTRY.records()}
 
 
 def labels() -> dict[str, str]:
@@ -82,14 +106,16 @@ def labels() -> dict[str, str]:
 
 def computed(phenotype: Any) -> dict[str, float | None]:
     """The values of the registered traits that compute themselves from ``phenotype``; a
-    trait whose computation fails is None (a trait never fails an evaluation)."""
+    trait whose computation fails, or gives a value that is not finite, is None (a trait
+    never fails an evaluation, and JSON has no NaN)."""
     values: dict[str, float | None] = {}
     for trait in _REGISTRY.records():
         if trait.compute is None:
             continue
         try:
             value = trait.compute(phenotype)
-            values[trait.name] = None if value is None else float(value)
+            value = None if value is None else float(value)
+            values[trait.name] = value if value is None or math.isfinite(value) else None
         except Exception:  # noqa: BLE001 - a trait never fails an evaluation
             values[trait.name] = None
     return values

@@ -41,6 +41,7 @@ from sqlalchemy import Engine
 from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
 from softevo.errors import UserError
+from softevo.evolution import traits
 from softevo.evolution.algorithm import Evolution
 from softevo.evolution.runner import ask_generation, tell_generation
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
@@ -210,30 +211,35 @@ def _individual_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
     }
 
 
-def _traits(run: ActiveRun, ind) -> dict[str, float]:
-    """The individual's objectives over the phenotype's active_share and voxel_count: the
-    paper's three columns of its evaluation row and summary, whichever objectives its run
-    selects on (a treatment's objectives always include distance)."""
+def _objectives_with_body(run: ActiveRun, ind) -> dict[str, float]:
+    """The individual's objectives over its phenotype's active_share and voxel_count, so
+    that the paper's three (distance, active_share, voxel_count) are there whichever
+    objectives its run selects on (a treatment's objectives always include distance)."""
     phenotype = ind.phenotype(run.algorithm.config.encoding)
     return {"active_share": phenotype.active_share, "voxel_count": float(phenotype.voxel_count),
             **ind.objectives}
 
 
+def _trait_columns(run: ActiveRun, ind) -> dict[str, Any]:
+    """{name: value} of each trait with a column of its own (``evolution.traits``): from the
+    objectives (``_objectives_with_body``), else from the descriptors; a count as an int,
+    a trait every evaluation has (``required``) KeyError when missing, never None."""
+    measured = {**(ind.descriptors or {}), **_objectives_with_body(run, ind)}
+    values: dict[str, Any] = {}
+    for trait in traits.column_traits():
+        value = measured[trait.name] if trait.required else measured.get(trait.name)
+        values[trait.name] = int(value) if trait.integer and value is not None else value
+    return values
+
+
 def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
-    objectives, descriptors = _traits(run, ind), ind.descriptors or {}
     return {
         "local_id": ind.id,
         "generation": run.next_generation,
         "age": ind.age,
         "environment": ind.environment,
         "stiffness": run.treatment.stiffness_pa,
-        "distance": objectives["distance"],
-        "active_share": objectives["active_share"],
-        "voxel_count": int(objectives["voxel_count"]),
-        "frequency": descriptors.get("frequency"),
-        "symmetry": descriptors.get("symmetry"),
-        "branching": descriptors.get("branching"),
-        "shape_entropy": descriptors.get("shape_entropy"),
+        **_trait_columns(run, ind),
         "descriptors": ind.descriptors,
         "objectives": dict(ind.objectives),
         "stable": bool(ind.stable),
@@ -276,6 +282,7 @@ def evaluation_seconds(results: list[dict[str, Any]]) -> float:
 def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
     population = run.algorithm.population
     distances = [ind.objectives["distance"] for ind in population]
+    bodies = [_objectives_with_body(run, ind) for ind in population]
     ranks = front_ranks(run)
     return {
         "environment": run.treatment.environment_at(run.next_generation),
@@ -290,8 +297,8 @@ def _summary(run: ActiveRun, simulated: int, seconds: float) -> dict[str, Any]:
         "reused": run.algorithm.not_simulated["reused"],
         "empty_bodies": run.algorithm.not_simulated["empty"],
         "passive_bodies": run.algorithm.not_simulated["passive"],  # no active voxel: distance 0
-        "mean_voxel_count": float(np.mean([_traits(run, i)["voxel_count"] for i in population])),
-        "mean_active_share": float(np.mean([_traits(run, i)["active_share"] for i in population])),
+        "mean_voxel_count": float(np.mean([body["voxel_count"] for body in bodies])),
+        "mean_active_share": float(np.mean([body["active_share"] for body in bodies])),
         "best_local_id": population[int(np.argmax(distances))].id,
     }
 

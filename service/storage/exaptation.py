@@ -17,6 +17,10 @@ Definitions (``docs/sql.md`` gives the same as SQL):
   abrupt switch) and at the *end* (the final member) are those of each individual's first
   evaluation, and ``first_changed`` is the birth generation of the first individual after
   the founder along the line whose value differs from the founder's (None: never changed).
+
+The traits followed are every trait of the registry with ``along_lines``
+(``evolution.traits.along_lines()``, read when called): the built-in ones from their columns, a
+registered one from each evaluation's ``descriptors``.
 """
 
 from __future__ import annotations
@@ -32,11 +36,6 @@ from softevo.service.storage.models import PopulationMemberRow
 from softevo.service.storage.phylogeny import population_lines
 from softevo.service.storage.rows import finite
 from softevo.service.storage.run_tree import birth_evaluations, run_facts
-
-
-def line_traits() -> tuple[str, ...]:
-    """The traits followed along each line that have columns of their own (``evolution.traits``)."""
-    return tuple(name for name in traits.along_lines() if name in traits.columns())
 
 
 def _members(conn: Connection, run_id: int, generation: int) -> pd.DataFrame:
@@ -57,8 +56,8 @@ def final_ancestry(conn: Connection, run_id: int, generation: int) -> pd.DataFra
     return pd.DataFrame(result.fetchall(), columns=list(result.keys()))
 
 
-def _traits(conn: Connection, run_id: int) -> dict[int, dict[str, Any]]:
-    followed = line_traits()
+def _birth_traits(conn: Connection, run_id: int, followed: tuple[str, ...]) -> dict[int, dict[str, Any]]:
+    """{individual id: {trait: value at its first evaluation}} of run ``run_id``."""
     birth = birth_evaluations(run_id, followed)
     rows = conn.execute(select(birth)).mappings()
     return {int(row["individual_id"]): {name: row[name] for name in followed} for row in rows}
@@ -86,7 +85,8 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
     )
     founder_ids = set(founders["individual_id"])
     front = set(final.loc[final["front_rank"] == 0, "individual_id"])
-    traits = _traits(conn, run_id)
+    followed = traits.along_lines()
+    at_birth = _birth_traits(conn, run_id, followed)
     lines, roots, rooted = [], {}, True
     for final_id, path in ancestry.groupby("final_id", sort=True):
         path = path.sort_values("depth")
@@ -106,7 +106,8 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
                         born,
                         position,
                         arrival_ids,
-                        traits,
+                        at_birth,
+                        followed,
                     )
                 )
     lines.sort(key=lambda line: (line["founder_id"], line["individual_id"]))
@@ -129,7 +130,7 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
             "roots": sorted(set(roots.values())),
             "every_line_rooted": bool(rooted),
             "founder_lines": [
-                {"founder_id": f, "lines": count, "front_lines": on_front, "traits": traits.get(f, {})}
+                {"founder_id": f, "lines": count, "front_lines": on_front, "traits": at_birth.get(f, {})}
                 for f, (count, on_front) in sorted(per_founder.items())
             ],
             "lines_total": len(lines),
@@ -138,21 +139,22 @@ def exaptation(conn: Connection, run_id: int, limit: int | None = None, offset: 
     )
 
 
-def _line(founder, final_id, root_id, ids, born, position, arrival_ids, traits) -> dict[str, Any]:
-    """One line: ``ids[0]`` is the final member, ``ids[position]`` the founder."""
+def _line(founder, final_id, root_id, ids, born, position, arrival_ids, at_birth, followed) -> dict[str, Any]:
+    """One line: ``ids[0]`` is the final member, ``ids[position]`` the founder; ``at_birth``
+    holds each individual's traits, ``followed`` names those the line reports."""
     forward = list(range(position, -1, -1))  # founder .. final member
     at_switch = next((ids[k] for k in reversed(forward) if ids[k] in arrival_ids), None)
     values = {}
-    for trait in line_traits():
-        start = traits.get(founder, {}).get(trait)
+    for trait in followed:
+        start = at_birth.get(founder, {}).get(trait)
         changed = next(
-            (born[k] for k in forward[1:] if traits.get(ids[k], {}).get(trait) != start),
+            (born[k] for k in forward[1:] if at_birth.get(ids[k], {}).get(trait) != start),
             None,
         )
         values[trait] = {
             "founder": start,
-            "switch": None if at_switch is None else traits.get(at_switch, {}).get(trait),
-            "end": traits.get(final_id, {}).get(trait),
+            "switch": None if at_switch is None else at_birth.get(at_switch, {}).get(trait),
+            "end": at_birth.get(final_id, {}).get(trait),
             "first_changed": changed,
         }
     return {

@@ -151,9 +151,12 @@ class EvaluationRow(Base):
 
     ``objectives``: {name: value} of every objective the run selects on (its treatment's
     ``objectives``, ``evolution.selection.OBJECTIVES``), so a new objective needs no new
-    column. The paper's three are also columns: ``distance`` (maximised, voxel lengths),
-    ``active_share`` and ``voxel_count`` (minimised). A failed or unstable evaluation keeps
-    its ``error`` and the worst fitness.
+    column. The traits with columns of their own (``evolution.traits.column_traits()``: the
+    paper's three objectives ``distance``, ``active_share`` and ``voxel_count``, and the
+    shape descriptors) are columns, generated from their records (``add_trait_columns``);
+    every other registered trait is read from ``descriptors``
+    (``service.storage.trait_sql``). A failed or unstable evaluation keeps its ``error`` and
+    the worst fitness.
     """
 
     __tablename__ = "evaluations"
@@ -169,13 +172,7 @@ class EvaluationRow(Base):
     age: Mapped[int] = mapped_column(Integer, default=0)
     environment: Mapped[str] = mapped_column(String(20))
     stiffness: Mapped[float] = mapped_column(Float)
-    distance: Mapped[float] = mapped_column(Float)
-    active_share: Mapped[float] = mapped_column(Float)
-    voxel_count: Mapped[int] = mapped_column(Integer)
-    frequency: Mapped[float | None] = mapped_column(Float)
-    symmetry: Mapped[float | None] = mapped_column(Float)
-    branching: Mapped[float | None] = mapped_column(Float)
-    shape_entropy: Mapped[float | None] = mapped_column(Float)
+    # a column per trait of ``evolution.traits.column_traits()`` (``add_trait_columns`` below)
     descriptors: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     objectives: Mapped[dict[str, float] | None] = mapped_column(JSON)
     stable: Mapped[bool] = mapped_column(Boolean, default=True)
@@ -183,6 +180,18 @@ class EvaluationRow(Base):
     seconds: Mapped[float | None] = mapped_column(Float)  # wall seconds (the batch's mean)
     steps: Mapped[int | None] = mapped_column(Integer)  # simulator steps (None: stored before 0003)
     simulated_seconds: Mapped[float | None] = mapped_column(Float)
+
+
+def add_trait_columns(row: type[Base]) -> None:
+    """Give ``row`` a column per trait with one (``evolution.traits.column_traits()``), typed
+    and nullable as its record says: the one place the trait columns are declared (the
+    migrations create the same)."""
+    for trait in traits.column_traits():
+        kind = Integer if trait.integer else Float
+        setattr(row, trait.name, mapped_column(kind, nullable=not trait.required))
+
+
+add_trait_columns(EvaluationRow)
 
 
 class GenerationRow(Base):

@@ -1,9 +1,10 @@
 """Phylogeny queries: recursive CTEs over ``individuals.parent_id``, returned as DataFrames.
 
 All queries are SQLAlchemy core with bound parameters and run unchanged on SQLite and
-PostgreSQL. An individual's traits come from one of its evaluations: ``which="birth"`` (the
-default) takes its first evaluation (the one that selected it), ``which="latest"`` its last
-(after an environment switch, the one in the new world).
+PostgreSQL. An individual's traits (every trait of ``evolution.traits``, the registered ones
+read from ``descriptors``: ``service.storage.trait_sql``) come from one of its evaluations:
+``which="birth"`` (the default) takes its first evaluation (the one that selected it),
+``which="latest"`` its last (after an environment switch, the one in the new world).
 """
 
 from __future__ import annotations
@@ -23,9 +24,16 @@ from softevo.service.storage.models import (
     RunRow,
     TreatmentRow,
 )
+from softevo.service.storage.trait_sql import trait_values
 
 Which = Literal["birth", "latest"]
-_EVALUATION_COLUMNS = ("generation", "environment", "stiffness", "age", *traits.columns(), "stable", "error")
+_CHOSEN = ("generation", "environment", "stiffness", "age")  # then every trait, stable, error
+
+
+def _chosen_columns() -> tuple[str, ...]:
+    """The columns an individual's chosen evaluation gives: ``_CHOSEN``, every
+    registered trait (read when called), ``stable`` and ``error``."""
+    return (*_CHOSEN, *traits.names(), "stable", "error")
 
 
 def _frame(bind: Connection | Engine, query) -> pd.DataFrame:
@@ -45,12 +53,14 @@ def _chosen_evaluation(which: Which):
     """Subquery: one evaluation per individual (its first or its last)."""
     evaluations = EvaluationRow.__table__
     order = evaluations.c.generation.asc() if which == "birth" else evaluations.c.generation.desc()
+    plain = ("individual_id", *_CHOSEN, "stable", "error")
     ranked = select(
-        evaluations,
+        *[evaluations.c[name] for name in plain],
+        *trait_values(),
         func.row_number().over(partition_by=evaluations.c.individual_id, order_by=order).label("n"),
     ).subquery("ranked")
     return (
-        select(*[ranked.c[name] for name in ("individual_id", *_EVALUATION_COLUMNS)])
+        select(*[ranked.c[name] for name in ("individual_id", *_chosen_columns())])
         .where(ranked.c.n == 1)
         .subquery("chosen")
     )
@@ -81,8 +91,8 @@ def ancestors(bind: Connection | Engine, individual_id: int, which: Which = "bir
     """The individual and its ancestors, newest first, to its root newcomer.
 
     Columns: depth (0 = the individual), id, parent_id, run_id, generation_born, and the
-    chosen evaluation's generation, environment, stiffness, age, objectives, descriptors,
-    stable and error. Empty if the id is unknown.
+    chosen evaluation's generation, environment, stiffness, age, every trait
+    (``evolution.traits.names()``), stable and error. Empty if the id is unknown.
     """
     cte = _ancestor_cte(individual_id)
     chosen = _chosen_evaluation(which)
@@ -93,7 +103,7 @@ def ancestors(bind: Connection | Engine, individual_id: int, which: Which = "bir
             cte.c.parent_id,
             cte.c.run_id,
             cte.c.generation_born,
-            *[chosen.c[name] for name in _EVALUATION_COLUMNS],
+            *[chosen.c[name] for name in _chosen_columns()],
         )
         .outerjoin(chosen, chosen.c.individual_id == cte.c.id)
         .order_by(cte.c.depth)
@@ -181,11 +191,11 @@ def trait_changes(
     """Where ``trait`` changed along the line from the root newcomer to the individual.
 
     Rows, oldest first, of ancestors whose trait differs from their parent's. Columns: id,
-    parent_id, generation_born, environment, previous, value. ``trait`` is a trait with a
-    column of its own (``evolution.traits.columns()``).
+    parent_id, generation_born, environment, previous, value. ``trait`` is any registered
+    trait (``evolution.traits.names()``).
     """
-    if trait not in traits.columns():
-        raise UserError(f"unknown trait {trait!r}; choose one of {', '.join(traits.columns())}")
+    if trait not in traits.names():
+        raise UserError(f"unknown trait {trait!r}; choose one of {', '.join(traits.names())}")
     cte = _ancestor_cte(individual_id)
     chosen = _chosen_evaluation(which)
     value = chosen.c[trait]

@@ -1,9 +1,11 @@
 """A run's phylogeny: every individual with its parent, birth, last generation kept and birth
 evaluation (``run_phylogeny``, paged), and a bounded drawing of it (``tree_sample``).
 
-A node's environment and objectives are those of its first evaluation (the one that
-selected it into the run, in the world it was born into); ``last_generation`` is the last
-generation whose kept population held it (None if selection dropped it at once).
+A node's environment and traits are those of its first evaluation (the one that selected
+it into the run, in the world it was born into): every trait of ``evolution.traits`` in a
+page of ``run_phylogeny``, the paper's three objectives (``NODE_OBJECTIVES``) in
+``tree_sample``; ``last_generation`` is the last generation whose kept population held it
+(None if selection dropped it at once).
 ``tree_sample`` picks in SQL what the dashboard draws: the surviving lineages (every
 ancestor of the final population, newest first, at most ``max_survivors``) and a
 deterministic sample of at most ``extinct`` individuals that were kept once but left no
@@ -18,6 +20,7 @@ from typing import Any
 from sqlalchemy import Connection, and_, func, select
 
 from softevo.errors import UserError
+from softevo.evolution import traits
 from softevo.evolution.treatments import Treatment
 from softevo.service.storage.models import (
     EvaluationRow,
@@ -28,6 +31,7 @@ from softevo.service.storage.models import (
 )
 from softevo.service.storage.rows import columns as columns_of
 from softevo.service.storage.rows import dict_rows
+from softevo.service.storage.trait_sql import trait_values
 
 NODE_OBJECTIVES = ("distance", "active_share", "voxel_count")
 BIRTH = ("individual_id", "generation", "environment")  # where and when an evaluation was
@@ -36,19 +40,20 @@ SAMPLE_STEP = 7_919
 ID_CHUNK = 500  # ids bound per IN (...) when reading the chosen nodes
 
 
-def birth_evaluations(run_id: int, objectives: tuple[str, ...] = NODE_OBJECTIVES):
+def birth_evaluations(run_id: int, names: tuple[str, ...] = NODE_OBJECTIVES):
     """Subquery: each individual of run ``run_id`` with its first evaluation's
-    generation, environment and ``objectives``."""
+    generation, environment and the traits ``names`` (any registered trait)."""
     ev = EvaluationRow.__table__
     ranked = (
         select(
-            *columns_of(ev, *BIRTH, *objectives),
+            *columns_of(ev, *BIRTH),
+            *trait_values(names),
             func.row_number().over(partition_by=ev.c.individual_id, order_by=ev.c.generation).label("n"),
         )
         .where(ev.c.run_id == run_id)
         .subquery("ranked")
     )
-    return select(*columns_of(ranked, *BIRTH, *objectives)).where(ranked.c.n == 1).subquery("birth")
+    return select(*columns_of(ranked, *BIRTH, *names)).where(ranked.c.n == 1).subquery("birth")
 
 
 def last_kept(run_id: int, generation: int | None = None):
@@ -90,9 +95,14 @@ def run_facts(conn: Connection, run_id: int) -> dict[str, Any]:
 
 
 def _node_query(
-    run_id: int, generation: int | None = None, parent_generation: bool = False, ids: list[int] | None = None
+    run_id: int,
+    generation: int | None = None,
+    parent_generation: bool = False,
+    ids: list[int] | None = None,
+    names: tuple[str, ...] = NODE_OBJECTIVES,
 ):
-    """SELECT of the nodes of run ``run_id`` (born at or before ``generation`` if given).
+    """SELECT of the nodes of run ``run_id`` (born at or before ``generation`` if given),
+    each with the traits ``names`` of its birth evaluation.
 
     Birth evaluation and last generation kept are looked up per individual (correlated,
     through the indexes on ``evaluations (individual_id, ...)`` and
@@ -113,7 +123,7 @@ def _node_query(
         ind.c.generation_born,
         kept.scalar_subquery().label("last_generation"),
         ev.c.environment,
-        *[ev.c[name] for name in NODE_OBJECTIVES],
+        *trait_values(names, ev),
     ]
     if parent_generation:
         parent = ind.alias("parent")
@@ -136,8 +146,8 @@ def run_phylogeny(
 ) -> tuple[int, list[dict[str, Any]]]:
     """(total, rows): the individuals of run ``run_id`` in id order (born at or before
     ``generation`` if given: the tree as it stood then), ``limit`` rows from ``offset``.
-    Row keys: id, parent_id, generation_born, last_generation, environment, distance,
-    active_share, voxel_count. UserError for an unknown run."""
+    Row keys: id, parent_id, generation_born, last_generation, environment and every trait
+    (``evolution.traits.names()``). UserError for an unknown run."""
     run_facts(conn, run_id)
     ind = IndividualRow.__table__
     chosen = select(ind.c.id).where(ind.c.run_id == run_id)
@@ -150,7 +160,8 @@ def run_phylogeny(
     ids = list(conn.execute(page).scalars())
     rows = []
     for start in range(0, len(ids), ID_CHUNK):
-        query = _node_query(run_id, generation, ids=ids[start : start + ID_CHUNK]).order_by(ind.c.id)
+        chunk = ids[start : start + ID_CHUNK]
+        query = _node_query(run_id, generation, ids=chunk, names=traits.names()).order_by(ind.c.id)
         rows += dict_rows(conn, query)
     return int(total), rows
 
@@ -174,7 +185,8 @@ def tree_sample(
 ) -> dict[str, Any]:
     """What the dashboard's tree draws (module doc): {run_id, generation (the last stored),
     switch_at, switch_over, arrival, environments, survivors_total, extinct_total, nodes};
-    each node has the keys of ``run_phylogeny`` plus parent_generation (the parent's birth)
+    each node has id, parent_id, generation_born, last_generation, environment, the
+    ``NODE_OBJECTIVES``, parent_generation (the parent's birth)
     and surviving (in, or an ancestor of, the final population)."""
     facts = run_facts(conn, run_id)
     last = facts["generation"]
