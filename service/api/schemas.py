@@ -25,6 +25,7 @@ from pydantic_core import core_schema
 from softevo.evolution import environments
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS
 from softevo.evolution.treatments import ALGORITHMS, SCALES, Treatment, model_names
+from softevo.service.api.schemas_traits import RegisteredTraits, trait_fields
 from softevo.service.runs.executors import EXECUTOR_KINDS
 from softevo.service.runs.limits import MAX_EVALUATION_SECONDS, MAX_WORKSPACE_SIDE, TREATMENT_BOUNDS
 from softevo.service.storage.models import RunStatus
@@ -391,18 +392,17 @@ class GenerationOut(BaseModel):
     created_at: datetime | None
 
 
-class EvaluationOut(BaseModel):
+EvaluationTraits = trait_fields("EvaluationTraits")
+
+
+class EvaluationOut(EvaluationTraits):
+    """One evaluation: a field per trait with a column of its own (``EvaluationTraits``,
+    generated from ``evolution.traits``), and every trait by name in ``traits``."""
+
     generation: int
     environment: str
     stiffness: float = Field(description="Young's modulus, Pa")
     age: int
-    distance: float
-    active_share: float
-    voxel_count: int
-    frequency: float | None
-    symmetry: float | None
-    branching: float | None
-    shape_entropy: float | None
     descriptors: dict[str, Any] | None
     objectives: dict[str, float] | None = Field(
         description="every objective of the evaluation's run, by name (None: not recorded)")
@@ -443,7 +443,13 @@ class IndividualOut(BaseModel):
     evaluations: list[EvaluationOut]
 
 
-class LineageEntry(BaseModel):
+LineageTraits = trait_fields("LineageTraits", RegisteredTraits, nullable=True)
+
+
+class LineageEntry(LineageTraits):
+    """An ancestor with its birth evaluation: a field per trait with a column of its own,
+    and every other registered trait as an extra key (``schemas_traits``)."""
+
     depth: int = Field(description="0: the individual, 1: its parent, ...")
     id: int
     parent_id: int | None
@@ -453,12 +459,5 @@ class LineageEntry(BaseModel):
     environment: str | None
     stiffness: float | None
     age: int | None
-    distance: float | None
-    active_share: float | None
-    voxel_count: int | None
-    frequency: float | None
-    symmetry: float | None
-    branching: float | None
-    shape_entropy: float | None
     stable: bool | None
     error: str | None

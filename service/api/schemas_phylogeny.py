@@ -1,21 +1,26 @@
 """Response bodies of the phylogeny endpoints (``GET /runs/{id}/phylogeny`` and
 ``GET /runs/{id}/exaptation``); ``service.storage.run_tree`` and ``service.storage.exaptation`` say
-what each field means."""
+what each field means. Their trait fields are generated from the trait registry
+(``service.api.schemas_traits``): a field per trait with a column of its own, and every other
+registered trait as an extra key."""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
+
+from softevo.service.api.schemas_traits import RegisteredTraits, trait_fields
+
+NodeTraits = trait_fields("NodeTraits", RegisteredTraits, nullable=True)
 
 
-class PhylogenyNode(BaseModel):
+class PhylogenyNode(NodeTraits):
+    """An individual with its birth evaluation's environment and every trait."""
+
     id: int
     parent_id: int | None = Field(description="null: a random newcomer, the root of a lineage")
     generation_born: int
     last_generation: int | None = Field(description="last generation whose kept population held it")
     environment: str | None = Field(description="of its first evaluation (the world it was born into)")
-    distance: float | None
-    active_share: float | None
-    voxel_count: int | None
 
 
 class PhylogenyPage(BaseModel):
@@ -33,13 +38,14 @@ class TraitAlongLine(BaseModel):
     first_changed: int | None = Field(description="birth generation of the first change after the founder")
 
 
-class LineTraits(BaseModel):
-    voxel_count: TraitAlongLine
-    active_share: TraitAlongLine
-    frequency: TraitAlongLine
-    symmetry: TraitAlongLine
-    branching: TraitAlongLine
-    shape_entropy: TraitAlongLine
+class RegisteredLineTraits(BaseModel):
+    """Every registered trait followed along lines without a column of its own, by name."""
+
+    model_config = ConfigDict(extra="allow")
+    __pydantic_extra__: dict[str, TraitAlongLine] = Field(init=False)
+
+
+LineTraits = trait_fields("LineTraits", RegisteredLineTraits, value=TraitAlongLine, along_lines=True)
 
 
 class SurvivingLine(BaseModel):

@@ -2,11 +2,12 @@
 
 - ``softevo phylogeny RUN [--generation G] [--json | --csv]``: every individual of the run
   (as it stood at generation ``G`` if given): id, parent, generation born, last generation
-  kept, environment and objectives at birth (``service.storage.run_tree.run_phylogeny``), read
-  page by page.
+  kept, environment and every trait at birth (``evolution.traits``, registered ones included;
+  ``service.storage.run_tree.run_phylogeny``), read page by page.
 - ``softevo exaptation RUN [--json]``: for a transition run, the founders kept at the switch,
   how many of their lines reach the last generation, the roots of the final population and,
-  per surviving line, the traits of the founder, at the switch and at the end with the
+  per surviving line, each trait it follows (``evolution.traits.along_lines()``) at the
+  founder, at the switch and at the end with the
   generation each first changed (``service.storage.exaptation.exaptation``; the JSON is that of
   ``GET /runs/{id}/exaptation`` without paging).
 
@@ -25,27 +26,22 @@ from typing import Annotated
 import typer
 
 from softevo.errors import UserError
+from softevo.evolution import traits
 from softevo.service.cli.options import DbOption, JsonOption, RunArgument, say_bare_number
 
 PAGE = 10_000
-PHYLOGENY_COLUMNS = (
-    "id",
-    "parent_id",
-    "generation_born",
-    "last_generation",
-    "environment",
-    "distance",
-    "active_share",
-    "voxel_count",
-)
-TRAIT_HEADERS = {
-    "voxel_count": "voxels",
-    "active_share": "active",
-    "frequency": "freq",
-    "symmetry": "symm",
-    "branching": "branch",
-    "shape_entropy": "entropy",
-}
+NODE_COLUMNS = ("id", "parent_id", "generation_born", "last_generation", "environment")  # then the traits
+
+
+def phylogeny_columns() -> tuple[str, ...]:
+    """The columns of ``softevo phylogeny --csv``: ``NODE_COLUMNS`` and every registered trait."""
+    return (*NODE_COLUMNS, *traits.names())
+
+
+def line_headers() -> dict[str, str]:
+    """{trait: its short title} of the traits the exaptation table follows along lines."""
+    headers = traits.headers()
+    return {name: headers[name] for name in traits.along_lines()}
 
 
 def phylogeny(
@@ -58,7 +54,7 @@ def phylogeny(
     db: DbOption = None,
 ) -> None:
     """A run's phylogeny: every individual with its parent, birth, last generation kept,
-    environment and objectives at birth."""
+    environment and traits at birth."""
     from softevo.service.storage import open_database
     from softevo.service.storage.run_tree import run_phylogeny
     from softevo.service.storage.runs import resolve_run, run_row
@@ -84,7 +80,7 @@ def phylogeny(
     if as_json:
         typer.echo(json.dumps(rows, indent=1))
     elif as_csv:
-        writer = csv.DictWriter(sys.stdout, fieldnames=PHYLOGENY_COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(sys.stdout, fieldnames=phylogeny_columns(), lineterminator="\n")
         writer.writeheader()
         writer.writerows(rows)
     else:
@@ -95,7 +91,8 @@ def _phylogeny_table(run_id: int, rows: list[dict]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table("id", "parent", "born", "last kept", "environment", "distance", "active", "voxels",
+    headers = traits.headers()
+    table = Table("id", "parent", "born", "last kept", "environment", *headers.values(),
                   title=f"run {run_id}: {len(rows)} individuals")  # fmt: skip
     for r in rows:
         table.add_row(
@@ -104,9 +101,7 @@ def _phylogeny_table(run_id: int, rows: list[dict]) -> None:
             str(r["generation_born"]),
             _cell(r["last_generation"]),
             _cell(r["environment"]),
-            _cell(r["distance"]),
-            _cell(r["active_share"]),
-            _cell(r["voxel_count"]),
+            *[_cell(r.get(name)) for name in headers],
         )
     Console().print(table)
 
@@ -156,15 +151,16 @@ def _exaptation_tables(s: dict) -> None:
     # a row per line and trait, so that the table fits 80 columns
     title = "surviving lines: each trait at the founder, the switch and the end"
     lines = Table("founder > final", "root", "trait", "founder", "switch", "end", "changed", title=title)
+    headers = line_headers()
     for line in s["lines"]:
-        for k, (trait, header) in enumerate(TRAIT_HEADERS.items()):
+        for k, (trait, header) in enumerate(headers.items()):
             t = line["traits"][trait]
             ids = ("", "")
             if k == 0:
                 ids = (f"{line['founder_id']} > {line['individual_id']}", str(line["root_id"]))
             changed = "-" if t["first_changed"] is None else f"gen {t['first_changed']}"
             values = (_cell(t["founder"]), _cell(t["switch"]), _cell(t["end"]), changed)
-            lines.add_row(*ids, header, *values, end_section=k == len(TRAIT_HEADERS) - 1)
+            lines.add_row(*ids, header, *values, end_section=k == len(headers) - 1)
     console.print(lines)
 
 

@@ -121,7 +121,7 @@ def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):
 def test_the_exaptation_tables_fit_80_columns(served, capsys, monkeypatch):
     """Every line of the text output within 80 columns, and every trait of every surviving
     line on one row, its three values whole."""
-    from softevo.service.cli.phylogeny import TRAIT_HEADERS
+    from softevo.service.cli.phylogeny import line_headers
 
     def cell(value) -> str:  # as the table writes a value
         return "-" if value is None else f"{value:.3g}" if isinstance(value, float) else str(value)
@@ -134,7 +134,7 @@ def test_the_exaptation_tables_fit_80_columns(served, capsys, monkeypatch):
     rows = [row.replace("\u2502", " ").split() for row in text_out.splitlines()]
     assert summary["lines"], "the tiny run keeps no line: nothing to check"
     for line in summary["lines"]:
-        for trait, header in TRAIT_HEADERS.items():
+        for trait, header in line_headers().items():
             t = line["traits"][trait]
             cells = [header, cell(t["founder"]), cell(t["switch"]), cell(t["end"])]
             assert any(row[-5:-1] == cells or row[-6:-2] == cells for row in rows), (header, text_out)
