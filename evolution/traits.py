@@ -88,6 +88,11 @@ def column_traits() -> tuple[Trait, ...]:
     return tuple(trait for trait in _REGISTRY.records() if trait.column)
 
 
+def registered() -> tuple[str, ...]:
+    """The traits ``register`` added (not built in), in the order added."""
+    return tuple(trait.name for trait in _REGISTRY.added())
+
+
 def along_lines() -> tuple[str, ...]:
     """The traits the exaptation analysis follows along each line."""
     return tuple(trait.name for trait in _REGISTRY.records() if trait.along_lines)

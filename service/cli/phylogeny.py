@@ -3,7 +3,8 @@
 - ``softevo phylogeny RUN [--generation G] [--json | --csv]``: every individual of the run
   (as it stood at generation ``G`` if given): id, parent, generation born, last generation
   kept, environment and every trait at birth (``evolution.traits``, registered ones included;
-  ``service.storage.run_tree.run_phylogeny``), read page by page.
+  ``service.storage.run_tree.run_phylogeny``), read page by page; the table, to fit a
+  terminal, shows the paper's three objectives and the traits a deployment registered.
 - ``softevo exaptation RUN [--json]``: for a transition run, the founders kept at the switch,
   how many of their lines reach the last generation, the roots of the final population and,
   per surviving line, each trait it follows (``evolution.traits.along_lines()``) at the
@@ -91,9 +92,13 @@ def _phylogeny_table(run_id: int, rows: list[dict]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    headers = traits.headers()
+    from softevo.service.storage.run_tree import NODE_OBJECTIVES
+
+    titles = traits.headers()
+    headers = {name: titles[name] for name in (*NODE_OBJECTIVES, *traits.registered())}
     table = Table("id", "parent", "born", "last kept", "environment", *headers.values(),
-                  title=f"run {run_id}: {len(rows)} individuals")  # fmt: skip
+                  title=f"run {run_id}: {len(rows)} individuals",
+                  caption="every trait: --json or --csv")  # fmt: skip
     for r in rows:
         table.add_row(
             str(r["id"]),
