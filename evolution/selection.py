@@ -21,23 +21,23 @@ from typing import Any
 import numpy as np
 
 
-def _distance(evaluation: Any, phenotype: Any) -> float:
-    return evaluation.distance
+def _distance(outcome: Any, phenotype: Any) -> float:
+    return outcome.distance
 
 
-def _active_share(evaluation: Any, phenotype: Any) -> float:
+def _active_share(outcome: Any, phenotype: Any) -> float:
     return phenotype.active_share
 
 
-def _voxel_count(evaluation: Any, phenotype: Any) -> float:
+def _voxel_count(outcome: Any, phenotype: Any) -> float:
     return float(phenotype.voxel_count)
 
 
 @dataclass(frozen=True)
 class Objective:
     """An objective declared as data: ``name`` (the key in an individual's objectives),
-    ``direction`` "max" or "min", and ``value(evaluation, phenotype) -> float``, how its value
-    is computed from an ``individual.Evaluation`` and the individual's ``genotype.Phenotype``
+    ``direction`` "max" or "min", and ``value(outcome, phenotype) -> float``, how its value
+    is computed from an ``outcome.Outcome`` and the individual's ``genotype.Phenotype``
     (None: the value is given, as ``age`` is at selection time). Two objectives are equal
     when name and direction are."""
 
@@ -102,14 +102,14 @@ def objectives_named(names: Sequence[str]) -> tuple[Objective, ...]:
     return tuple(objective_named(n) for n in names) if names else PAPER_OBJECTIVES
 
 
-def objective_values(objectives: Sequence[Objective], evaluation: Any, phenotype: Any) -> dict[str, float]:
-    """{name: value} of each objective for one evaluation of one phenotype, in order: the
+def objective_values(objectives: Sequence[Objective], outcome: Any, phenotype: Any) -> dict[str, float]:
+    """{name: value} of each objective for one outcome of one phenotype, in order: the
     one place an individual's objectives are computed."""
     values = {}
     for objective in objectives:
         if objective.value is None:
             raise ValueError(f"objective {objective.name}: has no value function")
-        values[objective.name] = objective.value(evaluation, phenotype)
+        values[objective.name] = objective.value(outcome, phenotype)
     return values
 
 

@@ -121,12 +121,11 @@ def evolve(
 
     algo = run(
         treatment.evolution_config(seed),
-        None,
+        evaluate_generation,
         treatment.generations - 1,
         schedule=treatment.schedule(),
         on_generation=on_generation,
         progress=progress,
-        evaluate_generation=evaluate_generation,
     )
     return LocalRun(algo, history, bests)
 
