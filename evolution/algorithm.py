@@ -68,6 +68,7 @@ from softevo.evolution.genotype import (
 )
 from softevo.evolution.individual import Individual
 from softevo.evolution.operators import (
+    Candidates,
     Survival,
     Variation,
     evosoro_survival,
@@ -372,8 +373,8 @@ class Evolution:
         # rows in id order, so "lower index" in select_survivors means "lower id"
         order = np.argsort([ind.id for ind in combined], kind="stable")
         ages = np.array([ind.age for ind in combined])
-        survival = self.config.algorithm.survival
-        kept = survival(F[order], self.config.population_size, ages[order], valid[order], self.rng)
+        candidates = Candidates(F[order], self.config.selection_objectives, ages[order], valid[order])
+        kept = self.config.algorithm.survival(candidates, self.config.population_size, self.rng)
         self.population = [combined[i] for i in order[kept]]
         self.pending = []
 

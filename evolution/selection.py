@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from softevo.sim.registry import Registry
+
 
 def _distance(outcome: Any, phenotype: Any) -> float:
     return outcome.distance
@@ -59,7 +61,7 @@ PAPER_OBJECTIVES: tuple[Objective, ...] = (
 )
 AGE_OBJECTIVE = Objective("age", "min")
 
-OBJECTIVES: dict[str, Objective] = {o.name: o for o in PAPER_OBJECTIVES}
+OBJECTIVES: Registry[Objective] = Registry("objective", PAPER_OBJECTIVES)
 """The objectives a run may be configured with, by name: the paper's and any registered."""
 
 
@@ -73,25 +75,24 @@ def register_objective(objective: Objective) -> Objective:
         raise ValueError(f"objective name {objective.name!r}: an identifier of at most 64 characters")
     if objective.value is None:
         raise ValueError(f"objective {objective.name}: needs a value function")
-    if objective.name in OBJECTIVES or objective.name == AGE_OBJECTIVE.name:
+    if objective.name == AGE_OBJECTIVE.name:
         raise ValueError(f"objective {objective.name!r} is already registered")
-    OBJECTIVES[objective.name] = objective
-    return objective
+    return OBJECTIVES.register(objective)
 
 
 def unregister_objective(name: str) -> None:
     """Undo ``register_objective`` (the paper's objectives stay)."""
-    if any(o.name == name for o in PAPER_OBJECTIVES):
+    if name in (o.name for o in PAPER_OBJECTIVES):
         raise ValueError(f"objective {name!r} is one of the paper's")
-    OBJECTIVES.pop(name, None)
+    OBJECTIVES.unregister(name)
 
 
 def objective_named(name: str, direction: str | None = None) -> Objective:
     """The registered objective ``name``; ValueError for an unknown name or a ``direction``
     other than the registered one."""
+    if name not in OBJECTIVES:
+        raise ValueError(f"unknown objective {name!r}; registered: {', '.join(OBJECTIVES.names())}")
     objective = OBJECTIVES.get(name)
-    if objective is None:
-        raise ValueError(f"unknown objective {name!r}; registered: {', '.join(OBJECTIVES)}")
     if direction is not None and direction != objective.direction:
         raise ValueError(f"objective {name!r} is {objective.direction}imised (got {direction!r})")
     return objective
