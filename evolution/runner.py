@@ -58,8 +58,10 @@ def tell_generation(
     outcome's descriptors become its individual's), then each registered trait
     (``evolution.traits.computed``) joins the descriptors."""
     generation, evaluated = algorithm.generation, list(algorithm.pending)
-    # KeyError for a lost outcome: a bug, never a silent failure
-    algorithm.tell({ind.id: outcomes[ind.id] for ind in asked})
+    told = {}
+    for ind in asked:
+        told[ind.id] = outcomes[ind.id]  # KeyError for a lost outcome: a bug, never a silent failure
+    algorithm.tell(told)
     # the registered traits (evolution.traits), measured on the phenotype of every individual
     # evaluated at this generation: asked, or evaluated without a simulation (a twin, a passive body)
     for ind in evaluated:
