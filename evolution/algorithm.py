@@ -95,9 +95,9 @@ class Algorithm:
     ``EvolutionConfig.mode``), ``survival`` (cuts survivors and offspring back to the
     population size), ``variations`` (each makes part of a generation's new individuals
     from the survivors, their offspring joined in order), ``objectives`` it adds to the
-    run's for selection (AFPO's age: an objective without a value function is given at
-    selection, as age is; one with a value is computed as the run's are) and a one-line
-    ``description``."""
+    run's for selection (AFPO's ``age``, the one objective given at selection rather than
+    computed; one with a value function is computed for each evaluation as the run's are)
+    and a one-line ``description``."""
 
     name: str
     survival: Survival
