@@ -24,13 +24,16 @@ import csv
 import sys
 import time
 from dataclasses import replace
+from functools import partial
 
 from softevo import sim
 from softevo.evolution import environments
 from softevo.evolution.algorithm import EvolutionConfig
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig
+from softevo.evolution.outcome import Outcome
 from softevo.evolution.runner import best_distance, run
+from softevo.worker.evaluate import evaluate_generation
 
 VARIANTS = {
     "default": "the study's settings",
@@ -42,11 +45,12 @@ LOW_DAMPING = 0.002
 
 
 def with_damping(damping: float):
-    """``sim.simulate_many`` on scenes whose global damping is ``damping``."""
+    """A simulator for the workers' evaluation (``worker.evaluate.Simulate``): the outcomes
+    of ``sim.simulate_many`` on scenes whose global damping is ``damping``."""
 
-    def simulate(scenes, **options):
+    def simulate(scenes):
         changed = [dict(s, material={**s["material"], "damping_global": damping}) for s in scenes]
-        return sim.simulate_many(changed, **options)
+        return [Outcome.of_result(result) for result in sim.simulate_many(changed)]
 
     return simulate
 
@@ -58,15 +62,16 @@ def one_run(variant: str, environment: str, mpa: float, seed: int, args) -> floa
         evaluation=EvaluationSpec(environment, mpa * 1e6, cycles=args.cycles,
                                   encoding=EncodingConfig(workspace=(args.workspace,) * 3)),
     )  # fmt: skip
-    simulate = sim.simulate_many
+    simulator = None  # the engine's, as every run's
     if variant == "damping":
-        simulate = with_damping(LOW_DAMPING)
+        simulator = with_damping(LOW_DAMPING)
     elif variant == "cycles":
         config = replace(config, evaluation=replace(config.evaluation, cycles=2 * args.cycles))
     elif variant == "frequency":
         config = replace(config, evaluation=replace(config.evaluation, encoding=replace(
             config.encoding, frequency_range=(1.0, 3.0))))
-    return best_distance(run(config, simulate, args.generations))
+    evaluate = partial(evaluate_generation, simulator=simulator)
+    return best_distance(run(config, evaluate, args.generations))
 
 
 def trend(means: list[float]) -> str:

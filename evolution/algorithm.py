@@ -1,20 +1,26 @@
-"""The paper's plain Pareto optimisation and Age-Fitness Pareto Optimisation, ask/tell.
+"""The ask/tell algorithm (``Evolution``) and the algorithms it runs: each a registered
+``Algorithm`` composed of operators (``evolution.operators``), as pymoo composes its own:
+the objectives it adds to the run's, its survival and its variations. ``pareto`` (the
+paper's plain Pareto optimisation) and ``afpo`` (Age-Fitness Pareto Optimisation) are two
+registrations; a new algorithm is one more (``register``; ``names()`` lists them). A run's
+``EvolutionConfig.mode`` names its algorithm.
 
 A generation:
 1. every survivor's age grows by one;
-2. every survivor makes one mutated child (which inherits its parent's age and differs from
-   it in phenotype, see ``mutate_genotype``); in ``mode="afpo"`` one random newcomer of age
-   0 joins too;
+2. the algorithm's variations make the new individuals, in order: for both built-in ones
+   every survivor makes one mutated child (which inherits its parent's age and differs from
+   it in phenotype, see ``mutate_genotype``); in ``afpo`` one random newcomer of age 0 joins
+   too; a generation without any new individual gets one newcomer;
 3. the new individuals are handed out by :meth:`Evolution.ask` and their results come back
    through :meth:`Evolution.tell`;
 4. survivors and offspring together (parents survive: a (mu + mu) scheme) are cut back to
-   ``population_size``:
-   - ``mode="pareto"``, the paper's algorithm (its section 2.4: three objectives, mutation
+   ``population_size`` by the algorithm's survival:
+   - ``pareto``, the paper's algorithm (its section 2.4: three objectives, mutation
      only; evosoro's ``ParetoOptimization``, tools/algorithms.py:97-148, 156-158): over the
      three objectives alone, by evosoro's ``pareto_selection``
      (``selection.evosoro_survivors``: levels by dominance count, the newer of identical
      twins preferred, a log-biased random pick within the level that does not fit);
-   - ``mode="afpo"`` (Schmidt & Lipson 2011, the remedy the paper names for premature
+   - ``afpo`` (Schmidt & Lipson 2011, the remedy the paper names for premature
      convergence): over the objectives plus age (minimised), by successive non-dominated
      fronts; the front that does not fit whole is cut by crowding distance, then by lower id
      (the older individual) (``selection.select_survivors``).
@@ -60,20 +66,64 @@ from softevo.evolution.genotype import (
     mutate_developed,
     random_viable,
 )
-from softevo.evolution.individual import FAILED_DISTANCE, Evaluation, Individual
+from softevo.evolution.individual import Individual
+from softevo.evolution.operators import (
+    Candidates,
+    Survival,
+    Variation,
+    evosoro_survival,
+    mutate_each,
+    nsga2_survival,
+    random_newcomers,
+)
+from softevo.evolution.outcome import Outcome
 from softevo.evolution.selection import (
     AGE_OBJECTIVE,
     PAPER_OBJECTIVES,
     Objective,
-    evosoro_survivors,
     objective_matrix,
     objective_named,
     objective_values,
-    select_survivors,
 )
 from softevo.sim import models
+from softevo.sim.registry import Registry
 
-ALGORITHMS = ("afpo", "pareto")  # the algorithms (EvolutionConfig.mode): see the module doc
+
+@dataclass(frozen=True)
+class Algorithm:
+    """An algorithm as a record of operators (``evolution.operators``): ``name`` (a run's
+    ``EvolutionConfig.mode``), ``survival`` (cuts survivors and offspring back to the
+    population size), ``variations`` (each makes part of a generation's new individuals
+    from the survivors, their offspring joined in order), ``objectives`` it adds to the
+    run's for selection (AFPO's ``age``, the one objective given at selection rather than
+    computed; one with a value function is computed for each evaluation as the run's are)
+    and a one-line ``description``."""
+
+    name: str
+    survival: Survival
+    variations: tuple[Variation, ...] = (mutate_each,)
+    objectives: tuple[Objective, ...] = ()
+    description: str = ""
+
+
+AFPO = Algorithm(
+    "afpo", nsga2_survival, (mutate_each, random_newcomers(1)), (AGE_OBJECTIVE,),
+    "Age-Fitness Pareto Optimisation: the objectives plus age, one random newcomer a generation")
+PARETO = Algorithm(
+    "pareto", evosoro_survival, (mutate_each,), (),
+    "the paper's: evosoro's Pareto selection over the objectives, mutation only")
+
+ALGORITHMS: Registry[Algorithm] = Registry("algorithm", (AFPO, PARETO))
+"""The algorithms a run may name (``EvolutionConfig.mode``, a treatment's ``algorithm``)."""
+register, unregister, get = ALGORITHMS.register, ALGORITHMS.unregister, ALGORITHMS.get
+
+
+def names() -> tuple[str, ...]:
+    """The registered algorithms' names, the built-in ones first (the choices of ``softevo
+    run --algorithm`` and of REST)."""
+    return ALGORITHMS.names()
+
+
 PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
 
 PASSIVE_DISTANCE = 0.0  # a body without an active voxel: it cannot move itself (issue 49.7)
@@ -86,8 +136,8 @@ class EvolutionConfig:
     evaluation: the ``EvaluationSpec`` of the run's evaluations (its ``environment`` is the
     starting world; ``encoding`` develops the genomes the algorithm breeds); descriptors:
     compute shape descriptors at each tell (off where the evaluator computes them, as the
-    workers do); objectives: what selection optimises (``selection.Objective``s; age is
-    added in ``mode="afpo"``).
+    workers do); objectives: what selection optimises (``selection.Objective``s; the
+    algorithm may add its own: ``afpo`` adds age); mode: the registered algorithm's name.
     """
 
     population_size: int = PAPER_POPULATION
@@ -99,7 +149,7 @@ class EvolutionConfig:
 
     def __post_init__(self) -> None:
         if self.mode not in ALGORITHMS:
-            raise ValueError(f"mode must be one of {ALGORITHMS} (got {self.mode!r})")
+            raise ValueError(f"mode must be one of {names()} (got {self.mode!r})")
         if self.evaluation.model not in models.names():
             raise ValueError(f"model must be one of {models.names()} (got {self.evaluation.model!r})")
         if self.population_size < 1:
@@ -115,8 +165,20 @@ class EvolutionConfig:
         return self.evaluation.encoding
 
     @property
+    def algorithm(self) -> Algorithm:
+        """The registered algorithm ``mode`` names."""
+        return ALGORITHMS.get(self.mode)
+
+    @property
     def selection_objectives(self) -> tuple[Objective, ...]:
-        return self.objectives + ((AGE_OBJECTIVE,) if self.mode == "afpo" else ())
+        """The run's objectives, then those its algorithm adds."""
+        return self.objectives + self.algorithm.objectives
+
+    @property
+    def computed_objectives(self) -> tuple[Objective, ...]:
+        """The objectives computed for each evaluation: those of ``selection_objectives``
+        with a value function (age, given at selection, is not)."""
+        return tuple(o for o in self.selection_objectives if o.value is not None)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON: the evaluation as its dict, each objective as [name, direction]."""
@@ -179,7 +241,7 @@ class Evolution:
             if self.started:
                 self._breed()
             else:
-                self.pending = [self._newcomer() for _ in range(self.config.population_size)]
+                self.pending = [self.newcomer() for _ in range(self.config.population_size)]
                 self.started = True
             self._fill_known()
         asked = [ind for ind in self.pending if not ind.evaluated]
@@ -188,22 +250,23 @@ class Evolution:
             raise RuntimeError(f"a survivor would be simulated again in {self.environment}")
         return asked
 
-    def tell(self, evaluations: Sequence[Any] | Mapping[int, Any]) -> None:
-        """Record results: a mapping {individual id: result} or a sequence in ``ask`` order.
-
-        A result is anything ``Evaluation.coerce`` accepts. When every pending individual has
-        its result, survivors are selected and the generation is complete.
-        """
+    def tell(self, outcomes: Sequence[Outcome] | Mapping[int, Outcome]) -> None:
+        """Record outcomes (``evolution.outcome.Outcome``): a mapping {individual id: outcome}
+        or a sequence in ``ask`` order. When every pending individual has its outcome,
+        survivors are selected and the generation is complete. TypeError for anything but
+        an ``Outcome``."""
         waiting = {ind.id: ind for ind in self.pending if not ind.evaluated}
-        if not isinstance(evaluations, Mapping):
+        if not isinstance(outcomes, Mapping):
             asked = list(waiting.values())
-            if len(evaluations) != len(asked):
-                raise ValueError(f"expected {len(asked)} evaluations, got {len(evaluations)}")
-            evaluations = {ind.id: value for ind, value in zip(asked, evaluations, strict=True)}
-        for ind_id, value in evaluations.items():
+            if len(outcomes) != len(asked):
+                raise ValueError(f"expected {len(asked)} outcomes, got {len(outcomes)}")
+            outcomes = {ind.id: value for ind, value in zip(asked, outcomes, strict=True)}
+        for ind_id, outcome in outcomes.items():
             if ind_id not in waiting:
                 raise KeyError(f"individual {ind_id} is not awaiting evaluation")
-            self._record(waiting[ind_id], Evaluation.coerce(value))
+            if not isinstance(outcome, Outcome):
+                raise TypeError(f"individual {ind_id}: an Outcome, not {type(outcome).__name__}")
+            self._record(waiting[ind_id], outcome)
         if all(ind.evaluated for ind in self.pending):
             self._select()
 
@@ -228,28 +291,31 @@ class Evolution:
         self.next_id += 1
         return self.next_id - 1
 
-    def _newcomer(self) -> Individual:
+    def newcomer(self) -> Individual:
+        """A random viable individual of age 0, born in this generation."""
         encoding = self.config.encoding
         genome, phenotype = random_viable(self.rng, encoding)
         newcomer = Individual(self._new_id(), None, self.generation, 0, genome)
         newcomer.developed(encoding, phenotype)
         return newcomer
 
+    def mutant(self, parent: Individual) -> Individual:
+        """A mutated child of ``parent``, born in this generation at its parent's age."""
+        encoding = self.config.encoding
+        genome, ops, _, phenotype = mutate_developed(
+            parent.genome, parent.phenotype(encoding), self.rng, encoding
+        )
+        child = Individual(self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops)
+        child.developed(encoding, phenotype)
+        return child
+
     def _breed(self) -> None:
         self.generation += 1
         for ind in self.population:
             ind.age += 1
-        offspring, encoding = [], self.config.encoding
-        for parent in self.population:
-            genome, ops, _, phenotype = mutate_developed(
-                parent.genome, parent.phenotype(encoding), self.rng, encoding
-            )
-            child = Individual(self._new_id(), parent.id, self.generation, parent.age, genome, mutations=ops)
-            child.developed(encoding, phenotype)
-            offspring.append(child)
-        if self.config.mode == "afpo" or not self.population:
-            offspring.append(self._newcomer())
-        self.pending = offspring
+        offspring = [child for variation in self.config.algorithm.variations
+                     for child in variation(self, list(self.population))]
+        self.pending = offspring or [self.newcomer()]
         self.not_simulated = {"reused": 0, "empty": 0, "passive": 0}
 
     def _fill_known(self) -> None:
@@ -267,15 +333,15 @@ class Evolution:
             phenotype = ind.phenotype(self.config.encoding)
             twin = known.get(phenotype.phenotype_hash())
             if phenotype.voxel_count == 0:
-                self._record(ind, Evaluation(FAILED_DISTANCE, False, "empty body"))
+                self._record(ind, Outcome.failure("empty body"))
                 self.not_simulated["empty"] += 1
             elif self.config.encoding.rejects_invalid and not is_viable(phenotype, self.config.encoding):
-                self._record(ind, Evaluation(FAILED_DISTANCE, False, "invalid body"))
+                self._record(ind, Outcome.failure("invalid body"))
                 self.not_simulated["empty"] += 1
             elif phenotype.active_share == 0:
                 # no active voxel: it cannot move itself, and what a simulation would measure is
                 # its fall (a tower toppling after settling travels 1.6 voxel lengths): 0
-                self._record(ind, Evaluation(PASSIVE_DISTANCE, True, None), describe=True)
+                self._record(ind, Outcome(PASSIVE_DISTANCE), describe=True)
                 self.not_simulated["passive"] += 1
             elif twin is not None:
                 self.not_simulated["reused"] += 1
@@ -284,13 +350,15 @@ class Evolution:
                 ind.environment, ind.stable, ind.error = self.environment, twin.stable, twin.error
                 ind.evaluated_generation = self.generation
 
-    def _record(self, ind: Individual, evaluation: Evaluation, describe: bool = False) -> None:
-        """Give ``ind`` an evaluation made here, not by a worker; its descriptors too with
-        ``config.descriptors`` or ``describe`` (a passive body: no worker describes it)."""
+    def _record(self, ind: Individual, outcome: Outcome, describe: bool = False) -> None:
+        """Give ``ind`` its ``outcome`` (the objectives computed from it, its descriptors);
+        descriptors measured here with ``config.descriptors`` or ``describe`` (a passive
+        body: no worker describes it)."""
         phenotype = ind.phenotype(self.config.encoding)
-        ind.objectives = objective_values(self.config.objectives, evaluation, phenotype)
+        ind.objectives = objective_values(self.config.computed_objectives, outcome, phenotype)
         ind.environment = self.environment
-        ind.stable, ind.error = evaluation.stable, evaluation.error
+        ind.stable, ind.error = outcome.stable, outcome.error
+        ind.descriptors = outcome.descriptors
         ind.evaluated_generation = self.generation
         if (self.config.descriptors or describe) and phenotype.voxel_count:
             from softevo.evolution.descriptors import describe_phenotype
@@ -304,12 +372,9 @@ class Evolution:
         valid = np.array([not ind.failed for ind in combined])
         # rows in id order, so "lower index" in select_survivors means "lower id"
         order = np.argsort([ind.id for ind in combined], kind="stable")
-        size = self.config.population_size
-        if self.config.mode == "pareto":
-            ages = np.array([ind.age for ind in combined])[order]
-            kept = evosoro_survivors(F[order], size, ages, self.rng, valid[order])
-        else:
-            kept = select_survivors(F[order], size, valid[order])
+        ages = np.array([ind.age for ind in combined])
+        candidates = Candidates(F[order], self.config.selection_objectives, ages[order], valid[order])
+        kept = self.config.algorithm.survival(candidates, self.config.population_size, self.rng)
         self.population = [combined[i] for i in order[kept]]
         self.pending = []
 

@@ -10,7 +10,7 @@ A gradual transition moves a population from world A to world B over a span of `
 generations (``--switch-over G``). At the ``k``-th generation of the span (``k = 0..G-1``)
 every evaluation runs in the compound world ``A>B@s`` with ``s = (k + 1) / (G + 1)``: a share
 ``1 - s`` of its actuation cycles in A, then ``s`` in B (``evolution.evaluation.evaluation_scenes``
-builds the two scenes, ``evolution.evaluation.compound_outcome`` adds their distances). The share is written
+builds the two scenes, ``evolution.outcome.Outcome.combine`` adds their distances). The share is written
 with three decimals and read back from the name, so the name alone (stored in
 ``evaluations.environment``, at most 20 characters) says exactly what was simulated.
 

@@ -1,5 +1,4 @@
-"""What one evaluation is (``EvaluationSpec``), the scenes it simulates, and the outcome
-they add up to.
+"""What one evaluation is (``EvaluationSpec``) and the scenes it simulates.
 
 ``EvaluationSpec`` is the one carrier of an evaluation's parameters: its world, Young's
 modulus, cycles, physics model, cap on seconds and the encoding that develops the genome. A
@@ -12,9 +11,9 @@ carries it (``EvolutionConfig.evaluation``), and so does every task a worker rec
 the simulator runs: one scene for a pure world (``Phenotype.to_scene``), one scene per part
 of a compound world (``evolution.environments``: ``land>water@0.250`` runs 75% of the cycles, and
 of the cap on seconds, on land, then 25% in water, each part from rest).
-``compound_outcome(outcomes)`` is the evaluation of those parts: their distances added,
-stable if every part is. The local run loop (``evolution.runner``) and the workers
-(``worker.tasks.scenes_of``, ``worker.evaluate``) both evaluate through these two.
+``Outcome.combine`` (``evolution.outcome``) is the evaluation of those parts: their distances
+added, stable if every part is. Every evaluation (the coordinator's, ``softevo.evolve``'s) goes
+through the workers (``worker.tasks.scenes_of``, ``worker.evaluate``), which use these two.
 """
 
 from __future__ import annotations
@@ -156,51 +155,3 @@ def evaluation_scenes(
             scene["duration"] = duration_of(cycles, max_seconds, share)
         scenes.append(scene)
     return scenes
-
-
-@dataclass(frozen=True)
-class CompoundOutcome:
-    """The evaluation of a compound world's parts, read as a ``sim.Result`` is read."""
-
-    distance: float
-    stable: bool
-    reason: str | None
-    steps: int = 0  # the parts' steps and simulated seconds, summed (what it cost)
-    simulated_seconds: float = 0.0
-
-
-def compound_outcome(outcomes: list[Any]) -> Any:
-    """One outcome from the parts' outcomes (each a ``sim.Result``, an ``Evaluation``, a
-    mapping with ``distance`` / ``stable`` / ``reason`` or ``error``, or an exception): the
-    first exception if any part raised; else distance = the sum of the parts' distances
-    (each the distance its part travelled in its own world and share of the time), stable if
-    every part is (else the first unstable part's reason). One part is returned as it is."""
-    if len(outcomes) == 1:
-        return outcomes[0]
-    for outcome in outcomes:
-        if isinstance(outcome, BaseException):
-            return outcome
-    parts = [_distance_stable_reason(outcome) for outcome in outcomes]
-    unstable = [reason for _, stable, reason in parts if not stable]
-    return CompoundOutcome(
-        distance=float(sum(distance for distance, _, _ in parts)),
-        stable=not unstable,
-        reason=unstable[0] if unstable else None,
-        steps=int(sum(_cost(outcome, "steps") for outcome in outcomes)),
-        simulated_seconds=float(sum(_cost(outcome, "simulated_seconds") for outcome in outcomes)),
-    )
-
-
-def _field(outcome: Any, name: str) -> Any:
-    """Field ``name`` of one part's outcome, a mapping or an object (None where it has none)."""
-    return outcome.get(name) if isinstance(outcome, Mapping) else getattr(outcome, name, None)
-
-
-def _cost(outcome: Any, name: str) -> float:
-    """``steps`` or ``simulated_seconds`` of one part's outcome (0 where it has none)."""
-    return float(_field(outcome, name) or 0)
-
-
-def _distance_stable_reason(outcome: Any) -> tuple[float, bool, str | None]:
-    return (float(_field(outcome, "distance")), bool(_field(outcome, "stable")),
-            _field(outcome, "reason") or _field(outcome, "error"))

@@ -1,64 +1,12 @@
-"""Individuals and their evaluations, as plain data with JSON round trips, and the score of
-a failed evaluation: ``FAILED_DISTANCE``, given by ``score`` to an unstable result or a NaN
-or infinite distance (the workers score every simulation with it)."""
+"""Individuals as plain data with JSON round trips. What an evaluation returns is an
+``evolution.outcome.Outcome``."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from softevo.evolution.genotype import EncodingConfig, Genotype, Phenotype, develop
-
-FAILED_DISTANCE = 0.0
-"""Distance given to a failed or unstable evaluation (the simulator's own convention).
-Selection also ranks such an individual behind every successful one (see afpo.py)."""
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """What an evaluation returns: distance in voxel lengths, stability, an error message."""
-
-    distance: float
-    stable: bool = True
-    error: str | None = None
-
-    @property
-    def ok(self) -> bool:
-        return self.stable and self.error is None
-
-    @classmethod
-    def coerce(cls, value: Any) -> Evaluation:
-        """Accept an Evaluation, a sim ``Result`` (attributes distance/stable/reason), a dict
-        with the same keys (``error`` or ``reason``), an exception (a crash) or None."""
-        if isinstance(value, Evaluation):
-            return value
-        if value is None:
-            return cls(FAILED_DISTANCE, False, "no result")
-        if isinstance(value, BaseException):
-            return cls(FAILED_DISTANCE, False, f"{type(value).__name__}: {value}")
-        get = value.get if isinstance(value, dict) else lambda k, d=None: getattr(value, k, d)
-        stable = bool(get("stable", True))
-        error = get("error", None) or None
-        reason = error or (None if stable else get("reason", None))
-        evaluation = score(float(get("distance", FAILED_DISTANCE)), stable, reason)
-        if error is not None and evaluation.ok:  # an error fails even a stable result
-            evaluation = cls(FAILED_DISTANCE, True, str(error))
-        return evaluation
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"distance": self.distance, "stable": self.stable, "error": self.error}
-
-
-def score(distance: float, stable: bool, reason: str | None = None) -> Evaluation:
-    """The score of a finished simulation: an unstable result, or a NaN or infinite
-    distance, scores ``FAILED_DISTANCE`` (unstable, ``reason`` or what went wrong as its
-    error); a stable finite one keeps its distance."""
-    if not stable:
-        return Evaluation(FAILED_DISTANCE, False, str(reason) if reason else "unstable")
-    if not math.isfinite(distance):
-        return Evaluation(FAILED_DISTANCE, False, str(reason) if reason else "non-finite distance")
-    return Evaluation(float(distance), True, None)
 
 
 @dataclass

@@ -1,20 +1,18 @@
-"""A local run: ask/evaluate/tell over generations with any evaluate function.
+"""A local run: ask/evaluate/tell over generations with one evaluate function.
 
-A generation, here as in the coordinator (``service.runs.coordinator``), which asks through the
-same ``ask_generation``:
+A generation, here as in the coordinator (``service.runs.coordinator``), which asks and
+tells through the same ``ask_generation`` and ``tell_generation``:
 1. ``ask_generation``: the algorithm breeds (``Evolution.ask``); at the first generation of
    a new environment of the ``Schedule``, ``Schedule.switch`` then moves survivors and
    offspring there (``reevaluate_all``) and all of them are asked again, to be evaluated in
    that same generation;
-2. ``evaluations``: each asked individual's scenes (``evolution.evaluation.evaluation_scenes``,
-   one per part of a compound world such as ``land>water@0.250``) go to ``evaluate`` in one
-   call, and the parts' outcomes are joined (``evolution.evaluation.compound_outcome``);
-3. ``Evolution.tell``; then ``on_generation`` sees the completed generation.
+2. ``evaluate(algorithm, asked, generation)`` gives each asked individual's
+   ``evolution.outcome.Outcome`` by id: the workers' ``worker.evaluate.evaluate_generation``
+   (``softevo.evolve``), which splits a compound world into its parts and combines their
+   outcomes as every executor does;
+3. ``tell_generation``; then ``on_generation`` sees the completed generation.
 
-``evaluate`` receives a list of scene dicts (docs/spec.md section 1) and returns one result per
-scene, in order: a ``sim.Result``, a dict with ``distance`` / ``stable`` / ``reason``, an
-``Evaluation`` or an exception instance (see ``Evaluation.coerce``). ``sim.simulate_many``
-fits as is. Nothing here touches processes, queues or databases.
+Nothing here touches processes, queues or databases.
 """
 
 from __future__ import annotations
@@ -25,12 +23,11 @@ from typing import Any
 
 from softevo.evolution import environments, traits
 from softevo.evolution.algorithm import Evolution, EvolutionConfig
-from softevo.evolution.evaluation import compound_outcome
 from softevo.evolution.individual import Individual
+from softevo.evolution.outcome import Outcome
 from softevo.evolution.schedule import Schedule
 
-Evaluate = Callable[[list[dict[str, Any]]], Sequence[Any]]
-EvaluateGeneration = Callable[[Evolution, list[Individual], int], Mapping[int, Any]]
+Evaluate = Callable[[Evolution, list[Individual], int], Mapping[int, Outcome]]
 OnGeneration = Callable[[Evolution], None]
 
 
@@ -54,43 +51,17 @@ def individual_scenes(algorithm: Evolution, ind: Individual) -> list[dict[str, A
     return spec.scenes(ind.phenotype(spec.encoding))
 
 
-def evaluations(algorithm: Evolution, asked: Sequence[Individual], evaluate: Evaluate) -> list[Any]:
-    """One outcome per asked individual, in order, from one ``evaluate`` call over all their
-    scenes; a crashing ``evaluate`` fails the batch (each outcome is its exception), never
-    the run."""
-    scenes = [individual_scenes(algorithm, ind) for ind in asked]
-    flat = [scene for parts in scenes for scene in parts]
-    try:
-        outcomes = list(evaluate(flat)) if flat else []
-    except Exception as exc:
-        outcomes = [exc] * len(flat)
-    joined, offset = [], 0
-    for parts in scenes:
-        joined.append(compound_outcome(outcomes[offset : offset + len(parts)]))
-        offset += len(parts)
-    return joined
-
-
-def scene_evaluator(evaluate: Evaluate) -> EvaluateGeneration:
-    """An ``EvaluateGeneration`` of a function over scenes (``evaluations``)."""
-
-    def evaluate_generation(algorithm: Evolution, asked: list[Individual], generation: int):
-        return {ind.id: outcome for ind, outcome in zip(asked, evaluations(algorithm, asked, evaluate),
-                                                        strict=True)}
-
-    return evaluate_generation
-
-
-def tell_generation(algorithm: Evolution, asked: Sequence[Individual], results: Mapping[int, Any]) -> None:
-    """Tell the algorithm the results of the asked individuals ({id: result}); a result that
-    is a dict with ``descriptors`` (a worker's ``TaskResult`` JSON) gives its individual
-    those, and each registered trait (``evolution.traits.computed``) joins them."""
-    for ind in asked:
-        result = results[ind.id]  # KeyError for a lost result: a bug, never a silent failure
-        if isinstance(result, Mapping) and "descriptors" in result:
-            ind.descriptors = result["descriptors"]
+def tell_generation(
+    algorithm: Evolution, asked: Sequence[Individual], outcomes: Mapping[int, Outcome]
+) -> None:
+    """Tell the algorithm the outcomes of the asked individuals ({id: ``Outcome``}; an
+    outcome's descriptors become its individual's), then each registered trait
+    (``evolution.traits.computed``) joins the descriptors."""
     generation, evaluated = algorithm.generation, list(algorithm.pending)
-    algorithm.tell({ind.id: results[ind.id] for ind in asked})
+    told = {}
+    for ind in asked:
+        told[ind.id] = outcomes[ind.id]  # KeyError for a lost outcome: a bug, never a silent failure
+    algorithm.tell(told)
     # the registered traits (evolution.traits), measured on the phenotype of every individual
     # evaluated at this generation: asked, or evaluated without a simulation (a twin, a passive body)
     for ind in evaluated:
@@ -188,32 +159,27 @@ def next_generation(algorithm: Evolution) -> int:
 
 def run(
     config: EvolutionConfig,
-    evaluate: Evaluate | None,
+    evaluate: Evaluate,
     generations: int,
     *,
     schedule: Schedule | None = None,
     algo: Evolution | None = None,
     on_generation: OnGeneration | None = None,
     progress: bool = False,
-    evaluate_generation: EvaluateGeneration | None = None,
 ) -> Evolution:
     """Run (or continue ``algo``) until ``generations`` generations after generation 0 are
-    complete; returns the algorithm. Each generation's individuals go to ``evaluate`` (a
-    function over scenes, ``scene_evaluator``) or, given instead, ``evaluate_generation``
-    (e.g. the workers' ``worker.evaluate.evaluate_generation``). ``schedule`` (default:
-    the config's world for every generation) gives each generation's world, pure or
-    compound; a generation that starts a new one is evaluated there whole, survivors
-    included (``ask_generation``). ``on_generation`` is called after each completed
-    generation."""
-    if (evaluate is None) == (evaluate_generation is None):
-        raise TypeError("give one of evaluate and evaluate_generation")
-    evaluate_generation = evaluate_generation or scene_evaluator(evaluate)
+    complete; returns the algorithm. Each generation's asked individuals go to ``evaluate``
+    (the workers' ``worker.evaluate.evaluate_generation``, or one with a stand-in simulator
+    in tests). ``schedule`` (default: the config's world for every generation) gives each
+    generation's world, pure or compound; a generation that starts a new one is evaluated
+    there whole, survivors included (``ask_generation``). ``on_generation`` is called after
+    each completed generation."""
     algo = algo if algo is not None else Evolution(config)
     schedule = schedule or Schedule.static(config.evaluation.environment)
     bar = _ProgressBar(generations + 1 - next_generation(algo)) if progress else None
     for generation in range(next_generation(algo), generations + 1):
         asked = ask_generation(algo, schedule, generation)
-        tell_generation(algo, asked, evaluate_generation(algo, asked, generation))
+        tell_generation(algo, asked, evaluate(algo, asked, generation))
         if on_generation is not None:
             on_generation(algo)
         if bar is not None:

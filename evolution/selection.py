@@ -20,24 +20,26 @@ from typing import Any
 
 import numpy as np
 
-
-def _distance(evaluation: Any, phenotype: Any) -> float:
-    return evaluation.distance
+from softevo.sim.registry import Registry
 
 
-def _active_share(evaluation: Any, phenotype: Any) -> float:
+def _distance(outcome: Any, phenotype: Any) -> float:
+    return outcome.distance
+
+
+def _active_share(outcome: Any, phenotype: Any) -> float:
     return phenotype.active_share
 
 
-def _voxel_count(evaluation: Any, phenotype: Any) -> float:
+def _voxel_count(outcome: Any, phenotype: Any) -> float:
     return float(phenotype.voxel_count)
 
 
 @dataclass(frozen=True)
 class Objective:
     """An objective declared as data: ``name`` (the key in an individual's objectives),
-    ``direction`` "max" or "min", and ``value(evaluation, phenotype) -> float``, how its value
-    is computed from an ``individual.Evaluation`` and the individual's ``genotype.Phenotype``
+    ``direction`` "max" or "min", and ``value(outcome, phenotype) -> float``, how its value
+    is computed from an ``outcome.Outcome`` and the individual's ``genotype.Phenotype``
     (None: the value is given, as ``age`` is at selection time). Two objectives are equal
     when name and direction are."""
 
@@ -59,7 +61,7 @@ PAPER_OBJECTIVES: tuple[Objective, ...] = (
 )
 AGE_OBJECTIVE = Objective("age", "min")
 
-OBJECTIVES: dict[str, Objective] = {o.name: o for o in PAPER_OBJECTIVES}
+OBJECTIVES: Registry[Objective] = Registry("objective", PAPER_OBJECTIVES)
 """The objectives a run may be configured with, by name: the paper's and any registered."""
 
 
@@ -73,25 +75,24 @@ def register_objective(objective: Objective) -> Objective:
         raise ValueError(f"objective name {objective.name!r}: an identifier of at most 64 characters")
     if objective.value is None:
         raise ValueError(f"objective {objective.name}: needs a value function")
-    if objective.name in OBJECTIVES or objective.name == AGE_OBJECTIVE.name:
+    if objective.name == AGE_OBJECTIVE.name:
         raise ValueError(f"objective {objective.name!r} is already registered")
-    OBJECTIVES[objective.name] = objective
-    return objective
+    return OBJECTIVES.register(objective)
 
 
 def unregister_objective(name: str) -> None:
     """Undo ``register_objective`` (the paper's objectives stay)."""
-    if any(o.name == name for o in PAPER_OBJECTIVES):
+    if name in (o.name for o in PAPER_OBJECTIVES):
         raise ValueError(f"objective {name!r} is one of the paper's")
-    OBJECTIVES.pop(name, None)
+    OBJECTIVES.unregister(name)
 
 
 def objective_named(name: str, direction: str | None = None) -> Objective:
     """The registered objective ``name``; ValueError for an unknown name or a ``direction``
     other than the registered one."""
+    if name not in OBJECTIVES:
+        raise ValueError(f"unknown objective {name!r}; registered: {', '.join(OBJECTIVES.names())}")
     objective = OBJECTIVES.get(name)
-    if objective is None:
-        raise ValueError(f"unknown objective {name!r}; registered: {', '.join(OBJECTIVES)}")
     if direction is not None and direction != objective.direction:
         raise ValueError(f"objective {name!r} is {objective.direction}imised (got {direction!r})")
     return objective
@@ -102,14 +103,14 @@ def objectives_named(names: Sequence[str]) -> tuple[Objective, ...]:
     return tuple(objective_named(n) for n in names) if names else PAPER_OBJECTIVES
 
 
-def objective_values(objectives: Sequence[Objective], evaluation: Any, phenotype: Any) -> dict[str, float]:
-    """{name: value} of each objective for one evaluation of one phenotype, in order: the
+def objective_values(objectives: Sequence[Objective], outcome: Any, phenotype: Any) -> dict[str, float]:
+    """{name: value} of each objective for one outcome of one phenotype, in order: the
     one place an individual's objectives are computed."""
     values = {}
     for objective in objectives:
         if objective.value is None:
             raise ValueError(f"objective {objective.name}: has no value function")
-        values[objective.name] = objective.value(evaluation, phenotype)
+        values[objective.name] = objective.value(outcome, phenotype)
     return values
 
 

@@ -17,7 +17,8 @@ treatments start from the same population, and the ``study`` scale starts past t
 The algorithm and the physics: ``algorithm`` is ``pareto`` (the paper's plain 3-objective
 Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
 ``evolution.algorithm``) or ``afpo`` (Age-Fitness Pareto, a named variant: the remedy the paper
-names for its algorithm's loss of diversity); ``model`` is the physics model of every
+names for its algorithm's loss of diversity), or any algorithm registered since
+(``evolution.algorithm.register``); ``model`` is the physics model of every
 evaluation's scene (``sim.models.names()``: ``voxelyze-2``, or ``voxcad-land-water``, the
 paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
 encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-logistic`` (the
@@ -54,8 +55,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from softevo.errors import UserError
+from softevo.evolution import algorithm as algorithms
 from softevo.evolution import environments
-from softevo.evolution.algorithm import ALGORITHMS, PAPER_POPULATION, EvolutionConfig
+from softevo.evolution.algorithm import PAPER_POPULATION, EvolutionConfig
 from softevo.evolution.evaluation import EvaluationSpec, encoding_from_settings
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EVOSORO_MAPPINGS, EncodingConfig
 from softevo.evolution.schedule import Schedule
@@ -153,8 +155,9 @@ class Treatment:
             raise UserError(f"workspace sides must be at most {MAX_SIDE} voxels (got {self.workspace})")
         if self.seed < 0:
             raise UserError(f"seed must be >= 0 (got {self.seed})")
-        if self.algorithm not in ALGORITHMS:
-            raise UserError(f"unknown algorithm {self.algorithm!r}; choose afpo or pareto")
+        if self.algorithm not in algorithms.names():
+            choices = ", ".join(algorithms.names())
+            raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of {choices}")
         for name, choices in (("model", models.names()), ("control_mapping", CONTROL_MAPPINGS),
                               ("body_rule", tuple(BODY_RULES))):
             if getattr(self, name) not in choices:

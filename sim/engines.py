@@ -1,6 +1,7 @@
 """The engine registry: which engine runs a batch, and the one error an unusable engine raises.
 
-One ``Engine`` record per engine, the only place an engine is named:
+One ``Engine`` record per engine in the shared registry (``sim.registry.Registry``), the
+only place an engine is named:
 
 - ``numba`` (the default, CPU: ``sim.numba_engine``);
 - ``cuda`` (NVIDIA GPUs through numba-cuda, or its simulator: ``sim.cuda_engine``);
@@ -14,9 +15,10 @@ and no engine imports another: the cuda engine's numba-cuda, say, is loaded only
 is asked for. ``simulate_many``/``simulate`` below are the entry points that dispatch
 (``sim.simulate_many`` is this one).
 
-API: ``ENGINES`` (names), ``DEFAULT``, ``get(name)`` (the record; ``EngineUnavailable``
-for an unknown name), ``module(name)``, ``check_engine(name)``, ``simulate_many``,
-``simulate``.
+API: ``ENGINE_REGISTRY`` (a ``sim.registry.Registry``: ``register``, ``unregister``,
+``names()``), ``ENGINES`` (the built-in names), ``DEFAULT``, ``get(name)`` (the record;
+``EngineUnavailable`` for an unknown name), ``module(name)``, ``check_engine(name)``,
+``simulate_many``, ``simulate``.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ import importlib
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
+
+from softevo.sim.registry import Registry
 
 
 class EngineUnavailable(RuntimeError):
@@ -43,28 +47,28 @@ class Engine:
     description: str
 
 
-_REGISTRY = {e.name: e for e in (
+ENGINE_REGISTRY: Registry[Engine] = Registry("engine", (
     Engine("numba", "softevo.sim.numba_engine", True,
            "CPU, numba: one robot per core (the default)"),
     Engine("cuda", "softevo.sim.cuda_engine", False,
            "NVIDIA GPU through numba-cuda (device cuda:N), or numba-cuda's simulator"),
     Engine("sleep", "softevo.sim.sleep_engine", False,
            "no physics: sleeps each evaluation's modelled cost (device x<speed-up>)"),
-)}
-ENGINES = tuple(_REGISTRY)
+))
+register, unregister, names = ENGINE_REGISTRY.register, ENGINE_REGISTRY.unregister, ENGINE_REGISTRY.names
+ENGINES = names()  # the built-in engines' names (``names()``: with any registered since)
 DEFAULT = "numba"
 
 
 def get(name: str) -> Engine:
     """The engine called ``name``; ``EngineUnavailable`` naming the choices."""
-    try:
-        return _REGISTRY[name]
-    except (KeyError, TypeError):
-        raise EngineUnavailable(f"engine: must be one of {', '.join(ENGINES)} (got {name!r})") from None
+    if not isinstance(name, str) or name not in ENGINE_REGISTRY:
+        raise EngineUnavailable(f"engine: must be one of {', '.join(names())} (got {name!r})")
+    return ENGINE_REGISTRY.get(name)
 
 
 def check_engine(engine: str) -> str:
-    """``engine`` if it is one of ``ENGINES``; else ``EngineUnavailable``."""
+    """``engine`` if it is a registered engine's name; else ``EngineUnavailable``."""
     return get(engine).name
 
 

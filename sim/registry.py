@@ -1,6 +1,7 @@
 """One registry of named records, the shape every registry of softevo shares (worlds,
-physics models, traits): built-in records that stay, records added by ``register`` in the
-order added, lookup with an error that names the choices."""
+physics models, engines, traits, objectives, algorithms): built-in records that stay,
+records added by ``register`` in the order added, lookup with an error that names the
+choices."""
 
 from __future__ import annotations
 
@@ -43,6 +44,10 @@ class Registry(Generic[T]):
         except KeyError:
             choices = ", ".join(self._records)
             raise KeyError(f"unknown {self.kind} {name!r}; choose one of {choices}") from None
+
+    def __getitem__(self, name: str) -> T:
+        """``get(name)``."""
+        return self.get(name)
 
     def __contains__(self, name: object) -> bool:
         return name in self._records

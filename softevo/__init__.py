@@ -81,6 +81,7 @@ def evolve(
     switch_at: int | None = None,
     switch_over: int = 0,
     objectives: tuple[str, ...] = (),
+    algorithm: str | None = None,
     progress: bool = False,
 ):
     """A local run in memory (no database) of the treatment ``softevo run`` would store:
@@ -89,7 +90,8 @@ def evolve(
     ``switch_over`` generations of compound worlds such as ``land>water@0.250``) at
     ``stiffness_mpa``, for ``generations`` generations (0 .. generations - 1), selecting on
     ``objectives`` (names of registered objectives, ``evolution.selection.OBJECTIVES``; empty:
-    the paper's). Unset sizes are the quick start's (``evolution.treatments.QUICK_START``:
+    the paper's), with ``algorithm`` (a registered one, ``evolution.algorithm.names()``;
+    default AFPO). Unset sizes are the quick start's (``evolution.treatments.QUICK_START``:
     land, 1 MPa, 8 robots of 5x5x5 for 8 generations of 4 cycles).
 
     It asks, evaluates and tells as ``softevo run`` does: the tasks go through the workers'
@@ -110,8 +112,9 @@ def evolve(
              "generations": generations, "workspace": workspace, "cycles": cycles}
     sizes = {key: QUICK_START[key] if value is None else value for key, value in given.items()}
     sizes["workspace"] = tuple(sizes["workspace"])
+    chosen = {} if algorithm is None else {"algorithm": algorithm}
     treatment = Treatment(**sizes, seed=seed, switch_at=switch_at, switch_over=switch_over,
-                          objectives=tuple(objectives))
+                          objectives=tuple(objectives), **chosen)
     history: list[dict[str, Any]] = []
     bests: dict = {}
 
@@ -121,12 +124,11 @@ def evolve(
 
     algo = run(
         treatment.evolution_config(seed),
-        None,
+        evaluate_generation,
         treatment.generations - 1,
         schedule=treatment.schedule(),
         on_generation=on_generation,
         progress=progress,
-        evaluate_generation=evaluate_generation,
     )
     return LocalRun(algo, history, bests)
 

@@ -15,11 +15,12 @@ import subprocess
 import sys
 import time
 import traceback
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from softevo.evolution.evaluation import compound_outcome
+from softevo.evolution.outcome import Outcome
 from softevo.worker.tasks import EmptyBody, Task, TaskResult, failed, generation_tasks, scenes_of
 
 ENGINE_ENV, DEVICE_ENV = "SOFTEVO_ENGINE", "SOFTEVO_DEVICE"
@@ -39,32 +40,41 @@ def engine_options() -> dict[str, Any]:
     return options
 
 
-def _simulate(scenes: list[dict], threads: int | None) -> list[Any]:
-    """Results of all scenes in one call; one by one (errors isolated) if the batch fails."""
+Simulate = Callable[[list[dict[str, Any]]], list[Outcome]]
+"""A function over scenes giving one scored ``Outcome`` per scene, in order (``simulate``)."""
+
+
+def simulate(scenes: list[dict], threads: int | None = None) -> list[Outcome]:
+    """The scored outcomes of all scenes from one ``sim.simulate_many`` call on this
+    process's engine; one by one (each failure its own) if the batch fails."""
     from softevo import sim
     from softevo.sim.engines import EngineUnavailable
 
     options = engine_options()
     try:
-        return sim.simulate_many(scenes, threads=threads, **options)
+        return [Outcome.of_result(result) for result in sim.simulate_many(scenes, threads=threads, **options)]
     except EngineUnavailable:
         raise  # this process cannot evaluate at all: no per-genome retry
     except Exception:
-        results = []
+        outcomes = []
         for scene in scenes:
             try:
-                results.append(sim.simulate_many([scene], threads=threads, **options)[0])
+                (result,) = sim.simulate_many([scene], threads=threads, **options)
+                outcomes.append(Outcome.of_result(result))
             except Exception as exc:
-                results.append(exc)
-        return results
+                outcomes.append(Outcome.crash(exc))
+        return outcomes
 
 
-def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> list[dict[str, Any]]:
+def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None,
+                   simulator: Simulate | None = None) -> list[dict[str, Any]]:
     """Evaluate JSON ``tasks`` (``Task.to_json``); JSON results (``TaskResult.to_json``) in the
     same order.
 
-    All robots of the batch run in one ``sim.simulate_many`` call (``threads``: numba threads
-    for it; None keeps the process's setting). On the sleep engine the results carry no shape
+    All robots of the batch run in one call of ``simulator`` (default ``simulate``, the
+    engine's ``sim.simulate_many``; a test may give a stand-in over scenes); ``threads``:
+    numba threads for it (None keeps the process's setting). A compound world's parts are
+    combined by ``Outcome.combine``. On the sleep engine the results carry no shape
     descriptors: its workers stand in for the cluster's in benches and spend no CPU.
     """
     describe = engine_options().get("engine") != "sleep"
@@ -83,24 +93,35 @@ def evaluate_batch(tasks: list[dict[str, Any]], threads: int | None = None) -> l
             results[k] = failed(data, f"{type(exc).__name__}: {exc}", phenotype)
     if runnable:
         start = time.perf_counter()
-        outcomes = _simulate([scene for *_, scenes in runnable for scene in scenes], threads)
+        flat = [scene for *_, scenes in runnable for scene in scenes]
+        outcomes = simulate(flat, threads) if simulator is None else _outcomes(simulator, flat)
         seconds = (time.perf_counter() - start) / len(runnable)
         offset = 0
         for k, task, phenotype, scenes in runnable:
             parts, offset = outcomes[offset : offset + len(scenes)], offset + len(scenes)
             try:
-                results[k] = TaskResult.of(task, phenotype, compound_outcome(parts), seconds, describe)
+                results[k] = TaskResult.of(task, Outcome.combine(parts), phenotype, seconds, describe)
             except Exception as exc:
                 results[k] = failed(task, f"{type(exc).__name__}: {exc}")
     return [result.to_json() for result in results]  # type: ignore[union-attr]
 
 
-def evaluate_generation(algorithm, asked, generation: int, threads: int | None = None) -> dict[int, dict]:
-    """The results ({id: ``TaskResult`` JSON}) of one generation's asked individuals of an
+def _outcomes(simulator: Simulate, scenes: list[dict]) -> list[Outcome]:
+    """``simulator``'s outcomes of ``scenes``; each one the crash when it raises."""
+    try:
+        return list(simulator(scenes))
+    except Exception as exc:
+        return [Outcome.crash(exc)] * len(scenes)
+
+
+def evaluate_generation(algorithm, asked, generation: int, threads: int | None = None,
+                        simulator: Simulate | None = None) -> dict[int, Outcome]:
+    """The outcomes ({id: ``Outcome``}) of one generation's asked individuals of an
     ``evolution.Evolution``, through ``evaluate_batch`` as every executor evaluates them:
-    the ``evolution.runner.EvaluateGeneration`` of ``softevo.evolve``."""
-    results = evaluate_batch(generation_tasks(algorithm, asked, generation), threads)
-    return {result["id"]: result for result in results}
+    the ``evolution.runner.Evaluate`` of ``softevo.evolve`` (``simulator``: as
+    ``evaluate_batch`` takes it)."""
+    results = evaluate_batch(generation_tasks(algorithm, asked, generation), threads, simulator)
+    return {result["id"]: TaskResult.from_json(result).outcome for result in results}
 
 
 def warm_up(threads: int | None = 1) -> None:

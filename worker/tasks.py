@@ -22,18 +22,19 @@
 
 - ``generation_tasks(algorithm, asked, generation)``: the tasks of one generation's asked
   individuals.
-- ``TaskResult``: what an evaluation returns, ``to_json`` / ``from_json`` with the keys
-  ``id, distance, stable, error, voxel_count, active_share, frequency, descriptors,
-  phenotype, seconds``. ``failed(task, reason)`` is the result of any evaluation that could
-  not finish (worst fitness, the reason kept); the score of a finished one follows
-  ``evolution.individual.score``. ``result_problem(data, id)`` says what is wrong with a
+- ``TaskResult``: what an evaluation returns: the task's id, its ``evolution.outcome.Outcome``
+  and the phenotype's fields; ``to_json`` / ``from_json`` with the keys ``id, distance,
+  stable, error, voxel_count, active_share, frequency, descriptors, phenotype, seconds,
+  steps, simulated_seconds`` (the outcome's among them). ``failed(task, reason)`` is the
+  result of any evaluation that could not finish (worst fitness, the reason kept); a
+  finished one is scored by ``Outcome.of_simulation``. ``result_problem(data, id)`` says what is wrong with a
   result received from elsewhere (None: nothing).
 - ``scene_of(task)``: (phenotype, scene) of a task in a pure world, the scene the evaluation
   simulates; ``scenes_of(task)``: (phenotype, scenes) for any world, one scene per part of a
   compound world (``evolution.environments``: a gradual transition's ``land>water@0.250`` runs
   75% of the cycles on land, then 25% in water). Both develop the genome and hand it to
   ``evolution.evaluation.evaluation_scenes``, the path the local run loop takes too;
-  ``evolution.evaluation.compound_outcome`` adds the parts' distances.
+  ``evolution.outcome.Outcome.combine`` adds the parts' distances.
 - ``replay(task, every)``: the evaluation simulated again with frames recorded (the
   simulator is deterministic: the motion is the one that was evaluated).
 - ``EmptyBody``: the error of a genome that develops no voxel (its message is the result's
@@ -51,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from softevo.evolution.evaluation import EvaluationSpec
+from softevo.evolution.outcome import Outcome
 
 DEFAULT_RECORD_FPS = 60.0  # frames per simulated second of a replay without ``every``
 MAX_FRAMES = 2000  # frames a replay keeps at most when ``max_frames`` is given
@@ -142,54 +144,58 @@ def generation_tasks(algorithm, asked, generation: int, run_id: int | None = Non
 
 @dataclass(frozen=True)
 class TaskResult:
-    """The evaluation of one task; see the module doc for its JSON."""
+    """The result of one task: its ``id``, the ``outcome`` (``evolution.outcome.Outcome``:
+    distance, stability, error, shape descriptors, steps and simulated seconds), what the
+    phenotype is (``voxel_count``, ``active_share``, ``frequency``, the ``phenotype`` summary)
+    and the wall ``seconds`` it took (the batch's simulator call shared over its robots).
+    See the module doc for its JSON, the outcome's keys among the others."""
 
     id: int | None
-    distance: float
-    stable: bool
-    error: str | None
+    outcome: Outcome
     voxel_count: int = 0
     active_share: float = 0.0
     frequency: float | None = None
-    descriptors: dict[str, Any] | None = None
     phenotype: dict[str, Any] | None = field(default=None, repr=False)  # body arrays: not in repr
-    seconds: float = 0.0  # wall seconds: the batch's simulator call over its robots
-    steps: int = 0  # the simulator's steps (all parts of a compound world)
-    simulated_seconds: float = 0.0  # simulated time, settling included
-
-    @property
-    def ok(self) -> bool:
-        return self.stable and self.error is None
+    seconds: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
-        return {key: getattr(self, key) for key in self.__dataclass_fields__}  # in field order
+        """The wire format, keys in ``RESULT_KEYS`` order."""
+        fields = {"id": self.id, **self.outcome.to_json(), "voxel_count": self.voxel_count,
+                  "active_share": self.active_share, "frequency": self.frequency,
+                  "phenotype": self.phenotype, "seconds": self.seconds}
+        return {key: fields[key] for key in RESULT_KEYS}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> TaskResult:
-        return cls(**{key: data[key] for key in cls.__dataclass_fields__ if key in data})
+        """The result of its JSON; absent phenotype fields read as their defaults."""
+        return cls(data["id"], Outcome.from_json(data),
+                   **{key: data[key] for key in ENVELOPE_KEYS if key in data})
 
     @classmethod
-    def of(cls, task: Task, phenotype, outcome: Any, seconds: float, describe: bool = True) -> TaskResult:
-        """The result of ``task`` from the simulator's ``outcome`` (a ``sim.Result`` or an
-        exception), scored by ``evolution.individual.score``; ``describe=False`` leaves the
-        shape descriptors out (None: the sleep engine's workers, which measure the system
-        around the simulator, not the robots)."""
-        from softevo.evolution.individual import score
-
-        if isinstance(outcome, BaseException):
-            return failed(task, f"{type(outcome).__name__}: {outcome}", phenotype)
-        stable = bool(outcome.stable)
-        evaluation = score(float(outcome.distance), stable, None if stable else outcome.reason)
+    def of(cls, task: Task | Mapping[str, Any], outcome: Outcome, phenotype=None, seconds: float = 0.0,
+           describe: bool = True) -> TaskResult:
+        """The result of ``task`` (a ``Task`` or its JSON) with ``outcome``, scored already
+        (``Outcome.of_simulation``); with ``phenotype``, its fields and, unless
+        ``describe=False``, its shape descriptors (off for the sleep engine's workers, which
+        measure the system around the simulator, not the robots)."""
+        task_id = task.id if isinstance(task, Task) else task["id"]
+        if phenotype is None:
+            return cls(task_id, outcome, seconds=seconds)
+        descriptors = _descriptors(phenotype) if describe else None
         return cls(
-            task.id,
-            evaluation.distance,
-            evaluation.stable,
-            evaluation.error,
-            **_phenotype_fields(phenotype, describe),
+            task_id,
+            outcome.with_descriptors(descriptors),
+            voxel_count=int(phenotype.voxel_count),
+            active_share=float(phenotype.active_share),
+            frequency=float(phenotype.frequency),
+            phenotype=json_ready(phenotype.summary()),
             seconds=seconds,
-            steps=int(getattr(outcome, "steps", 0) or 0),
-            simulated_seconds=float(getattr(outcome, "simulated_seconds", 0.0) or 0.0),
         )
+
+
+RESULT_KEYS = ("id", "distance", "stable", "error", "voxel_count", "active_share", "frequency",
+               "descriptors", "phenotype", "seconds", "steps", "simulated_seconds")
+ENVELOPE_KEYS = ("voxel_count", "active_share", "frequency", "phenotype", "seconds")
 
 
 def result_problem(data: Any, task_id: Any) -> str | None:
@@ -212,24 +218,9 @@ def result_problem(data: Any, task_id: Any) -> str | None:
 
 def failed(task: Task | Mapping[str, Any], reason: str, phenotype=None) -> TaskResult:
     """The result of an evaluation that could not finish (a bad genome, a crash, a lost
-    job): ``FAILED_DISTANCE``, unstable, ``reason`` as its error. ``task`` may be a ``Task``
-    or its JSON (KeyError without an ``id``)."""
-    from softevo.evolution.individual import FAILED_DISTANCE
-
-    task_id = task.id if isinstance(task, Task) else task["id"]
-    return TaskResult(task_id, FAILED_DISTANCE, False, reason, **_phenotype_fields(phenotype))
-
-
-def _phenotype_fields(phenotype, describe: bool = True) -> dict[str, Any]:
-    if phenotype is None:
-        return {}
-    return {
-        "voxel_count": int(phenotype.voxel_count),
-        "active_share": float(phenotype.active_share),
-        "frequency": float(phenotype.frequency),
-        "descriptors": _descriptors(phenotype) if describe else None,
-        "phenotype": json_ready(phenotype.summary()),
-    }
+    job): ``Outcome.failure(reason)``. ``task`` may be a ``Task`` or its JSON (KeyError
+    without an ``id``)."""
+    return TaskResult.of(task, Outcome.failure(reason), phenotype)
 
 
 def _descriptors(phenotype) -> dict[str, float] | None:
@@ -309,7 +300,6 @@ def replay(
     Raises ``EmptyBody`` for a genome with an empty body.
     """
     from softevo import sim
-    from softevo.evolution.evaluation import compound_outcome
 
     task = task if isinstance(task, Task) else Task.from_json(task)
     phenotype, scenes = scenes_of(task)
@@ -322,7 +312,7 @@ def replay(
     results = sim.simulate_many(scenes, threads=threads)
     voxels = np.asarray(results[0].voxels, dtype=np.int64).reshape(-1, 3)
     t, positions = _joined_frames(results, len(voxels))
-    outcome = compound_outcome(results)
+    outcome = Outcome.combine([Outcome.of_result(result) for result in results])
     index = np.arange(len(t))
     if max_frames is not None and len(t):
         keep = min(len(t), max(1, min(int(max_frames), MAX_FRAMES)))

@@ -22,9 +22,10 @@ from pydantic import (
 )
 from pydantic_core import core_schema
 
+from softevo.evolution import algorithm as algorithms
 from softevo.evolution import environments
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS
-from softevo.evolution.treatments import ALGORITHMS, SCALES, Treatment, model_names
+from softevo.evolution.treatments import SCALES, Treatment, model_names
 from softevo.service.api.schemas_traits import RegisteredTraits, trait_fields
 from softevo.service.runs.executors import EXECUTOR_KINDS
 from softevo.service.runs.limits import MAX_EVALUATION_SECONDS, MAX_WORKSPACE_SIDE, TREATMENT_BOUNDS
@@ -77,8 +78,14 @@ class Model(RegistryEnum):
     choices = staticmethod(lambda: model_names())
 
 
+class Algorithm(RegistryEnum):
+    """A registered algorithm (``evolution.algorithm.names``), one registered after this
+    module was imported included."""
+
+    choices = staticmethod(lambda: algorithms.names())
+
+
 # The domain's choices, read from it (a choice added there is one here too)
-Algorithm = Literal[ALGORITHMS]  # type: ignore[valid-type]
 ControlMapping = Literal[CONTROL_MAPPINGS]  # type: ignore[valid-type]
 BodyRule = Literal[tuple(BODY_RULES)]  # type: ignore[valid-type]
 RunStatusName = Literal[tuple(status.value for status in RunStatus)]  # type: ignore[valid-type]
@@ -148,7 +155,7 @@ class TreatmentIn(Strict):
         Treatment.algorithm,
         description="pareto: the paper's plain 3-objective Pareto optimisation (mutation only); "
         "afpo: Age-Fitness Pareto, a named variant (age objective, one random newcomer a "
-        "generation)")
+        "generation); or a registered algorithm")
     model: Model = Field(
         Treatment.model,
         description="physics model of every evaluation: voxelyze-2, or voxcad-land-water (the "

@@ -33,7 +33,8 @@ from softevo.service.cli.options import (
     say_bare_number,
 )
 
-ALGORITHM_HELP = "pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant)"
+ALGORITHM_HELP = ("pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant) | "
+                  "or one a plugin registers (docs/algorithm.md)")
 MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
 CONTROL_MAPPING_HELP = ("linear (1-5 Hz) | evosoro-logistic (the paper scripts' formula on the logistic "
                         "output, 0-4 Hz) | evosoro-bounded (the bipolar output, clipped at 4 Hz) | evosoro "

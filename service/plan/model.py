@@ -42,6 +42,7 @@ from softevo.errors import UserError
 from softevo.evolution import environments
 from softevo.evolution.algorithm import Evolution
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
+from softevo.evolution.outcome import Outcome
 from softevo.evolution.runner import ask_generation
 from softevo.evolution.treatments import Treatment
 from softevo.service.plan.dispatch import Generation, simulate
@@ -347,8 +348,7 @@ def drive(treatment: Treatment, seed: int) -> list[tuple[str, int, int, int]]:
         pending = list(algorithm.pending)
         born = sum(1 for ind in pending if ind.generation_born == generation)
         out.append((kind_of(treatment, generation), len(asked), len(pending), born))
-        algorithm.tell({ind.id: {"distance": float(fake.random()), "stable": True, "error": None}
-                        for ind in asked})
+        algorithm.tell({ind.id: Outcome(float(fake.random())) for ind in asked})
     return out
 
 

@@ -51,7 +51,7 @@ from softevo.service.runs.locks import RunLocks, holding, locks_for
 from softevo.service.storage.generations import GenerationRecord, record_generation
 from softevo.service.storage.models import RunStatus
 from softevo.service.storage.runs import active_run_ids, run_row, set_run_status
-from softevo.worker.tasks import generation_tasks
+from softevo.worker.tasks import TaskResult, generation_tasks
 
 log = logging.getLogger("softevo.coordinator")
 
@@ -160,9 +160,10 @@ def ask(run: ActiveRun) -> list[dict[str, Any]]:
 
 
 def tell(run: ActiveRun, results: list[dict[str, Any]], seconds: float) -> GenerationRecord:
-    """Tell the algorithm its results; return the generation's record for the database."""
-    by_id = {result["id"]: result for result in results}
-    tell_generation(run.algorithm, run.asked, by_id)
+    """Tell the algorithm its results (``worker.tasks.TaskResult`` JSON: their outcomes);
+    return the generation's record for the database."""
+    by_id = {result.id: result for result in map(TaskResult.from_json, results)}
+    tell_generation(run.algorithm, run.asked, {ind_id: result.outcome for ind_id, result in by_id.items()})
     record = GenerationRecord(run.run_id, run.next_generation)
     record.individuals = [
         _individual_row(run, ind, by_id.get(ind.id))
@@ -198,8 +199,8 @@ def failure_reason(run: ActiveRun) -> str | None:
             f"(a run fails at {FAILED_SHARE_LIMIT:.0%}); most often ({count}): {example}")
 
 
-def _individual_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
-    phenotype = result.get("phenotype") if result else None
+def _individual_row(run: ActiveRun, ind, result: TaskResult | None) -> dict[str, Any]:
+    phenotype = result.phenotype if result else None
     if phenotype is None:
         phenotype = ind.phenotype(run.algorithm.config.encoding).summary()
     return {
@@ -232,7 +233,7 @@ def _trait_columns(run: ActiveRun, ind) -> dict[str, Any]:
     return values
 
 
-def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
+def _evaluation_row(run: ActiveRun, ind, result: TaskResult | None) -> dict[str, Any]:
     return {
         "local_id": ind.id,
         "generation": run.next_generation,
@@ -244,9 +245,9 @@ def _evaluation_row(run: ActiveRun, ind, result: dict | None) -> dict[str, Any]:
         "objectives": dict(ind.objectives),
         "stable": bool(ind.stable),
         "error": ind.error,
-        "seconds": result.get("seconds") if result else None,
-        "steps": result.get("steps") if result else None,
-        "simulated_seconds": result.get("simulated_seconds") if result else None,
+        "seconds": result.seconds if result else None,
+        "steps": result.outcome.steps if result else None,
+        "simulated_seconds": result.outcome.simulated_seconds if result else None,
     }
 
 

@@ -21,7 +21,7 @@ def test_low_damping_reaches_the_simulator(monkeypatch):
 
     monkeypatch.setattr(sensitivity.sim, "simulate_many", spy)
     damped = sensitivity.sim.simulate(_scene())
-    (light,) = sensitivity.with_damping(sensitivity.LOW_DAMPING)([_scene()], threads=1)
+    (light,) = sensitivity.with_damping(sensitivity.LOW_DAMPING)([_scene()])
     assert seen[-1]["material"]["damping_global"] == sensitivity.LOW_DAMPING
     assert seen[-1]["material"]["youngs_modulus"] == 1e6  # the rest of the material kept
     assert light.distance != damped.distance  # the physics sees it

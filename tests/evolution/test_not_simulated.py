@@ -3,10 +3,9 @@ and each generation counts what it did not simulate (reused twins, empty bodies)
 
 import pytest
 
-from softevo.evolution import Evolution
-from softevo.evolution.runner import evaluations
+from softevo.evolution import Evolution, Outcome
 from softevo.evolution.schedule import Schedule
-from tests.evolution.test_afpo import config, fake_evaluate
+from tests.evolution.test_afpo import config, evaluations
 
 
 def test_each_generation_counts_what_it_did_not_simulate():
@@ -24,12 +23,12 @@ def test_each_generation_counts_what_it_did_not_simulate():
         passive = [i for i in algo.pending if i.phenotype(algo.config.encoding).active_share == 0]
         reused = [i for i in algo.pending if i.evaluated and i.error != "empty body" and i not in passive]
         assert counts["reused"] == len(reused)
-        algo.tell(evaluations(algo, asked, fake_evaluate))
+        algo.tell(evaluations(algo, asked))
 
 
 def test_a_survivor_handed_out_again_is_refused():
     algo = Evolution(config())
-    algo.tell(evaluations(algo, algo.ask(), fake_evaluate))
+    algo.tell(evaluations(algo, algo.ask()))
     algo.ask()
     survivor = algo.population[0]
     survivor.clear_evaluation()  # as if it had to be simulated again in the same world
@@ -45,7 +44,7 @@ def test_a_passive_body_is_not_simulated_and_travels_nothing():
     stand-in simulator gives every robot it sees a toppler's 1.62)."""
 
     def toppling(scenes):
-        return [{"distance": 1.62, "stable": True, "reason": None} for _ in scenes]
+        return [Outcome.of_simulation(1.62, True) for _ in scenes]
 
     passive_seen = 0
     for seed in range(40):

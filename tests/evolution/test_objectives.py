@@ -10,6 +10,7 @@ import pytest
 from softevo.evolution.algorithm import Evolution, EvolutionConfig
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig
+from softevo.evolution.outcome import Outcome
 from softevo.evolution.selection import (
     OBJECTIVES,
     PAPER_OBJECTIVES,
@@ -36,7 +37,7 @@ def _run(objectives, generations=4):
                                      descriptors=False))
     for _ in range(generations):
         asked = algo.ask()
-        algo.tell([{"distance": 1.0, "stable": True} for _ in asked])  # the same distance for all
+        algo.tell([Outcome(1.0) for _ in asked])  # the same distance for all
     return algo
 
 

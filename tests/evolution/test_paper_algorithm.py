@@ -23,6 +23,7 @@ from softevo.evolution.genotype import (
     mutate_genotype,
     random_viable_genotype,
 )
+from softevo.evolution.outcome import Outcome
 from softevo.evolution.runner import individual_scenes
 from softevo.evolution.selection import (
     dominance_counts,
@@ -263,7 +264,7 @@ def run_generations(config, generations=3):
     algo = Evolution(config)
     for _ in range(generations + 1):
         asked = algo.ask()
-        algo.tell([{"distance": float(ind.id % 7), "stable": True} for ind in asked])
+        algo.tell([Outcome(float(ind.id % 7)) for ind in asked])
     return algo
 
 

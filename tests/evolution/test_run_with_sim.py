@@ -2,10 +2,10 @@
 
 import pytest
 
-from softevo import sim  # noqa: E402
 from softevo.evolution import EncodingConfig, EvolutionConfig, run
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.runner import best_distance
+from softevo.worker.evaluate import evaluate_generation
 
 
 @pytest.mark.slow
@@ -21,7 +21,7 @@ def test_twenty_generations_on_land_improve_the_best_distance():
     def record(algo):
         best[algo.generation] = best_distance(algo)
 
-    algo = run(config, sim.simulate_many, generations=20, on_generation=record)
+    algo = run(config, evaluate_generation, generations=20, on_generation=record)
     assert algo.generation == 20 and len(algo.population) == 12
     assert sorted(best) == list(range(21))
     assert best[20] > best[0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from softevo import sim
+from softevo.evolution.outcome import Outcome
 from softevo.worker.tasks import TaskResult
 
 
@@ -20,6 +21,6 @@ def test_a_simulation_result_repr_is_short():
 
 def test_a_task_result_repr_leaves_the_phenotype_out():
     body = np.ones((10, 10, 10), int).tolist()
-    result = TaskResult(1, 0.5, True, None, voxel_count=1000, phenotype={"body": body})
+    result = TaskResult(1, Outcome(0.5), voxel_count=1000, phenotype={"body": body})
     assert "phenotype" not in repr(result) and len(repr(result)) < 300
     assert TaskResult.from_json(result.to_json()) == result

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from softevo import sim
-from softevo.evolution.evaluation import EvaluationSpec, compound_outcome, evaluation_scenes
+from softevo.evolution.evaluation import EvaluationSpec, evaluation_scenes
 from softevo.evolution.genotype import EncodingConfig, Genotype, develop, random_viable
+from softevo.evolution.outcome import Outcome
 from softevo.worker.evaluate import evaluate_batch
 from softevo.worker.tasks import Task, TaskResult, json_ready
 from tests.evolution._descriptor_reference import reference_describe
@@ -49,9 +50,9 @@ def reference_results(tasks: list[dict]) -> list[dict]:
     outcomes = sim.simulate_many(all_scenes, threads=1)
     results, offset = [], 0
     for task, phenotype, count in developed:
-        outcome = compound_outcome(outcomes[offset : offset + count])
+        outcome = Outcome.combine([Outcome.of_result(part) for part in outcomes[offset : offset + count]])
         offset += count
-        result = TaskResult.of(task, phenotype, outcome, 0.0, describe=False).to_json()
+        result = TaskResult.of(task, outcome, phenotype, 0.0, describe=False).to_json()
         result["descriptors"] = json_ready(reference_describe(phenotype.body, phenotype.frequency))
         results.append(result)
     return results

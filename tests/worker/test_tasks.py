@@ -4,7 +4,6 @@ replay are the ones its evaluation simulated."""
 from __future__ import annotations
 
 import json
-import types
 
 import numpy as np
 import pytest
@@ -12,9 +11,9 @@ import pytest
 from softevo import sim
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EncodingConfig, random_viable_genotype
-from softevo.evolution.individual import FAILED_DISTANCE
+from softevo.evolution.outcome import FAILED_DISTANCE, Outcome
 from softevo.worker import evaluate
-from softevo.worker.tasks import Task, TaskResult, failed, json_ready, replay, scene_of
+from softevo.worker.tasks import RESULT_KEYS, Task, TaskResult, failed, json_ready, replay, scene_of
 
 ENCODING = EncodingConfig(workspace=(4, 4, 4))
 
@@ -44,7 +43,7 @@ def test_task_json_is_the_wire_format_and_round_trips_exactly():
 
 def test_result_json_round_trips_exactly():
     result = evaluate.evaluate_batch([_task().to_json()], threads=1)[0]
-    assert list(result) == list(TaskResult.__dataclass_fields__)
+    assert list(result) == list(RESULT_KEYS)
     wire = json.loads(json.dumps(result))
     assert TaskResult.from_json(wire).to_json() == wire
 
@@ -52,8 +51,8 @@ def test_result_json_round_trips_exactly():
 def test_failed_is_the_worst_fitness_with_the_reason():
     for task in (_task(), _task().to_json(), {"id": 7}):
         result = failed(task, "boom")
-        assert result.id == 7 and result.distance == FAILED_DISTANCE
-        assert not result.stable and result.error == "boom" and not result.ok
+        assert result.id == 7 and result.outcome.distance == FAILED_DISTANCE
+        assert not result.outcome.stable and result.outcome.error == "boom" and not result.outcome.ok
         assert result.to_json() == {
             "id": 7, "distance": FAILED_DISTANCE, "stable": False, "error": "boom", "voxel_count": 0,
             "active_share": 0.0, "frequency": None, "descriptors": None, "phenotype": None, "seconds": 0.0,
@@ -64,10 +63,10 @@ def test_failed_is_the_worst_fitness_with_the_reason():
 def test_nan_or_unstable_scores_the_failed_distance():
     task = _task()
     phenotype, _ = scene_of(task)
-    nan = types.SimpleNamespace(distance=float("nan"), stable=True, reason=None)
-    unstable = types.SimpleNamespace(distance=3.0, stable=False, reason="diverged")
+    nan = Outcome.of_simulation(float("nan"), True)
+    unstable = Outcome.of_simulation(3.0, False, "diverged")
     for outcome, error in ((nan, "non-finite distance"), (unstable, "diverged")):
-        result = TaskResult.of(task, phenotype, outcome, 0.1)
+        result = TaskResult.of(task, outcome, phenotype, 0.1).outcome
         assert (result.distance, result.stable, result.error) == (FAILED_DISTANCE, False, error)
 
 

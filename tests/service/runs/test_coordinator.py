@@ -71,7 +71,8 @@ def test_a_failing_and_an_unstable_evaluation_are_stored_and_the_run_goes_on(eng
     def simulate_many(scenes, threads=None):
         results = real_simulate(scenes, threads)
         if len(scenes) == 3:  # generation 0: ids 0, 2, 3 simulate; make id 0 diverge
-            results[0] = types.SimpleNamespace(distance=9.9, stable=False, reason="diverged")
+            results[0] = types.SimpleNamespace(distance=9.9, stable=False, reason="diverged", steps=0,
+                                               simulated_seconds=0.0)
         return results
 
     monkeypatch.setattr(evaluate, "scenes_of", express)

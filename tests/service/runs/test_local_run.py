@@ -10,9 +10,9 @@ import dataclasses
 import pytest
 
 import softevo
-from softevo import sim
 from softevo.evolution.runner import run
 from softevo.evolution.treatments import Treatment
+from softevo.worker.evaluate import evaluate_generation
 from tests.service import tinyrun
 
 SMALL = Treatment("water", 0.1, population=4, generations=4, workspace=(3, 3, 3), cycles=1, seed=3)
@@ -53,7 +53,7 @@ def local_survivors(treatment: Treatment) -> dict[int, list[Survivor]]:
 
     run(
         treatment.evolution_config(treatment.seed),
-        sim.simulate_many,
+        evaluate_generation,
         treatment.generations - 1,
         schedule=treatment.schedule(),
         on_generation=record,
