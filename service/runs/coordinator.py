@@ -42,13 +42,13 @@ from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 
 from softevo.errors import UserError
 from softevo.evolution.algorithm import Evolution
+from softevo.evolution.run_status import RunStatus
 from softevo.evolution.runner import ask_generation, tell_generation
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 from softevo.evolution.treatments import Treatment
 from softevo.service.runs.executors import Executor
 from softevo.service.runs.locks import RunLocks, holding, locks_for
 from softevo.service.storage.generations import GenerationRecord, record_generation
-from softevo.service.storage.models import RunStatus
 from softevo.service.storage.runs import active_run_ids, run_row, set_run_status
 from softevo.worker.tasks import generation_tasks
 

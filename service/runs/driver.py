@@ -36,6 +36,7 @@ import threading
 
 from sqlalchemy import Engine
 
+from softevo.evolution.run_status import RunStatus
 from softevo.service.runs.coordinator import (
     ActiveRun,
     Coordinator,
@@ -48,7 +49,6 @@ from softevo.service.runs.coordinator import (
 )
 from softevo.service.runs.executors import Executor
 from softevo.service.runs.locks import RunLocks, redis_error
-from softevo.service.storage.models import RunStatus
 from softevo.service.storage.runs import set_run_status
 
 log = logging.getLogger("softevo.coordinator")
