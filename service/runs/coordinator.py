@@ -1,7 +1,7 @@
 """The coordinator: ask -> dispatch -> tell -> persist, one transaction per generation.
 
 Many runs advance together. With an executor that keeps several generations in flight
-(``submit`` / ``wait``: the RQ executor), each run goes at its own pace (``advance``): as soon
+(``Executor.pipelined``: the RQ executor), each run goes at its own pace (``advance``): as soon
 as one run's generation has all its results, it is told them, committed and its next
 generation dispatched, while the other runs' jobs keep the workers busy; no run waits
 for another's slowest evaluation. With the others (in-process, process pool) each round asks
@@ -318,10 +318,8 @@ class Coordinator:
     @property
     def pipelined(self) -> bool:
         """Whether runs go at their own pace: the executor keeps generations in flight
-        (``submit`` / ``wait``) and does not batch a round's genomes across runs (GPU
-        workers want the whole round in a few large jobs: ``across_runs``)."""
-        in_flight = hasattr(self.executor, "submit") and hasattr(self.executor, "wait")
-        return in_flight and not getattr(self.executor, "across_runs", False)
+        (``submit`` / ``wait``; ``Executor.pipelined``)."""
+        return self.executor.pipelined
 
     def run(
         self, run_ids: Sequence[int], max_rounds: int | None = None, locks: RunLocks | None = None

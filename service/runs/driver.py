@@ -112,9 +112,7 @@ class CoordinatorLoop:
         (``LocalExecutor.drop_runs``). The cancel itself is the run's status, set by the
         caller; a generation in flight that commits after it keeps it
         (``service.storage.generations``), and the next round leaves the run."""
-        drop = getattr(self.executor, "drop_runs", None)
-        if drop is not None:
-            drop([run_id])
+        self.executor.drop_runs([run_id])
 
     # -- the loop ----------------------------------------------------------------------------
 
@@ -233,9 +231,7 @@ class CoordinatorLoop:
                 log.exception("run %d failed: its stored state cannot be loaded", run_id)
                 self._set_status(run_id, RunStatus.FAILED, f"its stored state cannot be loaded: {exc}")
                 continue
-            keep = getattr(self.executor, "keep_runs", None)
-            if keep is not None:  # resumed after a cancel: evaluate its tasks again
-                keep([run_id])
+            self.executor.keep_runs([run_id])  # resumed after a cancel: evaluate its tasks again
             log.info("driving run %d from generation %d", run_id, run.next_generation)
             self.active.append(run)
             self.driven.add(run_id)
