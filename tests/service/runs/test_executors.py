@@ -49,7 +49,8 @@ def probes(path: Path) -> list[str]:
     """``hasattr`` / ``getattr`` calls in ``path`` whose object names an executor."""
     found = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in {"hasattr", "getattr"}:
+        called = node.func.id if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) else None
+        if called in {"hasattr", "getattr"}:
             target = ast.unparse(node.args[0]) if node.args else ""
             if "executor" in target.lower():
                 found.append(f"{path.name}:{node.lineno}: {ast.unparse(node)}")
