@@ -37,8 +37,10 @@ class Ticket(Protocol):
     """One ``submit``'s evaluation: ``done`` once every task has its result, ``results`` then
     in the tasks' order."""
 
-    done: bool
     results: list[ResultJSON | None]
+
+    @property
+    def done(self) -> bool: ...
 
 
 class Executor(Protocol):
