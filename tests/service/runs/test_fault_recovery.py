@@ -112,7 +112,7 @@ class FaultAt:
 
     def __init__(self, executor, at: int, fault) -> None:
         self.at, self.fault, self.fired = at, fault, threading.Event()
-        name = "submit" if hasattr(executor, "submit") else "evaluate"
+        name = "submit" if executor.pipelined else "evaluate"  # what the coordinator calls
         inner = getattr(executor, name)
 
         def wrapped(tasks):
