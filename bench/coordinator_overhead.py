@@ -26,13 +26,13 @@ import numpy as np
 
 from softevo.evolution.treatments import Treatment
 from softevo.service.runs.coordinator import Coordinator, ask, load_run
-from softevo.service.runs.executors import LocalExecutor
+from softevo.service.runs.executors import BlockingExecutor, LocalExecutor
 from softevo.service.runs.submit import create
 from softevo.service.storage import open_database
 from softevo.sim.worlds import LAND
 
 
-class InstantExecutor:
+class InstantExecutor(BlockingExecutor):
     """Results without simulation: distance from the genome's id (deterministic)."""
 
     workers = 1
@@ -50,9 +50,6 @@ class InstantExecutor:
             }
             for t in tasks
         ]
-
-    def close(self):
-        pass
 
 
 def overhead_per_generation(population: int, generations: int, args, folder: Path) -> float:

@@ -90,8 +90,9 @@ def new_share(name: str) -> float:
 
 
 def transition(environment: str) -> tuple[str, ...]:
-    """The worlds of a treatment's environment in order: ``("land",)`` for a pure world,
-    ``("land", "water")`` for the transition ``land-water``; ValueError for an unknown world."""
+    """The worlds of a treatment's environment in order: ``(LAND.name,)`` for a pure world,
+    ``(LAND.name, WATER.name)`` for the transition ``land-water``; ValueError for an unknown
+    world."""
     parts_ = tuple(environment.split(TRANSITION))
     if len(parts_) > 2 or len(set(parts_)) != len(parts_):
         raise ValueError(f"bad environment {environment!r}; expected a world or two joined by {TRANSITION}")

@@ -1,13 +1,14 @@
 """Environment schedules: which world each generation is evaluated in, and the switch.
 
 A ``Schedule`` lists the worlds in order with the first generation of each, e.g.
-``Schedule([("land", 0), ("water", 50)])``: generations 0..49 on land, 50 and later in
-water. Its text form is ``land:0,water:50`` (``parse`` / ``format``). ``switch`` is the one
-place that decides an environment switch: an algorithm whose environment is not the one of
-the generation about to start is moved there (``Evolution.reevaluate_all``: the whole
-population is evaluated again in the new world).
+``Schedule([(LAND.name, 0), (WATER.name, 50)])`` (the registry's worlds, ``sim.worlds``):
+generations 0..49 on land, 50 and later in water. Its text form is ``land:0,water:50``
+(``parse`` / ``format``). ``switch`` is the one place that decides an environment switch:
+an algorithm whose environment is not the one of the generation about to start is moved
+there (``Evolution.reevaluate_all``: the whole population is evaluated again in the new
+world).
 
-A world may be entered gradually: ``Schedule([("land", 0), ("water", 50)], spans=[0, 10])``
+A world may be entered gradually: ``Schedule([(LAND.name, 0), (WATER.name, 50)], spans=[0, 10])``
 (text ``land:0,water:50+10``) spends generations 50..59 in compound worlds
 (``evolution.environments``: ``land>water@0.091`` .. ``land>water@0.909``, the water share rising
 linearly) and is in pure water from generation 60. Each generation of the span is another

@@ -8,9 +8,10 @@ The project's folders install as one package: ``softevo.sim`` (the physics engin
 For notebooks and scripts, five functions cover the common uses::
 
     import softevo
+    from softevo.sim.worlds import WATER            # the registry's worlds (LAND, WATER, ...)
     result = softevo.simulate(scene)                 # a scene dict (docs/contracts.md) -> Result
     softevo.describe(body)                           # shape descriptors of a voxel array
-    local = softevo.evolve("water", 0.1, generations=10)  # in memory: .best().scene, .history
+    local = softevo.evolve(WATER.name, 0.1, generations=10)  # in memory: .best().scene, .history
     data = softevo.load_experiment("sqlite:///softevo.db", "latest")   # DataFrames
     scene = softevo.import_vxa("robot.vxa")          # a VoxCAD / evosoro file -> scene dict
 

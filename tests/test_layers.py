@@ -8,7 +8,10 @@ imported to check it), against the rules of shared/STYLE.md ("Which way imports 
   worker's replay of a stored robot);
 - storage (``service.storage``) imports no analysis, and the domain (evolution) nothing of
   the service; the worker never touches SQL or HTTP (no sqlalchemy, fastapi, httpx);
-- no module imports a ``_private`` name from another package.
+- no module imports a ``_private`` name from another package;
+- inside the service, each subpackage imports only those below it in ``SERVICE_ALLOWED``'s
+  table (cli and api on top, storage and settings at the bottom), and the command line
+  reaches the REST API only for the app, in the commands that serve it.
 
 ``softevo.errors`` and the version in ``softevo/__init__.py`` are leaves every package may
 use; the facade (``softevo``'s functions) sits on top of everything."""
@@ -177,3 +180,108 @@ def test_the_narrower_rules_see_what_they_forbid(tmp_path, monkeypatch):
     with pytest.raises(AssertionError, match="sqlalchemy"):
         test_storage_imports_no_analysis_and_the_worker_no_sql_or_http("worker", worker / "bad.py")
     assert problems(storage / "bad.py", "service") == []  # the package rule alone lets it pass
+
+
+# service's own subpackages (``settings``: the module service/settings.py) -> the others each
+# may import. The edges point one way, from the edges people use (the command line, the REST
+# API) down to storage:
+#
+#   subpackage | imports                                      | what for
+#   -----------+----------------------------------------------+---------------------------------
+#   cli        | api*, plan, reports, runs, storage, settings | the commands
+#   api        | plan, reports, runs, storage, settings       | the routes
+#   reports    | storage                                      | reports from stored runs
+#   plan       | runs                                         | specs, costs (executors, limits)
+#   runs       | storage, settings                            | coordinator, executors, limits
+#   storage    | settings                                     | SQL
+#   settings   | -                                            | SOFTEVO_* variables
+#
+#   * the command line reaches the API only for its app (``CLI_API``), and only in the
+#     commands that serve it (``SERVES``): no HTTP schema or request model; a spec file is
+#     read by ``service.plan.spec``, which the API uses too.
+SERVICE_ALLOWED = {
+    "cli": {"api", "plan", "reports", "runs", "storage", "settings"},
+    "api": {"plan", "reports", "runs", "storage", "settings"},
+    "reports": {"storage"},
+    "plan": {"runs"},
+    "runs": {"storage", "settings"},
+    "storage": {"settings"},
+    "settings": set(),
+}
+CLI_API = {"softevo.service.api.app"}  # what of the API the command line may import
+SERVES = {"softevo.service.cli.service", "softevo.service.cli.dashboard"}  # serve, dashboard
+SERVICE_MODULES = [path for path in sorted((ROOT / "service").rglob("*.py"))
+                   if path.parent != ROOT / "service" or path.stem == "settings"]
+
+
+def service_part(module: str) -> str | None:
+    """The subpackage of service that ``module`` lies in (None: not one of service's)."""
+    parts = module.split(".")
+    return parts[2] if parts[:2] == ["softevo", "service"] and len(parts) > 2 else None
+
+
+def service_reached(module: str, names: list[str]) -> list[str]:
+    """The service modules an import reaches (``from softevo.service.api import app`` reaches
+    ``softevo.service.api.app``; ``from softevo.service import runs``, ``softevo.service.runs``)."""
+    if module.split(".")[:2] != ["softevo", "service"]:
+        return []
+    if module.count(".") >= 2:
+        inside = [f"{module}.{name}" for name in names if service_part(module) == "api" and name == "app"]
+        return inside or [module]
+    return [f"{module}.{name}" for name in names if name in SERVICE_ALLOWED]
+
+
+def service_problems(path: Path) -> list[str]:
+    name = module_name(path, "service")
+    own = service_part(name)
+    found = []
+    for module, names in imports(path, "service"):
+        for target in service_reached(module, names):
+            other = service_part(target)
+            if other == own:
+                continue
+            if other not in SERVICE_ALLOWED[own]:
+                found.append(f"service.{own} imports service.{other} ({target})")
+            elif (own, other) == ("cli", "api") and (target not in CLI_API or name not in SERVES):
+                found.append(f"{name} imports {target}: the command line imports only the app, "
+                             "in the commands that serve")
+    return found
+
+
+def test_the_service_table_has_no_cycle_and_names_every_subpackage():
+    on_disk = {path.name for path in (ROOT / "service").iterdir() if (path / "__init__.py").exists()}
+    assert on_disk | {"settings"} == set(SERVICE_ALLOWED)
+    order = []  # each subpackage after every one it imports
+    while len(order) < len(SERVICE_ALLOWED):
+        ready = [p for p, below in SERVICE_ALLOWED.items() if p not in order and below <= set(order)]
+        assert ready, f"a cycle among {sorted(set(SERVICE_ALLOWED) - set(order))}"
+        order += ready
+
+
+@pytest.mark.parametrize("path", SERVICE_MODULES, ids=[str(p.relative_to(ROOT)) for p in SERVICE_MODULES])
+def test_service_subpackages_follow_their_table(path):
+    assert service_problems(path) == []
+
+
+def test_the_service_check_sees_what_it_forbids(tmp_path, monkeypatch):
+    cli = tmp_path / "service" / "cli"
+    storage = tmp_path / "service" / "storage"
+    cli.mkdir(parents=True)
+    storage.mkdir()
+    sources = {
+        cli / "plan.py": "from softevo.service.api.schemas import ExperimentIn\n",
+        cli / "runs.py": "def f():\n    from softevo.service.api import app\n",
+        cli / "service.py": "from softevo.service.api.app import create_app\n"
+                            "from softevo.service import runs\n",
+        storage / "bad.py": "from softevo.service.runs.limits import check_treatment\n",
+    }
+    for path, source in sources.items():
+        path.write_text(source)
+    monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
+    assert service_problems(cli / "plan.py") == [
+        "softevo.service.cli.plan imports softevo.service.api.schemas: the command line imports only the "
+        "app, in the commands that serve"]
+    assert len(service_problems(cli / "runs.py")) == 1  # the app, from a command that does not serve
+    assert service_problems(cli / "service.py") == []
+    assert service_problems(storage / "bad.py") == [
+        "service.storage imports service.runs (softevo.service.runs.limits)"]

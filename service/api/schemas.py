@@ -25,11 +25,11 @@ from pydantic_core import core_schema
 from softevo.evolution import algorithm as algorithms
 from softevo.evolution import environments
 from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS
+from softevo.evolution.run_status import RunStatus
 from softevo.evolution.treatments import SCALES, Treatment, model_names
 from softevo.service.api.schemas_traits import RegisteredTraits, trait_fields
 from softevo.service.runs.executors import EXECUTOR_KINDS
 from softevo.service.runs.limits import MAX_EVALUATION_SECONDS, MAX_WORKSPACE_SIDE, TREATMENT_BOUNDS
-from softevo.service.storage.models import RunStatus
 
 MAX_INT32 = 2**31 - 1
 Name = Annotated[

@@ -22,8 +22,9 @@ GB = 1e9
 
 def treatments_of(preset_or_spec: str, scale: str):
     """The treatments of a preset at ``scale``, or of a spec file as ``POST /experiments``
-    takes it (validated by the API's own schema); UserError for anything else."""
+    takes it (``service.plan.spec``); UserError for anything else."""
     from softevo.evolution.treatments import PRESETS, preset_grid
+    from softevo.service.plan.spec import spec_treatments
 
     if preset_or_spec in PRESETS:
         return preset_grid(preset_or_spec, scale)
@@ -35,23 +36,6 @@ def treatments_of(preset_or_spec: str, scale: str):
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise UserError(f"{path}: not a JSON spec ({exc})") from None
     return spec_treatments(body, where=str(path))
-
-
-def spec_treatments(body, where: str = "spec"):
-    """The treatments of an experiment body (``service.api.schemas.ExperimentRequest``)."""
-    from pydantic import TypeAdapter, ValidationError
-
-    from softevo.service.api.requests import request_treatments
-    from softevo.service.api.schemas import ExperimentRequest, problem_line, request_problems
-
-    try:
-        request = TypeAdapter(ExperimentRequest).validate_python(body, strict=False)
-    except ValidationError as exc:
-        raise UserError(f"{where}: {problem_line(request_problems(exc.errors()))}") from None
-    try:
-        return request_treatments(request)
-    except UserError as exc:
-        raise UserError(f"{where}: {exc}") from None
 
 
 def plan(

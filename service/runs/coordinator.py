@@ -1,7 +1,7 @@
 """The coordinator: ask -> dispatch -> tell -> persist, one transaction per generation.
 
 Many runs advance together. With an executor that keeps several generations in flight
-(``submit`` / ``wait``: the RQ executor), each run goes at its own pace (``advance``): as soon
+(``Executor.pipelined``: the RQ executor), each run goes at its own pace (``advance``): as soon
 as one run's generation has all its results, it is told them, committed and its next
 generation dispatched, while the other runs' jobs keep the workers busy; no run waits
 for another's slowest evaluation. With the others (in-process, process pool) each round asks
@@ -43,13 +43,13 @@ from sqlalchemy.exc import DBAPIError, InterfaceError, OperationalError
 from softevo.errors import UserError
 from softevo.evolution import traits
 from softevo.evolution.algorithm import Evolution
+from softevo.evolution.run_status import RunStatus
 from softevo.evolution.runner import ask_generation, tell_generation
 from softevo.evolution.selection import non_dominated_sort, objective_matrix
 from softevo.evolution.treatments import Treatment
 from softevo.service.runs.executors import Executor
 from softevo.service.runs.locks import RunLocks, holding, locks_for
 from softevo.service.storage.generations import GenerationRecord, record_generation
-from softevo.service.storage.models import RunStatus
 from softevo.service.storage.runs import active_run_ids, run_row, set_run_status
 from softevo.worker.tasks import TaskResult, generation_tasks
 
@@ -326,10 +326,8 @@ class Coordinator:
     @property
     def pipelined(self) -> bool:
         """Whether runs go at their own pace: the executor keeps generations in flight
-        (``submit`` / ``wait``) and does not batch a round's genomes across runs (GPU
-        workers want the whole round in a few large jobs: ``across_runs``)."""
-        in_flight = hasattr(self.executor, "submit") and hasattr(self.executor, "wait")
-        return in_flight and not getattr(self.executor, "across_runs", False)
+        (``submit`` / ``wait``; ``Executor.pipelined``)."""
+        return self.executor.pipelined
 
     def run(
         self, run_ids: Sequence[int], max_rounds: int | None = None, locks: RunLocks | None = None

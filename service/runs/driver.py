@@ -36,6 +36,7 @@ import threading
 
 from sqlalchemy import Engine
 
+from softevo.evolution.run_status import RunStatus
 from softevo.service.runs.coordinator import (
     ActiveRun,
     Coordinator,
@@ -48,7 +49,6 @@ from softevo.service.runs.coordinator import (
 )
 from softevo.service.runs.executors import Executor
 from softevo.service.runs.locks import RunLocks, redis_error
-from softevo.service.storage.models import RunStatus
 from softevo.service.storage.runs import set_run_status
 
 log = logging.getLogger("softevo.coordinator")
@@ -112,9 +112,7 @@ class CoordinatorLoop:
         (``LocalExecutor.drop_runs``). The cancel itself is the run's status, set by the
         caller; a generation in flight that commits after it keeps it
         (``service.storage.generations``), and the next round leaves the run."""
-        drop = getattr(self.executor, "drop_runs", None)
-        if drop is not None:
-            drop([run_id])
+        self.executor.drop_runs([run_id])
 
     # -- the loop ----------------------------------------------------------------------------
 
@@ -233,9 +231,7 @@ class CoordinatorLoop:
                 log.exception("run %d failed: its stored state cannot be loaded", run_id)
                 self._set_status(run_id, RunStatus.FAILED, f"its stored state cannot be loaded: {exc}")
                 continue
-            keep = getattr(self.executor, "keep_runs", None)
-            if keep is not None:  # resumed after a cancel: evaluate its tasks again
-                keep([run_id])
+            self.executor.keep_runs([run_id])  # resumed after a cancel: evaluate its tasks again
             log.info("driving run %d from generation %d", run_id, run.next_generation)
             self.active.append(run)
             self.driven.add(run_id)

@@ -1,10 +1,12 @@
 """Executors: where evaluation tasks run. One small interface, several implementations.
 
 An executor takes a list of JSON tasks (``worker.tasks.Task.to_json``) and returns their
-JSON results (``worker.tasks.TaskResult.to_json``) in the same order. ``InlineExecutor`` runs
-them in this process (tests, one core); ``LocalExecutor`` spreads them over a process pool,
-one numba thread per process, many genomes per pool task; ``service.runs.rq_executor`` has an
-RQ executor with the same interface.
+JSON results (``worker.tasks.TaskResult.to_json``) in the same order (``Executor`` is the
+whole interface; the coordinator calls nothing else). ``InlineExecutor`` runs them in this
+process (tests, one core); ``LocalExecutor`` spreads them over a process pool, one numba
+thread per process, many genomes per pool task; both evaluate a batch before they return
+(``BlockingExecutor``'s defaults). ``service.runs.rq_executor`` has an RQ executor with the
+same interface that keeps generations in flight.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import threading
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from softevo.evolution import environments as worlds
@@ -30,13 +33,45 @@ CANCELLED = "run cancelled: evaluation dropped"
 DROP_POLL_SECONDS = 0.25  # how often an evaluation in flight looks for cancelled runs
 
 
+class Ticket(Protocol):
+    """One ``submit``'s evaluation: ``done`` once every task has its result, ``results`` then
+    in the tasks' order."""
+
+    results: list[ResultJSON | None]
+
+    @property
+    def done(self) -> bool: ...
+
+
 class Executor(Protocol):
-    """Evaluates tasks; ``workers`` is how many evaluate at once (for progress estimates)."""
+    """Evaluates tasks; ``workers`` is how many evaluate at once (for progress estimates).
+
+    ``pipelined``: whether runs go at their own pace, several generations in flight
+    (``submit`` / ``wait``); otherwise the coordinator evaluates a round of every run's
+    genomes in one ``evaluate``. ``drop_runs`` / ``keep_runs``: cancelled runs' evaluations in
+    flight dropped where the executor can, and taken again when the runs resume."""
 
     workers: int
+    pipelined: bool
 
     def evaluate(self, tasks: list[TaskJSON]) -> list[ResultJSON]:
         """Results of ``tasks``, in order."""
+        ...
+
+    def submit(self, tasks: list[TaskJSON]) -> Ticket:
+        """Start evaluating ``tasks`` (one run's generation); ``wait`` says when it is done."""
+        ...
+
+    def wait(self, tickets: Iterable[Ticket], timeout: float | None = None) -> list[Ticket]:
+        """The tickets among ``tickets`` that are done, once one is (or ``timeout`` seconds)."""
+        ...
+
+    def drop_runs(self, run_ids: Iterable[int]) -> None:
+        """Drop the evaluations of ``run_ids`` (cancelled runs) where possible."""
+        ...
+
+    def keep_runs(self, run_ids: Iterable[int]) -> None:
+        """Evaluate the tasks of ``run_ids`` again (runs resumed after a cancel)."""
         ...
 
     def close(self) -> None:
@@ -44,7 +79,43 @@ class Executor(Protocol):
         ...
 
 
-class InlineExecutor:
+@dataclass
+class Evaluated:
+    """The ticket of an executor that evaluates in ``submit``: done at once."""
+
+    results: list[ResultJSON | None]
+    done: bool = True
+
+
+class BlockingExecutor:
+    """What an executor that evaluates a batch before it returns has of ``Executor``:
+    ``submit`` evaluates at once, so nothing is ever in flight (not ``pipelined``), and no run
+    is dropped. Subclasses write ``evaluate`` and set ``workers``."""
+
+    workers: int = 1
+    pipelined = False
+
+    def evaluate(self, tasks: list[TaskJSON]) -> list[ResultJSON]:
+        raise NotImplementedError
+
+    def submit(self, tasks: list[TaskJSON]) -> Evaluated:
+        return Evaluated(list(self.evaluate(tasks)))
+
+    def wait(self, tickets: Iterable[Ticket], timeout: float | None = None) -> list[Ticket]:
+        return [ticket for ticket in tickets if ticket.done]
+
+    def drop_runs(self, run_ids: Iterable[int]) -> None:
+        """Nothing to drop: evaluations under way finish, and the coordinator leaves a
+        cancelled run's results unstored."""
+
+    def keep_runs(self, run_ids: Iterable[int]) -> None:
+        """Nothing dropped, nothing to take again."""
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class InlineExecutor(BlockingExecutor):
     """Evaluates in the calling process, all robots in one ``simulate_many`` call."""
 
     def __init__(self, threads: int | None = 1) -> None:
@@ -57,9 +128,6 @@ class InlineExecutor:
 
         return evaluate_batch(tasks, threads=self.threads) if tasks else []
 
-    def close(self) -> None:
-        """Nothing to release."""
-
 
 def chunks(tasks: list[TaskJSON], workers: int, per_task: int) -> list[list[TaskJSON]]:
     """Split tasks into pool jobs of at most ``per_task`` genomes, at least one per worker."""
@@ -69,7 +137,7 @@ def chunks(tasks: list[TaskJSON], workers: int, per_task: int) -> list[list[Task
     return [tasks[i : i + size] for i in range(0, len(tasks), size)]
 
 
-class LocalExecutor:
+class LocalExecutor(BlockingExecutor):
     """A process pool over ``workers`` processes (default: all cores).
 
     Processes start with the ``spawn`` method (no fork of a process holding numba threads or

@@ -1,8 +1,8 @@
 """The RQ executor: evaluation batches as RQ jobs on Redis, evaluated by ``softevo worker``
 processes on any machine that reaches the same Redis.
 
-Same interface as ``service.runs.executors.LocalExecutor`` (``evaluate(tasks) -> results`` in
-order, ``workers``, ``close``). What travels:
+The interface of ``service.runs.executors.Executor`` (``evaluate(tasks) -> results`` in order,
+``submit`` / ``wait`` for generations in flight, ``workers``, ``close``). What travels:
 
 - A job calls ``worker.evaluate.evaluate_batch`` by its dotted name (the coordinator never
   imports numba) with a list of JSON tasks, through RQ's JSON serializer (never pickle), and
@@ -194,6 +194,19 @@ class RQExecutor:
         self._done_cursor: str | None = None  # the last entry of the done stream read
 
     # -- the Executor interface -------------------------------------------------------------
+
+    @property
+    def pipelined(self) -> bool:
+        """Runs go at their own pace, generations in flight, unless a round's genomes are
+        batched across runs (GPU workers want the whole round in a few large jobs)."""
+        return not self.across_runs
+
+    def drop_runs(self, run_ids: Iterable[int]) -> None:
+        """Nothing to drop: queued jobs stay in Redis (a run resumed takes their results by
+        their ids), and the coordinator forgets a cancelled run's generation in flight."""
+
+    def keep_runs(self, run_ids: Iterable[int]) -> None:
+        """Nothing dropped, nothing to take again."""
 
     @property
     def workers(self) -> int:

@@ -20,6 +20,5 @@ parameters), one module per noun:
 """
 
 from softevo.service.storage.engine import database_url, make_engine, open_database
-from softevo.service.storage.models import RunStatus
 
-__all__ = ["RunStatus", "database_url", "make_engine", "open_database"]
+__all__ = ["database_url", "make_engine", "open_database"]

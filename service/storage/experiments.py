@@ -14,6 +14,7 @@ import pandas as pd
 from sqlalchemy import Connection, Engine, and_, func, or_, select, text, update
 
 from softevo.errors import UserError
+from softevo.evolution.run_status import RunStatus
 from softevo.evolution.treatments import Treatment
 from softevo.service.storage.export import (
     evaluation_rows,
@@ -27,7 +28,6 @@ from softevo.service.storage.models import (
     GenerationRow,
     PopulationMemberRow,
     RunRow,
-    RunStatus,
     TreatmentRow,
     utcnow,
 )

@@ -17,6 +17,7 @@ from sqlalchemy import Connection, Table, case, func, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 
 from softevo.errors import UserError
+from softevo.evolution.run_status import RunStatus
 from softevo.service.storage.individuals import evaluation_fields, local_to_db_ids, objectives
 from softevo.service.storage.models import (
     EVALUATION_FIELDS,
@@ -25,7 +26,6 @@ from softevo.service.storage.models import (
     IndividualRow,
     PopulationMemberRow,
     RunRow,
-    RunStatus,
     utcnow,
 )
 from softevo.service.storage.rows import columns, dict_rows

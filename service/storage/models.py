@@ -12,7 +12,6 @@ population.
 
 from __future__ import annotations
 
-import enum
 from datetime import UTC, datetime
 from typing import Any
 
@@ -32,6 +31,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 from softevo.evolution import traits
+from softevo.evolution.run_status import RunStatus
 
 NAMING_CONVENTION = {
     "ix": "ix_%(column_0_label)s",
@@ -69,16 +69,6 @@ EVALUATION_FIELDS = (
     "steps",
     "simulated_seconds",
 )
-
-
-class RunStatus(enum.StrEnum):
-    """Life cycle of a run; stored as plain strings."""
-
-    PENDING = "pending"
-    RUNNING = "running"
-    FINISHED = "finished"
-    FAILED = "failed"
-    CANCELLED = "cancelled"
 
 
 class ExperimentRow(Base):

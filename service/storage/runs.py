@@ -13,12 +13,12 @@ from typing import Any
 from sqlalchemy import Connection, Table, func, select, update
 
 from softevo.errors import UserError
+from softevo.evolution.run_status import RunStatus
 from softevo.service.storage.models import (
     EvaluationRow,
     ExperimentRow,
     IndividualRow,
     RunRow,
-    RunStatus,
     TreatmentRow,
     utcnow,
 )

@@ -109,11 +109,11 @@ def test_a_run_cancelled_at_generation_0_is_left_out_not_followed(tmp_path):
     import warnings
 
     from softevo.analysis.report import ReportWarning, write_report
+    from softevo.evolution.run_status import RunStatus
     from softevo.evolution.treatments import Treatment
     from softevo.service.reports.experiment import experiment_analysis
     from softevo.service.storage.experiments import NewRun, NewTreatment, create_experiment
     from softevo.service.storage.generations import record_generation
-    from softevo.service.storage.models import RunStatus
     from softevo.service.storage.runs import set_run_status
 
     engine = open_database(f"sqlite:///{tmp_path / 'cancelled.db'}")

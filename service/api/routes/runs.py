@@ -7,6 +7,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query
 
+from softevo.evolution.run_status import RunStatus
 from softevo.service.api.deps import (
     COMMON,
     NOT_FOUND,
@@ -28,7 +29,6 @@ from softevo.service.api.schemas import (
 )
 from softevo.service.storage import generations as db_generations
 from softevo.service.storage import runs as db_runs
-from softevo.service.storage.models import RunStatus
 
 router = APIRouter(prefix="/runs", tags=["runs"], responses=COMMON)
 

@@ -73,8 +73,8 @@ def test_run_status_lineage_export_end_to_end(capsys, tmp_path):
 
 
 def test_resume_by_name_continues_a_cancelled_run(capsys, tmp_path):
+    from softevo.evolution.run_status import RunStatus
     from softevo.service.storage import open_database
-    from softevo.service.storage.models import RunStatus
     from softevo.service.storage.runs import run_row, set_run_status
     from tests.service import tinyrun
 

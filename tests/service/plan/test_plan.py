@@ -180,11 +180,13 @@ def test_cli_bad_spec_file_is_one_line(capsys, tmp_path):
 @pytest.mark.parametrize(
     ("spec", "message"),
     [
-        ({"treatments": [{"environment": "water", "stiffness_mpa": 1.0}]}, "spec.json: name: Field required"),
+        ({"treatments": [{"environment": "water", "stiffness_mpa": 1.0}]}, "spec.json: name: required"),
         ({"name": "x", "treatments": [{"environment": "lnd", "stiffness_mpa": 1.0}]},
-         "spec.json: treatments.0.environment: must be one of land, water"),
+         "spec.json: treatments.0: unknown environment 'lnd'; choose one of land, water"),
         ({"name": "x", "treatments": [{"environment": "land", "stiffness_mpa": 1.0, "switch_at": 2}]},
-         "spec.json: switch_at needs a transition environment (got land)"),
+         "spec.json: treatments.0: switch_at needs a transition environment (got land)"),
+        ({"name": "x", "treatments": [{"stiffness_mpa": 1.0}]},
+         "spec.json: treatments.0: environment: required"),
     ],
 )  # fmt: skip
 def test_cli_spec_errors_name_the_field_once(capsys, tmp_path, spec, message):

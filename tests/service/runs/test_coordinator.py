@@ -94,7 +94,7 @@ def test_chunks_spread_tasks_over_workers():
 
 
 def test_cancelled_run_stops(engine):
-    from softevo.service.storage.models import RunStatus
+    from softevo.evolution.run_status import RunStatus
     from softevo.service.storage.runs import run_row, set_run_status
 
     run_id = tinyrun.new_run(engine)
@@ -146,7 +146,8 @@ def test_a_genome_that_kills_its_pool_process_is_recorded_not_retried_forever():
 def test_a_cancelled_run_stays_cancelled_when_a_generation_commits(tmp_path):
     """A cancel (e.g. over HTTP from another process) is not undone by the generation that
     was in flight when it came."""
-    from softevo.service.storage import RunStatus, open_database
+    from softevo.evolution.run_status import RunStatus
+    from softevo.service.storage import open_database
     from softevo.service.storage.generations import GenerationRecord, record_generation
     from softevo.service.storage.runs import set_run_status
     from tests.service import tinyrun

@@ -41,6 +41,7 @@ from fastapi.testclient import TestClient
 from redis import Redis
 from sqlalchemy import event, select
 
+from softevo.evolution.run_status import RunStatus
 from softevo.service.api.app import create_app
 from softevo.service.runs.driver import CoordinatorLoop
 from softevo.service.runs.executors import InlineExecutor, LocalExecutor
@@ -49,7 +50,7 @@ from softevo.service.runs.rq_executor import RQExecutor
 from softevo.service.settings import Settings
 from softevo.service.storage import open_database
 from softevo.service.storage.advisory_locks import DatabaseLocks
-from softevo.service.storage.models import RunRow, RunStatus
+from softevo.service.storage.models import RunRow
 from softevo.service.storage.runs import reopen_runs, set_run_status
 from tests.service import tinyrun
 from tests.service.pg_support import PostgresServer
@@ -111,7 +112,7 @@ class FaultAt:
 
     def __init__(self, executor, at: int, fault) -> None:
         self.at, self.fault, self.fired = at, fault, threading.Event()
-        name = "submit" if hasattr(executor, "submit") else "evaluate"
+        name = "submit" if executor.pipelined else "evaluate"  # what the coordinator calls
         inner = getattr(executor, name)
 
         def wrapped(tasks):

@@ -10,8 +10,8 @@ import pytest
 
 from softevo.service.api.frames import decode_frames
 from softevo.sim.mesh import deformed_mesh, lattice_mesh
-from tests.dashboard.chromium import browser_missing
-from tests.dashboard.test_browser import open_replay
+from tests.service.api.dashboard.chromium import browser_missing
+from tests.service.api.dashboard.test_browser import open_replay
 
 pytestmark = [
     pytest.mark.slow,

@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 from softevo.service.storage import open_database
-from tests.dashboard import synthetic
-from tests.dashboard.chromium import browser_missing
-from tests.dashboard.conftest import softevo
-from tests.dashboard.test_browser import pixels
-from tests.dashboard.test_transition_pages import RECORD_CANVAS_TEXT
+from tests.service.api.dashboard import synthetic
+from tests.service.api.dashboard.chromium import browser_missing
+from tests.service.api.dashboard.conftest import softevo
+from tests.service.api.dashboard.test_browser import pixels
+from tests.service.api.dashboard.test_transition_pages import RECORD_CANVAS_TEXT
 
 pytestmark = pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
 
-DOCS = Path(__file__).resolve().parents[2] / "docs"
+DOCS = Path(__file__).resolve().parents[4] / "docs"
 READY_MS = 60_000
 
 

@@ -14,7 +14,7 @@ import pytest
 from sqlalchemy import create_engine, select
 
 from softevo.service.storage.models import IndividualRow
-from tests.dashboard.chromium import browser_missing
+from tests.service.api.dashboard.chromium import browser_missing
 
 pytestmark = [
     pytest.mark.slow,

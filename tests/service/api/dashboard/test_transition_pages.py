@@ -9,8 +9,8 @@ from __future__ import annotations
 import httpx
 import pytest
 
-from tests.dashboard.chromium import browser_missing
-from tests.dashboard.conftest import softevo
+from tests.service.api.dashboard.chromium import browser_missing
+from tests.service.api.dashboard.conftest import softevo
 
 pytestmark = [
     pytest.mark.slow,

@@ -15,7 +15,7 @@ from softevo.evolution.genotype import EncodingConfig, Genotype, develop
 from softevo.service.storage.models import EvaluationRow, IndividualRow, TreatmentRow
 from tests.support import softevo_process
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[4]
 
 
 def height(phenotype) -> float:

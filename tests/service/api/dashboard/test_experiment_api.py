@@ -1,7 +1,7 @@
 """``GET /experiments/{id}/analysis`` and the downloads (``GET /runs/{id}/export``,
 ``GET /experiments/{id}/export``) over real HTTP (``softevo dashboard`` on loopback, SQLite),
 checked against ``softevo export`` and against statistics computed here from the stored
-values (``tests.dashboard.compared``)."""
+values (``tests.service.api.dashboard.compared``)."""
 
 from __future__ import annotations
 
@@ -23,8 +23,8 @@ from softevo.service.api.schemas_analysis import ExperimentAnalysisOut
 from softevo.service.reports.data import load_experiment
 from softevo.service.storage.export import table_chunks
 from softevo.service.storage.export_stream import stream_table
-from tests.dashboard import compared
-from tests.dashboard.conftest import softevo
+from tests.service.api.dashboard import compared
+from tests.service.api.dashboard.conftest import softevo
 
 TABLES = ("runs", "individuals", "populations")
 

@@ -9,7 +9,7 @@ import shutil
 import httpx
 import pytest
 
-from tests.dashboard.chromium import browser_missing
+from tests.service.api.dashboard.chromium import browser_missing
 
 pytestmark = [
     pytest.mark.slow,

@@ -1,4 +1,5 @@
-"""Reading a real tiny experiment back, and the statistics tables over it."""
+"""Reading a real tiny experiment back (``service.reports.data.load_experiment``), and the
+statistics tables over it."""
 
 from __future__ import annotations
 

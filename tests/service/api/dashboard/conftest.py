@@ -21,8 +21,8 @@ import pytest
 from sqlalchemy import create_engine, select, update
 
 from softevo.service.storage.models import IndividualRow
-from tests.dashboard.block import WORKSPACE, block_genome
-from tests.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
+from tests.service.api.dashboard.block import WORKSPACE, block_genome
+from tests.service.api.dashboard.chromium import CHROMIUM, CHROMIUM_FLAGS, browser_missing
 from tests.support import free_port, softevo_process, wait_healthy
 
 SERVER_START_S = 60
@@ -174,15 +174,15 @@ def open_page(browser):
 @dataclass(frozen=True)
 class ComparedDatabase:
     url: str
-    experiment_id: int  # tests.dashboard.compared: 4 treatments x 3 runs
+    experiment_id: int  # tests.service.api.dashboard.compared: 4 treatments x 3 runs
     empty_id: int  # an experiment without runs
 
 
 @pytest.fixture(scope="session")
 def compared_db(tmp_path_factory) -> ComparedDatabase:
-    """SQLite with the experiment of ``tests.dashboard.compared`` (written directly)."""
+    """SQLite with the experiment of ``tests.service.api.dashboard.compared`` (written directly)."""
     from softevo.service.storage import open_database
-    from tests.dashboard import compared
+    from tests.service.api.dashboard import compared
 
     path = tmp_path_factory.mktemp("compared") / "compared.db"
     engine = open_database(f"sqlite:///{path}")

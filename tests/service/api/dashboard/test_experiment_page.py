@@ -1,5 +1,5 @@
 """The experiment page and the downloads in headless Chromium against ``softevo dashboard``
-on the hand-built experiment of ``tests.dashboard.compared`` (4 treatments x 3 runs): what
+on the hand-built experiment of ``tests.service.api.dashboard.compared`` (4 treatments x 3 runs): what
 the page shows is counted against the API and ``softevo export``, the legends stay clear of
 Plotly's toolbar, and ``docs/screenshots.py`` writes a PNG of the page. Skips where Chromium
 or Playwright is missing (see conftest)."""
@@ -14,9 +14,9 @@ import httpx
 import pandas as pd
 import pytest
 
-from tests.dashboard import compared
-from tests.dashboard.chromium import browser_missing
-from tests.dashboard.conftest import softevo
+from tests.service.api.dashboard import compared
+from tests.service.api.dashboard.chromium import browser_missing
+from tests.service.api.dashboard.conftest import softevo
 
 pytestmark = [
     pytest.mark.slow,
@@ -24,7 +24,7 @@ pytestmark = [
 ]
 
 READY_MS = 120_000  # the analysis starts the server's background process
-SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "screenshots.py"
+SCRIPT = Path(__file__).resolve().parents[4] / "docs" / "screenshots.py"
 PAGES = ("experiment-page.png", "transition-run-page.png", "individual-page.png")
 TREATMENTS = len(compared.TREATMENTS)
 
