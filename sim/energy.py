@@ -73,17 +73,20 @@ JIT = dict(cache=True, error_model="numpy")
 COLUMNS = (
     "t", "kinetic", "rotational", "gravitational", "elastic_links", "elastic_floor",
     "elastic_contacts", "integrator_term", "actuator_links", "actuator_floor",
-    "actuator_contacts", "actuator_integrator", "external", "global_damping", "bond_damping", "floor_damping",
-    "friction", "drag", "contact_damping", "frame_switches", "com_x", "com_y", "com_z",
+    "actuator_contacts", "actuator_integrator", "actuator_damping", "external", "global_damping",
+    "bond_damping", "floor_damping", "friction", "drag", "contact_damping", "frame_switches",
+    "com_x", "com_y", "com_z",
 )
-(C_T, C_KIN, C_ROT, C_GRAV, C_ELINK, C_EFLOOR, C_ECONT, C_S, C_ALINK, C_AFLOOR, C_ACONT, C_AINT, C_EXT,
+(C_T, C_KIN, C_ROT, C_GRAV, C_ELINK, C_EFLOOR, C_ECONT, C_S, C_ALINK, C_AFLOOR, C_ACONT, C_AINT,
+ C_ADAMP, C_EXT,
  C_DGLOB, C_DBOND, C_DFLOOR, C_DFRIC, C_DDRAG, C_DCONT, C_FRAMES, C_COMX, C_COMY,
  C_COMZ) = range(len(COLUMNS))
 N_COLUMNS = len(COLUMNS)
 DISSIPATION = ("global_damping", "bond_damping", "floor_damping", "friction", "drag",
                "contact_damping")
 ELASTIC = ("elastic_links", "elastic_floor", "elastic_contacts")
-ACTUATOR = ("actuator_links", "actuator_floor", "actuator_contacts", "actuator_integrator")
+ACTUATOR = ("actuator_links", "actuator_floor", "actuator_contacts", "actuator_integrator",
+            "actuator_damping")
 
 
 @njit(inline="always", **JIT)
@@ -99,23 +102,30 @@ def link_energy(k_axial, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z):
 
 
 @njit(**JIT)
-def link_pass(p, neg, pos_, axis, stiff, pos, quat, size, old_size, first, mode, force, moment,
-              dforce):
+def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, first, mode, force,
+              moment, dforce, previous, damper):
     """Every link's elastic energy in the frame the engine puts it in (``mode``: 0 before the
     first step, +1 small-angle, -1 large, updated here with the engine's hysteresis), its
     undamped loads summed into ``force``/``moment`` (overwritten), the actuator work of the
     size change from ``old_size`` (at these positions; none on the ``first`` step) and the
     energy jumps of links that change frame; ``dforce`` (overwritten) gets the change of each
     voxel's load that the size change made (the axial force's), for the integrator's term.
-    Returns (energy, actuator work, jumps)."""
+    ``previous`` (per link) holds the elongation the engine damps against, ``damper`` the
+    axial force of the bond damping (``damping``: gamma / (2 dt) per link; none on a link's
+    first step in a frame), both updated here: the actuator works through the damper too,
+    -damper times the rest length's change over the step. Returns (energy, actuator work,
+    jumps, the actuator's work through the dampers)."""
     force[:] = 0.0
     moment[:] = 0.0
     dforce[:] = 0.0
-    energy = work = jumps = 0.0
+    energy = work = jumps = through = 0.0
     L = p.L
     for j in range(len(neg)):
         a, b, ax, s = neg[j], pos_[j], axis[j], stiff[j]
         rest = 0.5 * (size[a] + size[b])
+        if not first:
+            through -= damper[j] * (rest - 0.5 * (old_size[a] + old_size[b]))
+        was = mode[j]
         R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
             quat[a, 0], quat[a, 1], quat[a, 2], quat[a, 3], quat[b, 0], quat[b, 1], quat[b, 2],
             quat[b, 3], pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2], ax)
@@ -141,6 +151,9 @@ def link_pass(p, neg, pos_, axis, stiff, pos, quat, size, old_size, first, mode,
                 jumps += link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y,
                                      t2z) - before
                 mode[j] = 1.0
+        damp = damping[j] if was != 0.0 and was == mode[j] else 0.0
+        damper[j] = k_ax * damp * (d - previous[j])
+        previous[j] = d
         u = link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
         energy += u
         if not first:  # the same geometry at the previous sizes: d grows by the rest's change
@@ -170,7 +183,7 @@ def link_pass(p, neg, pos_, axis, stiff, pos, quat, size, old_size, first, mode,
         moment[b, 0] += mbx
         moment[b, 1] += mby
         moment[b, 2] += mbz
-    return energy, work, jumps
+    return energy, work, jumps, through
 
 
 @njit(**JIT)
@@ -337,7 +350,8 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
 @njit(**JIT)
 def audit_run(batch, state, real, series):
     """Run robot 0 of ``batch`` (alone) as ``kernels.run_robot`` does, filling ``series``
-    (steps + 1 rows, ``COLUMNS``) step by step. Returns (status, steps done)."""
+    (steps + 1 rows, ``COLUMNS``) step by step. Returns (status, steps done, the final
+    positions)."""
     p, voxels, links, body = kernels.take_robot(batch, state, 0)
     n, m = len(voxels.flags), len(links.neg)
     work = kernels.robot_work(n, links, batch.poff[1] - batch.poff[0], len(voxels.surface),
@@ -347,6 +361,7 @@ def audit_run(batch, state, real, series):
     old_size = np.zeros(n)
     f_links, m_links = np.zeros((n, 3)), np.zeros((n, 3))
     f_spring, dforce = np.zeros((n, 3)), np.zeros((n, 3))
+    previous, damper = np.zeros(m), np.zeros(m)
     f_engine, m_engine = np.zeros((n, 3)), np.zeros((n, 3))
     f_after_links, f_after_contacts = np.zeros((n, 3)), np.zeros((n, 3))
     pos0, quat0 = np.zeros((n, 3)), np.zeros((n, 4))
@@ -370,9 +385,9 @@ def audit_run(batch, state, real, series):
             f_after_contacts[:] = work.force
         # the energies of the state before the step, and the actuator's work since the last
         first = k == 0
-        e_links, a_links, jumps = link_pass(p, links.neg, links.pos, links.axis, links.stiff,
-                                            body.pos, body.quat, work.size, old_size, first,
-                                            mode, f_links, m_links, dforce)
+        e_links, a_links, jumps, a_damp = link_pass(
+            p, links.neg, links.pos, links.axis, links.stiff, links.damp, body.pos, body.quat,
+            work.size, old_size, first, mode, f_links, m_links, dforce, previous, damper)
         e_cont, a_cont = contact_pass(p, max(contacts.count, 0), work.pairs, body.pos,
                                       work.size, old_size, voxels.vconst, first, f_spring, dforce)
         a_floor, a_int = state_row(p, voxels.flags, voxels.vconst, body.pos, body.lin_mom,
@@ -383,6 +398,7 @@ def audit_run(batch, state, real, series):
         row[C_AFLOOR] += a_floor
         row[C_ACONT] += a_cont
         row[C_AINT] += a_int
+        row[C_ADAMP] += a_damp
         row[C_FRAMES] += jumps
         old_size[:] = work.size
         if k == p.steps:
@@ -400,7 +416,7 @@ def audit_run(batch, state, real, series):
             code = STATUS_STRAIN if bad else (STATUS_NONFINITE if speed2 < 0.0 else STATUS_CONTACTS)
             done = k + 1
             break
-    return code, done
+    return code, done, body.pos.copy()
 
 
 @dataclass
@@ -413,6 +429,8 @@ class Audit:
     dt: float
     stable: bool
     engine: str = "numba"
+    final_positions: np.ndarray | None = None  # (n, 3) metres, the audited run's
+    agreement: float | None = None  # largest distance from the engine's own final positions, m
 
     def column(self, name: str) -> np.ndarray:
         """The series' column ``name`` (one of ``COLUMNS``)."""
@@ -425,11 +443,12 @@ class Audit:
 
     def actuator_work(self) -> np.ndarray:
         """The actuators' work up to every step (links, floor and contacts), joules."""
-        return self.series[:, [C_ALINK, C_AFLOOR, C_ACONT, C_AINT]].sum(axis=1)
+        return self.series[:, [C_ALINK, C_AFLOOR, C_ACONT, C_AINT, C_ADAMP]].sum(axis=1)
 
     def dissipated(self) -> np.ndarray:
         """The energy the dissipative forces removed up to every step (positive: removed)."""
-        return -self.series[:, [C_DGLOB, C_DBOND, C_DFLOOR, C_DFRIC, C_DDRAG, C_DCONT]].sum(axis=1)
+        s = self.series
+        return s[:, C_ADAMP] - s[:, [C_DGLOB, C_DBOND, C_DFLOOR, C_DFRIC, C_DDRAG, C_DCONT]].sum(axis=1)
 
     def excess(self) -> np.ndarray:
         """By how much the mechanical energy's gain exceeds the work put in (actuators and
@@ -450,6 +469,7 @@ class Audit:
         mechanical = float(self.mechanical()[-1] - self.mechanical()[0])
         actuator = float(self.actuator_work()[-1])
         dissipated = {name: -float(last[COLUMNS.index(name)]) for name in DISSIPATION}
+        dissipated["bond_damping"] += float(last[C_ADAMP])  # the actuator's share is work
         known = sum(dissipated.values())
         external = float(last[C_EXT])
         integrator = float(last[C_S] - first[C_S])
@@ -463,7 +483,8 @@ class Audit:
             "actuator_work": actuator,
             "actuator_work_parts": {"links": float(last[C_ALINK]), "floor": float(last[C_AFLOOR]),
                                     "contacts": float(last[C_ACONT]),
-                                    "integrator": float(last[C_AINT])},
+                                    "integrator": float(last[C_AINT]),
+                                    "damping": float(last[C_ADAMP])},
             "external_work": external,
             "mechanical_change": mechanical,
             "mechanical_change_parts": change,
@@ -475,24 +496,33 @@ class Audit:
             "tolerance": tolerance,
             "peak_excess": float(excess.max()),
             "peak_excess_time": float(s[int(np.argmax(excess)), C_T]),
+            "engine_agreement": self.agreement,
         }
 
 
-def audit(scene: dict | Scene, engine: str = "numba") -> Audit:
+def audit(scene: dict | Scene, engine: str = "numba",
+          final_positions: np.ndarray | None = None) -> Audit:
     """The energy audit of one scene (a dict as docs/spec.md section 1, or a parsed
     ``Scene``) through the numba engine's steps; ``engine`` names the engine whose
-    evaluation it stands for (``numba`` or ``cuda``: the same steps). A scene refused unrun
-    (``sim.result.prepare``: its step budget) gives an empty audit."""
+    evaluation it stands for (``numba`` or ``cuda``: the same steps), and
+    ``final_positions``, that engine's own (``Result.final_positions``), are compared with
+    the audited run's (``Audit.agreement``). A scene refused unrun (``sim.result.prepare``:
+    its step budget) gives an empty audit."""
     from .numba_engine import REALS
 
     parsed, robots, results, runnable = prepare([scene])
     robot = robots[0]
     dt = float(robot.fparams[F_DT])
     if not runnable:
-        return Audit(np.zeros((1, N_COLUMNS)), dt, False, engine)
+        return Audit(np.zeros((1, N_COLUMNS)), dt, False, engine, np.zeros((0, 3)))
     batch, state = pack([robot])
     steps = int(robot.iparams[I_STEPS])
     series = np.zeros((steps + 1, N_COLUMNS))
-    code, done = audit_run(batch, state, REALS[parsed[0].options.precision], series)
+    code, done, final = audit_run(batch, state, REALS[parsed[0].options.precision], series)
     stable = code == STATUS_OK
-    return Audit(series[: done + 1] if stable else series[:done], dt, stable, engine)
+    agreement = None
+    if final_positions is not None and np.shape(final_positions) == final.shape:
+        agreement = float(np.max(np.linalg.norm(final - np.asarray(final_positions), axis=1),
+                                 initial=0.0))
+    return Audit(series[: done + 1] if stable else series[:done], dt, stable, engine, final,
+                 agreement)
