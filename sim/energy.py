@@ -75,16 +75,17 @@ COLUMNS = (
     "elastic_contacts", "integrator_term", "actuator_links", "actuator_floor",
     "actuator_contacts", "actuator_integrator", "actuator_damping", "external", "global_damping",
     "bond_damping", "floor_damping", "friction", "drag", "contact_damping", "frame_switches",
-    "com_x", "com_y", "com_z",
+    "link_nonconservative", "com_x", "com_y", "com_z",
 )
 (C_T, C_KIN, C_ROT, C_GRAV, C_ELINK, C_EFLOOR, C_ECONT, C_S, C_ALINK, C_AFLOOR, C_ACONT, C_AINT,
  C_ADAMP, C_EXT,
- C_DGLOB, C_DBOND, C_DFLOOR, C_DFRIC, C_DDRAG, C_DCONT, C_FRAMES, C_COMX, C_COMY,
+ C_DGLOB, C_DBOND, C_DFLOOR, C_DFRIC, C_DDRAG, C_DCONT, C_FRAMES, C_NONCONS, C_COMX, C_COMY,
  C_COMZ) = range(len(COLUMNS))
 N_COLUMNS = len(COLUMNS)
 DISSIPATION = ("global_damping", "bond_damping", "floor_damping", "friction", "drag",
                "contact_damping")
 ELASTIC = ("elastic_links", "elastic_floor", "elastic_contacts")
+MECHANICAL = [C_KIN, C_ROT, C_GRAV, C_ELINK, C_EFLOOR, C_ECONT]
 ACTUATOR = ("actuator_links", "actuator_floor", "actuator_contacts", "actuator_integrator",
             "actuator_damping")
 
@@ -102,29 +103,35 @@ def link_energy(k_axial, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z):
 
 
 @njit(**JIT)
-def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, first, mode, force,
-              moment, dforce, previous, damper):
+def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, mode, force, moment,
+              dforce, previous, damper, torque, extra):
     """Every link's elastic energy in the frame the engine puts it in (``mode``: 0 before the
     first step, +1 small-angle, -1 large, updated here with the engine's hysteresis), its
     undamped loads summed into ``force``/``moment`` (overwritten), the actuator work of the
-    size change from ``old_size`` (at these positions; none on the ``first`` step) and the
+    size change from ``old_size`` (at these positions) and the
     energy jumps of links that change frame; ``dforce`` (overwritten) gets the change of each
     voxel's load that the size change made (the axial force's), for the integrator's term.
     ``previous`` (per link) holds the elongation the engine damps against, ``damper`` the
     axial force of the bond damping (``damping``: gamma / (2 dt) per link; none on a link's
     first step in a frame), both updated here: the actuator works through the damper too,
-    -damper times the rest length's change over the step. Returns (energy, actuator work,
-    jumps, the actuator's work through the dampers)."""
+    -damper times the rest length's change since the last step (the change that the
+    damper's force answers). ``torque`` and ``extra`` (overwritten) get the part of the
+    elastic loads that is not the gradient of the beam's energy: in the small-angle frame
+    the net torque of a link's loads about its negative voxel (the loads of an energy that
+    does not change when the pair turns as a whole have none; the beam's moment on the
+    negative end takes the arm L where the ends are r apart), on that voxel; in the large
+    one the transverse forces' excess over the energy's (which are L / length of them).
+    Returns (energy, actuator work, jumps, the actuator's work through the dampers)."""
     force[:] = 0.0
     moment[:] = 0.0
     dforce[:] = 0.0
+    torque[:] = 0.0
+    extra[:] = 0.0
     energy = work = jumps = through = 0.0
     L = p.L
     for j in range(len(neg)):
         a, b, ax, s = neg[j], pos_[j], axis[j], stiff[j]
         rest = 0.5 * (size[a] + size[b])
-        if not first:
-            through -= damper[j] * (rest - 0.5 * (old_size[a] + old_size[b]))
         was = mode[j]
         R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
             quat[a, 0], quat[a, 1], quat[a, 2], quat[a, 3], quat[b, 0], quat[b, 1], quat[b, 2],
@@ -154,21 +161,23 @@ def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, fir
         damp = damping[j] if was != 0.0 and was == mode[j] else 0.0
         damper[j] = k_ax * damp * (d - previous[j])
         previous[j] = d
+        # the rest length's change this step is what the damper's force answers
+        through -= damper[j] * (rest - 0.5 * (old_size[a] + old_size[b]))
         u = link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
         energy += u
-        if not first:  # the same geometry at the previous sizes: d grows by the rest's change
-            old_rest = 0.5 * (old_size[a] + old_size[b])
-            d_old = d + rest - old_rest
-            work += u - link_energy(p.a1 * s * old_rest / L, a2, b1, b2, b3, d_old, ey, ez,
-                                    t1y, t1z, t2x, t2y, t2z)
-            # the axial force's change, along the beam's x axis in world axes (W's column 0)
-            df = p.a1 * s / L * (rest * d - old_rest * d_old)
-            dforce[a, 0] += df * W[0]
-            dforce[a, 1] += df * W[3]
-            dforce[a, 2] += df * W[6]
-            dforce[b, 0] -= df * W[0]
-            dforce[b, 1] -= df * W[3]
-            dforce[b, 2] -= df * W[6]
+        # the same geometry at the previous sizes: d grows by the rest's change
+        old_rest = 0.5 * (old_size[a] + old_size[b])
+        d_old = d + rest - old_rest
+        work += u - link_energy(p.a1 * s * old_rest / L, a2, b1, b2, b3, d_old, ey, ez,
+                                t1y, t1z, t2x, t2y, t2z)
+        # the axial force's change, along the beam's x axis in world axes (W's column 0)
+        df = p.a1 * s / L * (rest * d - old_rest * d_old)
+        dforce[a, 0] += df * W[0]
+        dforce[a, 1] += df * W[3]
+        dforce[a, 2] += df * W[6]
+        dforce[b, 0] -= df * W[0]
+        dforce[b, 1] -= df * W[3]
+        dforce[b, 2] -= df * W[6]
         fx, fy, fz, max_, may, maz, mbx, mby, mbz = link_loads(
             W, s, rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
         force[a, 0] += fx
@@ -183,11 +192,25 @@ def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, fir
         moment[b, 0] += mbx
         moment[b, 1] += mby
         moment[b, 2] += mbz
+        if mode[j] > 0.0:  # the moment on the negative end is not its potential's
+            wx, wy, wz = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+            torque[a, 0] += max_ + mbx - (wy * fz - wz * fy)  # + w x (-f), the force on b
+            torque[a, 1] += may + mby - (wz * fx - wx * fz)
+            torque[a, 2] += maz + mbz - (wx * fy - wy * fx)
+        else:  # the transverse forces are the potential's times L / length
+            bend = p.b2 * s * (1.0 - L / math.sqrt(rx * rx + ry * ry + rz * rz))
+            gy, gz = -bend * (t1z + t2z), bend * (t1y + t2y)  # on the negative end
+            extra[a, 0] += W[1] * gy + W[2] * gz
+            extra[a, 1] += W[4] * gy + W[5] * gz
+            extra[a, 2] += W[7] * gy + W[8] * gz
+            extra[b, 0] -= W[1] * gy + W[2] * gz
+            extra[b, 1] -= W[4] * gy + W[5] * gz
+            extra[b, 2] -= W[7] * gy + W[8] * gz
     return energy, work, jumps, through
 
 
 @njit(**JIT)
-def contact_pass(p, count, pairs, pos, size, old_size, vconst, first, force, dforce):
+def contact_pass(p, count, pairs, pos, size, old_size, vconst, force, dforce):
     """The self-contact springs of the touching candidate pairs: their energy
     k overlap^2 / 2 (``physics.contact_push``'s stiffness), their spring forces k overlap
     along the line of centres into ``force`` (overwritten), and the actuator work of the
@@ -204,10 +227,9 @@ def contact_pass(p, count, pairs, pos, size, old_size, vconst, first, force, dfo
         k = p.contact_stiff * (ki if ki == kj else 2.0 * ki * kj / (ki + kj))
         overlap = reach * (size[i] + size[j]) - dist
         before = f_old = 0.0
-        if not first:
-            old = reach * (old_size[i] + old_size[j]) - dist
-            if old > 0.0 and dist > 0.0:
-                before, f_old = 0.5 * k * old * old, k * old / dist
+        old = reach * (old_size[i] + old_size[j]) - dist
+        if old > 0.0 and dist > 0.0:
+            before, f_old = 0.5 * k * old * old, k * old / dist
         if overlap > 0.0 and dist > 0.0:
             u = 0.5 * k * overlap * overlap
             f = k * overlap / dist
@@ -220,21 +242,20 @@ def contact_pass(p, count, pairs, pos, size, old_size, vconst, first, force, dfo
         else:
             u = f = 0.0
         energy += u
-        if not first:
-            work += u - before
-            df = f - f_old
-            dforce[j, 0] += df * dx
-            dforce[j, 1] += df * dy
-            dforce[j, 2] += df * dz
-            dforce[i, 0] -= df * dx
-            dforce[i, 1] -= df * dy
-            dforce[i, 2] -= df * dz
+        work += u - before
+        df = f - f_old
+        dforce[j, 0] += df * dx
+        dforce[j, 1] += df * dy
+        dforce[j, 2] += df * dz
+        dforce[i, 0] -= df * dx
+        dforce[i, 1] -= df * dy
+        dforce[i, 2] -= df * dz
     return energy, work
 
 
 @njit(**JIT)
-def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, first, f_links,
-              m_links, f_contacts, dforce, row):
+def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, f_links, m_links,
+              f_contacts, dforce, row):
     """The state's energies into ``row`` (kinetic, rotational, gravitational, floor springs,
     the integrator's term S of the conservative loads ``f_links``/``m_links``/``f_contacts``
     plus gravity and the floor, the centre of mass). Returns the floor's actuator work and
@@ -263,10 +284,9 @@ def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, first, f_
             if pen >= 0.0:
                 floor += 0.5 * vconst[v, V_KFLOOR] * pen * pen
                 fz += vconst[v, V_KFLOOR] * pen
-            if not first:
-                old = 0.5 * old_size[v] - pos[v, 2]
-                work += (0.5 * vconst[v, V_KFLOOR] * (max(pen, 0.0) ** 2 - max(old, 0.0) ** 2))
-                dpower += inv_m * vconst[v, V_KFLOOR] * (max(pen, 0.0) - max(old, 0.0)) * pz
+            old = 0.5 * old_size[v] - pos[v, 2]
+            work += (0.5 * vconst[v, V_KFLOOR] * (max(pen, 0.0) ** 2 - max(old, 0.0) ** 2))
+            dpower += inv_m * vconst[v, V_KFLOOR] * (max(pen, 0.0) - max(old, 0.0)) * pz
         dpower += inv_m * (dforce[v, 0] * px + dforce[v, 1] * py + dforce[v, 2] * pz)
         power += inv_m * ((f_links[v, 0] + f_contacts[v, 0]) * px
                           + (f_links[v, 1] + f_contacts[v, 1]) * py + fz * pz)
@@ -280,7 +300,7 @@ def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, first, f_
 @njit(**JIT)
 def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mom, ang_mom, size,
                f_engine, m_engine, f_links, m_links, f_after_links, f_spring, f_after_contacts,
-               row):
+               torque, extra, row):
     """The work of each force over one step into ``row`` (added to it): the state before the
     step (``pos0``, ``quat0``, ``mom0``, ``ang0``), the momenta after it, the engine's link
     loads (``f_engine``/``m_engine``), the elastic ones (``f_links``/``m_links``), the
@@ -304,6 +324,8 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
         # the engine's force on v, term by term
         blx, bly, blz = f_engine[v, 0] - f_links[v, 0], f_engine[v, 1] - f_links[v, 1], \
             f_engine[v, 2] - f_links[v, 2]
+        row[C_NONCONS] += (torque[v, 0] * wmx + torque[v, 1] * wmy + torque[v, 2] * wmz
+                          + extra[v, 0] * vmx + extra[v, 1] * vmy + extra[v, 2] * vmz)
         row[C_DBOND] += (blx * vmx + bly * vmy + blz * vmz
                          + (m_engine[v, 0] - m_links[v, 0]) * wmx
                          + (m_engine[v, 1] - m_links[v, 1]) * wmy
@@ -358,10 +380,11 @@ def audit_run(batch, state, real, series):
                               len(voxels.mesh_vert), len(voxels.mesh_face), real)
     contacts = kernels.Contacts(0, COLLIDE_MARGIN * p.L)
     mode = np.zeros(m)
-    old_size = np.zeros(n)
+    old_size = np.full(n, p.L)  # the body is built at the nominal size
     f_links, m_links = np.zeros((n, 3)), np.zeros((n, 3))
     f_spring, dforce = np.zeros((n, 3)), np.zeros((n, 3))
     previous, damper = np.zeros(m), np.zeros(m)
+    torque, extra = np.zeros((n, 3)), np.zeros((n, 3))
     f_engine, m_engine = np.zeros((n, 3)), np.zeros((n, 3))
     f_after_links, f_after_contacts = np.zeros((n, 3)), np.zeros((n, 3))
     pos0, quat0 = np.zeros((n, 3)), np.zeros((n, 4))
@@ -384,14 +407,13 @@ def audit_run(batch, state, real, series):
                                          work.facet_force, work.force)
             f_after_contacts[:] = work.force
         # the energies of the state before the step, and the actuator's work since the last
-        first = k == 0
         e_links, a_links, jumps, a_damp = link_pass(
             p, links.neg, links.pos, links.axis, links.stiff, links.damp, body.pos, body.quat,
-            work.size, old_size, first, mode, f_links, m_links, dforce, previous, damper)
+            work.size, old_size, mode, f_links, m_links, dforce, previous, damper, torque, extra)
         e_cont, a_cont = contact_pass(p, max(contacts.count, 0), work.pairs, body.pos,
-                                      work.size, old_size, voxels.vconst, first, f_spring, dforce)
+                                      work.size, old_size, voxels.vconst, f_spring, dforce)
         a_floor, a_int = state_row(p, voxels.flags, voxels.vconst, body.pos, body.lin_mom,
-                                   body.ang_mom, work.size, old_size, first, f_links, m_links,
+                                   body.ang_mom, work.size, old_size, f_links, m_links,
                                    f_spring, dforce, row)
         row[C_ELINK], row[C_ECONT] = e_links, e_cont
         row[C_ALINK] += a_links
@@ -411,7 +433,8 @@ def audit_run(batch, state, real, series):
         nxt[C_ALINK:] = row[C_ALINK:]
         step_works(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, pos0, quat0,
                    mom0, ang0, body.lin_mom, body.ang_mom, work.size, f_engine, m_engine,
-                   f_links, m_links, f_after_links, f_spring, f_after_contacts, nxt)
+                   f_links, m_links, f_after_links, f_spring, f_after_contacts, torque, extra,
+                   nxt)
         if bad or speed2 < 0.0 or contacts.count < 0:
             code = STATUS_STRAIN if bad else (STATUS_NONFINITE if speed2 < 0.0 else STATUS_CONTACTS)
             done = k + 1
@@ -436,45 +459,56 @@ class Audit:
         """The series' column ``name`` (one of ``COLUMNS``)."""
         return self.series[:, COLUMNS.index(name)]
 
+    def start(self) -> np.ndarray:
+        """The first row as it was before the first step's sizes were set (the body is built
+        at the nominal size): its energies less the work of that size change."""
+        row = self.series[0].copy()
+        for energy, work in ((C_ELINK, C_ALINK), (C_EFLOOR, C_AFLOOR), (C_ECONT, C_ACONT),
+                             (C_S, C_AINT)):
+            row[energy] -= row[work]
+        row[C_ALINK:C_COMX] = 0.0
+        return row
+
     def mechanical(self) -> np.ndarray:
         """Kinetic + rotational + gravitational + elastic energy at every step, joules."""
-        s = self.series
-        return s[:, [C_KIN, C_ROT, C_GRAV, C_ELINK, C_EFLOOR, C_ECONT]].sum(axis=1)
+        return self.series[:, MECHANICAL].sum(axis=1)
+
+    def gain(self) -> np.ndarray:
+        """The mechanical energy's change from the start (``start``) to every step."""
+        return self.mechanical() - self.start()[MECHANICAL].sum()
 
     def actuator_work(self) -> np.ndarray:
-        """The actuators' work up to every step (links, floor and contacts), joules."""
+        """The actuators' work up to every step (links, floor, contacts, the integrator's
+        term and the dampers), joules."""
         return self.series[:, [C_ALINK, C_AFLOOR, C_ACONT, C_AINT, C_ADAMP]].sum(axis=1)
 
     def dissipated(self) -> np.ndarray:
-        """The energy the dissipative forces removed up to every step (positive: removed)."""
+        """The energy the dissipative forces removed up to every step (positive: removed;
+        the bond dampers' share of the actuator's work is not dissipation)."""
         s = self.series
         return s[:, C_ADAMP] - s[:, [C_DGLOB, C_DBOND, C_DFLOOR, C_DFRIC, C_DDRAG, C_DCONT]].sum(axis=1)
 
     def excess(self) -> np.ndarray:
         """By how much the mechanical energy's gain exceeds the work put in (actuators and
-        external forces) at every step, less the integrator's term's bound |S_0| + |S_k|:
+        external forces) at every step, less the integrator's bound |S_start| + |S_k|:
         positive only where energy came from nowhere beyond what the step size explains."""
         s = self.series
-        gain = self.mechanical() - self.mechanical()[0]
         put_in = self.actuator_work() + s[:, C_EXT]
-        return gain - put_in - (abs(s[0, C_S]) + np.abs(s[:, C_S]))
+        return self.gain() - put_in - (abs(self.start()[C_S]) + np.abs(s[:, C_S]))
 
     def summary(self) -> dict:
         """The ``energy`` object of ``softevo simulate --json --energy`` (joules; changes from
-        the first step to the last; ``dissipated``: energy removed, positive)."""
+        the start to the last step; ``dissipated``: energy removed, positive)."""
         s = self.series
-        first, last = s[0], s[-1]
+        first, last = self.start(), s[-1]
         change = {name: float(last[COLUMNS.index(name)] - first[COLUMNS.index(name)])
                   for name in ("kinetic", "rotational", "gravitational", *ELASTIC)}
-        mechanical = float(self.mechanical()[-1] - self.mechanical()[0])
+        mechanical = float(self.gain()[-1])
         actuator = float(self.actuator_work()[-1])
         dissipated = {name: -float(last[COLUMNS.index(name)]) for name in DISSIPATION}
         dissipated["bond_damping"] += float(last[C_ADAMP])  # the actuator's share is work
         known = sum(dissipated.values())
         external = float(last[C_EXT])
-        integrator = float(last[C_S] - first[C_S])
-        tolerance = float(abs(first[C_S]) + abs(last[C_S]))
-        unaccounted = actuator + external - mechanical - known
         excess = self.excess()
         return {
             "engine": self.engine,
@@ -490,10 +524,11 @@ class Audit:
             "mechanical_change_parts": change,
             "dissipated": dissipated,
             "dissipated_known": known,
+            "unaccounted": actuator + external - mechanical - known,
             "frame_switches": float(last[C_FRAMES]),
-            "integrator_term": integrator,
-            "unaccounted": unaccounted,
-            "tolerance": tolerance,
+            "link_nonconservative": float(last[C_NONCONS]),
+            "integrator_term": float(last[C_S] - first[C_S]),
+            "tolerance": float(abs(first[C_S]) + abs(last[C_S])),
             "peak_excess": float(excess.max()),
             "peak_excess_time": float(s[int(np.argmax(excess)), C_T]),
             "engine_agreement": self.agreement,
