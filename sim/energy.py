@@ -11,21 +11,29 @@ equations (docs/physics.md, "Energy"):
   (``link_energy``), the floor's penalty springs k pen^2 / 2 and the self-contact springs
   k overlap^2 / 2;
 - actuator work: what changing the sizes does at fixed positions: the elastic energy at the
-  new sizes minus that at the old ones, each step (links, floor, contacts);
+  new sizes minus that at the old ones, each step (links, floor, contacts, from the nominal
+  sizes the body is built at), plus its two shares of the step's own: the integrator's (the
+  size change's work on S below) and the bond dampers' (they act on the elongation, so they
+  answer a rest length's change: minus their axial force times that change);
 - dissipation: the work of the global damping, the bond damping (the engine's link loads
-  minus the elastic ones), the floor's collision damping, friction (a voxel's change of
-  kinetic energy less the work of every other force on it: kinetic friction and the static
-  rule's zeroed momenta), drag and contact damping, each as F . v_mid dt with v_mid the mean
-  of the velocities before and after the step (exactly what changes the kinetic energy in
-  the semi-implicit Euler step);
+  minus the elastic ones, less the dampers' actuator share), the floor's collision damping,
+  friction (a voxel's change of kinetic energy less the work of every other force on it:
+  kinetic friction and the static rule's zeroed momenta), drag and contact damping, each as
+  F . v_mid dt with v_mid the mean of the velocities before and after the step (exactly
+  what changes the kinetic energy in the semi-implicit Euler step);
 - ``frame_switches``: the jumps of the elastic energy when links change co-rotational frame;
+- ``link_nonconservative``: the work of the part of the links' loads that is not the
+  gradient of their energy (the beam's moments balance its forces about the nominal arm L);
 - the integrator's term S = dt/2 sum(F . v + M . omega) of the conservative loads: the
-  semi-implicit Euler step conserves E + S (exactly for linear springs), so the mechanical
+  semi-implicit Euler step keeps E + S (exactly for linear springs), so the mechanical
   energy itself can differ from its exact value by |S| at either end (the tolerance).
 
 ``Audit.summary()`` is the ``energy`` object of ``softevo simulate --json --energy``.
 The cuda engine computes the same steps (the cross-engine tests hold it to 1e-9 of the
-body); it is audited through the numba engine's steps (docs/physics.md says why).
+body); its runs are audited through the numba engine's steps, and ``engine_agreement`` says
+how far the two runs' final positions are apart. The audit's own loads are float64 in
+either precision (in "mixed" the engine's links are float32: their damping share then holds
+float32's rounding).
 """
 
 from __future__ import annotations
@@ -299,14 +307,15 @@ def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, f_links, 
 
 @njit(**JIT)
 def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mom, ang_mom, size,
-               f_engine, m_engine, f_links, m_links, f_after_links, f_spring, f_after_contacts,
+               f_engine, m_engine, f_links, m_links, f_with_contacts, f_spring, f_with_drag,
                torque, extra, row):
     """The work of each force over one step into ``row`` (added to it): the state before the
     step (``pos0``, ``quat0``, ``mom0``, ``ang0``), the momenta after it, the engine's link
     loads (``f_engine``/``m_engine``), the elastic ones (``f_links``/``m_links``), the
-    engine's force after contacts were added (``f_after_links`` before them) and after the
-    mesh drag (``f_after_contacts``), the contact springs (``f_spring``). Each as
-    F . v_mid dt (M . omega_mid dt), v_mid the mean of the velocities before and after."""
+    engine's force once the contacts were added (``f_with_contacts``) and once the mesh drag
+    was (``f_with_drag``), the contact springs (``f_spring``), the links' non-gradient loads
+    (``torque``, ``extra``: ``link_pass``). Each as F . v_mid dt (M . omega_mid dt), v_mid
+    the mean of the velocities before and after the step."""
     world = voxel_world(p)
     dt, g, drag, water, land = world[0], world[1], world[2], world[3], world[4]
     for v in range(len(flags)):
@@ -314,6 +323,7 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
             continue
         m, inv_m, inv_i = vconst[v, V_MASS], vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
         v0x, v0y, v0z = mom0[v, 0] * inv_m, mom0[v, 1] * inv_m, mom0[v, 2] * inv_m
+        # v_mid dt and omega_mid dt: what a force's and a moment's work is taken over
         vmx = 0.5 * (mom0[v, 0] + lin_mom[v, 0]) * inv_m * dt
         vmy = 0.5 * (mom0[v, 1] + lin_mom[v, 1]) * inv_m * dt
         vmz = 0.5 * (mom0[v, 2] + lin_mom[v, 2]) * inv_m * dt
@@ -330,15 +340,15 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
                          + (m_engine[v, 0] - m_links[v, 0]) * wmx
                          + (m_engine[v, 1] - m_links[v, 1]) * wmy
                          + (m_engine[v, 2] - m_links[v, 2]) * wmz)
-        cx = f_after_links[v, 0] - f_engine[v, 0]
-        cy = f_after_links[v, 1] - f_engine[v, 1]
-        cz = f_after_links[v, 2] - f_engine[v, 2]
+        cx = f_with_contacts[v, 0] - f_engine[v, 0]
+        cy = f_with_contacts[v, 1] - f_engine[v, 1]
+        cz = f_with_contacts[v, 2] - f_engine[v, 2]
         row[C_DCONT] += ((cx - f_spring[v, 0]) * vmx + (cy - f_spring[v, 1]) * vmy
                          + (cz - f_spring[v, 2]) * vmz)
         # drag: the mesh's (added by the engine before the voxel update) and the faces'
-        dx = f_after_contacts[v, 0] - f_after_links[v, 0]
-        dy = f_after_contacts[v, 1] - f_after_links[v, 1]
-        dz = f_after_contacts[v, 2] - f_after_links[v, 2]
+        dx = f_with_drag[v, 0] - f_with_contacts[v, 0]
+        dy = f_with_drag[v, 1] - f_with_contacts[v, 1]
+        dz = f_with_drag[v, 2] - f_with_contacts[v, 2]
         if water:
             exposed = 0
             for f in range(6):
@@ -353,9 +363,9 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
                          + c_ang * (w0x * wmx + w0y * wmy + w0z * wmz))
         # every force the model names: links (damped), contacts, drag, external, global
         # damping, gravity, the floor; what else changed the kinetic energy is friction's
-        fx = f_after_links[v, 0] + dx + ex - c_lin * v0x
-        fy = f_after_links[v, 1] + dy + ey - c_lin * v0y
-        fz = f_after_links[v, 2] + dz + ez - c_lin * v0z - m * g
+        fx = f_with_contacts[v, 0] + dx + ex - c_lin * v0x
+        fy = f_with_contacts[v, 1] + dy + ey - c_lin * v0y
+        fz = f_with_contacts[v, 2] + dz + ez - c_lin * v0z - m * g
         if land:
             pen = 0.5 * size[v] - pos0[v, 2]
             if pen >= 0.0:
@@ -386,7 +396,7 @@ def audit_run(batch, state, real, series):
     previous, damper = np.zeros(m), np.zeros(m)
     torque, extra = np.zeros((n, 3)), np.zeros((n, 3))
     f_engine, m_engine = np.zeros((n, 3)), np.zeros((n, 3))
-    f_after_links, f_after_contacts = np.zeros((n, 3)), np.zeros((n, 3))
+    f_with_contacts, f_with_drag = np.zeros((n, 3)), np.zeros((n, 3))
     pos0, quat0 = np.zeros((n, 3)), np.zeros((n, 4))
     mom0, ang0 = np.zeros((n, 3)), np.zeros((n, 3))
     code, done = STATUS_OK, p.steps
@@ -399,13 +409,13 @@ def audit_run(batch, state, real, series):
             bad = kernels.link_forces(p, links, body, work)
             f_engine[:], m_engine[:] = work.force, work.moment
             contacts = kernels.collide(p, voxels, body, work, contacts)
-            f_after_links[:] = work.force
+            f_with_contacts[:] = work.force
             if p.mesh_drag > 0.0:
                 kernels.mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face,
                                          voxels.nbr, p.L, body.pos, body.quat, body.lin_mom,
                                          voxels.vconst, work.size, work.vert_pos, work.corners,
                                          work.facet_force, work.force)
-            f_after_contacts[:] = work.force
+            f_with_drag[:] = work.force
         # the energies of the state before the step, and the actuator's work since the last
         e_links, a_links, jumps, a_damp = link_pass(
             p, links.neg, links.pos, links.axis, links.stiff, links.damp, body.pos, body.quat,
@@ -433,7 +443,7 @@ def audit_run(batch, state, real, series):
         nxt[C_ALINK:] = row[C_ALINK:]
         step_works(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, pos0, quat0,
                    mom0, ang0, body.lin_mom, body.ang_mom, work.size, f_engine, m_engine,
-                   f_links, m_links, f_after_links, f_spring, f_after_contacts, torque, extra,
+                   f_links, m_links, f_with_contacts, f_spring, f_with_drag, torque, extra,
                    nxt)
         if bad or speed2 < 0.0 or contacts.count < 0:
             code = STATUS_STRAIN if bad else (STATUS_NONFINITE if speed2 < 0.0 else STATUS_CONTACTS)
