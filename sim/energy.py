@@ -40,11 +40,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from . import kernels, physics
+from .cache import drop_foreign_entries, drop_stale_entries
 from .physics import COLLIDE_MARGIN
 from .result import prepare
 from .scene import Scene
@@ -67,6 +69,14 @@ from .system import (
     V_WEIGHT,
     pack,
 )
+
+# the audit's cached code inlines the engine's sub-steps: dropped when any of their sources
+# changes (``sim.cache``), as the engine's own are
+_HERE = Path(__file__).parent
+drop_foreign_entries(_HERE / "__pycache__", "energy")
+drop_stale_entries(_HERE / "__pycache__",
+                   [_HERE / name for name in ("energy.py", "kernels.py", "physics.py", "system.py")],
+                   "energy")
 
 # the physics compiled as the CPU engine compiles it (same fma, same flags): the audit's link
 # frames take the same decisions as the engine's
