@@ -89,12 +89,16 @@ def _summary(result: Any, wall_seconds: float, environment: str, axes: str) -> s
 
 
 def _energy_summary(audit: dict) -> str:
-    """The energy audit's balance in three lines (joules)."""
+    """The energy audit's balance in three lines (joules; docs/physics.md "Energy")."""
+    rest = (audit["unaccounted"] - audit["integrator_term"] + audit["link_nonconservative"]
+            + audit["frame_switches"])
     return "\n".join([
         f"energy     actuator work {audit['actuator_work']:.4g} J, mechanical change "
         f"{audit['mechanical_change']:.4g} J, dissipated {audit['dissipated_known']:.4g} J",
-        f"           unaccounted {audit['unaccounted']:.3g} J (the step's tolerance "
-        f"{audit['tolerance']:.3g} J)",
+        f"           unaccounted {audit['unaccounted']:.3g} J = the beam's non-gradient loads "
+        f"{-audit['link_nonconservative']:.3g} J + frame switches {-audit['frame_switches']:.3g} J",
+        f"           + the step's term {audit['integrator_term']:.3g} J (tolerance "
+        f"{audit['tolerance']:.3g} J) + the rest {rest:.3g} J",
     ])
 
 
