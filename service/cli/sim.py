@@ -1,7 +1,8 @@
 """``softevo simulate SCENE.json``: run one scene through the physics engine.
 
 Plain output is a short human summary; ``--json`` prints exactly ``Result.to_dict()`` as one
-JSON object; ``--record out.npz`` also writes the frames (``t`` (n_frames,) seconds,
+JSON object (with ``--energy``, plus an ``energy`` object: ``sim.energy``'s audit of the
+run, docs/physics.md "Energy"); ``--record out.npz`` also writes the frames (``t`` (n_frames,) seconds,
 ``positions`` (n_frames, n_voxels, 3) metres, ``voxels`` (n_voxels, 3) body indices). A scene
 without a ``record`` field is recorded at about ``worker.tasks.DEFAULT_RECORD_FPS`` frames
 per simulated second (``worker.tasks.default_record_every``) when ``--record`` is given.
@@ -87,6 +88,20 @@ def _summary(result: Any, wall_seconds: float, environment: str, axes: str) -> s
     return "\n".join(lines)
 
 
+def _energy_summary(audit: dict) -> str:
+    """The energy audit's balance in three lines (joules; docs/physics.md "Energy")."""
+    rest = (audit["unaccounted"] - audit["integrator_term"] + audit["link_nonconservative"]
+            + audit["frame_switches"])
+    return "\n".join([
+        f"energy     actuator work {audit['actuator_work']:.4g} J, mechanical change "
+        f"{audit['mechanical_change']:.4g} J, dissipated {audit['dissipated_known']:.4g} J",
+        f"           unaccounted {audit['unaccounted']:.3g} J = the beam's non-gradient loads "
+        f"{-audit['link_nonconservative']:.3g} J + frame switches {-audit['frame_switches']:.3g} J",
+        f"           + the step's term {audit['integrator_term']:.3g} J (tolerance "
+        f"{audit['tolerance']:.3g} J) + the rest {rest:.3g} J",
+    ])
+
+
 def simulate(
     scene_path: Annotated[
         Path, typer.Argument(metavar="SCENE.json", help="Scene file (docs/spec.md section 1).")
@@ -106,6 +121,10 @@ def simulate(
                      help="The arithmetic, over the scene's model_options.precision: float64, or "
                           "mixed (each link's beam in float32; docs/fidelity.md)."),
     ] = None,
+    energy: Annotated[
+        bool, typer.Option("--energy", help="Audit the run's energy: actuator work, mechanical "
+                                            "change, dissipation (docs/physics.md, Energy).")
+    ] = False,
 ) -> None:
     """Simulate one scene and print its result."""
     from softevo.service.runs.limits import check_scene
@@ -125,14 +144,22 @@ def simulate(
     engine = engine or "numba"
     if device is not None and engine not in ("cuda", "sleep"):
         raise UserError("--device: only the cuda and sleep engines take a device (add --engine cuda)")
+    if energy and engine == "sleep":
+        raise UserError("--energy: the sleep engine has no physics to audit (use numba or cuda)")
     result = sim.simulate(scene_dict, engine=engine, device=device)
     wall = time.perf_counter() - started
     n_frames = _write_record(record, result) if record is not None else 0
+    audit = (sim.energy_audit(scene_dict, engine, result.final_positions) if energy else None)
     if as_json:
-        typer.echo(json.dumps(result.to_dict()))
+        out = result.to_dict()
+        if audit is not None:
+            out["energy"] = audit
+        typer.echo(json.dumps(out))
         return
     scene = sim.parse_scene(scene_dict)
     typer.echo(_summary(result, wall, scene.environment.kind, distance_axes(scene)))
+    if audit is not None:
+        typer.echo(_energy_summary(audit))
     if record is not None:
         typer.echo(f"recorded   {n_frames} frames -> {record}")
 

@@ -194,3 +194,29 @@ def test_cantilever_example_matches_beam_theory():
     span = 9 * L
     expected = sum(m * g * (j * L) ** 2 * (3 * span - j * L) / (6 * ei) for j in range(1, 10))
     assert sag == pytest.approx(expected, rel=0.03)
+
+
+def test_energy_adds_the_audit_to_the_json(tmp_path, capsys):
+    """``--json --energy``: the result as without it, plus an ``energy`` object: the
+    actuators' work, the mechanical change, the dissipation, the balance (``sim.energy``)."""
+    path = write(tmp_path, TINY)
+    plain = softevo_here(capsys, "simulate", str(path), "--json")
+    proc = softevo_here(capsys, "simulate", str(path), "--json", "--energy")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    audit = out.pop("energy")
+    assert out == json.loads(plain.stdout)
+    assert audit["actuator_work"] > 0.0 and audit["dissipated_known"] > 0.0
+    assert audit["unaccounted"] == pytest.approx(
+        audit["actuator_work"] + audit["external_work"] - audit["mechanical_change"]
+        - audit["dissipated_known"], abs=1e-12)
+    assert audit["engine_agreement"] == 0.0
+    assert audit["steps"] == out["steps"]
+    summary = softevo_here(capsys, "simulate", str(path), "--energy")
+    assert "actuator work" in summary.stdout and "unaccounted" in summary.stdout
+
+
+def test_energy_on_the_sleep_engine_is_a_user_error(tmp_path, capsys):
+    proc = softevo_here(capsys, "simulate", str(write(tmp_path, TINY)), "--energy",
+                        "--engine", "sleep")
+    assert_user_error(proc, "--energy", "sleep")
