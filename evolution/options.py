@@ -87,7 +87,8 @@ class Option:
 
     def __post_init__(self) -> None:
         if self.part not in PARTS:
-            raise ValueError(f"option {self.name!r}: part must be one of {', '.join(PARTS)} (got {self.part!r})")
+            raise ValueError(f"option {self.name!r}: part must be one of {', '.join(PARTS)} "
+                             f"(got {self.part!r})")
         if not self.name.isidentifier() or self.name.startswith("_"):
             raise ValueError(f"option name must be a public identifier (got {self.name!r})")
         if not self.flag:
@@ -135,7 +136,7 @@ class Option:
             return ""
         if self.sequence:
             return ",".join(_figure(item) if self.type is not str else item for item in value)
-        return _figure(value) if isinstance(value, int | float) and not isinstance(value, bool) else str(value)
+        return _figure(value)
 
     def sequence_text(self) -> str:
         """E.g. ``3 integers X,Y,Z within 1..64 voxels``."""
@@ -183,7 +184,8 @@ class Option:
         if self.type is bool:
             return isinstance(value, bool)
         if self.type is str:
-            return isinstance(value, str) and bool(value) and (self.choices is None or value in self.choices())
+            known = self.choices is None or value in self.choices()
+            return isinstance(value, str) and bool(value) and known
         if isinstance(value, bool) or not isinstance(value, int if self.type is int else int | float):
             return False
         if not math.isfinite(value):
@@ -218,7 +220,9 @@ class Option:
         if self.sequence:
             unit = f" {self.unit}" if self.unit else ""
             return f"{self.label} must be at most {_figure(most)}{unit} each (got {self.format(value)})"
-        return f"{self.label} must be {self.bounds_text(most)} (got {_figure(value)})"
+        bounds = f"within {_figure(self.least)}..{_figure(most)}" if self.least is not None else \
+            f"at most {_figure(most)}"
+        return f"{self.label} must be {bounds} (got {_figure(value)})"
 
 
 def _figure(value: Any) -> str:
@@ -266,8 +270,8 @@ BUILT_IN = (
     Option("stiffness_mpa", "evaluation", float, required=True, flag="--stiffness", label="stiffness",
            unit="MPa", least=STIFFNESS_RANGE_MPA[0], most=STIFFNESS_RANGE_MPA[1], methods=False,
            help="Young's modulus; with evolve_stiffness unused by the physics (softevo run: optional, 0.1)"),
-    Option("workspace", "evaluation", int, genotype.EncodingConfig.workspace, length=3, least=1, most=MAX_SIDE, unit="voxels",
-           encodes="workspace", help="voxels along x, y, z"),
+    Option("workspace", "evaluation", int, genotype.EncodingConfig.workspace, length=3, least=1,
+           most=MAX_SIDE, unit="voxels", encodes="workspace", help="voxels along x, y, z"),
     Option("cycles", "evaluation", int, DEFAULT_CYCLES, least=1, limit=10_000, methods=False,
            help="actuation cycles per evaluation"),
     Option("max_seconds", "evaluation", float, None, optional=True, above=0, limit=3600.0, unit="seconds",
@@ -276,7 +280,8 @@ BUILT_IN = (
     Option("model", "evaluation", str, models.DEFAULT, choices=models.names, paper="voxcad-land-water",
            methods=False, help="physics model of every evaluation: voxelyze-2, or voxcad-land-water (the "
            "paper's engine: 3-D distance in both worlds)"),
-    Option("control_mapping", "evaluation", str, "linear", choices=_control_mappings, encodes="control_mapping",
+    Option("control_mapping", "evaluation", str, "linear", choices=_control_mappings,
+           encodes="control_mapping",
            paper="evosoro-logistic", methods=False,
            help="linear: one frequency mapped onto 1-5 Hz; evosoro-logistic: the paper scripts' "
            "10 / (mean(1/s') + 1.5) Hz of the logistic output (0-4 Hz); evosoro-bounded: the bipolar "
@@ -287,7 +292,8 @@ BUILT_IN = (
            "full or 10% active are drawn or mutated again"),
     Option("evolve_stiffness", "evaluation", bool, False, encodes="evolve_stiffness",
            help="evolve a Young's modulus per voxel within stiffness_range_mpa"),
-    Option("stiffness_range_mpa", "evaluation", float, STIFFNESS_RANGE_MPA, length=2, flag="--stiffness-range",
+    Option("stiffness_range_mpa", "evaluation", float, STIFFNESS_RANGE_MPA, length=2,
+           flag="--stiffness-range",
            least=STIFFNESS_RANGE_MPA[0], most=STIFFNESS_RANGE_MPA[1], unit="MPa", encodes="stiffness_range",
            scale=1e6, help="LO,HI of an evolved stiffness (default the paper's S1..S5)"),
     Option("frequency_per_voxel", "evaluation", bool, False, encodes="frequency_per_voxel",
@@ -355,7 +361,8 @@ def part_type(part: str) -> type:
     members = declared(part)
     key = (part, members)
     if key not in _PART_TYPES:
-        fields = [(o.name, Any, dataclasses.field(default=o.default, metadata={"option": o})) for o in members]
+        fields = [(o.name, Any, dataclasses.field(default=o.default, metadata={"option": o}))
+                  for o in members]
         _PART_TYPES[key] = dataclasses.make_dataclass(
             f"{part.capitalize()}Part", fields, frozen=True,
             namespace={"__doc__": f"The {part} options of a treatment (evolution.options).",

@@ -269,8 +269,8 @@ class Treatment:
     def settle_seconds(self) -> dict[str, float]:
         """The settling time of an evaluation in each world the treatment visits (seconds;
         ``sim.worlds``: 0.5 on a floor, 0 elsewhere), recorded in the stored settings."""
-        names = environments.transition(self.environment) if environments.is_transition(self.environment) else (
-            self.environment,)
+        transition = environments.is_transition(self.environment)
+        names = environments.transition(self.environment) if transition else (self.environment,)
         return {name: float(sim_worlds.get(name).settle_seconds) for name in names}
 
     def to_settings(self) -> dict[str, Any]:
