@@ -253,14 +253,16 @@ def _body_rules() -> tuple[str, ...]:
     return tuple(genotype.BODY_RULES)
 
 
-def _known_objectives(names: Sequence[str]) -> None:
-    """ValueError for a name that is no registered objective (``evolution.selection``), or
-    objectives without distance."""
-    try:
-        selection.objectives_named(tuple(names))
-    except KeyError as exc:  # a registry's lookup error: read as the ValueError it means
-        raise ValueError(exc.args[0]) from None
+def _include_distance(names: Sequence[str]) -> None:
+    """ValueError for objectives without distance (naming first a name that is no registered
+    objective, ``evolution.selection``). Names are not checked otherwise here: settings stored
+    with an objective no longer registered still read; they only cannot run
+    (``Treatment.objective_list``)."""
     if names and "distance" not in names:
+        try:
+            selection.objectives_named(tuple(names))
+        except KeyError as exc:  # a registry's lookup error: read as the ValueError it means
+            raise ValueError(exc.args[0]) from None
         raise ValueError(f"must include distance (got {', '.join(names)})")
 
 
@@ -310,7 +312,7 @@ BUILT_IN = (
     Option("algorithm", "search", str, "afpo", choices=algorithm.names, paper="pareto", methods=False,
            help="pareto: the paper's plain 3-objective Pareto optimisation (mutation only); afpo: "
            "Age-Fitness Pareto, a named variant (age objective, one random newcomer a generation)"),
-    Option("objectives", "search", str, (), many=16, check=_known_objectives, methods=False,
+    Option("objectives", "search", str, (), many=16, check=_include_distance, methods=False,
            help="names of the objectives selection optimises, each a registered one, distance among "
            "them (evolution.selection; none: the paper's distance, active_share, voxel_count)"),
     Option("seed", "seeds", int, 0, least=0, limit=MAX_INT32 - 1000, methods=False,

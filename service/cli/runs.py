@@ -145,7 +145,7 @@ class RunCommand:
         for option in declared:
             if option.required and values[option.name] is None:
                 alone = " (or --evolve-stiffness)" if option.name == "stiffness_mpa" else ""
-                raise UserError(f"{option.flag} is required{alone}")
+                raise UserError(f"missing option '{option.flag}'{alone}")
         treatment = Treatment(**values)
         check_treatment(treatment)  # the REST API's bounds, before anything is stored
         if name is not None and not name.strip():
