@@ -58,7 +58,7 @@ def test_a_declared_option_is_offered_by_softevo_run(capsys, substeps):
     assert "substeps" in _run_parameters()
     code, out, err = softevo(capsys, "run", "--env", "land", "--stiffness", "1", "--substeps", "100",
                              "--db", "sqlite:////proc/never/x.db")
-    assert (code, out, err) == (2, "", "error: substeps must be within 1..64 (got 100)\n")  # before any storing
+    assert (code, out, err) == (2, "", "error: substeps must be within 1..64 (got 100)\n")  # nothing stored
 
 
 def test_a_declared_option_is_in_the_rest_schema_and_reaches_the_treatment(substeps):
