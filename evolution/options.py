@@ -135,11 +135,11 @@ class Option:
         if value is None:
             return ""
         if self.sequence:
-            return ",".join(_figure(item) if self.type is not str else item for item in value)
-        return _figure(value)
+            return ",".join(_plain(item) for item in value)
+        return _plain(value)
 
     def sequence_text(self) -> str:
-        """E.g. ``3 integers X,Y,Z within 1..64 voxels``."""
+        """E.g. ``3 integers within 1..64 voxels``, ``at most 16 names``."""
         kind = {int: "integers", float: "numbers", str: "names"}.get(self.type, "values")
         count = str(self.length) if self.length is not None else f"at most {self.many}"
         bounds = self.bounds_text()
@@ -200,13 +200,13 @@ class Option:
             if self.choices is None:
                 return f"{self.label} must be a non-empty text (got {value!r})"
             return f"unknown {self.label} {value!r}; choose one of {', '.join(self.choices())}"
-        kind = "an integer" if self.type is int else "a number"
         unit = f" {self.unit}" if self.unit else ""
         if self.type is float and isinstance(value, int | float) and not isinstance(value, bool) \
-                and math.isfinite(value):
+                and math.isfinite(value):  # a number out of bounds
             return f"{self.label} must be {self.bounds_text()}{unit} (got {_figure(value)})"
-        of_unit = f" of{unit}" if self.type is float and unit else ""
-        return f"{self.label} must be {kind}{of_unit} {self.bounds_text()} (got {value!r})".replace("  ", " ")
+        kind = "an integer" if self.type is int else f"a number{' of' + unit if unit else ''}"
+        wanted = " ".join(part for part in (kind, self.bounds_text()) if part)
+        return f"{self.label} must be {wanted} (got {value!r})"
 
     def beyond_limit(self, value: Any) -> str | None:
         """The one-line problem of a value beyond what a request may ask (``limit``), or
@@ -232,6 +232,13 @@ def _figure(value: Any) -> str:
     if isinstance(value, int):
         return f"{value:,}"
     return f"{value:g}" if abs(value) < 1e6 else f"{value:,.0f}"
+
+
+def _plain(value: Any) -> str:
+    """A value as the command line writes it: ``5``, ``0.001``, ``evosoro``."""
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
 
 
 def _integral(value: Any) -> bool:
