@@ -48,7 +48,7 @@ def mapping_text(name: str, frequency_range: tuple[float, float] = (1.0, 5.0)) -
 
 def options_text(treatment: pd.Series) -> str:
     """The declared options the paragraph names (``Option.methods``) whose stored value
-    differs from the default, e.g. ``workspace = 5,5,5 voxels, body_rule = evosoro``; an
+    differs from the default, e.g. ``workspace = 5,5,5 voxels, evolve_stiffness = True``; an
     option the settings do not hold (stored before it existed) is at its default."""
     parts = []
     for option in options.declared():
