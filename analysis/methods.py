@@ -1,6 +1,8 @@
 """What each treatment's evaluations were, in words, from its own stored settings (the
 report's methods paragraph): physics model, frequency mapping, settling, cycles and the cap
-on seconds, and how many evaluations the cap cut.
+on seconds, how many evaluations the cap cut, and every other declared treatment option
+(``evolution.options``, those whose ``methods`` is set) that differs from its default, as
+``name = value unit`` (``options_text``).
 
 Settling is read from the scenes the treatment's evaluations build (``evolution.evaluation.
 evaluation_scenes`` with the treatment's model, cycles and cap, in each world of its
@@ -18,11 +20,11 @@ from typing import Any
 import pandas as pd
 
 from softevo.analysis.run_summary import capped
-from softevo.evolution import environments, genotype
+from softevo.evolution import environments, genotype, options
 from softevo.evolution.evaluation import DEFAULT_MODEL, evaluation_scenes
 
-METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "capped", "counted",
-                  "at_bound", "below_low"]
+METHOD_COLUMNS = ["treatment", "model", "frequency", "settling", "cycles", "cap", "options", "capped",
+                  "counted", "at_bound", "below_low"]
 LOW_FREQUENCY_HZ = 0.5  # the report counts the evaluations below it
 
 
@@ -42,6 +44,23 @@ def mapping_text(name: str, frequency_range: tuple[float, float] = (1.0, 5.0)) -
         return f"the evosoro scripts' frequency 10 / (mean(1/s) + 1.5) Hz, {bound}; {negative}"
     known = "" if name in genotype.CONTROL_MAPPINGS else " (unknown to this version)"
     return f"control mapping {name!r}{known}"
+
+
+def options_text(treatment: pd.Series) -> str:
+    """The declared options the paragraph names (``Option.methods``) whose stored value
+    differs from the default, e.g. ``workspace = 5,5,5 voxels, evolve_stiffness = True``; an
+    option the settings do not hold (stored before it existed) is at its default."""
+    parts = []
+    for option in options.declared():
+        if not option.methods or option.name not in treatment.index:
+            continue
+        value = option.from_json(treatment[option.name])
+        if value is None or (not option.sequence and not isinstance(value, str) and pd.isna(value)):
+            continue
+        if value != option.default:
+            unit = f" {option.unit}" if option.unit else ""
+            parts.append(f"{option.name} = {option.format(value)}{unit}")
+    return ", ".join(parts)
 
 
 def settling_text(treatment: pd.Series, phenotype) -> str:
@@ -108,6 +127,7 @@ def evaluation_methods(treatments: pd.DataFrame, evaluations: pd.DataFrame, phen
                 "settling": settling_text(t, phenotype),
                 "cycles": int(t["cycles"]),
                 "cap": "none" if cap is None else f"{cap:g} s",
+                "options": options_text(t),
                 "capped": cut,
                 "counted": counted,
                 "at_bound": at_bound,
@@ -134,9 +154,10 @@ def methods_text(methods: pd.DataFrame) -> str:
         shares = (f" Of its evaluations {100 * group['at_bound'].sum() / counted:.1f}% sit at a bound of the "
                   f"frequency (the mapping's clip or the cap) and {100 * group['below_low'].sum() / counted:.1f}% "
                   f"run below {LOW_FREQUENCY_HZ:g} Hz.")
+        others = f"; {setting['options']}" if setting["options"] else ""
         sentences.append(
             f"{', '.join(group['treatment'])}: physics model {setting['model']}; frequency: "
             f"{setting['frequency']}; settling {setting['settling']}; {setting['cycles']} "
-            f"actuation cycles per evaluation{capped_text}.{shares}"
+            f"actuation cycles per evaluation{capped_text}{others}.{shares}"
         )
     return " ".join(sentences)

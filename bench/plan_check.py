@@ -49,7 +49,7 @@ def measured_seconds(treatments: list[Treatment], workers: int, folder: Path) ->
     """Wall seconds of the coordinator running ``treatments`` to the end on ``workers``."""
     engine = open_database(f"sqlite:///{folder / f'check-{time.monotonic_ns()}.db'}")
     _, run_ids = create(engine, "plan-check", treatments)
-    executor = make_executor(workers, treatments[0].genomes_per_task)
+    executor = make_executor(workers)
     try:
         if hasattr(executor, "warm"):
             executor.warm()

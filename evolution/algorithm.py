@@ -29,7 +29,7 @@ objectives; the paper describes none and names age-based diversity as future wor
 ``pareto`` adds none.
 
 Failed evaluations (a crash, an unstable simulation, an empty body, a body the encoding's
-``body_rule`` rejects) get distance 0 and rank behind every successful individual.
+body rule rejects) get distance 0 and rank behind every successful individual.
 Offspring whose phenotype hash equals a living individual's evaluated in the same
 environment inherit that evaluation instead of being simulated again. Survivors are never
 simulated again in the world they were evaluated in: ``ask`` hands out only this
@@ -125,6 +125,11 @@ def names() -> tuple[str, ...]:
 
 
 PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
+
+
+def names() -> tuple[str, ...]:
+    """Every algorithm a treatment may name (``EvolutionConfig.mode``)."""
+    return tuple(ALGORITHMS)
 
 PASSIVE_DISTANCE = 0.0  # a body without an active voxel: it cannot move itself (issue 49.7)
 

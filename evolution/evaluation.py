@@ -95,8 +95,7 @@ class EvaluationSpec:
         """The evaluation of a treatment's stored settings (``Treatment.to_settings()``) in
         ``environment`` (default: its first world) at ``youngs_modulus`` Pa (default: its
         ``stiffness_mpa``). Settings stored before a field existed read as its default: the
-        ``voxelyze-2`` model, no cap, both encoding options off, the linear mapping, any
-        non-empty body."""
+        ``voxelyze-2`` model, no cap, the encoding options' defaults (``evolution.options``)."""
         first = str(settings["environment"]).split(environments.TRANSITION)[0] if environment is None else environment
         modulus = float(settings["stiffness_mpa"]) * 1e6 if youngs_modulus is None else float(youngs_modulus)
         cap = settings.get("max_seconds")
@@ -112,20 +111,12 @@ class EvaluationSpec:
 
 def encoding_from_settings(settings: Mapping[str, Any]) -> EncodingConfig:
     """The ``EncodingConfig`` a treatment's runs express their genomes with, from its stored
-    settings: ``workspace``, ``evolve_stiffness``, ``frequency_per_voxel``,
-    ``stiffness_range_mpa`` (MPa; the encoding takes Pa), ``control_mapping`` and
-    ``body_rule``; absent ones (older settings) give their defaults."""
-    config = EncodingConfig(
-        workspace=tuple(int(n) for n in settings["workspace"]),
-        evolve_stiffness=bool(settings.get("evolve_stiffness", False)),
-        frequency_per_voxel=bool(settings.get("frequency_per_voxel", False)),
-        control_mapping=str(settings.get("control_mapping", "linear")),
-        body_rule=str(settings.get("body_rule", "any")),
-    )
-    if "stiffness_range_mpa" in settings and config.evolve_stiffness:
-        low, high = (float(x) * 1e6 for x in settings["stiffness_range_mpa"])
-        config = dataclasses.replace(config, stiffness_range=(low, high))
-    return config
+    settings: every declared option that sets the encoding (``evolution.options.encoding_of``:
+    workspace, mapping, body rule, evolved stiffness and its range in MPa, per-voxel
+    frequency); absent ones (older settings) give their defaults."""
+    from softevo.evolution import options  # options reads the algorithms, which read this module
+
+    return options.encoding_of(settings)
 
 
 def evaluation_scenes(

@@ -1,5 +1,9 @@
 """Treatments (environment schedule, stiffness, sizes, seeds) and the paper's presets.
 
+A treatment's options are declared once, in ``evolution.options`` (name, part, type, default,
+bounds or choices, unit, help); ``Treatment`` holds them in four typed parts (evaluation,
+schedule, search, seeds) and reads each as an attribute.
+
 A treatment's environment is a world of the registry (``sim.worlds``: ``land``, ``water``,
 ...) or a transition between two, ``land-water`` (``evolution.environments.transition``). A
 transition switches at ``switch_at`` (default: half the generations): generations
@@ -24,8 +28,9 @@ paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). 
 encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-logistic`` (the
 scripts' frequency f = 10 / (mean(1/s') + 1.5) Hz of the frequency output read through the
 logistic, s' = (1 + s) / 2, so within (0, 4) Hz, and phase offsets in cycles;
-``evosoro-bounded`` clips the bipolar reading at 4 Hz, ``evosoro`` leaves it unbounded) and ``body_rule`` ``evosoro`` (bodies with fewer than 30% of the
-workspace full or 10% active are drawn or mutated again). Plain treatments default to AFPO,
+``evosoro-bounded`` clips the bipolar reading at 4 Hz, ``evosoro`` leaves it unbounded) and the
+body rule ``evosoro`` (bodies with fewer than 30% of the workspace full or 10% active are drawn
+or mutated again). Plain treatments default to AFPO,
 ``voxelyze-2``, the linear 1-5 Hz mapping and any non-empty body, so stored runs and the
 quick start keep their meaning (stored settings without these fields read so too);
 the paper presets use the paper's four (``PAPER_CHOICES``).
@@ -49,137 +54,118 @@ these options existed read as both off.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from softevo.errors import UserError
-from softevo.evolution import algorithm as algorithms
-from softevo.evolution import environments
-from softevo.evolution.algorithm import PAPER_POPULATION, EvolutionConfig
-from softevo.evolution.evaluation import EvaluationSpec, encoding_from_settings
-from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS, EVOSORO_MAPPINGS, EncodingConfig
+from softevo.evolution import environments, options
+from softevo.evolution.algorithm import EvolutionConfig
+from softevo.evolution.evaluation import EvaluationSpec
+from softevo.evolution.genotype import EVOSORO_MAPPINGS, EncodingConfig
+from softevo.evolution.options import PARTS, STIFFNESS_RANGE_MPA
 from softevo.evolution.schedule import Schedule
 from softevo.evolution.selection import Objective, objectives_named
 from softevo.sim import models
 from softevo.sim import worlds as sim_worlds
-from softevo.sim.models import DEFAULT as DEFAULT_MODEL
-from softevo.sim.scene import DEFAULT_CYCLES, MAX_SIDE
 
 
 def model_names() -> tuple[str, ...]:
     """Every physics model a treatment may name (the simulator's registry, ``sim.models``)."""
     return models.names()
+
+
 PAPER_WORLDS = environments.PAPER  # the paper's two worlds and its transitions
 PAPER_TRANSITIONS = tuple(environments.TRANSITION.join(pair) for pair in (PAPER_WORLDS, PAPER_WORLDS[::-1]))
-PAPER_CHOICES = {  # what the paper presets run (docs/spec.md section 3; evolution.genotype)
-    "algorithm": "pareto",
-    "model": "voxcad-land-water",
-    "control_mapping": "evosoro-logistic",
-    "body_rule": "evosoro",
-}
-GENOMES_PER_TASK = 4  # genomes per RQ job or pool task: queue overhead against balance
+PAPER_CHOICES = options.paper_choices()  # what the paper presets run (docs/spec.md section 3)
 PAPER_CYCLES = 50  # the fork's sample robots: InitCmTime + 50 / f (docs/algorithm.md)
 GUARD_FREQUENCY_HZ = 0.1  # the presets' guard on seconds: their cycles at this frequency
-STIFFNESS_RANGE_MPA = (0.001, 10.0)
 PAPER_STIFFNESSES_MPA = (0.001, 0.01, 0.1, 1.0, 10.0)
+DERIVED_SETTINGS = ("settle_seconds",)  # written by to_settings for the record, never read
+RETIRED_SETTINGS = ("genomes_per_task",)  # stored by older versions (a dispatch setting), ignored
 
 
-def _check_objective_names(names: Sequence[str]) -> None:
-    """UserError naming the first of ``names`` that is no registered objective."""
-    from softevo.evolution.selection import objective_named
-
-    for name in names:
-        try:
-            objective_named(name)
-        except ValueError as exc:
-            raise UserError(f"objectives: {exc}") from None
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Treatment:
-    """One treatment; defaults are the paper-like evaluation settings (docs/physics.md)."""
+    """One treatment: its ``name`` and four parts, each a record of the options declared for
+    it (``evolution.options``): ``evaluation_part``, ``schedule_part``, ``search_part`` and
+    ``seeds_part``. Every option reads as an attribute (``treatment.population``), a
+    runtime-declared one too. Made as ``Treatment(environment, stiffness_mpa, name=...,
+    **options)``; an option left out has its declared default."""
 
-    environment: str
-    stiffness_mpa: float
-    name: str = ""
-    switch_at: int | None = None
-    switch_over: int = 0
-    population: int = PAPER_POPULATION
-    generations: int = 100
-    workspace: tuple[int, int, int] = EncodingConfig.workspace
-    cycles: int = DEFAULT_CYCLES
-    repetitions: int = 1
-    seed: int = 0
-    algorithm: str = "afpo"
-    genomes_per_task: int = GENOMES_PER_TASK
-    evolve_stiffness: bool = False
-    frequency_per_voxel: bool = False
-    stiffness_range_mpa: tuple[float, float] = STIFFNESS_RANGE_MPA
-    model: str = DEFAULT_MODEL
-    control_mapping: str = "linear"
-    body_rule: str = "any"
-    max_seconds: float | None = None  # the cap on an evaluation's seconds (None: cycles only)
-    objectives: tuple[str, ...] = ()  # objective names, distance among them (empty: the paper's)
+    name: str
+    evaluation_part: Any
+    schedule_part: Any
+    search_part: Any
+    seeds_part: Any
 
-    def __post_init__(self) -> None:
+    def __init__(self, environment: str | None = None, stiffness_mpa: float | None = None, name: str = "",
+                 *, evaluation_part: Any = None, schedule_part: Any = None, search_part: Any = None,
+                 seeds_part: Any = None, **values: Any) -> None:
+        given: dict[str, Any] = {}
+        for record in (evaluation_part, schedule_part, search_part, seeds_part):
+            if record is not None:  # a copy's parts (dataclasses.replace), then what it changes
+                given.update({f.name: getattr(record, f.name) for f in dataclasses.fields(record)})
+        if environment is not None:
+            given["environment"] = environment
+        if stiffness_mpa is not None:
+            given["stiffness_mpa"] = stiffness_mpa
+        given.update(values)
+        declared = {o.name: o for o in options.declared()}
+        unknown = sorted(set(values) - set(declared))
+        if unknown:
+            raise UserError(f"unknown treatment field(s): {', '.join(unknown)}")
+        for option in declared.values():
+            value = given.get(option.name, option.default)
+            if option.sequence and isinstance(value, list):
+                value = tuple(value)
+            given[option.name] = value
+        for part in PARTS:
+            record = options.part_type(part)(**{o.name: given[o.name] for o in options.declared(part)})
+            object.__setattr__(self, f"{part}_part", record)
+        object.__setattr__(self, "name", name)
         self.validate()
         if not self.name:
             object.__setattr__(self, "name", self.default_name())
 
+    def __getattr__(self, name: str) -> Any:
+        """An option's value, read from its part."""
+        if not name.startswith("_"):
+            for part in PARTS:
+                record = self.__dict__.get(f"{part}_part")
+                if record is not None and name in record.__dataclass_fields__:
+                    return getattr(record, name)
+        raise AttributeError(f"'Treatment' object has no attribute {name!r}")
+
+    def __reduce__(self) -> tuple:
+        return _treatment_of, (self.name, self.values())
+
+    def __repr__(self) -> str:
+        changed = ", ".join(f"{o.name}={getattr(self, o.name)!r}" for o in options.declared()
+                            if o.required or getattr(self, o.name) != o.default)
+        return f"Treatment(name={self.name!r}, {changed})"
+
+    def values(self) -> dict[str, Any]:
+        """Every option's value, by name (declaration order)."""
+        return {o.name: getattr(self, o.name) for o in options.declared()}
+
+    def replace(self, **changes: Any) -> Treatment:
+        """A copy with ``changes`` (options, or ``name``); the name stays unless changed."""
+        return Treatment(name=changes.pop("name", self.name), **{**self.values(), **changes})
+
     def validate(self) -> None:
-        """Raise UserError (one clear line) for an impossible setting."""
-        if self.environment not in environments.environments():
-            raise UserError(
-                f"unknown environment {self.environment!r}; choose one of {', '.join(environments.environments())}"
-            )
-        low, high = STIFFNESS_RANGE_MPA
-        stiffness = self.stiffness_mpa
-        if not (isinstance(stiffness, int | float) and math.isfinite(stiffness)):
-            raise UserError(f"stiffness must be a number of MPa (got {stiffness!r})")
-        if not low <= stiffness <= high:
-            raise UserError(f"stiffness must be within {low}..{high} MPa (got {stiffness})")
-        _positive("population", self.population, minimum=2)
-        _positive("generations", self.generations)
-        _positive("cycles", self.cycles)
-        cap = self.max_seconds
-        if cap is not None and (isinstance(cap, bool) or not isinstance(cap, int | float)
-                                or not math.isfinite(cap) or cap <= 0):
-            raise UserError(f"max_seconds must be a number of seconds > 0 (got {cap!r})")
-        _positive("repetitions", self.repetitions)
-        _positive("genomes_per_task", self.genomes_per_task)
-        if len(self.workspace) != 3 or any(int(n) < 1 for n in self.workspace):
-            raise UserError(f"workspace must be three positive sizes X,Y,Z (got {self.workspace})")
-        if any(int(n) > MAX_SIDE for n in self.workspace):
-            raise UserError(f"workspace sides must be at most {MAX_SIDE} voxels (got {self.workspace})")
-        if self.seed < 0:
-            raise UserError(f"seed must be >= 0 (got {self.seed})")
-        if self.algorithm not in algorithms.names():
-            choices = ", ".join(algorithms.names())
-            raise UserError(f"unknown algorithm {self.algorithm!r}; choose one of {choices}")
-        for name, choices in (("model", models.names()), ("control_mapping", CONTROL_MAPPINGS),
-                              ("body_rule", tuple(BODY_RULES))):
-            if getattr(self, name) not in choices:
-                raise UserError(f"unknown {name} {getattr(self, name)!r}; choose {' or '.join(choices)}")
+        """Raise UserError (one clear line) for an impossible setting: each option's declared
+        type, bounds and choices (``Option.validate``), then how options combine."""
+        for option in options.declared():
+            option.validate(getattr(self, option.name))
+        low, high = self.stiffness_range_mpa
+        if not low < high:
+            raise UserError(f"stiffness range must be two numbers lo < hi within {STIFFNESS_RANGE_MPA[0]}.."
+                            f"{STIFFNESS_RANGE_MPA[1]} MPa (got {low:g},{high:g})")
         if self.control_mapping in EVOSORO_MAPPINGS and self.frequency_per_voxel:
             raise UserError(f"control_mapping {self.control_mapping} gives one frequency per robot: "
                             "it cannot be combined with frequency_per_voxel")
-        for flag in ("evolve_stiffness", "frequency_per_voxel"):
-            if not isinstance(getattr(self, flag), bool):
-                raise UserError(f"{flag} must be true or false (got {getattr(self, flag)!r})")
-        bounds = self.stiffness_range_mpa
-        if (len(bounds) != 2 or not all(isinstance(b, int | float) and math.isfinite(b) for b in bounds)
-                or not low <= bounds[0] < bounds[1] <= high):
-            raise UserError(f"stiffness range must be two numbers lo < hi within {low}..{high} MPa "
-                            f"(got {bounds!r})")
         self._validate_switch()
-        if not all(isinstance(n, str) and n for n in self.objectives):
-            raise UserError(f"objectives must be names (got {self.objectives!r})")
-        if self.objectives and "distance" not in self.objectives:
-            _check_objective_names(self.objectives)  # a misspelt name says so, not "must include"
-            raise UserError(f"objectives must include distance (got {', '.join(self.objectives)})")
-
     def _validate_switch(self) -> None:
         over = self.switch_over
         if isinstance(over, bool) or not isinstance(over, int) or over < 0:
@@ -212,8 +198,9 @@ class Treatment:
 
     @property
     def encoding(self) -> EncodingConfig:
-        """The ``EncodingConfig`` the treatment's runs express their genomes with."""
-        return encoding_from_settings(self.to_settings())
+        """The ``EncodingConfig`` the treatment's runs express their genomes with (the options
+        that set the encoding: ``evolution.options.encoding_of``)."""
+        return options.encoding_of(self.values())
 
     @property
     def evaluation(self) -> EvaluationSpec:
@@ -283,52 +270,44 @@ class Treatment:
     def settle_seconds(self) -> dict[str, float]:
         """The settling time of an evaluation in each world the treatment visits (seconds;
         ``sim.worlds``: 0.5 on a floor, 0 elsewhere), recorded in the stored settings."""
-        names = environments.transition(self.environment) if environments.is_transition(self.environment) else (
-            self.environment,)
+        transition = environments.is_transition(self.environment)
+        names = environments.transition(self.environment) if transition else (self.environment,)
         return {name: float(sim_worlds.get(name).settle_seconds) for name in names}
 
     def to_settings(self) -> dict[str, Any]:
-        """Plain JSON settings (stored in ``treatments.settings``), with the derived
-        ``settle_seconds`` of each world for the record (``from_settings`` ignores it)."""
-        settings = dataclasses.asdict(self)
+        """Plain JSON settings (stored in ``treatments.settings``): the name and every option
+        (an empty sequence, e.g. no objectives, left out), with the derived ``settle_seconds``
+        of each world for the record (``from_settings`` ignores it)."""
+        settings: dict[str, Any] = {"name": self.name}
+        for option in options.declared():
+            value = getattr(self, option.name)
+            if not (option.sequence and option.many is not None and not value):
+                settings[option.name] = option.to_json(value)
         settings["settle_seconds"] = self.settle_seconds()
-        settings["workspace"] = list(self.workspace)
-        settings["stiffness_range_mpa"] = list(self.stiffness_range_mpa)
-        if self.objectives:
-            settings["objectives"] = list(self.objectives)
-        else:
-            del settings["objectives"]
         return settings
 
     @classmethod
     def from_settings(cls, settings: dict[str, Any]) -> Treatment:
-        """Inverse of ``to_settings``; unknown keys are a UserError."""
-        known = {f.name for f in dataclasses.fields(cls)} | set(DERIVED_SETTINGS)
-        unknown = sorted(set(settings) - known)
+        """Inverse of ``to_settings``; settings stored by older versions read too (an absent
+        option is its default, ``genomes_per_task`` is ignored); unknown keys are a UserError."""
+        declared = {o.name: o for o in options.declared()}
+        ignored = {"name", *DERIVED_SETTINGS, *RETIRED_SETTINGS}
+        unknown = sorted(set(settings) - set(declared) - ignored)
         if unknown:
             raise UserError(f"unknown treatment field(s): {', '.join(unknown)}")
-        values = {key: value for key, value in settings.items() if key not in DERIVED_SETTINGS}
-        if "workspace" in values:
-            values["workspace"] = tuple(int(n) for n in values["workspace"])
-        if "stiffness_range_mpa" in values:
-            values["stiffness_range_mpa"] = tuple(values["stiffness_range_mpa"])
-        if "objectives" in values:
-            values["objectives"] = tuple(values["objectives"])
-        return cls(**values)
+        values = {key: declared[key].from_json(value) for key, value in settings.items() if key in declared}
+        return cls(name=settings.get("name") or "", **values)
+
+
+def _treatment_of(name: str, values: dict[str, Any]) -> Treatment:
+    """The treatment of ``Treatment.__reduce__`` (pickling: a part's class is made at run time)."""
+    return Treatment(name=name, **values)
 
 
 # The quick start's treatment (README: ``softevo run --env land --stiffness 1 --population 8
 # --generations 8 --workspace 5,5,5 --cycles 4``): ``softevo.evolve``'s defaults.
 QUICK_START = dict(environment=environments.LAND.name, stiffness_mpa=1.0, population=8, generations=8,
                    workspace=(5, 5, 5), cycles=4)
-
-DERIVED_SETTINGS = ("settle_seconds",)  # written by to_settings for the record, never read
-
-
-def _positive(name: str, value: int, minimum: int = 1) -> None:
-    if not isinstance(value, int) or value < minimum:
-        raise UserError(f"{name} must be an integer >= {minimum} (got {value!r})")
-
 
 @dataclass(frozen=True)
 class Scale:
@@ -438,7 +417,7 @@ def own_seeds(treatments: list[Treatment], seed: int, first_seed: int = 0) -> li
     if any(first_seed + t.repetitions > SEED_STRIDE for t in treatments):
         raise UserError(f"at most {SEED_STRIDE - first_seed} repetitions per treatment in a preset")
     start = seed + first_seed
-    return [dataclasses.replace(t, seed=start + k * SEED_STRIDE) for k, t in enumerate(treatments)]
+    return [t.replace(seed=start + k * SEED_STRIDE) for k, t in enumerate(treatments)]
 
 
 def gradual_grid(
@@ -494,7 +473,7 @@ def preset_grid(
     preset: str, scale: str = "tiny", repetitions: int | None = None, seed: int = 0, **choices: str | None
 ):
     """The treatments of preset ``preset`` (``PRESETS``); UserError for an unknown one.
-    ``choices`` (``algorithm``, ``model``, ``control_mapping``, ``body_rule``; None: the
+    ``choices`` (``algorithm``, ``model``, ``control_mapping``, the body rule; None: the
     paper's) override ``PAPER_CHOICES``."""
     if preset not in PRESETS:
         raise UserError(f"unknown experiment preset {preset!r}; choose {' or '.join(PRESETS)}")

@@ -28,11 +28,11 @@ from pydantic import Field, SecretStr, ValidationError, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from softevo.errors import UserError
-from softevo.evolution.treatments import GENOMES_PER_TASK
 
 LOOPBACK_NAMES = ("localhost", "localhost.localdomain", "ip6-localhost")
 LOOPBACK_HOSTS = ("127.0.0.1", "::1", "[::1]", *LOOPBACK_NAMES)  # Host headers served without a token
 MIN_TOKEN_LENGTH = 16
+GENOMES_PER_TASK = 4  # genomes per RQ job or pool task: queue overhead against balance (dispatch)
 
 
 def _field(default: Any, used_by: str, meaning: str, default_text: str = "", **bounds: Any) -> Any:

@@ -1,7 +1,8 @@
 """Extensions a deployment loads into every ``softevo`` process: the modules named in
 ``SOFTEVO_PLUGINS`` (comma-separated, importable), imported when the command line starts, so
 that what they register (a trait: ``evolution.traits.register``; an objective:
-``evolution.selection.register_objective``; a world: ``sim.worlds.register``) is known to the
+``evolution.selection.register_objective``; a world: ``sim.worlds.register``; a treatment
+option: ``evolution.options.declare``) is known to the
 coordinator, the API, the dashboard and the report alike."""
 
 from __future__ import annotations

@@ -19,19 +19,17 @@ from pydantic import (
     GetJsonSchemaHandler,
     StringConstraints,
     Tag,
+    create_model,
 )
 from pydantic_core import core_schema
 
-from softevo.evolution import algorithm as algorithms
-from softevo.evolution import environments
-from softevo.evolution.genotype import BODY_RULES, CONTROL_MAPPINGS
+from softevo.evolution import environments, options
+from softevo.evolution.options import MAX_INT32
 from softevo.evolution.run_status import RunStatus
-from softevo.evolution.treatments import SCALES, Treatment, model_names
+from softevo.evolution.treatments import PRESETS, SCALES
 from softevo.service.api.schemas_traits import RegisteredTraits, trait_fields
 from softevo.service.runs.executors import EXECUTOR_KINDS
-from softevo.service.runs.limits import MAX_EVALUATION_SECONDS, MAX_WORKSPACE_SIDE, TREATMENT_BOUNDS
 
-MAX_INT32 = 2**31 - 1
 Name = Annotated[
     str,
     StringConstraints(min_length=1, max_length=200, strip_whitespace=True, pattern=r"^[^\x00-\x1f\x7f]+$"),
@@ -71,23 +69,15 @@ class WorldName(RegistryEnum):
 
     choices = staticmethod(lambda: environments.names(evolve=True))
 
-class Model(RegistryEnum):
-    """A physics model of the registry (``evolution.treatments.model_names``: every model the
-    simulator knows, a model registered after this module was imported included)."""
-
-    choices = staticmethod(lambda: model_names())
-
-
-class Algorithm(RegistryEnum):
-    """A registered algorithm (``evolution.algorithm.names``), one registered after this
-    module was imported included."""
-
-    choices = staticmethod(lambda: algorithms.names())
+def choice_type(option: options.Option) -> type[RegistryEnum]:
+    """A string among a declared option's choices, read when validated and when the schema
+    is made (a model, algorithm or mapping registered after this module was imported is one)."""
+    name = "".join(part.capitalize() for part in option.name.split("_"))
+    return type(name, (RegistryEnum,), {"choices": staticmethod(option.choices), "__doc__": option.help})
 
 
-# The domain's choices, read from it (a choice added there is one here too)
-ControlMapping = Literal[CONTROL_MAPPINGS]  # type: ignore[valid-type]
-BodyRule = Literal[tuple(BODY_RULES)]  # type: ignore[valid-type]
+Model = choice_type(options.option("model"))
+Algorithm = choice_type(options.option("algorithm"))
 RunStatusName = Literal[tuple(status.value for status in RunStatus)]  # type: ignore[valid-type]
 
 
@@ -117,71 +107,47 @@ class WorldOut(BaseModel):
 # -- requests ------------------------------------------------------------------------------
 
 
-ObjectiveName = Annotated[
-    str, StringConstraints(min_length=1, max_length=64, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
-]  # an objective's name (evolution.selection.OBJECTIVES)
+def option_field(option: options.Option) -> tuple[Any, Any]:
+    """(annotation, ``Field``) of a declared treatment option in ``TreatmentIn``: its type,
+    bounds (up to what a request may ask: ``Option.most_asked``), choices, default and help."""
+    bounds = {"ge": option.least, "le": option.most_asked, "gt": option.above}
+    bounds = {key: value for key, value in bounds.items() if value is not None}
+    if option.type is float:
+        bounds["allow_inf_nan"] = False
+    if option.type is str:
+        kind: Any = (choice_type(option) if option.choices is not None
+                     else Annotated[str, StringConstraints(min_length=1, max_length=64)])
+    elif option.type is bool:
+        kind = bool
+    else:
+        kind = Annotated[option.type, Field(**bounds)] if option.sequence else option.type
+    description = f"{option.help} ({option.unit})" if option.unit else option.help
+    if option.sequence:
+        sizes = {"min_length": option.length, "max_length": option.length or option.many}
+        default = ... if option.required else list(option.default)
+        return list[kind], Field(default, description=description, **sizes)
+    if option.optional:
+        kind = kind | None
+    default = ... if option.required else option.default
+    return kind, Field(default, description=description, **({} if option.type in (str, bool) else bounds))
 
 
-class TreatmentIn(Strict):
-    """One treatment (docs/spec.md section 5); every field but environment and stiffness_mpa has a
-    default. Repetition r runs with seed ``seed + r``."""
-
-    name: Name | None = Field(None, description="default: e.g. 'land S=0.1MPa'")
-    environment: Environment
-    switch_at: int | None = Field(
-        None, ge=1, le=MAX_INT32, description="first generation in the second environment"
+def treatment_model() -> type[BaseModel]:
+    """``TreatmentIn`` as the declared treatment options make it now (``evolution.options``):
+    a treatment's ``name`` and one field per option."""
+    fields = {option.name: option_field(option) for option in options.declared()}
+    return create_model(
+        "TreatmentIn",
+        __base__=Strict,
+        __doc__="One treatment (docs/spec.md section 5); every field but environment and stiffness_mpa "
+        "has a default. Repetition r runs with seed ``seed + r``. Its fields are the declared "
+        "treatment options (evolution.options).",
+        name=(Name | None, Field(None, description="default: e.g. 'land S=0.1MPa'")),
+        **fields,
     )
-    switch_over: int = Field(
-        0, ge=0, le=1_000_000,
-        description="generations of a gradual switch: compound worlds whose evaluations spend a "
-        "rising share of their cycles in the second environment (0: abrupt)")
-    stiffness_mpa: float = Field(ge=0.001, le=10.0, allow_inf_nan=False)
-    population: int = Field(Treatment.population, ge=TREATMENT_BOUNDS["population"][0],
-                            le=TREATMENT_BOUNDS["population"][1])
-    generations: int = Field(Treatment.generations, ge=TREATMENT_BOUNDS["generations"][0],
-                             le=TREATMENT_BOUNDS["generations"][1])
-    workspace: list[Annotated[int, Field(ge=1, le=MAX_WORKSPACE_SIDE)]] = Field(
-        list(Treatment.workspace), min_length=3, max_length=3, description="voxels along x, y, z"
-    )
-    cycles: int = Field(Treatment.cycles, ge=TREATMENT_BOUNDS["cycles"][0], le=TREATMENT_BOUNDS["cycles"][1],
-                        description="actuation cycles per evaluation")
-    max_seconds: float | None = Field(
-        Treatment.max_seconds, gt=0, le=MAX_EVALUATION_SECONDS, allow_inf_nan=False,
-        description="the most seconds an evaluation lasts, settling not counted (null: its cycles "
-        "alone; the paper's scripts: 4.5)")
-    repetitions: int = Field(1, ge=1, le=1000)
-    seed: int = Field(0, ge=0, le=MAX_INT32 - 1000)
-    algorithm: Algorithm = Field(
-        Treatment.algorithm,
-        description="pareto: the paper's plain 3-objective Pareto optimisation (mutation only); "
-        "afpo: Age-Fitness Pareto, a named variant (age objective, one random newcomer a "
-        "generation); or a registered algorithm")
-    model: Model = Field(
-        Treatment.model,
-        description="physics model of every evaluation: voxelyze-2, or voxcad-land-water (the "
-        "paper's engine: 3-D distance in both worlds)")
-    control_mapping: ControlMapping = Field(
-        Treatment.control_mapping,
-        description="linear: frequency 1-5 Hz from the mean output over present voxels; "
-        "evosoro: the paper scripts' 10 / (mean(1/s) + 1.5) Hz over the workspace and phase "
-        "offsets in cycles")
-    body_rule: BodyRule = Field(
-        Treatment.body_rule,
-        description="any: every non-empty body is simulated; evosoro: bodies with under 30% of "
-        "the workspace full or 10% active are drawn or mutated again")
-    evolve_stiffness: bool = Field(
-        Treatment.evolve_stiffness,
-        description="evolve a Young's modulus per voxel within stiffness_range_mpa "
-        "(stiffness_mpa is then unused by the physics)")
-    frequency_per_voxel: bool = Field(
-        Treatment.frequency_per_voxel, description="each voxel actuates at its own frequency")
-    stiffness_range_mpa: list[Annotated[float, Field(ge=0.001, le=10.0, allow_inf_nan=False)]] = Field(
-        list(Treatment.stiffness_range_mpa), min_length=2, max_length=2,
-        description="[low, high] MPa of an evolved stiffness (default the paper's S1..S5)")
-    objectives: list[ObjectiveName] = Field(
-        [], max_length=16,
-        description="names of the objectives selection optimises, each a registered one "
-        "(evolution.selection.OBJECTIVES; empty: the paper's distance, active_share, voxel_count)")
+
+
+TreatmentIn = treatment_model()
 
 
 class ExperimentIn(Strict):
@@ -195,7 +161,7 @@ class PresetIn(Strict):
     """A preset experiment: the paper's grid at a scale (docs/spec.md section 5), with the paper's
     algorithm, model and encoding unless ``algorithm`` or ``model`` says otherwise."""
 
-    preset: Literal["paper", "gradual"] = Field(
+    preset: Literal[tuple(PRESETS)] = Field(  # type: ignore[valid-type]
         description="paper: the paper's grid; gradual: its two transitions, abrupt and gradual")
     scale: Literal[SCALES] = "tiny"  # type: ignore[valid-type]
     repetitions: int | None = Field(None, ge=1, le=1000)

@@ -13,16 +13,16 @@ command start without loading SQLAlchemy, pandas, numba or rich.
 
 from __future__ import annotations
 
-import dataclasses
+import inspect
 import json
 import os
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from softevo.errors import UserError
-from softevo.evolution import environments
-from softevo.evolution.treatments import GENOMES_PER_TASK, SCALES, Treatment
+from softevo.evolution import options
+from softevo.evolution.treatments import SCALES
 from softevo.service.cli.options import (
     INDIVIDUAL_HELP,
     DbOption,
@@ -33,38 +33,33 @@ from softevo.service.cli.options import (
     say_bare_number,
 )
 
-ALGORITHM_HELP = ("pareto: the paper's plain 3-objective Pareto | afpo: Age-Fitness Pareto (a variant) | "
-                  "or one a plugin registers (docs/algorithm.md)")
-MODEL_HELP = "physics model: voxelyze-2 | voxcad-land-water (the paper's engine)"
-CONTROL_MAPPING_HELP = ("linear (1-5 Hz) | evosoro-logistic (the paper scripts' formula on the logistic "
-                        "output, 0-4 Hz) | evosoro-bounded (the bipolar output, clipped at 4 Hz) | evosoro "
-                        "(unbounded) | evosoro-positive, evosoro-bounded-positive (a negative f invalid)")
-
-
-def _parse_workspace(text: str) -> tuple[int, int, int]:
-    try:
-        sizes = tuple(int(part) for part in text.split(","))
-    except ValueError:
-        sizes = ()
-    if len(sizes) != 3 or min(sizes) < 1:
-        raise UserError(f"--workspace must be three positive integers X,Y,Z (got {text!r})")
-    from softevo.service.runs.limits import check_workspace
-
-    check_workspace(sizes)
-    return sizes  # type: ignore[return-value]
-
-
 EVOLVED_STIFFNESS_PLACEHOLDER_MPA = 0.1  # the treatment's scalar when the field is evolved
 
 
-def _parse_range(text: str) -> tuple[float, float]:
-    try:
-        bounds = tuple(float(part) for part in text.split(","))
-    except ValueError:
-        bounds = ()
-    if len(bounds) != 2:
-        raise UserError(f"--stiffness-range must be two numbers LO,HI in MPa (got {text!r})")
-    return bounds  # type: ignore[return-value]
+def option_help(option: options.Option) -> str:
+    """An option's help on the command line: its help text, unit and choices (read now)."""
+    unit = f" ({option.unit})" if option.unit and not option.sequence else ""
+    choices = f" (one of {', '.join(option.choices())})" if option.choices is not None else ""
+    spelling = " (comma-separated)" if option.sequence else ""
+    return f"{option.help}{unit}{spelling}{choices}"
+
+
+def option_parameter(option: options.Option) -> inspect.Parameter:
+    """The ``softevo run`` parameter of a declared treatment option: a flag for a boolean, a
+    comma-separated text for a sequence (``Option.parse``), else the value's type (None
+    where the option is optional or required: a missing required one is reported by
+    ``run``)."""
+    if option.type is bool and not option.sequence:
+        flag = option.flag if option.default is not True else f"{option.flag}/--no-{option.flag[2:]}"
+        kind, default = bool, bool(option.default)
+    elif option.sequence:
+        flag, kind, default = option.flag, str, option.format(option.default)
+    else:
+        flag, kind = option.flag, option.type | None
+        default = None if option.required else option.default
+    annotation = Annotated[kind, typer.Option(flag, help=option_help(option))]
+    return inspect.Parameter(option.name, inspect.Parameter.KEYWORD_ONLY, default=default,
+                             annotation=annotation)
 
 
 def _workers(workers: int | None) -> int:
@@ -75,9 +70,7 @@ def _workers(workers: int | None) -> int:
     return workers
 
 
-def _execute(
-    engine, run_ids: list[int], workers: int | None, quiet: bool, genomes_per_task: int = GENOMES_PER_TASK
-) -> None:
+def _execute(engine, run_ids: list[int], workers: int | None, quiet: bool) -> None:
     """Advance ``run_ids`` to their end with a progress bar; print a summary line per run."""
     from softevo.service.cli.progress import progress_bar
     from softevo.service.runs.coordinator import Coordinator, unfinished_runs
@@ -88,7 +81,7 @@ def _execute(
         typer.echo("nothing to do: every run is finished")
         return
     total, done = _generation_counts(engine, runs)
-    executor = make_executor(_workers(workers), genomes_per_task)
+    executor = make_executor(_workers(workers))
     try:
         with progress_bar(total, done, enabled=not quiet) as reporter:
             Coordinator(engine, executor, on_generation=reporter).run(runs)
@@ -110,97 +103,66 @@ def _generation_counts(engine, run_ids: list[int]) -> tuple[int, int]:
     return sum(r["generations"] for r in rows), sum(r["generation"] + 1 for r in rows)
 
 
-def _treatment_options(params: dict) -> dict:
-    """The options of ``softevo run`` named as a ``Treatment`` field (``--population`` is
-    ``Treatment.population``, ...), as given; ``--name`` names the experiment instead, and
-    ``--workspace`` / ``--stiffness-range`` are parsed apart."""
-    apart = {"environment", "stiffness_mpa", "name", "workspace", "stiffness_range_mpa"}
-    fields = {f.name for f in dataclasses.fields(Treatment)} - apart
-    return {name: value for name, value in params.items() if name in fields}
+class RunCommand:
+    """Evolve one treatment (its repetitions' runs) and store every individual. The defaults
+    keep the quick start's meaning (AFPO, voxelyze-2); ``softevo experiment`` runs the paper's
+    choices."""
+
+    __name__ = __qualname__ = "run"
+    __module__ = __name__
+
+    @property
+    def __signature__(self) -> inspect.Signature:
+        """The command's parameters: one per declared treatment option (``evolution.options``),
+        read each time typer builds the command, then the run's own."""
+        own = [
+            inspect.Parameter("ctx", inspect.Parameter.KEYWORD_ONLY, annotation=typer.Context),
+            *(option_parameter(option) for option in options.declared()),
+            inspect.Parameter("name", inspect.Parameter.KEYWORD_ONLY, default=None, annotation=Annotated[
+                str | None, typer.Option("--name", help="the experiment's name (default: the treatment's, "
+                                         "e.g. 'land S=1MPa')")]),
+        ]
+        shared = [inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=kind)
+                  for name, kind, default in (("db", DbOption, None), ("workers", WorkersOption, None),
+                                              ("quiet", QuietOption, False))]
+        return inspect.Signature([*own, *shared])
+
+    @property
+    def __annotations__(self) -> dict[str, Any]:
+        return {p.name: p.annotation for p in self.__signature__.parameters.values()}
+
+    def __call__(self, ctx: typer.Context, name: str | None = None, db: str | None = None,
+                 workers: int | None = None, quiet: bool = False, **given: Any) -> None:
+        from softevo.evolution.treatments import Treatment
+        from softevo.service.runs.limits import check_treatment
+        from softevo.service.runs.submit import create
+        from softevo.service.storage import open_database
+
+        declared = options.declared()
+        values = {o.name: o.parse(given[o.name]) if o.sequence else given[o.name] for o in declared}
+        if values.get("stiffness_mpa") is None and values.get("evolve_stiffness"):
+            values["stiffness_mpa"] = EVOLVED_STIFFNESS_PLACEHOLDER_MPA
+        for option in declared:
+            if option.required and values[option.name] is None:
+                alone = " (or --evolve-stiffness)" if option.name == "stiffness_mpa" else ""
+                raise UserError(f"missing option '{option.flag}'{alone}")
+        treatment = Treatment(**values)
+        check_treatment(treatment)  # the REST API's bounds, before anything is stored
+        if name is not None and not name.strip():
+            raise UserError("--name must not be empty")
+        engine = open_database(db)
+        experiment_id, run_ids = create(engine, name or treatment.name, [treatment])
+        runs = f"run {run_ids[0]}" if len(run_ids) == 1 else f"runs {run_ids[0]}..{run_ids[-1]}"
+        typer.echo(f"experiment {experiment_id} (e{experiment_id}): {runs}", err=True)
+        _execute(engine, run_ids, workers, quiet)
 
 
-def run(
-    ctx: typer.Context,
-    env: Annotated[str, typer.Option("--env", help=" | ".join(environments.environments()))],
-    stiffness: Annotated[
-        float | None,
-        typer.Option(
-            "--stiffness",
-            help="Young's modulus, MPa (0.001-10); with --evolve-stiffness "
-            "optional (default 0.1, unused by the physics)",
-        ),
-    ] = None,
-    population: Annotated[int, typer.Option("--population")] = Treatment.population,
-    generations: Annotated[int, typer.Option("--generations")] = Treatment.generations,
-    workspace: Annotated[str, typer.Option("--workspace", help="X,Y,Z voxels")] = ",".join(
-        map(str, Treatment.workspace)
-    ),
-    cycles: Annotated[
-        int, typer.Option("--cycles", help="actuation cycles per evaluation")
-    ] = Treatment.cycles,
-    max_seconds: Annotated[
-        float | None,
-        typer.Option("--max-seconds", help="the most seconds an evaluation lasts (default: its cycles "
-                     "alone; the paper's scripts: 4.5)"),
-    ] = Treatment.max_seconds,
-    seed: Annotated[int, typer.Option("--seed")] = 0,
-    switch_at: Annotated[
-        int | None, typer.Option("--switch-at", help="first generation in the second environment")
-    ] = None,
-    switch_over: Annotated[
-        int,
-        typer.Option("--switch-over", help="generations of a gradual switch (compound worlds; 0: abrupt)"),
-    ] = 0,
-    evolve_stiffness: Annotated[
-        bool, typer.Option("--evolve-stiffness", help="evolve a Young's modulus per voxel")
-    ] = False,
-    stiffness_range: Annotated[
-        str, typer.Option("--stiffness-range", help="LO,HI MPa of an evolved stiffness")
-    ] = ",".join(f"{x:g}" for x in Treatment.stiffness_range_mpa),
-    frequency_per_voxel: Annotated[
-        bool, typer.Option("--frequency-per-voxel", help="each voxel actuates at its own frequency")
-    ] = False,
-    algorithm: Annotated[str, typer.Option("--algorithm", help=ALGORITHM_HELP)] = Treatment.algorithm,
-    model: Annotated[str, typer.Option("--model", help=MODEL_HELP)] = Treatment.model,
-    control_mapping: Annotated[
-        str, typer.Option("--control-mapping", help=CONTROL_MAPPING_HELP)
-    ] = Treatment.control_mapping,
-    body_rule: Annotated[
-        str, typer.Option("--body-rule", help="any | evosoro (>= 30% full, >= 10% active)")
-    ] = Treatment.body_rule,
-    name: Annotated[
-        str | None,
-        typer.Option("--name", help="the experiment's name (default: the treatment's, e.g. 'land S=1MPa')"),
-    ] = None,
-    db: DbOption = None,
-    workers: WorkersOption = None,
-    quiet: QuietOption = False,
-) -> None:
-    """Evolve one treatment (one run) and store every individual. The defaults keep the
-    quick start's meaning (AFPO, voxelyze-2); ``softevo experiment`` runs the paper's choices."""
-    from softevo.evolution.treatments import Treatment
-    from softevo.service.runs.limits import check_treatment
-    from softevo.service.runs.submit import create
-    from softevo.service.storage import open_database
+run = RunCommand()
 
-    if stiffness is None:
-        if not evolve_stiffness:
-            raise UserError("--stiffness MPA is required (or --evolve-stiffness)")
-        stiffness = EVOLVED_STIFFNESS_PLACEHOLDER_MPA
-    treatment = Treatment(
-        env,
-        stiffness,
-        workspace=_parse_workspace(workspace),
-        stiffness_range_mpa=_parse_range(stiffness_range),
-        **_treatment_options(ctx.params),
-    )
-    check_treatment(treatment)  # the REST API's bounds, before anything is stored
-    engine = open_database(db)
-    if name is not None and not name.strip():
-        raise UserError("--name must not be empty")
-    experiment_id, run_ids = create(engine, name or treatment.name, [treatment])
-    typer.echo(f"experiment {experiment_id} (e{experiment_id}): run {run_ids[0]}", err=True)
-    _execute(engine, run_ids, workers, quiet, treatment.genomes_per_task)
+
+def _paper_help(name: str) -> str:
+    option = options.option(name)
+    return f"{option_help(option)} (default {option.paper})"
 
 
 def experiment(
@@ -214,15 +176,10 @@ def experiment(
     scale: Annotated[str, typer.Option("--scale", help=" | ".join(SCALES))] = "tiny",
     repetitions: Annotated[int | None, typer.Option("--repetitions")] = None,
     seed: Annotated[int, typer.Option("--seed")] = 0,
-    algorithm: Annotated[
-        str | None, typer.Option("--algorithm", help=f"{ALGORITHM_HELP} (default pareto)")
-    ] = None,
-    model: Annotated[
-        str | None, typer.Option("--model", help=f"{MODEL_HELP} (default voxcad-land-water)")
-    ] = None,
+    algorithm: Annotated[str | None, typer.Option("--algorithm", help=_paper_help("algorithm"))] = None,
+    model: Annotated[str | None, typer.Option("--model", help=_paper_help("model"))] = None,
     control_mapping: Annotated[
-        str | None,
-        typer.Option("--control-mapping", help=f"{CONTROL_MAPPING_HELP} (default evosoro-logistic)"),
+        str | None, typer.Option("--control-mapping", help=_paper_help("control_mapping"))
     ] = None,
     treatments: Annotated[
         str | None,

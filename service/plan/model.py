@@ -47,6 +47,7 @@ from softevo.evolution.runner import ask_generation
 from softevo.evolution.treatments import Treatment
 from softevo.service.plan.dispatch import Generation, simulate
 from softevo.service.runs.executors import EXECUTOR_KINDS
+from softevo.service.settings import GENOMES_PER_TASK
 from softevo.worker.physics import MEASURED, CostModel, parse_scene, voxel_steps
 from softevo.worker.tasks import EmptyBody, Task, scenes_of
 
@@ -526,7 +527,7 @@ def _cpu_dispatch(
     treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators=1, ask_seconds=0.0
 ) -> tuple:
     def size_of(t: Treatment, n: int) -> int:  # plan_batches / executors.chunks
-        return max(1, min(t.genomes_per_task, math.ceil(n / cores)))
+        return max(1, min(GENOMES_PER_TASK, math.ceil(n / cores)))
 
     rounds, runs = _timeline(treatments, counts, lambda t, n: math.ceil(n / size_of(t, n)) if n else 0)
     by_treatment = {id(t): k for t, k in zip(treatments, costs, strict=True)}

@@ -17,11 +17,11 @@ Nothing here knows HTTP: the command line reads specs without the API's request 
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from softevo.errors import UserError
+from softevo.evolution import options
 from softevo.evolution.treatments import Treatment, preset_grid
 from softevo.service.runs.limits import check_treatment
 
@@ -97,11 +97,11 @@ def checked_treatments(spec: Mapping[str, Any]) -> list[Treatment]:
 
 
 def required(settings: Any) -> Mapping[str, Any]:
-    """``settings`` once it is an object holding every field ``Treatment`` has no default for."""
+    """``settings`` once it is an object holding every declared option without a default
+    (``evolution.options``)."""
     if not isinstance(settings, Mapping):
         raise UserError("must be an object of treatment settings")
-    needed = [f.name for f in dataclasses.fields(Treatment)
-              if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    needed = [option.name for option in options.declared() if option.required]
     missing = [name for name in needed if name not in settings]
     if missing:
         raise UserError(f"{', '.join(missing)}: required")

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from softevo.evolution import environments as worlds
-from softevo.evolution.treatments import GENOMES_PER_TASK
+from softevo.service.settings import GENOMES_PER_TASK
 from softevo.worker.evaluate import ensure_compiled, evaluate_batch, init_pool_process
 from softevo.worker.tasks import failed
 

@@ -7,10 +7,11 @@
   simulation at most ``max_voxel_steps`` voxel-steps (``SOFTEVO_MAX_VOXEL_STEPS``, default
   2e9: a few minutes on one core), checked before anything is simulated or allocated.
 
-- ``check_treatment(treatment)``: a treatment's sizes within ``TREATMENT_BOUNDS`` (population,
-  generations, cycles), ``MAX_WORKSPACE_SIDE`` and ``MAX_EVALUATION_SECONDS``: the bounds of the
-  REST schema (``service.api.schemas.TreatmentIn`` reads them), applied by ``softevo run`` up
-  front, so that the CLI takes what the API takes.
+- ``check_treatment(treatment)``: each option of a treatment within what a request may ask,
+  as declared (``evolution.options``: an option's ``limit``, else its ``most``; e.g. population,
+  generations, cycles, the cap on seconds, the workspace's side, ``sim.scene.MAX_SIDE``): the
+  bounds of the REST schema (``service.api.schemas.TreatmentIn`` is made from the same
+  declarations), applied by ``softevo run`` up front, so that the CLI takes what the API takes.
 
 Every check raises ``softevo.errors.UserError`` whose message names the limit's variable (or,
 for a fixed bound, the figure).
@@ -24,6 +25,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 from softevo.errors import UserError
+from softevo.evolution import options
 from softevo.service.settings import Settings
 
 if TYPE_CHECKING:
@@ -33,24 +35,14 @@ PROBE_FREQUENCY_HZ = 1.0  # the lowest frequency of the linear mapping (Encoding
 SLOWEST_FREQUENCY_HZ = 1e-9  # a probe for mappings without a lowest frequency: the cap decides
 
 
-TREATMENT_BOUNDS = {"population": (2, 10_000), "generations": (1, 1_000_000), "cycles": (1, 10_000)}
-MAX_WORKSPACE_SIDE = 32  # voxels along each axis
-MAX_EVALUATION_SECONDS = 3600.0  # a treatment's max_seconds
-
-
 def check_treatment(treatment: Treatment) -> None:
-    """UserError, with the figure, for a treatment outside the bounds the REST API takes."""
-    for name, (least, most) in TREATMENT_BOUNDS.items():
-        value = getattr(treatment, name)
-        if not least <= value <= most:
-            raise UserError(f"{name} must be within {least:,}..{most:,} (got {value:,})")
-    if max(treatment.workspace) > MAX_WORKSPACE_SIDE:
-        raise UserError(f"workspace sides must be at most {MAX_WORKSPACE_SIDE} voxels (got "
-                        f"{','.join(map(str, treatment.workspace))})")
-    if treatment.max_seconds is not None and treatment.max_seconds > MAX_EVALUATION_SECONDS:
-        raise UserError(
-            f"max_seconds must be at most {MAX_EVALUATION_SECONDS:g} (got {treatment.max_seconds:g})"
-        )
+    """UserError, with the figure, for a treatment beyond what a request may ask: each
+    declared option's limit (``evolution.options.Option.beyond_limit``), then the workspace's
+    voxels (``check_workspace``)."""
+    for option in options.declared():
+        problem = option.beyond_limit(getattr(treatment, option.name))
+        if problem is not None:
+            raise UserError(problem)
     check_workspace(treatment.workspace)
 
 

@@ -53,9 +53,8 @@ from rq.serializers import JSONSerializer
 from rq.worker_registration import clean_worker_registry
 
 from softevo import __version__
-from softevo.evolution.treatments import GENOMES_PER_TASK
 from softevo.service.runs.executors import ResultJSON, TaskJSON, chunks
-from softevo.service.settings import Settings
+from softevo.service.settings import GENOMES_PER_TASK, Settings
 from softevo.worker.rq_worker import JOB_FUNCTION, VERSION_KEY, EvaluationJob, done_stream
 from softevo.worker.tasks import failed, result_problem
 

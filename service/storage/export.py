@@ -19,7 +19,7 @@ from sqlalchemy import Boolean, Connection, Engine, Float, Integer, Select, func
 
 from softevo.errors import UserError
 from softevo.evolution import traits
-from softevo.evolution.treatments import Treatment
+from softevo.evolution.treatments import PAPER_CHOICES, Treatment
 from softevo.service.storage.models import (
     EvaluationRow,
     GenerationRow,
@@ -48,10 +48,7 @@ RUN_COLUMNS = [
     "cycles",
     "max_seconds",
     "settle_seconds",
-    "model",
-    "control_mapping",
-    "body_rule",
-    "algorithm",
+    *PAPER_CHOICES,  # the choices the paper presets make: model, mapping, body rule, algorithm
     "created_at",
     "last_stored_at",
 ]
@@ -67,8 +64,9 @@ def _read(conn: Connection, query) -> pd.DataFrame:
 
 def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     """One row per run: treatment settings flattened to the export columns (the evaluation's
-    protocol included: cycles, the cap on seconds, settling per world as ``land:0.5``, model,
-    control mapping, body rule, algorithm, and the switch generation of a transition).
+    protocol included: cycles, the cap on seconds, settling per world as ``land:0.5``, the
+    choices the paper presets make, ``PAPER_CHOICES``: model, mapping, body rule, algorithm;
+    and the switch generation of a transition).
     ``generations`` is what the treatment planned, ``generations_run`` what the run stored
     (its last stored generation + 1; 0 before generation 0): less for a run that stopped
     early (failed, cancelled, interrupted)."""
@@ -85,7 +83,7 @@ def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     frame["max_seconds"] = pd.array([t.max_seconds for t in settings], dtype="Float64")
     frame["settle_seconds"] = [",".join(f"{world}:{seconds:g}" for world, seconds in t.settle_seconds().items())
                                for t in settings]
-    for name in ("model", "control_mapping", "body_rule", "algorithm"):
+    for name in PAPER_CHOICES:
         frame[name] = [getattr(t, name) for t in settings]
     frame = frame.merge(_times(conn, run_ids), on="run_id", how="left")
     return frame[RUN_COLUMNS]

@@ -73,9 +73,9 @@ def test_evolve_runs_an_abrupt_transition():
     ("arguments", "message"),
     [
         ({"environment": "moon"}, "unknown environment 'moon'"),
-        ({"stiffness_mpa": 100}, "stiffness must be within 0.001..10.0 MPa (got 100)"),
+        ({"stiffness_mpa": 100}, "stiffness must be within 0.001..10 MPa (got 100)"),
         ({"population": 1}, "population must be an integer >= 2"),
-        ({"workspace": (65, 65, 65)}, "workspace sides must be at most 64 voxels"),
+        ({"workspace": (65, 65, 65)}, "workspace must be 3 integers within 1..64 voxels"),
         ({"environment": "land", "switch_at": 2}, "switch_at needs a transition environment"),
     ],
 )

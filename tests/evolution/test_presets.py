@@ -21,7 +21,7 @@ def choices(treatment: Treatment) -> tuple[str, str, str, str]:
 
 @pytest.mark.parametrize("preset", ["paper", "gradual"])
 def test_presets_run_the_papers_choices_unless_told_otherwise(preset):
-    paper = tuple(PAPER_CHOICES.values())
+    paper = tuple(PAPER_CHOICES[name] for name in ("algorithm", "model", "control_mapping", "body_rule"))
     assert paper == ("pareto", "voxcad-land-water", "evosoro-logistic", "evosoro")
     assert {choices(t) for t in preset_grid(preset, "tiny")} == {paper}
     afpo = {choices(t) for t in preset_grid(preset, "tiny", algorithm="afpo")}

@@ -164,7 +164,7 @@ def test_a_run_whose_evaluations_all_fail_ends_failed_and_says_why(capsys, tmp_p
         (["--cycles", "1000000"], "cycles must be within 1..10,000 (got 1,000,000)"),
         (["--generations", "1000000000"], "generations must be within 1..1,000,000 (got 1,000,000,000)"),
         (["--population", "20000"], "population must be within 2..10,000 (got 20,000)"),
-        (["--workspace", "40,2,2"], "workspace sides must be at most 32 voxels (got 40,2,2)"),
+        (["--workspace", "70,2,2"], "workspace must be 3 integers within 1..64 voxels (got 70,2,2)"),
         (["--max-seconds", "5000"], "max_seconds must be at most 3600 (got 5000)"),
     ],
 )
