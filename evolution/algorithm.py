@@ -126,11 +126,6 @@ def names() -> tuple[str, ...]:
 
 PAPER_POPULATION = 30  # the paper's population size (docs/spec.md section 5)
 
-
-def names() -> tuple[str, ...]:
-    """Every algorithm a treatment may name (``EvolutionConfig.mode``)."""
-    return tuple(ALGORITHMS)
-
 PASSIVE_DISTANCE = 0.0  # a body without an active voxel: it cannot move itself (issue 49.7)
 
 

@@ -23,8 +23,8 @@ from __future__ import annotations
 from softevo.sim.worlds import (
     HORIZONTAL,
     KINDS,
-    THREE_D,
     LAND,
+    THREE_D,
     VOID,
     WATER,
     World,

@@ -80,6 +80,7 @@ from softevo.sim.models import defaults as model_defaults
 from softevo.sim.scene import DEFAULT_CYCLES, Material, Scene
 from softevo.sim.system import largest_component
 
+
 class EvosoroMapping(NamedTuple):
     """How an evosoro mapping reads the scripts' frequency formula (module doc)."""
 

@@ -5,7 +5,6 @@ evaluation, served by the REST API and shown in the report of a real tiny run; a
 
 from __future__ import annotations
 
-
 import pytest
 import sqlalchemy as sa
 from fastapi.testclient import TestClient
