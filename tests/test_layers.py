@@ -203,7 +203,7 @@ SERVICE_ALLOWED = {
     "cli": {"api", "plan", "reports", "runs", "storage", "settings"},
     "api": {"plan", "reports", "runs", "storage", "settings"},
     "reports": {"storage"},
-    "plan": {"runs"},
+    "plan": {"runs", "settings"},
     "runs": {"storage", "settings"},
     "storage": {"settings"},
     "settings": set(),

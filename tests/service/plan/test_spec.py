@@ -34,7 +34,7 @@ def test_a_spec_reads_as_the_api_reads_its_body():
         ({"name": "x", "treatments": [{"environment": "land", "stiffness_mpa": 1, "population": 20_000}]},
          "f.json: treatments.0: population must be within 2..10,000"),
         ({"name": "x", "treatments": [{"environment": "land", "stiffness_mpa": 1, "workspace": ["a", 1, 1]}]},
-         "f.json: treatments.0: not a treatment"),
+         "f.json: treatments.0: workspace must be 3 integers"),
         ({"name": "", "treatments": [{"environment": "land", "stiffness_mpa": 1}]}, "f.json: name: required"),
         ({"preset": "paper", "seed": -1}, "f.json: seed: must be an integer >= 0"),
         ({"preset": "paper", "scale": "huge"}, "f.json: unknown scale 'huge'"),
