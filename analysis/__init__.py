@@ -9,7 +9,8 @@ Modules:
 - ``analysis.findings``: the findings, one declared primary measure per hypothesis, Holm
   within each family, verdicts by code (``findings.csv``); ``analysis.design`` their power,
   the runs a design needs, bootstrap intervals and Holm's thresholds, by simulation;
-  ``analysis.rank_tests`` the Jonckheere-Terpstra and Mann-Whitney tests with exact p and Holm; ``analysis.run_summary`` one row per run (``summary.csv``);
+  ``analysis.rank_tests`` the Jonckheere-Terpstra and Mann-Whitney tests with exact p and Holm;
+  ``analysis.run_summary`` one row per run (``summary.csv``);
   ``analysis.methods`` each treatment's evaluation in words;
 - ``analysis.stats_tables``: t intervals over repetitions, the secondary pairwise tests
   between treatments and between start and end, Bonferroni per family;

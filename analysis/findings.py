@@ -229,7 +229,9 @@ def transition_findings(data: ExperimentData) -> list[tuple[Finding, Finding]]:
         if control is None or end is None:
             continue
         arrival = arrival_generation(treatment)
-        paper = _contrast(data, treatment, control, (end, arrival), (end, 0), "equal total generations", PRIMARY)
+        paper = _contrast(
+            data, treatment, control, (end, arrival), (end, 0), "equal total generations", PRIMARY
+        )
         equal = _contrast(data, treatment, control, (end, arrival), (end - arrival, 0),
                           f"equal time in {world} {SECONDARY}", SECONDARY_FAMILY)  # fmt: skip
         found.append((paper, equal))
@@ -356,19 +358,24 @@ def verdict(finding: Finding, family: Sequence[Finding], findings: Sequence[Find
     if not finding.one_sided:
         above = row["a12"] > 0.5
         if _holds(finding):
-            return f"{'evolved' if above == finding.expected_above else 'reversed'}; {p}, A12 {row['a12']:.2f}"
+            direction = "evolved" if above == finding.expected_above else "reversed"
+            return f"{direction}; {p}, A12 {row['a12']:.2f}"
         return f"not detected; {p}"
     if finding.reverse is not None and finding.reverse.p < ALPHA / m:
-        text = f"reversed; the test against the paper's direction p {finding.reverse.p:.2g} < {ALPHA / m:.2g}"
+        text = (f"reversed; the test against the paper's direction p {finding.reverse.p:.2g} "
+                f"< {ALPHA / m:.2g}")
     else:
-        gain = finding if finding.measure in CHANGES else _partner(finding, findings, GAIN_OF[finding.measure])
-        start_holds = np.isfinite(row.get("p_generation0_holm", math.nan)) and row["p_generation0_holm"] < ALPHA
+        gain = (finding if finding.measure in CHANGES
+                else _partner(finding, findings, GAIN_OF[finding.measure]))
+        start_holds = (np.isfinite(row.get("p_generation0_holm", math.nan))
+                       and row["p_generation0_holm"] < ALPHA)
         gain_text = "" if gain is finding or gain is None else f", its gain p_holm {gain.row['p_holm']:.2g}"
         start_text = f"generation 0 p {row['p_generation0']:.2g}"
         if _holds(finding) and _holds(gain):
             text = f"evolved; {p}{gain_text}; {start_text}"
         elif start_holds and not _holds(gain):
-            text = f"present in random bodies; {start_text} (Holm {row['p_generation0_holm']:.2g}), {p}{gain_text}"
+            text = (f"present in random bodies; {start_text} (Holm {row['p_generation0_holm']:.2g}), "
+                    f"{p}{gain_text}")
         else:
             text = f"not detected; {p}{gain_text}; {start_text}"
     return "; ".join([text, *turns(finding)])

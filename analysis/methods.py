@@ -105,7 +105,8 @@ def frequency_shares(treatment: pd.Series, evaluations: pd.DataFrame) -> tuple[i
     mine = evaluations[evaluations["treatment"] == treatment["name"]].dropna(subset=["frequency"])
     frequency = mine["frequency"].abs().to_numpy(float)
     bounded = genotype.EVOSORO_MAPPINGS.get(str(treatment.get("control_mapping", "linear")))
-    clipped = frequency >= genotype.EVOSORO_MAX_FREQUENCY if bounded is not None and bounded.bounded else False
+    clipped = (frequency >= genotype.EVOSORO_MAX_FREQUENCY
+               if bounded is not None and bounded.bounded else False)
     cut = capped(frequency, float(treatment["cycles"]), _cap(treatment))
     return int((clipped | cut).sum()), int((frequency < LOW_FREQUENCY_HZ).sum())
 
@@ -152,7 +153,8 @@ def methods_text(methods: pd.DataFrame) -> str:
         )
         counted = max(int(group["counted"].sum()), 1)
         shares = (f" Of its evaluations {100 * group['at_bound'].sum() / counted:.1f}% sit at a bound of the "
-                  f"frequency (the mapping's clip or the cap) and {100 * group['below_low'].sum() / counted:.1f}% "
+                  f"frequency (the mapping's clip or the cap) and "
+                  f"{100 * group['below_low'].sum() / counted:.1f}% "
                   f"run below {LOW_FREQUENCY_HZ:g} Hz.")
         others = f"; {setting['options']}" if setting["options"] else ""
         sentences.append(

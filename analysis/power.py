@@ -78,7 +78,8 @@ class PaperComparison:
 
 
 _LAND, _WATER = environments.PAPER
-_LAND_WATER, _WATER_LAND = environments.TRANSITION.join(environments.PAPER), environments.TRANSITION.join(environments.PAPER[::-1])
+_LAND_WATER = environments.TRANSITION.join(environments.PAPER)
+_WATER_LAND = environments.TRANSITION.join(environments.PAPER[::-1])
 PAPER_COMPARISONS = (
     PaperComparison(f"{_LAND} fitness, S4 vs S1", "best_distance", (_LAND, 1.0), (_LAND, 0.001)),
     PaperComparison(f"{_WATER} fitness, S1 vs S5", "best_distance", (_WATER, 0.001), (_WATER, 10.0)),
@@ -90,7 +91,10 @@ PAPER_COMPARISONS = (
     ),
     *(
         PaperComparison(
-            f"frequency vs stiffness {environments.get(w).label}, S1 vs S5", "frequency", (w, 0.001), (w, 10.0)
+            f"frequency vs stiffness {environments.get(w).label}, S1 vs S5",
+            "frequency",
+            (w, 0.001),
+            (w, 10.0),
         )
         for w in environments.PAPER
     ),

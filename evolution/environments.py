@@ -37,8 +37,8 @@ from softevo.sim.worlds import (
 )
 
 __all__ = [
-    "HORIZONTAL", "KINDS", "LAND", "PAPER", "THREE_D", "VOID", "WATER", "World", "added", "all_worlds", "get", "names", "register",
-    "unregister",
+    "HORIZONTAL", "KINDS", "LAND", "PAPER", "THREE_D", "VOID", "WATER", "World", "added", "all_worlds", "get",
+    "names", "register", "unregister",
     "between", "compound", "environments", "final", "is_compound", "is_transition", "new_share", "parts",
     "schedule_entries", "share_at", "transition",
 ]

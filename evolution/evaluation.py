@@ -96,7 +96,8 @@ class EvaluationSpec:
         ``environment`` (default: its first world) at ``youngs_modulus`` Pa (default: its
         ``stiffness_mpa``). Settings stored before a field existed read as its default: the
         ``voxelyze-2`` model, no cap, the encoding options' defaults (``evolution.options``)."""
-        first = str(settings["environment"]).split(environments.TRANSITION)[0] if environment is None else environment
+        first = (str(settings["environment"]).split(environments.TRANSITION)[0]
+                 if environment is None else environment)
         modulus = float(settings["stiffness_mpa"]) * 1e6 if youngs_modulus is None else float(youngs_modulus)
         cap = settings.get("max_seconds")
         return cls(

@@ -271,11 +271,11 @@ class Phenotype:
         defaults to the model's (0.39 / 0.14 strain). ``settle_seconds`` defaults to the
         world's (``sim.worlds``: 0.5 on a floor, 0 elsewhere), which is also the paper's engine's
         InitCmTime in the fork's own sample robots (``_voxcad_land_water/sample_vxa/*.vxa``:
-        0.5 s on land, 0 s in water; its distance counts from there). ``extra`` fields are copied into the scene as given (e.g.
-        ``record``). An evolved stiffness field enters as ``youngs_modulus_field`` (Pa; it
-        overrides ``youngs_modulus``), a per-voxel frequency field as ``frequency_field`` (Hz;
-        it overrides the robot frequency, and ``cycles`` count at the mean frequency of the
-        active voxels).
+        0.5 s on land, 0 s in water; its distance counts from there). ``extra`` fields are
+        copied into the scene as given (e.g. ``record``). An evolved stiffness field enters as
+        ``youngs_modulus_field`` (Pa; it overrides ``youngs_modulus``), a per-voxel frequency
+        field as ``frequency_field`` (Hz; it overrides the robot frequency, and ``cycles`` count
+        at the mean frequency of the active voxels).
         """
         defaults = model_defaults(model)
         if amplitude is None:

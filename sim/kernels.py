@@ -26,7 +26,8 @@ The per-link, per-pair and per-voxel formulas are ``sim.physics`` (scalar functi
 once, inlined here, and compiled for the GPU engine too); this module holds the loops, the
 memory layout and the orchestration around those formulas, which ``sim.cuda_kernels`` still
 writes a second time for the GPU (the frame transitions, the contact list and its rebuild
-trigger, the facet normals and vertex means of the drag mesh, the scatter of link loads). A robot's constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
+trigger, the facet normals and vertex means of the drag mesh, the scatter of link loads). A robot's
+constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
 ``Voxels``, ``Links``, its body state as ``State`` and its scratch as ``Work``, all private
 copies of its slices of the batch (indices local to the robot). Each sub-step is an inlined
 wrapper around a compiled loop (``actuate_kernel``, ``link_kernel`` ...) that takes the arrays

@@ -3,8 +3,8 @@
 - ``Task``: one genome to evaluate under an ``evolution.evaluation.EvaluationSpec`` (world,
   Young's modulus, cycles, physics model, cap on seconds, encoding), built by the
   coordinator from the algorithm's individuals (``Task.from_genome``) or from a stored
-  individual and its treatment's settings (``Task.from_stored``). ``to_json`` / ``from_json`` are the wire format every executor
-  and RQ job exchanges:
+  individual and its treatment's settings (``Task.from_stored``). ``to_json`` / ``from_json``
+  are the wire format every executor and RQ job exchanges:
 
       {"id": int,                      # the algorithm's id of the individual
        "run_id": int,                  # optional: job ids and logs only

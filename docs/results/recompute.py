@@ -106,7 +106,8 @@ def trend_rows(values) -> list[dict]:
         names = [f"{world} {lv}" for lv in levels]
         last = last_common(values, names)
         ordered = ", ".join(sorted(levels))
-        start = [measure(values, n, 0, "best_distance" if metric == "distance" else "frequency") for n in names]
+        key = "best_distance" if metric == "distance" else "frequency"
+        start = [measure(values, n, 0, key) for n in names]
         for family, name, label in MEASURES[metric]:
             final = [measure(values, n, last, name) for n in names]
             adjacent = "; ".join(f"{b} over {a} {vargha_delaney(y, x):.2f}"
@@ -136,18 +137,23 @@ def transition_rows(runs, values) -> list[dict]:
         final_world = run["environment_schedule"].split(",")[-1].split(":")[0]
         control = f"{final_world} {name.split()[-1]}"
         above = final_world == "land"  # the paper: water->land better, land->water worse
-        for family, how, control_at in (("primary", "equal total generations", end),
-                                        ("secondary", f"equal time in {final_world} (secondary)", end - switch)):
-            a, b = measure(values, name, end, "best_distance"), measure(values, control, control_at, "best_distance")
-            a0, b0 = measure(values, name, switch, "best_distance"), measure(values, control, 0, "best_distance")
+        contrasts = (("primary", "equal total generations", end),
+                     ("secondary", f"equal time in {final_world} (secondary)", end - switch))
+        for family, how, control_at in contrasts:
+            a = measure(values, name, end, "best_distance")
+            b = measure(values, control, control_at, "best_distance")
+            a0 = measure(values, name, switch, "best_distance")
+            b0 = measure(values, control, 0, "best_distance")
             test = mann_whitney(a, b)
             rows.append({
                 "question": f"{name} vs {control}, {how}: generation {end} vs {control_at}", "family": family,
-                "key": "best_distance", "trend": None, "groups": [b, a] if above else [a, b], "one_sided": False,
+                "key": "best_distance", "trend": None, "groups": [b, a] if above else [a, b],
+                "one_sided": False,
                 "expected_above": above, "statistic": test.statistic, "p": test.p,
                 "p_generation0": mann_whitney(a0, b0).p, "a12": vargha_delaney(a, b),
                 "a12_generation0": vargha_delaney(a0, b0), "means": [a.mean(), b.mean()],
-                "names": [name, control], "generation": end, "arrival": (a0.mean(), b0.mean()), "pair": (a, b),
+                "names": [name, control], "generation": end, "arrival": (a0.mean(), b0.mean()),
+                "pair": (a, b),
             })
     return rows
 
@@ -226,7 +232,8 @@ def check_findings(results: Path, rows: list[dict]) -> int:
             bad.append("turns")
         differ += bool(bad)
         print(f"{'DIFF' if bad else 'ok  '} {r['question'][:72]:72s} {', '.join(bad)}")
-    print(f"findings.csv: {len(rows) - differ} of {len(rows)} rows recomputed ({len(COMPARED) + 2} values each)")
+    print(f"findings.csv: {len(rows) - differ} of {len(rows)} rows recomputed "
+          f"({len(COMPARED) + 2} values each)")
     return differ
 
 
@@ -269,9 +276,8 @@ def check_designs(results: Path, frame: pd.DataFrame) -> int:
     stored = pd.read_csv(path)
     differ = int(len(stored) != len(frame))
     for (_, a), (_, b) in zip(stored.iterrows(), frame.iterrows(), strict=False):
-        differ += int(a["question"] != b["question"] or not all(
-            same(a[k], b[k]) for k in ("runs_per_treatment", "core_hours", "evaluation_core_hours", "wall_hours",
-                                       "evaluations")))
+        keys = ("runs_per_treatment", "core_hours", "evaluation_core_hours", "wall_hours", "evaluations")
+        differ += int(a["question"] != b["question"] or not all(same(a[k], b[k]) for k in keys))
     print(f"designs.csv: {len(frame) - differ} of {len(frame)} designs recomputed")
     return differ
 
@@ -294,8 +300,9 @@ def sensitivity(results: Path) -> tuple[int, pd.DataFrame]:
             a0, b0 = measure(values, high, 0, "frequency"), measure(values, low, 0, "frequency")
             for name in ("frequency_change", "frequency"):
                 a, b = measure(values, high, last, name), measure(values, low, last, name)
-                out.append({"mapping": mapping, "question": question, "measure": name, "a12": vargha_delaney(a, b),
-                            "a12_generation0": vargha_delaney(a0, b0), "mean_high": a.mean(), "mean_low": b.mean(),
+                out.append({"mapping": mapping, "question": question, "measure": name,
+                            "a12": vargha_delaney(a, b), "a12_generation0": vargha_delaney(a0, b0),
+                            "mean_high": a.mean(), "mean_low": b.mean(),
                             "max_frequency": float(evaluations["frequency"].abs().max())})
     mine = pd.DataFrame(out)
     for (_, a), (_, b) in zip(table.iterrows(), mine.iterrows(), strict=True):
@@ -364,8 +371,8 @@ def runs_text(n) -> str:
 
 def findings_markdown(rows: list[dict], family: str) -> str:
     lines = ["| finding | the paper | generation | means there, per level or group | n | p | p (Holm) | "
-             "Holm's threshold | A12 [95% interval] | A12 at generation 0 | power | runs needed (seen, A12 0.71) | "
-             "verdict |",
+             "Holm's threshold | A12 [95% interval] | A12 at generation 0 | power | "
+             "runs needed (seen, A12 0.71) | verdict |",
              "| --- | --- | ---: | --- | --- | ---: | ---: | ---: | --- | ---: | ---: | --- | --- |"]
     for r in (r for r in rows if r["family"] == family):
         means = ", ".join(f"{n.split()[-1] if r['one_sided'] else n} {g3(v)}"
@@ -373,8 +380,10 @@ def findings_markdown(rows: list[dict], family: str) -> str:
         n = "+".join(str(len(g)) for g in r["groups"])
         needed = f"{runs_text(r.get('runs_needed'))}, {runs_text(r.get('runs_needed_a12_071'))}"
         turns = "; turns between " + ", ".join(r["turns"]) if r.get("turns") else ""
-        lines.append(f"| {r['question']} | {paper_result(r['question'])} | {r['generation']} | {means} | {n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
-                     f"{p_text(r['holm_threshold'])} | {r['a12']:.2f} [{r['a12_low']:.2f}, {r['a12_high']:.2f}] | "
+        lines.append(f"| {r['question']} | {paper_result(r['question'])} | {r['generation']} | {means} | "
+                     f"{n} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
+                     f"{p_text(r['holm_threshold'])} | {r['a12']:.2f} "
+                     f"[{r['a12_low']:.2f}, {r['a12_high']:.2f}] | "
                      f"{r['a12_generation0']:.2f} | {r.get('power', math.nan):.2f} | {needed} | "
                      f"{r['verdict']}{turns} |")
     return "\n".join(lines)
@@ -389,8 +398,8 @@ def adjacent_markdown(rows: list[dict]) -> str:
 
 
 def designs_markdown(frame: pd.DataFrame) -> str:
-    lines = ["| finding | A12 seen | effect planned for | runs a treatment | evaluations | core-hours evaluating | "
-             "core-hours booked (wall x 1,000) | wall on 1,000 cores (h) |",
+    lines = ["| finding | A12 seen | effect planned for | runs a treatment | evaluations | "
+             "core-hours evaluating | core-hours booked (wall x 1,000) | wall on 1,000 cores (h) |",
              "| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |"]
     for _, d in frame.iterrows():
         runs = runs_text(d["runs_per_treatment"])
@@ -433,7 +442,8 @@ def cost_numbers(runs, evaluations) -> dict[str, str]:
     frequency = evaluations["frequency"].abs()
     simulated = evaluations.dropna(subset=["steps"])
     merged = evaluations.merge(runs[["run_id", "cycles", "max_seconds", "treatment"]], on="run_id")
-    cut = ((merged["cycles"] / merged["frequency"].abs() > merged["max_seconds"]) & merged["frequency"].notna())
+    cut = ((merged["cycles"] / merged["frequency"].abs() > merged["max_seconds"])
+           & merged["frequency"].notna())
     at_bound = (frequency >= 4.0) | cut
     shared = evaluations.dropna(subset=["frequency"]).groupby("frequency")["run_id"].nunique()
     start = pd.to_datetime(runs["created_at"]).min()
@@ -446,7 +456,8 @@ def cost_numbers(runs, evaluations) -> dict[str, str]:
         mine = simulated[simulated["run_id"].isin(runs.loc[runs["treatment"] == t.name, "run_id"])]
         worlds = ", ".join(f"{w} {v['mean']:.3g}" for w, v in t.seconds_per_evaluation.items())
         ran = int(evaluations["run_id"].isin(runs.loc[runs["treatment"] == t.name, "run_id"]).sum())
-        rows.append(f"| {t.name} | {t.evaluations:,}, {ran:,} | {worlds} | {mine['wall_seconds'].mean():.3g} | "
+        rows.append(f"| {t.name} | {t.evaluations:,}, {ran:,} | {worlds} | "
+                    f"{mine['wall_seconds'].mean():.3g} | "
                     f"{mine['simulated_seconds'].mean():.3g} | {mine['steps'].mean():.3g} |")
     return {
         "plan_table": "\n".join(rows),

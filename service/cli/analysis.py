@@ -34,7 +34,8 @@ from softevo.service.cli.runs import one_individual
 EnvironmentOption = Annotated[
     str | None,
     typer.Option(
-        "--environment", help=f"{' | '.join(environments.names(evolve=True))} (default: of its latest evaluation)"
+        "--environment",
+        help=f"{' | '.join(environments.names(evolve=True))} (default: of its latest evaluation)",
     ),
 ]
 

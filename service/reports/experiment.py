@@ -176,8 +176,8 @@ def fronts(data: ExperimentData, limit: int = MAX_POINTS) -> list[dict[str, Any]
 
 
 def descriptors(data: ExperimentData) -> list[dict[str, Any]]:
-    """Per descriptor (best distance and every trait, ``evolution.traits``): its label and, per treatment, one value per run at
-    the treatment's display generation, with the run ids."""
+    """Per descriptor (best distance and every trait, ``evolution.traits``): its label and, per
+    treatment, one value per run at the treatment's display generation, with the run ids."""
     values = data.display_run_values()
     found = []
     labels = traits.labels()

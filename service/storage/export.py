@@ -81,8 +81,9 @@ def runs_frame(conn: Connection, run_ids: Sequence[int]) -> pd.DataFrame:
     frame["switch_at"] = pd.array([t.switch_generation() for t in settings], dtype="Int64")
     frame["cycles"] = [t.cycles for t in settings]
     frame["max_seconds"] = pd.array([t.max_seconds for t in settings], dtype="Float64")
-    frame["settle_seconds"] = [",".join(f"{world}:{seconds:g}" for world, seconds in t.settle_seconds().items())
-                               for t in settings]
+    frame["settle_seconds"] = [
+        ",".join(f"{world}:{seconds:g}" for world, seconds in t.settle_seconds().items()) for t in settings
+    ]
     for name in PAPER_CHOICES:
         frame[name] = [getattr(t, name) for t in settings]
     frame = frame.merge(_times(conn, run_ids), on="run_id", how="left")

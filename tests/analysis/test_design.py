@@ -86,7 +86,7 @@ def test_holm_thresholds_step_down_by_rank():
     assert thresholds[3] == pytest.approx(0.05) and math.isnan(thresholds[2])
     # a p below its threshold at every step up to it is what Holm's adjusted p < alpha means
     adjusted = holm(p)
-    for k, (pk, tk) in enumerate(zip(p, thresholds, strict=True)):
+    for k, (pk, _tk) in enumerate(zip(p, thresholds, strict=True)):
         if math.isfinite(pk):
             earlier = [i for i in range(len(p)) if math.isfinite(p[i]) and p[i] <= pk]
             assert (adjusted[k] < 0.05) == all(p[i] < thresholds[i] for i in earlier)

@@ -145,7 +145,9 @@ def test_the_transition_contrasts(grid, table):
 
 
 def test_missing_treatments_give_only_the_findings_held():
-    no_transitions = grid_data(paper_like, keep=lambda name: not environments.is_transition(name.split(" ")[0]))
+    no_transitions = grid_data(
+        paper_like, keep=lambda name: not environments.is_transition(name.split(" ")[0])
+    )
     table = findings_table(no_transitions, design_figures=False)
     primary = table[table["family"] == "primary"]
     assert len(primary) == 4 and primary["p_holm"].to_numpy() == pytest.approx(holm(primary["p"]))

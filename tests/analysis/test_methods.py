@@ -40,7 +40,8 @@ def test_mappings_are_described_from_the_genotype_module():
 def test_settling_is_read_from_the_scene_the_treatment_builds(model):
     transition = Treatment(f"{LAND}-{WATER}", 0.1, model=model)
     expected = [
-        ROBOT.to_scene(world, 1e5, transition.cycles, model=model)["settle_seconds"] for world in environments.PAPER
+        ROBOT.to_scene(world, 1e5, transition.cycles, model=model)["settle_seconds"]
+        for world in environments.PAPER
     ]
     text = settling_text(_row(transition), ROBOT)
     assert text == ", ".join(
@@ -75,8 +76,12 @@ def test_treatments_with_the_same_evaluation_share_a_sentence():
 
 
 def test_frequency_shares_count_the_clip_the_cap_and_slow_robots():
-    clipped = _row(Treatment(LAND, 0.1, name="t", cycles=50, max_seconds=100.0, control_mapping="evosoro-bounded"))
-    logistic = _row(Treatment(LAND, 0.1, name="t", cycles=50, max_seconds=100.0, control_mapping="evosoro-logistic"))
+    clipped = _row(
+        Treatment(LAND, 0.1, name="t", cycles=50, max_seconds=100.0, control_mapping="evosoro-bounded")
+    )
+    logistic = _row(
+        Treatment(LAND, 0.1, name="t", cycles=50, max_seconds=100.0, control_mapping="evosoro-logistic")
+    )
     evaluations = pd.DataFrame({"treatment": ["t"] * 5, "frequency": [4.0, 4.0, 0.4, 2.0, None]})
     # the clip holds the two at 4 Hz; 50 cycles at 0.4 Hz last 125 s > 100: the cap cuts it
     assert frequency_shares(clipped, evaluations) == (3, 1)

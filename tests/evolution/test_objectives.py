@@ -33,8 +33,8 @@ def most_voxels():
 
 
 def _run(objectives, generations=4):
-    algo = Evolution(EvolutionConfig(population_size=6, seed=3, evaluation=EvaluationSpec(encoding=ENCODING), objectives=objectives,
-                                     descriptors=False))
+    algo = Evolution(EvolutionConfig(population_size=6, seed=3, evaluation=EvaluationSpec(encoding=ENCODING),
+                                     objectives=objectives, descriptors=False))
     for _ in range(generations):
         asked = algo.ask()
         algo.tell([Outcome(1.0) for _ in asked])  # the same distance for all

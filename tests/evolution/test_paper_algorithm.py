@@ -269,7 +269,9 @@ def run_generations(config, generations=3):
 
 
 def test_pareto_keeps_mu_plus_mu_without_newcomers_and_valid_bodies():
-    config = EvolutionConfig(population_size=6, mode="pareto", evaluation=EvaluationSpec(encoding=PAPER), descriptors=False)
+    config = EvolutionConfig(
+        population_size=6, mode="pareto", evaluation=EvaluationSpec(encoding=PAPER), descriptors=False
+    )
     algo = run_generations(config)
     assert len(algo.population) == 6
     assert all(ind.parent_id is not None or ind.generation_born == 0 for ind in algo.population)

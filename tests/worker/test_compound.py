@@ -21,7 +21,8 @@ def genome():
 
 
 def task(genome, environment: str, cycles: int = 2) -> Task:
-    return Task.from_genome(genome, EvaluationSpec(environment, 1e5, cycles, encoding=EncodingConfig(workspace=(3, 3, 3))))
+    encoding = EncodingConfig(workspace=(3, 3, 3))
+    return Task.from_genome(genome, EvaluationSpec(environment, 1e5, cycles, encoding=encoding))
 
 
 def test_world_names_round_trip():

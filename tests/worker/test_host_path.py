@@ -29,7 +29,9 @@ def tasks() -> list[dict]:
     out = []
     for k, world in enumerate(WORLDS):
         genome, _ = random_viable(rng, PAPER_ENCODING)
-        spec = EvaluationSpec(world, 1e5, 1, model="voxcad-land-water", max_seconds=0.01, encoding=PAPER_ENCODING)
+        spec = EvaluationSpec(
+            world, 1e5, 1, model="voxcad-land-water", max_seconds=0.01, encoding=PAPER_ENCODING
+        )
         task = Task.from_genome(genome, spec, id=k)
         out.append(task.to_json())
     return out

@@ -74,7 +74,8 @@ def api(moon_db) -> Iterator[str]:
 def test_a_registered_world_is_a_scene_and_a_treatment_environment(moon):
     assert "moon" in environments.environments() and "land-moon" in environments.environments()
     assert environments.transition("moon-water") == ("moon", "water")
-    assert moon.kind == environments.LAND.name and moon.distance == "horizontal" and moon.settle_seconds == 0.5
+    assert moon.kind == environments.LAND.name
+    assert moon.distance == "horizontal" and moon.settle_seconds == 0.5
     environment = parse_scene({"body": [[[1]]], "environment": moon.scene_environment()}).environment
     assert (environment.kind, environment.gravity) == (environments.LAND.name, 1.62)
 

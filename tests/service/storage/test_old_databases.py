@@ -27,8 +27,8 @@ def test_an_old_database_reads_reports_and_exports(tmp_path):
     status = softevo_process("status", "--db", url, cwd=ROOT)
     assert status.returncode == 0, status.stderr
     assert "finished" in status.stdout and "3/3" in status.stdout
-    done = softevo_process("report", "latest", "--db", url, "--out", str(tmp_path / "report"), "--no-animation",
-                           "--quiet", cwd=ROOT)
+    done = softevo_process("report", "latest", "--db", url, "--out", str(tmp_path / "report"),
+                           "--no-animation", "--quiet", cwd=ROOT)
     assert done.returncode == 0, done.stderr
     assert "land-water" in (tmp_path / "report" / "report.md").read_text()
     done = softevo_process("export", "latest", "--db", url, "--out", str(tmp_path / "export"), cwd=ROOT)

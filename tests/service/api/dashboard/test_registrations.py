@@ -96,7 +96,9 @@ def test_without_the_plugin_the_trait_is_unknown_and_old_rows_still_read(height_
     header = (folder / "plain" / "individuals.csv").read_text().splitlines()[0].split(",")
     assert "height" not in header
     assert "shape_entropy" in header
-    done = softevo_process("export", "latest", "--db", url, "--out", str(folder / "plugged"), env=PLUGIN, cwd=ROOT)
+    done = softevo_process(
+        "export", "latest", "--db", url, "--out", str(folder / "plugged"), env=PLUGIN, cwd=ROOT
+    )
     assert done.returncode == 0, done.stderr
     header = (folder / "plugged" / "individuals.csv").read_text().splitlines()[0].split(",")
     assert "height" in header
