@@ -286,31 +286,46 @@ def link_buffer_size(m):
 
 
 @njit(**INLINE)
-def link_inputs(p, B, J):
-    """What link J's step reads from the buffer: its geometry (``physics.link_geometry``: R,
-    and the centre offset and relative rotation in the link frame), axis and rest length;
-    its previous deformation (the eight values of ``physics.link_frame``'s d; row 3 of the
-    state, the first end's x rotation, stays 0); its constants (``physics.link_response``)."""
+def link_inputs(B, J):
+    """Link J's geometry (``physics.link_geometry``: R, and the centre offset and relative
+    rotation in the link frame), axis and rest length, from the buffer's input rows."""
     ax = B[at(ROW_AXIS, J)]
     R, rx, ry, rz, ow, ox, oy, oz = link_geometry_of(
         B[at(0, J)], B[at(1, J)], B[at(2, J)], B[at(3, J)], B[at(4, J)], B[at(5, J)],
         B[at(6, J)], B[at(7, J)], B[at(8, J)], B[at(9, J)], B[at(10, J)], ax)
+    return R, ax, rx, ry, rz, ow, ox, oy, oz, B[at(11, J)]
+
+
+@njit(**INLINE)
+def link_state(p, B, J):
+    """Link J's previous deformation (the eight values of ``physics.link_frame``'s d; row 3
+    of the state, the first end's x rotation, stays 0) and its constants
+    (``physics.link_response``), read once its frame is computed (values live across the
+    frame's arithmetic take vector registers: ``keep_deformation``)."""
     S = ROW_STATE
     previous = (B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)], B[at(S + 4, J)],
                 B[at(S + 5, J)], B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)])
     real = B.dtype.type  # the link's precision: the robot's constants in it
     constants = (B[at(ROW_STIFF, J)], real(p.L), real(p.a1), real(p.a2), real(p.b1),
                  real(p.b2), real(p.b3))
-    return R, ax, rx, ry, rz, ow, ox, oy, oz, B[at(11, J)], previous, constants
+    return previous, constants
 
 
 @njit(**INLINE)
-def link_outputs(B, J, d, loads):
-    """Keep link J's deformation d as its previous one and write its loads (world axes)."""
+def keep_deformation(B, J, d):
+    """Keep link J's deformation d as its previous one (after that was read: ``link_state``),
+    before its loads are computed: d kept live through ``physics.link_response`` instead
+    took so many vector registers that LLVM gave the float32 link loop 4 lanes, not 8 (the
+    count of ymm instructions in its machine code fell from 277 to 38)."""
     S = ROW_STATE
     B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)] = d[0], d[1], d[2]
     B[at(S + 4, J)], B[at(S + 5, J)] = d[3], d[4]
     B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = d[5], d[6], d[7]
+
+
+@njit(**INLINE)
+def write_loads(B, J, loads):
+    """Link J's loads (world axes) into the output rows."""
     O = ROW_OUT
     (B[at(O, J)], B[at(O + 1, J)], B[at(O + 2, J)], B[at(O + 3, J)], B[at(O + 4, J)],
      B[at(O + 5, J)], B[at(O + 6, J)], B[at(O + 7, J)], B[at(O + 8, J)]) = loads
@@ -321,10 +336,12 @@ def link_step(p, B, J, small, damp):
     """Link J in the frame ``small`` names (a constant in each of ``link_kernel``'s loops):
     ``physics.link_frame``, then ``physics.link_response`` with bond damping damp. Returns
     the divergence flag and whether the link changes frame."""
-    R, ax, rx, ry, rz, ow, ox, oy, oz, rest, previous, constants = link_inputs(p, B, J)
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_inputs(B, J)
     W, d, change = link_frame(small, R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+    previous, constants = link_state(p, B, J)
+    keep_deformation(B, J, d)
     loads, bad = link_response(damp, W, d, previous, rest, constants)
-    link_outputs(B, J, d, loads)
+    write_loads(B, J, loads)
     return bad, change
 
 
@@ -332,10 +349,12 @@ def link_step(p, B, J, small, damp):
 def link_reframe(p, B, J, small):
     """Link J, which has outgrown the frame ``small``, computed again in the other
     (``physics.reframe``: undamped, then flipped). Returns the divergence flag."""
-    R, ax, rx, ry, rz, ow, ox, oy, oz, rest, previous, constants = link_inputs(p, B, J)
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_inputs(B, J)
     W, d, damp, mode = reframe(small, R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+    previous, constants = link_state(p, B, J)
+    keep_deformation(B, J, d)
     loads, bad = link_response(damp, W, d, previous, rest, constants)
-    link_outputs(B, J, d, loads)
+    write_loads(B, J, loads)
     B[at(ROW_MODE, J)] = mode
     return bad
 
