@@ -199,7 +199,6 @@ def kernel_inputs(batch, state) -> tuple:
     first_surface = np.repeat(soff[:-1], np.diff(soff))
     surf_of[batch.surface + np.repeat(voff[:-1], np.diff(soff))] = (
         np.arange(len(batch.surface)) - first_surface)
-    exposed = ((batch.nbr < 0) * (1 << np.arange(6))).sum(axis=1)
     no_link = np.diff(loff)[np.repeat(np.arange(R), counts)][:, None]  # ``Robot.vlink``'s mark
     vlink = np.where(batch.vlink == no_link, -1, batch.vlink)
     ctl = np.zeros((R, ck.N_CTL), dtype=np.int32)
@@ -219,7 +218,7 @@ def kernel_inputs(batch, state) -> tuple:
                   i32(moff), i32(foff), i32(froff)),
         ck.VoxelData(i32(batch.flags), f64(batch.cos_phase), f64(batch.sin_phase),
                      f64(batch.phase), f64(batch.vconst), f64(batch.ext_force), i32(batch.nbr),
-                     i32(vlink), i32(exposed), i32(fstart), i32(fcount), i32(surf_of)),
+                     i32(vlink), i32(batch.exposed), i32(fstart), i32(fcount), i32(surf_of)),
         ck.LinkData(i32(batch.link_neg), i32(batch.link_pos), i32(batch.link_axis),
                     f64(batch.link_stiff), f64(batch.link_damp)),
         ck.ContactData(i32(batch.surface), i32(batch.near), i32([batch.near.shape[1]]),

@@ -3,13 +3,22 @@
 ``rollout_kernel(shared, threads)`` builds the kernel that steps the robots of a batch for up
 to ``chunk`` steps, block r for robot ``which[r]``. A block's threads share the robot's
 voxels and links (thread t takes voxels t, t + T, ... and links likewise) and meet at block
-syncs between the sub-steps of a step. They take the steps of ``sim.kernels`` in the same order
-under other names, call the same ``sim.physics`` formulas, and write the orchestration around
-them (frame transitions, contact list, facet normals, vertex means, the scatter of link loads)
-a second time:
+syncs between the sub-steps of a step, which carry the names of ``sim.kernels``' sub-steps:
 
-    actuate | links (+ surface-mesh vertices, + the self-contact list when it is stale)
-    | gather (link sums, contacts, facet drag) | voxel update | reductions
+    sample | actuate | link_forces, mesh_vertices, contact_list (when stale)
+    | gather (per voxel: link_sums, contact_forces, mesh_drag) | voxel_update | reductions
+
+Everything per element is the code the CPU engine runs: ``sim.physics`` (a voxel's actuated
+size, a link's frame, its hysteresis transition, damping and loads, a voxel's sum of its
+links' loads, the rebuild trigger, a facet's normal and drag, a mesh corner, a voxel's
+update, the sampling, the order of the failure checks) and ``sim.substeps`` (the candidate
+test, a pair's contact force), compiled here as device functions. What is the GPU's own is
+how the work is spread over a block: the loops over a thread's elements; a link's frame
+change computed in the same pass (the CPU marks it for a second one); each surface voxel's
+candidates found by one thread's search over the surface (the CPU sweeps sorted pairs); a
+vertex's corners computed where it is averaged (the CPU keeps every voxel's corners); each
+voxel gathering its own link loads, contacts and facet drag, where the CPU scatters them;
+the reductions over the block.
 
 - ``shared=True``: the robot's body state, sizes, forces and link state live in the block's
   dynamic shared memory for the launch (copied in at its start, out at its end);
@@ -34,7 +43,7 @@ import numpy as np
 from numba import cuda, float64
 from numba.cuda import config as cuda_config
 
-from . import physics
+from . import physics, substeps
 from .system import (
     COM_SAMPLES,
     FLAG_ACTIVE,
@@ -43,9 +52,7 @@ from .system import (
     N_FPARAMS,
     N_IPARAMS,
     N_VCONST,
-    STATUS_CONTACTS,
-    STATUS_NONFINITE,
-    STATUS_STRAIN,
+    STATUS_OK,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,
@@ -87,43 +94,27 @@ else:
     phys = physics.compiled(device, _fma)
     phys32 = physics.compiled(device, _fma, real=np.float32)
 
-dot3, qrot, rotation_matrix, waveform = phys.dot3, phys.qrot, phys.rotation_matrix, phys.waveform
-actuated_size = phys.actuated_size
-contact_push, facet_drag = phys.contact_push, phys.facet_drag
-contact_overlap, candidate_radius = phys.contact_overlap, phys.candidate_radius
-displacement_spread = phys.displacement_spread
-mesh_corner, voxel_update, voxel_world = phys.mesh_corner, phys.voxel_update, phys.voxel_world
-corner_point, load_sum, centre_of_mass = phys.corner_point, phys.load_sum, phys.centre_of_mass
+rotation_matrix, actuation, voxel_size = phys.rotation_matrix, phys.actuation, phys.voxel_size
+rest_length, voxel_loads, candidate_radius = phys.rest_length, phys.voxel_loads, phys.candidate_radius
+contacts_stale, travel_after, widen = phys.contacts_stale, phys.travel_after, phys.widen
+nan_min, nan_max, displacement_spread = phys.nan_min, phys.nan_max, phys.displacement_spread
+facet_force, voxel_corner = phys.facet_force, phys.voxel_corner
+voxel_update_of, voxel_world, centre_of_mass = phys.voxel_update, phys.voxel_world, phys.centre_of_mass
+frame_due, com_due, step_status = phys.frame_due, phys.com_due, phys.step_status
+# the array-reading pieces both engines share (``sim.substeps``)
+sub = substeps.compiled(device, phys)
+is_candidate, pair_force = sub.is_candidate, sub.pair_force
 params = device(params_of)
 
 
 @device
-def listed(near, width, i, j):
-    """Whether row i of ``near`` (``width`` entries per row, ascending, -1 pads at the end:
-    ``system.nearby``) holds j, scanning only up to the first entry past j."""
-    for q in range(width):
-        w = near[i * width + q]
-        if w == j:
-            return True
-        if w > j or w < 0:
-            return False
-    return False
-
-
-@device
-def link_load(loads, j, q):
-    """Row q of the loads of link j; 0 for no link (j < 0)."""
-    return loads[j * LINK_LOADS + q] if j >= 0 else 0.0
-
-
-@device
-def face_loads(loads, p0, p1, p2, q0, q1, q2, row_p, row_q, sign):
-    """A voxel's sum over its faces of row ``row_p`` of the links it is the negative end of
-    (p0, p1, p2: on its +x, +y, +z faces) plus ``sign`` times row ``row_q`` of those it is the
-    positive end of (q0, q1, q2) (``physics.load_sum``)."""
-    return load_sum(link_load(loads, p0, row_p), link_load(loads, p1, row_p),
-                    link_load(loads, p2, row_p), link_load(loads, q0, row_q),
-                    link_load(loads, q1, row_q), link_load(loads, q2, row_q), sign)
+def face_loads(loads, j):
+    """The nine loads of link j (``physics.voxel_loads``); zeros for no link (j < 0)."""
+    if j < 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    o = j * LINK_LOADS
+    return (loads[o], loads[o + 1], loads[o + 2], loads[o + 3], loads[o + 4], loads[o + 5],
+            loads[o + 6], loads[o + 7], loads[o + 8])
 
 
 @device
@@ -135,9 +126,10 @@ def com_sample(n, vc, pos, com, row):
 
 
 @device
-def tree_max(red, t, nt):
-    """red[0] = the largest of red[:nt] (NaN-propagating as ``kernels.surface_moved``), by a
-    fixed-order tree; every thread of the block calls it."""
+def tree(red, t, nt, lowest):
+    """red[0] = the smallest (``lowest``) or the largest of red[:nt] (``physics.nan_min``,
+    ``nan_max``, as ``kernels.surface_moved`` folds them), by a fixed-order tree; every
+    thread of the block calls it."""
     span = 1
     while span < nt:
         span *= 2
@@ -145,7 +137,7 @@ def tree_max(red, t, nt):
     while span > 0:
         if t < span and t + span < nt:
             a, b = red[t], red[t + span]
-            red[t] = b if not (b <= a) else a
+            red[t] = nan_min(a, b) if lowest else nan_max(a, b)
         cuda.syncthreads()
         span //= 2
 
@@ -244,14 +236,14 @@ class Output(NamedTuple):
 # sync between them.
 @substep
 def sample(k, p, t, nt, n, r, VC, pos, frames, frame0, com, n_com):
-    """Frames and centre-of-mass samples due at step k (``kernels.run_robot``); returns the
-    samples taken so far. ``com``: ``Output.com`` (robot r's rows)."""
-    if p.record > 0 and k % p.record == 0:
+    """Frames and centre-of-mass samples due at step k (``physics.frame_due``,
+    ``physics.com_due``; ``kernels.sample``); returns the samples taken so far. ``com``:
+    ``Output.com`` (robot r's rows)."""
+    if frame_due(k, p):
         base = frame0 + (k // p.record) * n
         for q in range(t, 3 * n, nt):
             frames[3 * base + q] = pos[q]
-    after = k - p.settle_steps
-    if after >= 0 and after % p.com_every == 0 and n_com < COM_ROWS - 1:
+    if com_due(k, p, n_com, COM_ROWS):
         if t == 0:
             com[(r * COM_ROWS + n_com) * 4] = k * p.dt
             com_sample(n, VC, pos, com[r * COM_ROWS * 4:(r + 1) * COM_ROWS * 4], n_com)
@@ -261,19 +253,13 @@ def sample(k, p, t, nt, n, r, VC, pos, frames, frame0, com, n_com):
 
 @substep
 def actuate(k, p, t, nt, n, FL, VC, phase, cos_phase, sin_phase, size):
-    """Every voxel's size at step k (``kernels.actuate_kernel``)."""
+    """Every voxel's size at step k (``physics.actuation``, ``physics.voxel_size``;
+    ``kernels.actuate_kernel``)."""
     time = (k - p.act_start) * p.dt
-    s_wt, c_wt = math.sin(p.omega * time), math.cos(p.omega * time)
+    mode, s_wt, c_wt = actuation(p, time)
     for v in range(t, n, nt):
-        size[v] = p.L
-        if time >= 0.0 and FL[v] & FLAG_ACTIVE:
-            if p.freq_field:
-                w = waveform(p.wave, VC[v * N_VCONST + V_OMEGA] * time + phase[v])
-            elif p.wave == 0:  # sin(wt + phi) without libm per voxel
-                w = s_wt * cos_phase[v] + c_wt * sin_phase[v]
-            else:
-                w = waveform(p.wave, p.omega * time + phase[v])
-            size[v] = actuated_size(p.L, p.amp, w)
+        size[v] = voxel_size(p, mode, time, FL[v] & FLAG_ACTIVE != 0, VC[v * N_VCONST + V_OMEGA],
+                             phase[v], cos_phase[v], sin_phase[v], s_wt, c_wt)
 
 
 def _link_forces(ph, real):
@@ -281,63 +267,47 @@ def _link_forces(ph, real):
     ``real`` casts to (float: float64; numpy.float32: the mixed precision, as the numba
     engine's float32 link buffer rounds the same inputs)."""
     # the pieces as plain names: a kernel can close over functions, not over a namespace
-    link_geometry, small_frame, large_frame = ph.link_geometry, ph.small_frame, ph.large_frame
-    frame_damping, damped, link_loads = ph.frame_damping, ph.damped, ph.link_loads
-    link_diverged = ph.link_diverged
+    link_geometry, link_frame, reframe = ph.link_geometry, ph.link_frame, ph.reframe
+    frame_damping, frame_mode, link_response = ph.frame_damping, ph.frame_mode, ph.link_response
 
     @substep
     def link_forces(p, t, nt, m, neg, lpos, laxis, lstiff, ldamp, pos, quat, size, ls, loads,
                     flag):
         """Every link's loads in world axes into ``loads`` (``kernels.link_kernel`` and
         ``change_frames``): each link in the co-rotational frame it is in (mode +1 small, -1
-        large, 0 new), computed again undamped in the other frame when it outgrows it;
-        flag[0] set if a link diverged."""
-        L, zero = real(p.L), real(0.0)
+        large, 0 new: ``physics.link_frame``), computed again in the other frame when it
+        outgrows it (``physics.reframe``), then damped and loaded
+        (``physics.link_response``); flag[0] set if a link diverged."""
+        L = real(p.L)
         a1, a2, b1, b2, b3 = real(p.a1), real(p.a2), real(p.b1), real(p.b2), real(p.b3)
         for j in range(t, m, nt):
             a, b = neg[j], lpos[j]
             axis = laxis[j]
-            rest = real(0.5 * (size[a] + size[b]))
+            rest = real(rest_length(size[a], size[b]))
             R, rx, ry, rz, ow, ox, oy, oz = link_geometry(
                 real(quat[4 * a]), real(quat[4 * a + 1]), real(quat[4 * a + 2]),
                 real(quat[4 * a + 3]), real(quat[4 * b]), real(quat[4 * b + 1]),
                 real(quat[4 * b + 2]), real(quat[4 * b + 3]), real(pos[3 * b] - pos[3 * a]),
                 real(pos[3 * b + 1] - pos[3 * a + 1]), real(pos[3 * b + 2] - pos[3 * a + 2]),
                 axis)
-            mode = ls[LINK_STATE * j + 8]
-            damp = real(ldamp[j])
-            if mode >= 0.0:
-                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                    R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                damp = frame_damping(real(mode), damp)
-                mode = 1.0
-                if leave:  # computed again in the other frame, undamped
-                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
-                        R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                    damp, mode = zero, -1.0
-            else:
-                W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, back = large_frame(
-                    R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                mode = -1.0
-                if back:
-                    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                        R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
-                    damp, mode = zero, 1.0
             S = LINK_STATE * j
-            ex = damped(damp, dx, real(ls[S]))
-            ey = damped(damp, dy, real(ls[S + 1]))
-            ez = damped(damp, dz, real(ls[S + 2]))
-            e1y, e1z = damped(damp, t1y, real(ls[S + 3])), damped(damp, t1z, real(ls[S + 4]))
-            e2x, e2y = damped(damp, t2x, real(ls[S + 5])), damped(damp, t2y, real(ls[S + 6]))
-            e2z = damped(damp, t2z, real(ls[S + 7]))
-            ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = dx, dy, dz, t1y, t1z
-            ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = t2x, t2y, t2z, mode
+            mode = ls[S + 8]
+            small = mode >= 0.0
+            W, d, change = link_frame(small, R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+            damp = frame_damping(real(mode), real(ldamp[j]))
+            kept = frame_mode(small)
+            if change:
+                W, d, damp, kept = reframe(small, R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+            previous = (real(ls[S]), real(ls[S + 1]), real(ls[S + 2]), real(ls[S + 3]),
+                        real(ls[S + 4]), real(ls[S + 5]), real(ls[S + 6]), real(ls[S + 7]))
+            out, bad = link_response(damp, W, d, previous, rest,
+                                     (real(lstiff[j]), L, a1, a2, b1, b2, b3))
+            ls[S], ls[S + 1], ls[S + 2], ls[S + 3], ls[S + 4] = d[0], d[1], d[2], d[3], d[4]
+            ls[S + 5], ls[S + 6], ls[S + 7], ls[S + 8] = d[5], d[6], d[7], kept
             O = LINK_LOADS * j
             (loads[O], loads[O + 1], loads[O + 2], loads[O + 3], loads[O + 4], loads[O + 5],
-             loads[O + 6], loads[O + 7], loads[O + 8]) = link_loads(
-                W, real(lstiff[j]), rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x,
-                e2y, e2z)
-            if link_diverged(dx, rest):
+             loads[O + 6], loads[O + 7], loads[O + 8]) = out
+            if bad:
                 flag[0] = 1.0
 
     return link_forces
@@ -349,9 +319,11 @@ LINK_FORCES = {"float64": _link_forces(phys, float), "mixed": _link_forces(phys3
 
 @substep
 def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
-    """The surface mesh's vertices (``kernels.mesh_drag_kernel``): each the mean of the
-    corners of the voxels that share it (``physics.corner_point``). ``mvert`` and ``points``
-    are the batch's (the robot's from vertex m0)."""
+    """The surface mesh's vertices (``kernels.mesh_vertices_kernel``): each the mean of the
+    corners of the voxels that share it (``physics.voxel_corner``), computed per vertex and
+    voxel (the CPU engine keeps every voxel's corners instead, for its vector loop; the same
+    sums in the same order). ``mvert`` and ``points`` are the batch's (the robot's from
+    vertex m0)."""
     for kv in range(t, nv, nt):
         sx, sy, sz, count = 0.0, 0.0, 0.0, 0
         for slot in range(8):
@@ -359,13 +331,11 @@ def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
             if code8 < 0:
                 break
             v, c = code8 >> 3, code8 & 7
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(
-                quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3])
-            ox, oy, oz = mesh_corner(c, size[v], p.L, NB[6 * v + ((c >> 2) & 1)] >= 0,
-                                     NB[6 * v + 2 + ((c >> 1) & 1)] >= 0,
-                                     NB[6 * v + 4 + (c & 1)] >= 0)
-            cx, cy, cz = corner_point(pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], r00, r01,
-                                      r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
+            R = rotation_matrix(quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3])
+            has = (NB[6 * v] >= 0, NB[6 * v + 1] >= 0, NB[6 * v + 2] >= 0, NB[6 * v + 3] >= 0,
+                   NB[6 * v + 4] >= 0, NB[6 * v + 5] >= 0)
+            cx, cy, cz = voxel_corner(c, pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], R, size[v],
+                                      p.L, has)
             sx, sy, sz = sx + cx, sy + cy, sz + cz
             count += 1
         points[3 * (m0 + kv)] = sx / count
@@ -376,40 +346,41 @@ def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
 @device
 def displacement_range(t, nt, ns, surface, pos, built, c, red):
     """The smallest and the largest axis-c displacement of the surface voxels from ``built``
-    (NaN-propagating, as ``kernels.surface_moved``), by two fixed-order trees; every thread of
-    the block calls it."""
-    top, bottom = -math.inf, -math.inf  # the largest d and the largest -d
+    (``physics.widen``, as ``kernels.surface_moved``), each thread over its voxels, then by
+    two fixed-order trees; every thread of the block calls it."""
+    lo, hi = math.inf, -math.inf
     for q in range(t, ns, nt):
-        d = pos[3 * surface[q] + c] - built[3 * q + c]
-        top = d if not (d <= top) else top
-        bottom = -d if not (-d <= bottom) else bottom
-    red[t] = top
+        lo, hi = widen(lo, hi, pos[3 * surface[q] + c] - built[3 * q + c])
+    red[t] = hi
     cuda.syncthreads()
-    tree_max(red, t, nt)
+    tree(red, t, nt, False)
     hi = red[0]
     cuda.syncthreads()
-    red[t] = bottom
+    red[t] = lo
     cuda.syncthreads()
-    tree_max(red, t, nt)
-    lo = -red[0]
+    tree(red, t, nt, True)
+    lo = red[0]
     cuda.syncthreads()
     return lo, hi
 
 
 @substep
 def contact_list(p, t, nt, ns, s0, contacts, near, width, pos, red, flag, travel):
-    """The self-contact candidates (``kernels.collide_kernel``), rebuilt once the surface
-    voxels' displacements may have spread over the margin and did (``displacement_spread``);
-    flag[2] set if a voxel has more than MAX_CONTACTS (the policy). Returns the new bound on
-    half the spread. Every thread calls it (it reduces over the block). ``contacts``: the
-    batch's (the robot's surface from s0); ``near``: the robot's rows."""
+    """The self-contact candidates (``kernels.contact_list_kernel``), called once the bound
+    ``travel`` is stale (``physics.contacts_stale``): the surface voxels' displacement spread
+    is measured (``physics.displacement_spread``), and the list rebuilt if that is stale
+    too; each thread lists its surface voxels' candidates (``substeps.is_candidate``) by a
+    search over every surface voxel (the CPU engine sweeps sorted pairs). flag[2] set if a
+    voxel has more than MAX_CONTACTS (the policy). Returns the new bound on half the spread.
+    Every thread calls it (it reduces over the block). ``contacts``: the batch's (the robot's
+    surface from s0); ``near``: the robot's rows."""
     surface, cand = contacts.surface[s0:s0 + ns], contacts.cand[s0 * MAX_CONTACTS:]
     ncand, built = contacts.ncand[s0:s0 + ns], contacts.built[3 * s0:3 * (s0 + ns)]
     lo_x, hi_x = displacement_range(t, nt, ns, surface, pos, built, 0, red)
     lo_y, hi_y = displacement_range(t, nt, ns, surface, pos, built, 1, red)
     lo_z, hi_z = displacement_range(t, nt, ns, surface, pos, built, 2, red)
     travel = displacement_spread(lo_x, hi_x, lo_y, hi_y, lo_z, hi_z)
-    if not (2.0 * travel < physics.COLLIDE_MARGIN * p.L):
+    if contacts_stale(travel, p.L):
         reach = candidate_radius(p.L, p.contact_reach, p.amp)
         reach2 = reach * reach
         for q in range(t, ns, nt):
@@ -419,10 +390,9 @@ def contact_list(p, t, nt, ns, s0, contacts, near, width, pos, red, flag, travel
                 j = surface[qq]
                 if j == i:
                     continue
-                dx = pos[3 * j] - pos[3 * i]
-                dy = pos[3 * j + 1] - pos[3 * i + 1]
-                dz = pos[3 * j + 2] - pos[3 * i + 2]
-                if dx * dx + dy * dy + dz * dz < reach2 and not listed(near, width, i, j):
+                if is_candidate(near, width, i, j, pos[3 * j] - pos[3 * i],
+                                pos[3 * j + 1] - pos[3 * i + 1], pos[3 * j + 2] - pos[3 * i + 2],
+                                reach2):
                     if count == MAX_CONTACTS:  # the policy: the run stops
                         flag[2] = 1.0
                         break
@@ -436,68 +406,72 @@ def contact_list(p, t, nt, ns, s0, contacts, near, width, pos, red, flag, travel
     return travel
 
 
+@device
+def link_sums(loads, VL, v):
+    """Voxel v's force and moment from its links' loads (``physics.voxel_loads``;
+    ``kernels.link_sums``); ``VL``: the link on each of its faces (-1: none)."""
+    return voxel_loads(face_loads(loads, VL[6 * v + 1]), face_loads(loads, VL[6 * v + 3]),
+                       face_loads(loads, VL[6 * v + 5]), face_loads(loads, VL[6 * v]),
+                       face_loads(loads, VL[6 * v + 2]), face_loads(loads, VL[6 * v + 4]))
+
+
+@device
+def contact_forces(p, v, first, count, cand, pos, lm, size, VC, fx, fy, fz):
+    """The force (fx, fy, fz) plus voxel v's contacts with its ``count`` candidates (from
+    ``cand[first]``; ``substeps.pair_force``; ``kernels.contact_forces_kernel``)."""
+    for c in range(count):
+        touch, px, py, pz = pair_force(pos, lm, size, VC, N_VCONST, v, cand[first + c],
+                                       p.contact_reach, p.contact_stiff, p.contact_damp)
+        if touch:
+            fx, fy, fz = fx - px, fy - py, fz - pz
+    return fx, fy, fz
+
+
+@device
+def mesh_drag(p, v, first, count, m0, mface, points, lm, VC, fx, fy, fz):
+    """The force (fx, fy, fz) plus the drag on voxel v's ``count`` surface-mesh triangles
+    (from ``mface``'s triangle ``first``, their vertices from m0 in ``points``;
+    ``physics.facet_force``; ``kernels.mesh_drag_kernel``)."""
+    for tri in range(first, first + count):
+        va, vb, vc = m0 + mface[4 * tri], m0 + mface[4 * tri + 1], m0 + mface[4 * tri + 2]
+        dfx, dfy, dfz = facet_force(
+            p.mesh_drag, points[3 * va], points[3 * va + 1], points[3 * va + 2], points[3 * vb],
+            points[3 * vb + 1], points[3 * vb + 2], points[3 * vc], points[3 * vc + 1],
+            points[3 * vc + 2], lm[3 * v], lm[3 * v + 1], lm[3 * v + 2],
+            VC[v * N_VCONST + V_INV_MASS])
+        fx, fy, fz = fx + dfx, fy + dfy, fz + dfz
+    return fx, fy, fz
+
+
 @substep
 def gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm, size, loads,
            force, moment):
     """Each voxel's force and moment, gathered by the voxel itself (no atomics): its links'
-    loads (``kernels.link_sums``), its self-contacts (``kernels.collision_forces``) and the
-    drag on its surface-mesh triangles (``kernels.mesh_drag_kernel``). ``voxels``,
-    ``contacts``, ``mesh``: the batch's groups (the robot's from voxel v0, surface voxel s0,
-    vertex m0, triangle f0)."""
+    loads (``link_sums``), its self-contacts (``contact_forces``) and the drag on its
+    surface-mesh triangles (``mesh_drag``), the sub-steps the CPU engine runs as loops of
+    their own. ``voxels``, ``contacts``, ``mesh``: the batch's groups (the robot's from
+    voxel v0, surface voxel s0, vertex m0, triangle f0)."""
     surf_of, fstart, fcount = voxels.surf_of, voxels.fstart, voxels.fcount
     cand, ncand, mface, points = contacts.cand, contacts.ncand, mesh.face, mesh.points
     for v in range(t, n, nt):
-        p0, p1, p2 = VL[6 * v + 1], VL[6 * v + 3], VL[6 * v + 5]  # v the negative end
-        q0, q1, q2 = VL[6 * v], VL[6 * v + 2], VL[6 * v + 4]  # v the positive end
-        fx = face_loads(loads, p0, p1, p2, q0, q1, q2, 0, 0, -1.0)
-        fy = face_loads(loads, p0, p1, p2, q0, q1, q2, 1, 1, -1.0)
-        fz = face_loads(loads, p0, p1, p2, q0, q1, q2, 2, 2, -1.0)
-        moment[3 * v] = face_loads(loads, p0, p1, p2, q0, q1, q2, 3, 6, 1.0)
-        moment[3 * v + 1] = face_loads(loads, p0, p1, p2, q0, q1, q2, 4, 7, 1.0)
-        moment[3 * v + 2] = face_loads(loads, p0, p1, p2, q0, q1, q2, 5, 8, 1.0)
+        fx, fy, fz, mx, my, mz = link_sums(loads, VL, v)
+        moment[3 * v], moment[3 * v + 1], moment[3 * v + 2] = mx, my, mz
         q = surf_of[v0 + v]
         if p.collide and q >= 0:
-            inv_mv = VC[v * N_VCONST + V_INV_MASS]
-            for c in range(ncand[s0 + q]):
-                j = cand[(s0 + q) * MAX_CONTACTS + c]
-                dx = pos[3 * j] - pos[3 * v]
-                dy = pos[3 * j + 1] - pos[3 * v + 1]
-                dz = pos[3 * j + 2] - pos[3 * v + 2]
-                overlap, dist = contact_overlap(dx, dy, dz, size[v], size[j], p.contact_reach)
-                if overlap <= 0.0 or dist == 0.0:
-                    continue
-                inv_mj = VC[j * N_VCONST + V_INV_MASS]
-                px, py, pz = contact_push(
-                    overlap, dist, dx, dy, dz, lm[3 * j] * inv_mj - lm[3 * v] * inv_mv,
-                    lm[3 * j + 1] * inv_mj - lm[3 * v + 1] * inv_mv,
-                    lm[3 * j + 2] * inv_mj - lm[3 * v + 2] * inv_mv,
-                    VC[v * N_VCONST + V_KFLOOR], VC[j * N_VCONST + V_KFLOOR],
-                    VC[v * N_VCONST + V_CCOLL], VC[j * N_VCONST + V_CCOLL],
-                    p.contact_stiff, p.contact_damp)
-                fx, fy, fz = fx - px, fy - py, fz - pz
+            fx, fy, fz = contact_forces(p, v, (s0 + q) * MAX_CONTACTS, ncand[s0 + q], cand, pos,
+                                        lm, size, VC, fx, fy, fz)
         if p.mesh_drag > 0.0:
-            for tri in range(f0 + fstart[v0 + v], f0 + fstart[v0 + v] + fcount[v0 + v]):
-                va, vb = m0 + mface[4 * tri], m0 + mface[4 * tri + 1]
-                vcn = m0 + mface[4 * tri + 2]
-                ux = points[3 * vb] - points[3 * va]
-                uy = points[3 * vb + 1] - points[3 * va + 1]
-                uz = points[3 * vb + 2] - points[3 * va + 2]
-                wx = points[3 * vcn] - points[3 * va]
-                wy = points[3 * vcn + 1] - points[3 * va + 1]
-                wz = points[3 * vcn + 2] - points[3 * va + 2]
-                nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-                dfx, dfy, dfz = facet_drag(
-                    p.mesh_drag, lm[3 * v] * nx + lm[3 * v + 1] * ny + lm[3 * v + 2] * nz,
-                    VC[v * N_VCONST + V_INV_MASS], nx, ny, nz)
-                fx, fy, fz = fx + dfx, fy + dfy, fz + dfz
+            fx, fy, fz = mesh_drag(p, v, f0 + fstart[v0 + v], fcount[v0 + v], m0, mface,
+                                   points, lm, VC, fx, fy, fz)
         force[3 * v], force[3 * v + 1], force[3 * v + 2] = fx, fy, fz
 
 
 @substep
-def voxel_updates(world, t, nt, n, FL, VC, exposed, ext, ST, pos, quat, lm, am, size, force,
-                  moment, flag):
-    """Every voxel's own forces and its step (``kernels.voxel_kernel``); returns the largest
-    squared speed of this thread's voxels; flag[1] set if one left the sane range."""
+def voxel_update(world, t, nt, n, FL, VC, exposed, ext, ST, pos, quat, lm, am, size, force,
+                 moment, flag):
+    """Every voxel's own forces and its step (``physics.voxel_update``;
+    ``kernels.voxel_update_kernel``); returns the largest squared speed of this thread's
+    voxels; flag[1] set if one left the sane range."""
     fastest = 0.0
     sane_all = True
     for v in range(t, n, nt):
@@ -507,7 +481,7 @@ def voxel_updates(world, t, nt, n, FL, VC, exposed, ext, ST, pos, quat, lm, am, 
             continue
         c0 = v * N_VCONST
         (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2,
-         sane) = voxel_update(
+         sane) = voxel_update_of(
             world, (VC[c0 + V_MASS], VC[c0 + V_INV_MASS], VC[c0 + V_INV_INERTIA],
                     VC[c0 + V_CGLIN], VC[c0 + V_CGANG], VC[c0 + V_KFLOOR],
                     VC[c0 + V_CCOLL]), exposed[v], size[v],
@@ -620,30 +594,25 @@ def rollout_kernel(shared: bool, threads: int, precision: str = "float64"):
                         pos, quat, size, ls, loads, flag)
             if p.mesh_drag > 0.0:
                 mesh_vertices(p, t, nt, nv, m0, mesh.vert, NB, pos, quat, size, mesh.points)
-            if p.collide and 2.0 * travel >= physics.COLLIDE_MARGIN * p.L:
+            if p.collide and contacts_stale(travel, p.L):
                 travel = contact_list(p, t, nt, ns, s0, contacts, NEAR, width, pos, red, flag,
                                       travel)
             cuda.syncthreads()
             gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm, size,
                    loads, force, moment)
             cuda.syncthreads()
-            fastest = voxel_updates(world, t, nt, n, FL, VC, voxels.exposed[v0:v0 + n],
-                                    voxels.ext[3 * v0:3 * (v0 + n)], ST, pos, quat, lm, am,
-                                    size, force, moment, flag)
+            fastest = voxel_update(world, t, nt, n, FL, VC, voxels.exposed[v0:v0 + n],
+                                   voxels.ext[3 * v0:3 * (v0 + n)], ST, pos, quat, lm, am,
+                                   size, force, moment, flag)
             if p.collide:
                 red[t] = fastest
             cuda.syncthreads()
             if p.collide:
-                tree_max(red, t, nt)
-                travel = travel + math.sqrt(max(red[0], 0.0)) * p.dt
-            if flag[0] != 0.0:
-                code, done, finished = STATUS_STRAIN, k + 1, True
-                break
-            if flag[1] != 0.0:
-                code, done, finished = STATUS_NONFINITE, k + 1, True
-                break
-            if flag[2] != 0.0:
-                code, done, finished = STATUS_CONTACTS, k + 1, True
+                tree(red, t, nt, False)
+                travel = travel_after(travel, red[0], p.dt)
+            code = step_status(flag[0] != 0.0, flag[1] != 0.0, flag[2] != 0.0)
+            if code != STATUS_OK:
+                done, finished = k + 1, True
                 break
             k += 1
 

@@ -1,19 +1,24 @@
 """Compiled kernels: the whole rollout of many robots in one call.
 
 ``run_batch`` runs each robot as one task of a ``prange``; ``run_robot`` loops over the steps,
-records frames and centre-of-mass samples and stops at divergence; ``step`` is one step:
+takes frames and centre-of-mass samples (``sample``) and stops at the first failure
+(``physics.step_status``); ``step`` is one step, its sub-steps named as the GPU engine's:
 
-    actuate -> link_forces -> collide -> voxel_update (world forces, floor, integrate)
+    actuate -> link_forces -> contact_list -> contact_forces -> mesh_vertices -> mesh_drag
+    -> voxel_update (world forces, floor, integrate)
 
 - ``actuate``: voxel size s = max(L (1 + amp w(omega t + phase)), 0.1 L) for active voxels;
 - ``link_forces``: co-rotational 3-D beams (``link_kernel``: gather, then one SIMD loop per
   frame over the links kept in that frame's run; ``change_frames`` for the few that switch),
   summed per voxel (``link_sums``); stiffness-proportional bond damping;
-- ``collide``: penalty contact k overlap - c v_n (>= 0) between surface voxels that are not
-  within the model's collision horizon (bonded pairs in voxelyze-2; ``Voxels.near``);
-- ``mesh_drag_kernel`` (water, the paper's engine's model): drag on the triangles of the
-  deformed surface mesh; otherwise ``voxel_kernel`` puts the drag on each voxel's faces;
-- ``voxel_update``, one pass over the voxels (``voxel_kernel``), each voxel in turn:
+- ``contact_list``: the self-contact candidates, rebuilt when stale (the policy:
+  ``sim.physics``); ``contact_forces``: penalty contact k overlap - c v_n (>= 0) between
+  candidates, surface voxels that are not within the model's collision horizon (bonded pairs
+  in voxelyze-2; ``Voxels.near``);
+- ``mesh_vertices``, ``mesh_drag`` (water, the paper's engine's model): drag on the
+  triangles of the deformed surface mesh; otherwise ``voxel_update`` puts the drag on each
+  voxel's exposed faces;
+- ``voxel_update``, one pass over the voxels (``voxel_update_kernel``), each voxel in turn:
   - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
     quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
   - floor contact: on land, normal force k_floor pen - c_coll v_z for pen = s/2 - z >= 0,
@@ -22,19 +27,24 @@ records frames and centre-of-mass samples and stops at divergence; ``step`` is o
     q = exp(L / I dt) q (renormalised); a sliding voxel in floor contact sticks when
     friction would reverse it.
 
-The per-link, per-pair and per-voxel formulas are ``sim.physics`` (scalar functions written
-once, inlined here, and compiled for the GPU engine too); this module holds the loops, the
-memory layout and the orchestration around those formulas, which ``sim.cuda_kernels`` still
-writes a second time for the GPU (the frame transitions, the contact list and its rebuild
-trigger, the facet normals and vertex means of the drag mesh, the scatter of link loads). A robot's
-constants are a ``Params`` named tuple (``sim.system``); its arrays are grouped as
-``Voxels``, ``Links``, its body state as ``State`` and its scratch as ``Work``, all private
-copies of its slices of the batch (indices local to the robot). Each sub-step is an inlined
-wrapper around a compiled loop (``actuate_kernel``, ``link_kernel`` ...) that takes the arrays
-it uses one by one. All state is struct-of-arrays; no Python runs per voxel or per step.
-Helpers called per link or per voxel take and return scalars only: an array passed to an
-inlined helper costs two atomic reference-count updates per call, which once took most of the
-link loop's time; for the same reason the step loop runs on views that count no references.
+What the two engines share is written once and inlined here: the formulas and every
+per-element body of the step (``sim.physics``, scalar functions: a voxel's actuated size, a
+link's frame, its hysteresis transition, damping and loads, a voxel's sum of its links'
+loads, the rebuild trigger of the contact list, a facet's normal and drag, a mesh corner, a
+voxel's update, the sampling and the order of the failure checks) and the few that index
+arrays (``sim.substeps``: the candidate test, a pair's contact force). This module holds
+what is the CPU's own: the loops, the memory layout (the link buffer's tiles and its two
+runs by frame, which split a frame change into a mark and a second pass: ``change_frames``),
+the sweep over sorted surface voxels that lists the candidates, and every voxel's mesh
+corners kept for a vector loop. A robot's constants are a ``Params`` named tuple
+(``sim.system``); its arrays are grouped as ``Voxels``, ``Links``, its body state as
+``State`` and its scratch as ``Work``, all private copies of its slices of the batch
+(indices local to the robot). Each sub-step is an inlined wrapper around a compiled loop
+(``actuate_kernel``, ``link_kernel`` ...) that takes the arrays it uses one by one. All
+state is struct-of-arrays; no Python runs per voxel or per step. An array passed to a helper
+can cost two atomic reference-count updates per call, which once took most of the link
+loop's time: the physics takes and returns scalars only, the helpers that read arrays are
+inlined, and the step loop runs on views that count no references (``borrow``).
 
 Materials and frequencies per voxel (scene fields ``youngs_modulus_field``, ``density_field``,
 ``frequency_field``; without them every voxel has the scalar values). Voxel i has E_i, rho_i,
@@ -79,16 +89,21 @@ from numba.core import cgutils
 from numba.core.errors import NumbaIRAssumptionWarning
 from numba.extending import intrinsic, overload
 
-from . import physics
-from .physics import COLLIDE_MARGIN, MAX_STRAIN, POSITION_BOUND  # noqa: F401 (the engine reports MAX_STRAIN)
+from . import physics, substeps
+from .physics import (  # noqa: F401 (the engine reports MAX_STRAIN)
+    ACT_FIELD,
+    ACT_REST,
+    ACT_SINE,
+    ACT_WAVE,
+    COLLIDE_MARGIN,
+    MAX_STRAIN,
+    POSITION_BOUND,
+)
 from .system import (
     FLAG_ACTIVE,
     FLAG_FIXED,
     MAX_CONTACTS,
-    STATUS_CONTACTS,
-    STATUS_NONFINITE,
     STATUS_OK,
-    STATUS_STRAIN,
     V_CCOLL,
     V_CGANG,
     V_CGLIN,
@@ -181,51 +196,44 @@ def by_precision(name):
 
 
 dot3, qmul, qrot, rotvec = _phys.dot3, _phys.qmul, _phys.qrot, _phys.rotvec
-quat_from_rotvec, rotation_matrix, waveform = _phys.quat_from_rotvec, _phys.rotation_matrix, _phys.waveform
-actuated_size = _phys.actuated_size
-link_geometry_of, small_frame_of = by_precision("link_geometry"), by_precision("small_frame")
-large_frame_of, damped = by_precision("large_frame"), by_precision("damped")
-link_loads = by_precision("link_loads")
-frame_damping, link_diverged = by_precision("frame_damping"), by_precision("link_diverged")
-contact_push, facet_drag = _phys.contact_push, _phys.facet_drag
-contact_overlap, candidate_radius = _phys.contact_overlap, _phys.candidate_radius
-displacement_spread = _phys.displacement_spread
-mesh_corner, voxel_update_of = _phys.mesh_corner, _phys.voxel_update
-corner_point, load_sum, centre_of_mass = _phys.corner_point, _phys.load_sum, _phys.centre_of_mass
-voxel_world = _phys.voxel_world
+quat_from_rotvec, rotation_matrix = _phys.quat_from_rotvec, _phys.rotation_matrix
+actuation, voxel_size = _phys.actuation, _phys.voxel_size
+link_geometry_of, link_frame = by_precision("link_geometry"), by_precision("link_frame")
+reframe, link_response = by_precision("reframe"), by_precision("link_response")
+frame_damping, rest_length = by_precision("frame_damping"), _phys.rest_length
+voxel_loads, candidate_radius = _phys.voxel_loads, _phys.candidate_radius
+contacts_stale, travel_after, widen = _phys.contacts_stale, _phys.travel_after, _phys.widen
+displacement_spread, facet_force_of = _phys.displacement_spread, _phys.facet_force
+voxel_corner, voxel_update_of, voxel_world = _phys.voxel_corner, _phys.voxel_update, _phys.voxel_world
+centre_of_mass, frame_due, com_due = _phys.centre_of_mass, _phys.frame_due, _phys.com_due
+step_status = _phys.step_status
+# the array-reading pieces both engines share (``sim.substeps``)
+_sub = substeps.compiled(_INLINE_PHYSICS, _phys)
+listed, is_candidate, pair_force = _sub.listed, _sub.is_candidate, _sub.pair_force
+
+
+@njit(**INLINE)
+def voxel_sizes(mode, t, p, flags, cos_phase, sin_phase, phase, vconst, size, s_wt, c_wt):
+    """Every voxel's ``physics.voxel_size`` into ``size``, for one actuation mode."""
+    for v in range(len(size)):
+        size[v] = voxel_size(p, mode, t, flags[v] & FLAG_ACTIVE != 0, vconst[v, V_OMEGA],
+                             phase[v], cos_phase[v], sin_phase[v], s_wt, c_wt)
 
 
 @njit(**JIT)
 def actuate_kernel(t, p, flags, cos_phase, sin_phase, phase, vconst, size):
-    """Current size of every voxel at time t (t < 0: no actuation yet). With per-voxel
-    frequencies (``p.freq_field``) active voxel i follows w(omega_i t + phase_i),
-    omega_i = ``vconst[i, V_OMEGA]``; otherwise every one follows the robot's ``p.omega``."""
-    L = p.L
-    if t < 0.0:
-        for v in range(len(size)):
-            size[v] = L
-        return
-    amp = p.amp
-    wave = p.wave
-    if p.freq_field:
-        for v in range(len(size)):
-            if flags[v] & FLAG_ACTIVE:
-                w = waveform(wave, vconst[v, V_OMEGA] * t + phase[v])
-                size[v] = actuated_size(L, amp, w)
-            else:
-                size[v] = L
-        return
-    wt = p.omega * t
-    s_wt, c_wt = math.sin(wt), math.cos(wt)
-    for v in range(len(size)):
-        if flags[v] & FLAG_ACTIVE:
-            if wave == 0:  # sin(wt + phi) without libm per voxel
-                w = s_wt * cos_phase[v] + c_wt * sin_phase[v]
-            else:
-                w = waveform(wave, wt + phase[v])
-            size[v] = actuated_size(L, amp, w)
-        else:
-            size[v] = L
+    """Current size of every voxel at time t (t < 0: no actuation yet): ``physics.actuation``
+    and ``physics.voxel_size``. One loop per mode, each with its mode a constant, so that
+    LLVM drops the other modes' branches from it (and vectorizes the sine's)."""
+    mode, s_wt, c_wt = actuation(p, t)
+    if mode == ACT_REST:
+        voxel_sizes(ACT_REST, t, p, flags, cos_phase, sin_phase, phase, vconst, size, s_wt, c_wt)
+    elif mode == ACT_FIELD:
+        voxel_sizes(ACT_FIELD, t, p, flags, cos_phase, sin_phase, phase, vconst, size, s_wt, c_wt)
+    elif mode == ACT_SINE:
+        voxel_sizes(ACT_SINE, t, p, flags, cos_phase, sin_phase, phase, vconst, size, s_wt, c_wt)
+    else:
+        voxel_sizes(ACT_WAVE, t, p, flags, cos_phase, sin_phase, phase, vconst, size, s_wt, c_wt)
 
 
 # ---------------------------------------------------------------- links
@@ -278,9 +286,9 @@ def link_buffer_size(m):
 
 
 @njit(**INLINE)
-def link_geometry(B, J):
-    """Link J's geometry (``physics.link_geometry``) from its inputs in the buffer, with its
-    axis and rest length: R, axis, the centre offset, the relative rotation, rest."""
+def link_inputs(B, J):
+    """Link J's geometry (``physics.link_geometry``: R, and the centre offset and relative
+    rotation in the link frame), axis and rest length, from the buffer's input rows."""
     ax = B[at(ROW_AXIS, J)]
     R, rx, ry, rz, ow, ox, oy, oz = link_geometry_of(
         B[at(0, J)], B[at(1, J)], B[at(2, J)], B[at(3, J)], B[at(4, J)], B[at(5, J)],
@@ -289,52 +297,66 @@ def link_geometry(B, J):
 
 
 @njit(**INLINE)
-def beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z):
-    """Damp link J's deformation (elongation d, end rotations t1 = (0, t1y, t1z) and t2) by damp
-    times its change since the previous step, keep it as the new previous one, and write the
-    beam's forces and moments in world axes (``physics.link_loads``) to the output rows.
-    Returns 1 if the link diverged (|elongation| > MAX_STRAIN * rest, or NaN), else 0."""
+def link_state(p, B, J):
+    """Link J's previous deformation (the eight values of ``physics.link_frame``'s d; row 3
+    of the state, the first end's x rotation, stays 0) and its constants
+    (``physics.link_response``), read once its frame is computed (values live across the
+    frame's arithmetic take vector registers: ``keep_deformation``)."""
     S = ROW_STATE
-    ex = damped(damp, dx, B[at(S, J)])
-    ey = damped(damp, dy, B[at(S + 1, J)])
-    ez = damped(damp, dz, B[at(S + 2, J)])
-    e1y = damped(damp, t1y, B[at(S + 4, J)])
-    e1z = damped(damp, t1z, B[at(S + 5, J)])
-    e2x = damped(damp, t2x, B[at(S + 6, J)])
-    e2y = damped(damp, t2y, B[at(S + 7, J)])
-    e2z = damped(damp, t2z, B[at(S + 8, J)])
-    B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)] = dx, dy, dz
-    B[at(S + 4, J)], B[at(S + 5, J)] = t1y, t1z
-    B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = t2x, t2y, t2z
-    O = ROW_OUT
+    previous = (B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)], B[at(S + 4, J)],
+                B[at(S + 5, J)], B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)])
     real = B.dtype.type  # the link's precision: the robot's constants in it
+    constants = (B[at(ROW_STIFF, J)], real(p.L), real(p.a1), real(p.a2), real(p.b1),
+                 real(p.b2), real(p.b3))
+    return previous, constants
+
+
+@njit(**INLINE)
+def keep_deformation(B, J, d):
+    """Keep link J's deformation d as its previous one (after that was read: ``link_state``),
+    before its loads are computed: d kept live through ``physics.link_response`` instead
+    took so many vector registers that LLVM gave the float32 link loop 4 lanes, not 8 (the
+    count of ymm instructions in its machine code fell from 277 to 38)."""
+    S = ROW_STATE
+    B[at(S, J)], B[at(S + 1, J)], B[at(S + 2, J)] = d[0], d[1], d[2]
+    B[at(S + 4, J)], B[at(S + 5, J)] = d[3], d[4]
+    B[at(S + 6, J)], B[at(S + 7, J)], B[at(S + 8, J)] = d[5], d[6], d[7]
+
+
+@njit(**INLINE)
+def write_loads(B, J, loads):
+    """Link J's loads (world axes) into the output rows."""
+    O = ROW_OUT
     (B[at(O, J)], B[at(O + 1, J)], B[at(O + 2, J)], B[at(O + 3, J)], B[at(O + 4, J)],
-     B[at(O + 5, J)], B[at(O + 6, J)], B[at(O + 7, J)], B[at(O + 8, J)]) = link_loads(
-        W, B[at(ROW_STIFF, J)], rest, real(p.L), real(p.a1), real(p.a2), real(p.b1),
-        real(p.b2), real(p.b3), ex, ey, ez, e1y, e1z, e2x, e2y, e2z)
-    return link_diverged(dx, rest)
+     B[at(O + 5, J)], B[at(O + 6, J)], B[at(O + 7, J)], B[at(O + 8, J)]) = loads
 
 
 @njit(**INLINE)
-def small_frame(p, B, J, damp):
-    """Link J in its negative voxel's frame (``physics.small_frame``). Returns the divergence
-    flag and whether the bend or the extension has outgrown the frame."""
-    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
-    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, leave = small_frame_of(
-        R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-    bad = beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
-    return bad, leave
+def link_step(p, B, J, small, damp):
+    """Link J in the frame ``small`` names (a constant in each of ``link_kernel``'s loops):
+    ``physics.link_frame``, then ``physics.link_response`` with bond damping damp. Returns
+    the divergence flag and whether the link changes frame."""
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_inputs(B, J)
+    W, d, change = link_frame(small, R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+    previous, constants = link_state(p, B, J)
+    keep_deformation(B, J, d)
+    loads, bad = link_response(damp, W, d, previous, rest, constants)
+    write_loads(B, J, loads)
+    return bad, change
 
 
 @njit(**INLINE)
-def large_frame(p, B, J, damp):
-    """Link J in the frame of its centre line (``physics.large_frame``). Returns the
-    divergence flag and whether the link is back within the small-angle frame's bounds."""
-    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_geometry(B, J)
-    W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, enter = large_frame_of(
-        R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-    bad = beam_out(p, B, J, damp, rest, W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z)
-    return bad, enter
+def link_reframe(p, B, J, small):
+    """Link J, which has outgrown the frame ``small``, computed again in the other
+    (``physics.reframe``: undamped, then flipped). Returns the divergence flag."""
+    R, ax, rx, ry, rz, ow, ox, oy, oz, rest = link_inputs(B, J)
+    W, d, damp, mode = reframe(small, R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+    previous, constants = link_state(p, B, J)
+    keep_deformation(B, J, d)
+    loads, bad = link_response(damp, W, d, previous, rest, constants)
+    write_loads(B, J, loads)
+    B[at(ROW_MODE, J)] = mode
+    return bad
 
 
 @njit(**JIT)
@@ -358,8 +380,8 @@ def swap_links(a, b, B, ends, vlink, link_id):
 @njit(**JIT)
 def change_frames(p, B, ends, vlink, link_id, split, moved):
     """Links that a frame loop marked LEAVES or RETURNS, computed again in their new frame
-    (undamped: their previous deformation was measured in the other frame), then moved into
-    that frame's run; ``split`` gets the new boundary; ``moved`` (m places) is scratch.
+    (``link_reframe``: undamped, their previous deformation was measured in the other frame),
+    then moved into that frame's run; ``split`` gets the new boundary; ``moved`` (m places) is scratch.
     Returns how many of them diverged.
 
     The marked links are found block by block (a vectorized count per block of
@@ -381,14 +403,9 @@ def change_frames(p, B, ends, vlink, link_id, split, moved):
             for lane in range(lo, hi):
                 J = tile + np.uint64(lane)
                 mode = B[at(ROW_MODE, J)]
-                if mode == LEAVES:
-                    bad += large_frame(p, B, J, B.dtype.type(0.0))[0]
-                    B[at(ROW_MODE, J)] = -1.0
-                elif mode == RETURNS:
-                    bad += small_frame(p, B, J, B.dtype.type(0.0))[0]
-                    B[at(ROW_MODE, J)] = 1.0
-                else:
+                if mode != LEAVES and mode != RETURNS:
                     continue
+                bad += link_reframe(p, B, J, mode == LEAVES)
                 moved[count] = first + lane
                 count += 1
     # leavers (all below ns), from the highest down, to the top of the small run; then
@@ -415,8 +432,9 @@ def link_kernel(p, ends, split, pos, quat, size, B):
     many changed frame (marked LEAVES or RETURNS, for ``change_frames``).
 
     Co-rotational: the frame follows the negative-side voxel while the bend is small
-    (``small_frame``) and the centre-to-centre line when it is large (``large_frame``), with
-    hysteresis as Voxelyze. Bond damping is stiffness-proportional: the beam sees
+    (``physics.small_frame``) and the centre-to-centre line when it is large
+    (``physics.large_frame``), with hysteresis as Voxelyze (``physics.link_frame``'s change,
+    ``physics.reframe``). Bond damping is stiffness-proportional: the beam sees
     d + damp_j (change of d per step), damp_j = gamma_link / (2 dt), which gives every beam
     term the damping coefficient 2 zeta sqrt(m_link k); a link with no previous step in its
     frame (the first step, or just changed frame) is not damped. Link j's beam constants are
@@ -447,7 +465,7 @@ def link_kernel(p, ends, split, pos, quat, size, B):
             B[at(8, J)] = P[pk] - P[pi]
             B[at(9, J)] = P[pk + U(1)] - P[pi + U(1)]
             B[at(10, J)] = P[pk + U(2)] - P[pi + U(2)]
-            B[at(11, J)] = 0.5 * (size[i] + size[k])
+            B[at(11, J)] = rest_length(size[i], size[k])
     ns = split[0]
     count = 0  # diverged links plus MOVED times the links that change frame (one reduction)
     # each run tile by tile: one SIMD loop over the run's lanes [lo, hi) of each tile
@@ -457,13 +475,13 @@ def link_kernel(p, ends, split, pos, quat, size, B):
         for lane in range(lo, hi):  # mode +1, or 0 before the first step (nothing to damp)
             J = tile + U(lane)
             damp = frame_damping(B[at(ROW_MODE, J)], B[at(ROW_DAMP, J)])
-            flag, leave = small_frame(p, B, J, damp)
+            flag, leave = link_step(p, B, J, True, damp)
             B[at(ROW_MODE, J)] = LEAVES if leave else 1.0
             count += MOVED if leave else flag
         lo, hi = hi, min(LINK_TILE, m - first)
         for lane in range(lo, hi):  # mode -1
             J = tile + U(lane)
-            flag, enter = large_frame(p, B, J, B[at(ROW_DAMP, J)])
+            flag, enter = link_step(p, B, J, False, B[at(ROW_DAMP, J)])
             B[at(ROW_MODE, J)] = RETURNS if enter else -1.0
             count += MOVED if enter else flag
     return count % MOVED, count // MOVED
@@ -476,36 +494,26 @@ def link_sums(vlink, B, force, moment):
     ``vlink[v, 2a + 1]`` is the offset (``place``) of the link on v's +a face (v its negative
     end), ``vlink[v, 2a]`` of the one on its -a face (v its positive end); a face without a
     link holds that of place m, which stays zero in every row of the link buffer B, so every
-    voxel sums six entries per row without a branch. The sums are float64 in either
-    precision, so that a link's equal and opposite forces still cancel in the total.
+    voxel sums six entries per row without a branch (``physics.voxel_loads``).
     """
     U = np.uint64
-    R0, R1, R2 = at(ROW_OUT, U(0)), at(ROW_OUT + 1, U(0)), at(ROW_OUT + 2, U(0))
-    R3, R4, R5 = at(ROW_OUT + 3, U(0)), at(ROW_OUT + 4, U(0)), at(ROW_OUT + 5, U(0))
-    R6, R7, R8 = at(ROW_OUT + 6, U(0)), at(ROW_OUT + 7, U(0)), at(ROW_OUT + 8, U(0))
-    o = B
-    F = np.float64  # the loads summed in float64 in either precision (the forces balance)
     for v in range(len(vlink)):
-        p0, p1, p2 = U(vlink[v, 1]), U(vlink[v, 3]), U(vlink[v, 5])
-        n0, n1, n2 = U(vlink[v, 0]), U(vlink[v, 2]), U(vlink[v, 4])
-        force[v, 0] = load_sum(
-            F(o[R0 + p0]), F(o[R0 + p1]), F(o[R0 + p2]),
-            F(o[R0 + n0]), F(o[R0 + n1]), F(o[R0 + n2]), -1.0)
-        force[v, 1] = load_sum(
-            F(o[R1 + p0]), F(o[R1 + p1]), F(o[R1 + p2]),
-            F(o[R1 + n0]), F(o[R1 + n1]), F(o[R1 + n2]), -1.0)
-        force[v, 2] = load_sum(
-            F(o[R2 + p0]), F(o[R2 + p1]), F(o[R2 + p2]),
-            F(o[R2 + n0]), F(o[R2 + n1]), F(o[R2 + n2]), -1.0)
-        moment[v, 0] = load_sum(
-            F(o[R3 + p0]), F(o[R3 + p1]), F(o[R3 + p2]),
-            F(o[R6 + n0]), F(o[R6 + n1]), F(o[R6 + n2]), 1.0)
-        moment[v, 1] = load_sum(
-            F(o[R4 + p0]), F(o[R4 + p1]), F(o[R4 + p2]),
-            F(o[R7 + n0]), F(o[R7 + n1]), F(o[R7 + n2]), 1.0)
-        moment[v, 2] = load_sum(
-            F(o[R5 + p0]), F(o[R5 + p1]), F(o[R5 + p2]),
-            F(o[R8 + n0]), F(o[R8 + n1]), F(o[R8 + n2]), 1.0)
+        (force[v, 0], force[v, 1], force[v, 2],
+         moment[v, 0], moment[v, 1], moment[v, 2]) = voxel_loads(
+            face_loads(B, U(vlink[v, 1])), face_loads(B, U(vlink[v, 3])),
+            face_loads(B, U(vlink[v, 5])), face_loads(B, U(vlink[v, 0])),
+            face_loads(B, U(vlink[v, 2])), face_loads(B, U(vlink[v, 4])))
+
+
+@njit(**INLINE)
+def face_loads(B, J):
+    """The nine loads of the link at offset J (``place``) in float64 (``physics.voxel_loads``;
+    the sums are float64 in either precision, so that a link's equal and opposite forces
+    still cancel in the total)."""
+    F, O = np.float64, ROW_OUT
+    return (F(B[at(O, J)]), F(B[at(O + 1, J)]), F(B[at(O + 2, J)]), F(B[at(O + 3, J)]),
+            F(B[at(O + 4, J)]), F(B[at(O + 5, J)]), F(B[at(O + 6, J)]), F(B[at(O + 7, J)]),
+            F(B[at(O + 8, J)]))
 
 
 # ---------------------------------------------------------------- self-collisions
@@ -513,10 +521,10 @@ def link_sums(vlink, B, force, moment):
 def collision_pairs(surface, pos, near, reach, pairs, partners):
     """Candidate pairs of surface voxels closer than ``reach`` (sweep along x) that ``near``
     does not list for each other (its rows: the voxels a voxel never touches, -1 pads; the
-    face neighbours ``nbr`` for bonded pairs only), into ``pairs``; returns how many, or -1
-    if a voxel has more than MAX_CONTACTS candidates (the contact policy: ``sim.physics``;
-    ``pairs`` holds surface * MAX_CONTACTS / 2 of them). ``partners`` (n voxels): scratch,
-    each voxel's count."""
+    face neighbours ``nbr`` for bonded pairs only; ``substeps.is_candidate``), into ``pairs``;
+    returns how many, or -1 if a voxel has more than MAX_CONTACTS candidates (the contact
+    policy: ``sim.physics``; ``pairs`` holds surface * MAX_CONTACTS / 2 of them).
+    ``partners`` (n voxels): scratch, each voxel's count."""
     ns = len(surface)
     xs = np.empty(ns)
     for a in range(ns):
@@ -525,6 +533,7 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
     order = np.argsort(xs)
     count = 0
     reach2 = reach * reach
+    flat, width = near.reshape(-1), near.shape[1]
     for a in range(ns):
         i = surface[order[a]]
         for b in range(a + 1, ns):
@@ -532,9 +541,8 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
             dx = pos[j, 0] - pos[i, 0]
             if dx > reach:
                 break
-            dy = pos[j, 1] - pos[i, 1]
-            dz = pos[j, 2] - pos[i, 2]
-            if dx * dx + dy * dy + dz * dz < reach2 and not listed(near, i, j):
+            if is_candidate(flat, width, i, j, dx, pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
+                            reach2):
                 partners[i] += 1
                 partners[j] += 1
                 if partners[i] > MAX_CONTACTS or partners[j] > MAX_CONTACTS:
@@ -545,40 +553,21 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
     return count
 
 
-@njit(**INLINE)
-def listed(near, i, j):
-    """Whether row i of ``near`` holds j (its rows ascending, -1 pads at the end:
-    ``system.nearby``), scanning only up to the first entry past j."""
-    for q in range(near.shape[1]):
-        w = near[i, q]
-        if w == j:
-            return True
-        if w > j or w < 0:
-            return False
-    return False
-
-
 @njit(**JIT)
-def collision_forces(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5, stiff=1.0,
-                     damp=1.0):
-    """Penalty contact between voxels of the candidate pairs: equal and opposite, so momentum
-    is kept. Contact begins at ``reach`` times the sum of the two sizes (0.5: touching
-    cubes); stiffness: ``stiff`` times the harmonic mean of the two voxels' 2 E L (exactly it
-    for one material); damping: ``damp`` times the mean of their collision damping
-    coefficients. The paper's engine: 0.75, 0.5, 0 (``Params.contact_*``)."""
+def contact_forces_kernel(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5,
+                          stiff=1.0, damp=1.0):
+    """Penalty contact between voxels of the candidate pairs (``substeps.pair_force``), added
+    to ``force``: equal and opposite, so momentum is kept. Contact begins at ``reach`` times
+    the sum of the two sizes (0.5: touching cubes); stiffness: ``stiff`` times the harmonic
+    mean of the two voxels' 2 E L (exactly it for one material); damping: ``damp`` times the
+    mean of their collision damping coefficients. The paper's engine: 0.75, 0.5, 0
+    (``Params.contact_*``)."""
+    P, LM, VC, nc = pos.reshape(-1), lin_mom.reshape(-1), vconst.reshape(-1), vconst.shape[1]
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
-        dx, dy, dz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
-        overlap, dist = contact_overlap(dx, dy, dz, size[i], size[j], reach)
-        if overlap <= 0.0 or dist == 0.0:
+        touch, fx, fy, fz = pair_force(P, LM, size, VC, nc, i, j, reach, stiff, damp)
+        if not touch:
             continue
-        inv_mi, inv_mj = vconst[i, V_INV_MASS], vconst[j, V_INV_MASS]
-        fx, fy, fz = contact_push(
-            overlap, dist, dx, dy, dz, lin_mom[j, 0] * inv_mj - lin_mom[i, 0] * inv_mi,
-            lin_mom[j, 1] * inv_mj - lin_mom[i, 1] * inv_mi,
-            lin_mom[j, 2] * inv_mj - lin_mom[i, 2] * inv_mi,
-            vconst[i, V_KFLOOR], vconst[j, V_KFLOOR], vconst[i, V_CCOLL], vconst[j, V_CCOLL],
-            stiff, damp)
         force[j, 0] += fx
         force[j, 1] += fy
         force[j, 2] += fz
@@ -603,72 +592,54 @@ def surface_moved(surface, pos, built):
     return displacement_spread(lo_x, hi_x, lo_y, hi_y, lo_z, hi_z)
 
 
-@njit(**INLINE)
-def widen(lo, hi, d):
-    """The range [lo, hi] widened to hold d (NaN propagates to both ends)."""
-    return (d if not (d >= lo) else lo), (d if not (d <= hi) else hi)
-
-
 @njit(**JIT)
-def collide_kernel(p, contacts, surface, near, pos, lin_mom, size, vconst, pairs, partners,
-                   built, force):
-    """Self-collision forces when the robot has them on; returns the updated ``Contacts``
-    (``count`` -1: a voxel has more candidates than the policy keeps, and the run stops).
+def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built):
+    """The self-contact candidates, rebuilt when they may be stale, if the robot has
+    self-collisions; returns the updated ``Contacts`` (``count`` -1: a voxel has more
+    candidates than the policy keeps, and the run stops).
 
     ``contacts.travel`` bounds half the spread of the surface voxels' displacements since the
-    candidate list was built (the step adds the largest voxel speed times dt). Once two
-    voxels may have closed the margin by it, the spread is measured (``surface_moved``): the
-    list is rebuilt only if that too reaches the margin, otherwise the bound restarts from it
-    (a voxel that vibrates fast but goes nowhere, or a body that moves as a whole, does not
-    force rebuilds)."""
+    candidate list was built (``physics.travel_after``). Once it is stale
+    (``physics.contacts_stale``) the spread is measured (``surface_moved``): the list is
+    rebuilt only if that is stale too, otherwise the bound restarts from it (a voxel that
+    vibrates fast but goes nowhere, or a body that moves as a whole, does not force
+    rebuilds)."""
     if not p.collide:
         return contacts
     count, travel = contacts.count, contacts.travel
-    margin = COLLIDE_MARGIN * p.L
-    if 2.0 * travel >= margin:
+    if contacts_stale(travel, p.L):
         travel = surface_moved(surface, pos, built)
-        if not (2.0 * travel < margin):  # NaN before the first build
+        if contacts_stale(travel, p.L):  # NaN before the first build
             reach = candidate_radius(p.L, p.contact_reach, p.amp)
             count = collision_pairs(surface, pos, near, reach, pairs, partners)
             for a in range(len(surface)):
                 for c in range(3):
                     built[a, c] = pos[surface[a], c]
             travel = 0.0
-    collision_forces(count, pairs, pos, lin_mom, size, vconst, force, p.contact_reach,
-                     p.contact_stiff, p.contact_damp)
     return Contacts(count, travel)
 
 
 # ---------------------------------------------------------------- drag on the surface mesh
 @njit(**JIT)
-def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vconst, size,
-                     vert_pos, corners, facet_force, force):
-    """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
-    surface mesh (``sim.system.surface_mesh``) moving into the fluid, -``drag`` A (v.n)^2 n,
-    A its area, n its unit normal and v the velocity of the voxel whose face it covers
-    (``drag`` = 0.5 rho C_d). A vertex is the mean over the voxels that share it of the
-    voxel's centre plus its corner, rotated; as in the fork, a corner sits half the voxel's
-    current size out along an axis where the voxel has a neighbour on that side, and half
-    the nominal size L out where that face is exposed (the fork places corners by the bonds'
-    strains, and an exposed face has none).
+def mesh_vertices_kernel(mesh_vert, nbr, L, pos, quat, size, vert_pos, corners):
+    """The vertices of the deformed surface mesh (``sim.system.surface_mesh``) into
+    ``vert_pos``: each the mean over the voxels that share it of the voxel's corner
+    (``physics.voxel_corner``: its centre plus its corner, rotated; as in the fork, a corner
+    sits half the voxel's current size out along an axis where the voxel has a neighbour on
+    that side, and half the nominal size L out where that face is exposed).
 
-    In four loops: every voxel's 8 corners in world axes into ``corners`` (component, corner,
-    voxel: one branch-free loop over the voxels, one SIMD lane each; ``physics.corner_point``);
-    each vertex the mean of its voxels' corners (in ``mesh_vert``'s order) into ``vert_pos``;
-    each triangle's drag into ``facet_force``; those added to their voxels' forces in triangle
-    order (the same sums, in the same order, as one pass of ``corner_point`` per vertex and
-    voxel)."""
+    In two loops: every voxel's 8 corners in world axes into ``corners`` (component, corner,
+    voxel: one branch-free loop over the voxels, one SIMD lane each); each vertex the mean of
+    its voxels' corners, summed in ``mesh_vert``'s order (the same sums, in the same order,
+    as the GPU engine's one pass per vertex and voxel)."""
     for v in range(len(pos)):
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rotation_matrix(
-            quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
+        R = rotation_matrix(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
         x, y, z, s = pos[v, 0], pos[v, 1], pos[v, 2], size[v]
         has = (nbr[v, 0] >= 0, nbr[v, 1] >= 0, nbr[v, 2] >= 0, nbr[v, 3] >= 0,
                nbr[v, 4] >= 0, nbr[v, 5] >= 0)  # a neighbour on each side (-x, +x, ...)
         for c in range(8):
-            ox, oy, oz = mesh_corner(c, s, L, has[(c >> 2) & 1], has[2 + ((c >> 1) & 1)],
-                                     has[4 + (c & 1)])
-            corners[0, c, v], corners[1, c, v], corners[2, c, v] = corner_point(
-                x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
+            corners[0, c, v], corners[1, c, v], corners[2, c, v] = voxel_corner(
+                c, x, y, z, R, s, L, has)
     for k in range(len(mesh_vert)):
         ax, ay, az, count = 0.0, 0.0, 0.0, 0
         for slot in range(8):
@@ -679,16 +650,21 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
             ax, ay, az = ax + corners[0, c, v], ay + corners[1, c, v], az + corners[2, c, v]
             count += 1
         vert_pos[k, 0], vert_pos[k, 1], vert_pos[k, 2] = ax / count, ay / count, az / count
+
+
+@njit(**JIT)
+def mesh_drag_kernel(drag, mesh_face, lin_mom, vconst, vert_pos, facet_force, force):
+    """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
+    surface mesh (vertices ``vert_pos``: ``mesh_vertices_kernel``) moving into the fluid,
+    -``drag`` A (v.n)^2 n, A its area, n its unit normal and v the velocity of the voxel
+    whose face it covers (``physics.facet_force``; ``drag`` = 0.5 rho C_d). Each triangle's
+    drag into ``facet_force``, then those added to their voxels' forces in triangle order."""
     for t in range(len(mesh_face)):
         a, b, c, v = mesh_face[t, 0], mesh_face[t, 1], mesh_face[t, 2], mesh_face[t, 3]
-        ux, uy, uz = vert_pos[b, 0] - vert_pos[a, 0], vert_pos[b, 1] - vert_pos[a, 1], \
-            vert_pos[b, 2] - vert_pos[a, 2]
-        wx, wy, wz = vert_pos[c, 0] - vert_pos[a, 0], vert_pos[c, 1] - vert_pos[a, 1], \
-            vert_pos[c, 2] - vert_pos[a, 2]
-        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx  # 2 A n
-        (facet_force[t, 0], facet_force[t, 1], facet_force[t, 2]) = facet_drag(
-            drag, lin_mom[v, 0] * nx + lin_mom[v, 1] * ny + lin_mom[v, 2] * nz,
-            vconst[v, V_INV_MASS], nx, ny, nz)
+        (facet_force[t, 0], facet_force[t, 1], facet_force[t, 2]) = facet_force_of(
+            drag, vert_pos[a, 0], vert_pos[a, 1], vert_pos[a, 2], vert_pos[b, 0],
+            vert_pos[b, 1], vert_pos[b, 2], vert_pos[c, 0], vert_pos[c, 1], vert_pos[c, 2],
+            lin_mom[v, 0], lin_mom[v, 1], lin_mom[v, 2], vconst[v, V_INV_MASS])
     for t in range(len(mesh_face)):
         v = mesh_face[t, 3]
         force[v, 0] += facet_force[t, 0]
@@ -698,8 +674,8 @@ def mesh_drag_kernel(drag, mesh_vert, mesh_face, nbr, L, pos, quat, lin_mom, vco
 
 # ---------------------------------------------------------------- voxels
 @njit(**JIT)
-def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, size, force,
-                 moment, static, contact):
+def voxel_update_kernel(p, flags, ext_force, exposed, vconst, pos, quat, lin_mom, ang_mom, size,
+                        force, moment, static, contact):
     """Everything that acts on one voxel alone, then its step, in one pass over the voxels
     (each voxel's state is read once into locals and written once):
 
@@ -716,11 +692,11 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
 
     Each voxel's update is ``physics.voxel_update``. Fixed voxels feel nothing and keep zero
     momenta. ``force``/``moment`` hold the link and collision terms (the world forces are
-    added to them in registers); ``contact`` marks the voxels on the floor. Returns the
+    added to them in registers); ``exposed``: each voxel's exposed faces (bits, for the drag
+    in water: ``system.exposed_faces``); ``contact`` marks the voxels on the floor. Returns the
     largest squared speed of a voxel after the step, or -1 if any voxel left the sane range
     (or went NaN)."""
     world = voxel_world(p)
-    water = world[3]
     ok = True
     speed2 = 0.0
     # flat views with unsigned offsets (no negative-index wrap-around to test per access)
@@ -735,14 +711,10 @@ def voxel_kernel(p, flags, ext_force, nbr, vconst, pos, quat, lin_mom, ang_mom, 
             LM[a + X] = LM[a + Y] = LM[a + Z] = 0.0
             AM[a + X] = AM[a + Y] = AM[a + Z] = 0.0
             continue
-        exposed = 0
-        if water:
-            for f in range(6):
-                exposed |= (1 if nbr[v, f] < 0 else 0) << f
         x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane = voxel_update_of(
             world, (VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)],
                     VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)], VC[c + U(V_KFLOOR)],
-                    VC[c + U(V_CCOLL)]), exposed, size[v],
+                    VC[c + U(V_CCOLL)]), exposed[v], size[v],
             F[a + X] + E[a + X], F[a + Y] + E[a + Y], F[a + Z] + E[a + Z],
             M[a + X], M[a + Y], M[a + Z], P[a + X], P[a + Y], P[a + Z],
             Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ], LM[a + X], LM[a + Y], LM[a + Z],
@@ -768,6 +740,7 @@ class Voxels(NamedTuple):
     sin_phase: np.ndarray  # (n,)
     phase: np.ndarray  # (n,) radians
     nbr: np.ndarray  # (n, 6) face neighbours (-1: exposed face)
+    exposed: np.ndarray  # (n,) bit f set: face f exposed (``system.exposed_faces``)
     surface: np.ndarray  # (s,) voxels with an exposed face
     vconst: np.ndarray  # (n, N_VCONST) mass, damping, floor stiffness, frequency (V_*)
     near: np.ndarray  # (n, k) voxels never in contact with each voxel (-1 pads)
@@ -804,8 +777,8 @@ class Work(NamedTuple):
     link_id: np.ndarray  # (m,) the link (index in ``Links``) at each place
     split: np.ndarray  # (1,) places [0, split) hold the links in the small-angle frame
     changed: np.ndarray  # (m,) scratch of ``change_frames``
-    vert_pos: np.ndarray  # (nv, 3) surface-mesh vertex positions (``mesh_drag_kernel``)
-    corners: np.ndarray  # (3, 8, n) every voxel's corners (``mesh_drag_kernel``; n 0 on land)
+    vert_pos: np.ndarray  # (nv, 3) surface-mesh vertex positions (``mesh_vertices_kernel``)
+    corners: np.ndarray  # (3, 8, n) every voxel's corners (``mesh_vertices_kernel``; n 0 on land)
     facet_force: np.ndarray  # (nf, 3) each surface-mesh triangle's drag (``mesh_drag_kernel``)
 
 
@@ -816,9 +789,10 @@ class Contacts(NamedTuple):
     travel: float  # bound on any voxel's displacement since the list was built, m
 
 
-# The sub-steps of ``step``, inlined: each hands its compiled kernel the arrays it needs one by
-# one and has no branch of its own (those live in the kernels). With ``run_robot`` stepping on
-# borrowed views (``borrow``) that leaves no reference counting in the step loop.
+# The sub-steps of ``step``, inlined, named as the GPU engine's (``sim.cuda_kernels``): each
+# hands its compiled kernel the arrays it needs one by one and has no branch of its own (those
+# live in the kernels). With ``run_robot`` stepping on borrowed views (``borrow``) that leaves
+# no reference counting in the step loop.
 @njit(**INLINE)
 def actuate(t, p, voxels, work):
     """Sizes of the voxels at time t into ``work.size``."""
@@ -840,21 +814,45 @@ def link_forces(p, links, body, work):
 
 
 @njit(**INLINE)
-def collide(p, voxels, body, work, contacts):
-    """Self-collision forces (if on), added to ``work.force``; returns the updated
-    ``Contacts``."""
-    return collide_kernel(p, contacts, voxels.surface, voxels.near, body.pos, body.lin_mom,
-                          work.size, voxels.vconst, work.pairs, work.partners, work.built,
-                          work.force)
+def contact_list(p, voxels, body, work, contacts):
+    """The self-contact candidates, rebuilt if stale (``contact_list_kernel``); returns the
+    updated ``Contacts``."""
+    return contact_list_kernel(p, contacts, voxels.surface, voxels.near, body.pos, work.pairs,
+                               work.partners, work.built)
+
+
+@njit(**INLINE)
+def contact_forces(p, voxels, body, work, contacts):
+    """The candidates' contact forces (if on), added to ``work.force``."""
+    if p.collide:
+        contact_forces_kernel(contacts.count, work.pairs, body.pos, body.lin_mom, work.size,
+                              voxels.vconst, work.force, p.contact_reach, p.contact_stiff,
+                              p.contact_damp)
+
+
+@njit(**INLINE)
+def mesh_vertices(p, voxels, body, work):
+    """The surface mesh's vertices (water with the paper's drag) into ``work.vert_pos``."""
+    if p.mesh_drag > 0.0:
+        mesh_vertices_kernel(voxels.mesh_vert, voxels.nbr, p.L, body.pos, body.quat, work.size,
+                             work.vert_pos, work.corners)
+
+
+@njit(**INLINE)
+def mesh_drag(p, voxels, body, work):
+    """The drag on the surface mesh's triangles (if on), added to ``work.force``."""
+    if p.mesh_drag > 0.0:
+        mesh_drag_kernel(p.mesh_drag, voxels.mesh_face, body.lin_mom, voxels.vconst,
+                         work.vert_pos, work.facet_force, work.force)
 
 
 @njit(**INLINE)
 def voxel_update(p, voxels, body, work):
-    """World forces, floor contact and the Euler step of every voxel (``voxel_kernel``);
+    """World forces, floor contact and the Euler step of every voxel (``voxel_update_kernel``);
     returns the largest squared speed or -1."""
-    return voxel_kernel(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, body.pos,
-                        body.quat, body.lin_mom, body.ang_mom, work.size, work.force,
-                        work.moment, work.static, work.contact)
+    return voxel_update_kernel(p, voxels.flags, voxels.ext_force, voxels.exposed,
+                               voxels.vconst, body.pos, body.quat, body.lin_mom, body.ang_mom,
+                               work.size, work.force, work.moment, work.static, work.contact)
 
 
 @njit(**INLINE)
@@ -865,14 +863,12 @@ def step(t, p, voxels, links, body, work, contacts):
     the sane range) and the updated ``Contacts``."""
     actuate(t, p, voxels, work)
     bad = link_forces(p, links, body, work)
-    contacts = collide(p, voxels, body, work, contacts)
-    if p.mesh_drag > 0.0:
-        mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face, voxels.nbr, p.L,
-                         body.pos, body.quat, body.lin_mom, voxels.vconst, work.size,
-                         work.vert_pos, work.corners, work.facet_force, work.force)
+    contacts = contact_list(p, voxels, body, work, contacts)
+    contact_forces(p, voxels, body, work, contacts)
+    mesh_vertices(p, voxels, body, work)
+    mesh_drag(p, voxels, body, work)
     speed2 = voxel_update(p, voxels, body, work)
-    travel = contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt
-    return bad, speed2, Contacts(contacts.count, travel)
+    return bad, speed2, Contacts(contacts.count, travel_after(contacts.travel, speed2, p.dt))
 
 
 # ---------------------------------------------------------------- the rollout
@@ -916,7 +912,7 @@ def take_robot(batch, state, r):
     voxels = Voxels(batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy(),
                     batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy(),
                     batch.phase[v0:v1].copy(), batch.nbr[v0:v1].copy(),
-                    batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy(),
+                    batch.exposed[v0:v1].copy(), batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy(),
                     batch.near[v0:v1].copy(),
                     batch.mesh_vert[batch.moff[r]:batch.moff[r + 1]].copy(),
                     batch.mesh_face[batch.foff[r]:batch.foff[r + 1]].copy())
@@ -960,6 +956,23 @@ def com(pos, vconst, out, row):
         len(pos), vconst.reshape(-1), vconst.shape[1], V_WEIGHT, pos.reshape(-1))
 
 
+@njit(**INLINE)
+def sample(k, p, v0, pos, vconst, frames, traj, n_com):
+    """Frames and centre-of-mass samples due at step k (``physics.frame_due``,
+    ``physics.com_due``): the robot's positions into ``frames`` (its voxels from v0), its
+    centre of mass into ``traj``. Returns the samples taken so far."""
+    if frame_due(k, p):
+        f = k // p.record
+        for v in range(len(pos)):
+            for c in range(3):
+                frames[f, v0 + v, c] = pos[v, c]
+    if com_due(k, p, n_com, traj.shape[0]):
+        traj[n_com, 0] = k * p.dt
+        com(pos, vconst, traj, n_com)
+        n_com += 1
+    return n_com
+
+
 @njit(**JIT)
 def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, real):
     """Run robot r of the batch to its step count or to divergence, recording frames and
@@ -984,28 +997,14 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, 
     code = STATUS_OK
     done = p.steps
     for k in range(p.steps + 1):
-        if p.record > 0 and k % p.record == 0:
-            f = k // p.record
-            for v in range(n):
-                for c in range(3):
-                    frames[f, v0 + v, c] = body.pos[v, c]
-        after = k - p.settle_steps
-        if after >= 0 and after % p.com_every == 0 and n_com < traj.shape[0] - 1:
-            traj[n_com, 0] = k * p.dt
-            com(body.pos, voxels.vconst, traj, n_com)
-            n_com += 1
+        n_com = sample(k, p, v0, body.pos, voxels.vconst, frames, traj, n_com)
         if k == p.steps:
             break
         bad, speed2, contacts = step((k - p.act_start) * p.dt, p, voxels, links, body, work,
                                      contacts)
-        if bad:
-            code, done = STATUS_STRAIN, k + 1
-            break
-        if speed2 < 0.0:
-            code, done = STATUS_NONFINITE, k + 1
-            break
-        if contacts.count < 0:
-            code, done = STATUS_CONTACTS, k + 1
+        code = step_status(bad != 0, speed2 < 0.0, contacts.count < 0)
+        if code != STATUS_OK:
+            done = k + 1
             break
     # always keep the final centre of mass as the last sample
     traj[n_com, 0] = done * p.dt

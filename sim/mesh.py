@@ -3,7 +3,7 @@
 The topology is the paper's engine's (``sim.system.surface_mesh``, the one the water drag
 uses): a vertex per lattice corner on the surface, two triangles per exposed face. A vertex's
 position is the mean, over the voxels whose cells share that corner, of each voxel's own
-corner (``mesh_vertices``; ``kernels.mesh_drag_kernel`` computes the same mean inside the
+corner (``mesh_vertices``; ``kernels.mesh_vertices_kernel`` computes the same mean inside the
 step). A voxel's corner is its centre plus its axes times (+-1/2): in the simulator the axes
 are the voxel's rotation times its size; a recording holds only the centres, so
 ``voxel_axes`` estimates each voxel's axes from its neighbours' centres. In the rest lattice

@@ -23,7 +23,8 @@ from .system import COM_SAMPLES, I_N_FRAMES, I_STEPS, pack
 
 _HERE = Path(kernels.__file__).parent
 # the sources whose constants and inlined functions the cached kernels hold
-KERNEL_SOURCES = [_HERE / name for name in ("kernels.py", "physics.py", "system.py")]
+KERNEL_SOURCES = [_HERE / name for name in ("kernels.py", "physics.py", "substeps.py",
+                                                  "system.py")]
 drop_foreign_entries(_HERE / "__pycache__")
 drop_stale_entries(_HERE / "__pycache__", KERNEL_SOURCES)
 

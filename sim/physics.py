@@ -1,14 +1,21 @@
 """The physics of one step, written once, as scalar functions of scalars.
 
-Every piece of the model that acts on one thing at a time is here: the quaternion helpers,
-the waveform and the actuated size, one link's beam (its geometry in either co-rotational
-frame, bond damping and the loads in world axes), one self-contact pair, the drag on one
-exposed face or one surface-mesh facet, and one voxel's update (world forces, floor contact
-and friction, semi-implicit Euler); the self-contact policy (``candidate_radius``,
-MAX_CONTACTS), one corner of the surface mesh (``corner_point``), one voxel's sum of its
-links' loads (``load_sum``). The functions take and return numbers and tuples of numbers
-only, never arrays (``centre_of_mass``, sampled every few hundred steps, reads the flat
-position array), so that each target compiles them into its own loops and memory layout:
+Every piece of the model that acts on one thing at a time is here, and every per-element
+body of the step that both engines run: the quaternion helpers; the actuation (its mode for
+the step, ``actuation``, and a voxel's size, ``voxel_size``); one link's step (its geometry,
+its co-rotational frame, ``link_frame``, the hysteresis transition to the other,
+``reframe``, bond damping and the loads in world axes, ``link_response``; its rest length);
+one voxel's sum of its links' loads (``voxel_loads``); the self-contact policy
+(``candidate_radius``, MAX_CONTACTS, the rebuild trigger ``contacts_stale`` and the travel
+bound ``travel_after``, the range of the displacements ``widen``) and one self-contact pair; the
+drag on one exposed face or one surface-mesh facet (``facet_normal``, ``facet_force``) and
+one corner of the mesh (``voxel_corner``); one voxel's update (world forces, floor contact
+and friction, semi-implicit Euler); the run around the steps (``frame_due``, ``com_due``,
+``step_status``: the failures in the order both engines check them). The functions take and
+return numbers and tuples of numbers only, never arrays (``centre_of_mass``, sampled every
+few hundred steps, reads the flat position array; the pieces that index a robot's arrays
+are ``sim.substeps``), so that each target compiles them into its own loops and memory
+layout:
 
 - ``sim.kernels`` (the CPU engine): ``compiled(njit(inline="always", ...), fma)``, inlined
   into its loops over voxels and links;
@@ -16,8 +23,8 @@ position array), so that each target compiles them into its own loops and memory
   device functions called by the threads of a robot's block; on numba-cuda's simulator
   (``NUMBA_ENABLE_CUDASIM=1``) the plain functions below.
 
-``compiled(jit, fma)`` gives each target its own copies, which call one another and that
-target's ``fma`` (a * b + c with one rounding: LLVM's ``llvm.fma`` on the CPU, the CUDA
+``compiled(jit, fma)`` gives each target its own copies (``bind``), which call one another and
+that target's ``fma`` (a * b + c with one rounding: LLVM's ``llvm.fma`` on the CPU, the CUDA
 intrinsic on the GPU). The equations are those of docs/physics.md; the symbols follow
 ``sim.kernels``' docstring. Quaternions are (w, x, y, z); a link's frame has x along the link.
 """
@@ -28,7 +35,16 @@ import math
 import types
 from types import SimpleNamespace
 
-from .system import ENV_LAND, ENV_WATER, FRICTION_VOXCAD, MAX_CONTACTS  # noqa: F401
+from .system import (  # noqa: F401 (MAX_CONTACTS: the policy below)
+    ENV_LAND,
+    ENV_WATER,
+    FRICTION_VOXCAD,
+    MAX_CONTACTS,
+    STATUS_CONTACTS,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_STRAIN,
+)
 
 MAX_STRAIN = 100.0  # axial strain of a link beyond which the run is declared diverged
 POSITION_BOUND = 1.0e4  # metres: anything beyond is a blow-up (also catches NaN)
@@ -187,6 +203,36 @@ def actuated_size(L, amp, w):
     return max(L * (1.0 + amp * w), MIN_SIZE * L)
 
 
+# How a step actuates its voxels (``actuation``): not yet (every voxel at its nominal size),
+# each voxel at its own frequency, all at the robot's in a sine (sin(wt + phi) from sin wt
+# and cos wt, no libm per voxel), all at the robot's in another waveform.
+ACT_REST, ACT_FIELD, ACT_SINE, ACT_WAVE = 0, 1, 2, 3
+
+
+def actuation(p, t):
+    """How the voxels of the robot ``p`` (``Params``) are actuated at time t (t < 0: not yet,
+    ``Params.act_start``), one of ACT_*, and sin wt and cos wt of its angular frequency."""
+    wt = p.omega * t
+    mode = (ACT_REST if t < 0.0 else ACT_FIELD if p.freq_field
+            else ACT_SINE if p.wave == 0 else ACT_WAVE)
+    return mode, math.sin(wt), math.cos(wt)
+
+
+def voxel_size(p, mode, t, active, omega, phase, cos_phase, sin_phase, s_wt, c_wt):
+    """The current size of a voxel of the robot ``p`` at time t (``actuation``: mode, s_wt,
+    c_wt): its nominal size L when it is passive or at rest, else ``actuated_size`` of the
+    waveform at its phase angle (omega: its own angular frequency, used with ACT_FIELD)."""
+    if mode == ACT_REST or not active:
+        return p.L
+    if mode == ACT_FIELD:
+        w = waveform(p.wave, omega * t + phase)
+    elif mode == ACT_SINE:
+        w = s_wt * cos_phase + c_wt * sin_phase
+    else:
+        w = waveform(p.wave, p.omega * t + phase)
+    return actuated_size(p.L, p.amp, w)
+
+
 # ---------------------------------------------------------------- one link
 def to_link(axis, x, y, z):
     """Proper rotation taking the world axis ``axis`` (0 x, 1 y, 2 z) onto +x, as selects
@@ -317,6 +363,60 @@ def link_diverged(d, rest):
     return 0 if abs(d) <= MAX_STRAIN * rest else 1
 
 
+def rest_length(size_a, size_b):
+    """A link's rest length: the mean of its two voxels' current sizes."""
+    return 0.5 * (size_a + size_b)
+
+
+def link_frame(small, R, axis, rx, ry, rz, ow, ox, oy, oz, rest):
+    """A link in the co-rotational frame ``small`` names (True: ``small_frame``, False:
+    ``large_frame``), from its geometry (``link_geometry``) and rest length. Returns W (world
+    from the beam's frame), its deformation d = (dx, dy, dz, t1y, t1z, t2x, t2y, t2z), and
+    whether it changes frame (``small_frame``'s leave, ``large_frame``'s enter)."""
+    if small:
+        W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, change = small_frame(
+            R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+    else:
+        W, dx, dy, dz, t1y, t1z, t2x, t2y, t2z, change = large_frame(
+            R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+    return W, (dx, dy, dz, t1y, t1z, t2x, t2y, t2z), change
+
+
+def frame_mode(small):
+    """The frame mode a link keeps for its next step: +1 small-angle, -1 large."""
+    return 1.0 if small else -1.0
+
+
+def reframe(small, R, axis, rx, ry, rz, ow, ox, oy, oz, rest):
+    """The hysteresis transition of a link that has outgrown the frame ``small``
+    (``link_frame``'s change): the link computed again in the other frame, undamped (its
+    previous deformation was measured in this one), then flipped. Returns W, d (as
+    ``link_frame``), the bond damping to apply (none) and its new frame mode."""
+    W, d, _ = link_frame(not small, R, axis, rx, ry, rz, ow, ox, oy, oz, rest)
+    return W, d, 0.0, frame_mode(not small)
+
+
+def link_response(damp, W, d, previous, rest, constants):
+    """A link's loads in world axes (``link_loads``) for its deformation d (``link_frame``)
+    damped against ``previous``, the same eight values of its previous step (``damped``;
+    the caller keeps d as the next step's previous), and whether it diverged
+    (``link_diverged``). ``constants``: (stiffness scale E_link / E_ref, L, a1, a2, b1, b2,
+    b3), the robot's in the link's precision."""
+    dx, dy, dz, t1y, t1z, t2x, t2y, t2z = d
+    p0, p1, p2, p3, p4, p5, p6, p7 = previous
+    ex = damped(damp, dx, p0)
+    ey = damped(damp, dy, p1)
+    ez = damped(damp, dz, p2)
+    e1y = damped(damp, t1y, p3)
+    e1z = damped(damp, t1z, p4)
+    e2x = damped(damp, t2x, p5)
+    e2y = damped(damp, t2y, p6)
+    e2z = damped(damp, t2z, p7)
+    s, L, a1, a2, b1, b2, b3 = constants
+    loads = link_loads(W, s, rest, L, a1, a2, b1, b2, b3, ex, ey, ez, e1y, e1z, e2x, e2y, e2z)
+    return loads, link_diverged(dx, rest)
+
+
 # ---------------------------------------------------------------- one self-contact pair
 def contact_overlap(dx, dy, dz, size_i, size_j, reach):
     """How far voxels i and j (d = x_j - x_i) overlap, and their distance: contact begins
@@ -335,6 +435,38 @@ def candidate_radius(L, reach, amp):
     """How near two surface voxels must be to be contact candidates: the largest distance at
     which they can touch (``reach`` times twice the largest actuated size) plus the margin."""
     return 2.0 * reach * L * (1.0 + amp) + COLLIDE_MARGIN * L
+
+
+def contacts_stale(travel, L):
+    """Whether the contact candidates may miss a touching pair: ``travel`` (a bound on half
+    the spread of the surface voxels' displacements since they were listed, or that half
+    spread measured: ``displacement_spread``) has reached half the margin. NaN counts as
+    stale. Both tests of the rebuild trigger: a bound that reaches it has the spread
+    measured, and a measured spread that reaches it has the list rebuilt."""
+    return not (2.0 * travel < COLLIDE_MARGIN * L)
+
+
+def travel_after(travel, speed2, dt):
+    """The bound on half the surface's displacement spread after a step of dt whose fastest
+    voxel had squared speed speed2 (-1: the step failed, nothing added)."""
+    return travel + math.sqrt(max(speed2, 0.0)) * dt
+
+
+def nan_min(a, b):
+    """The smaller of a and b; b when either is NaN (a NaN b is kept)."""
+    return b if not (b >= a) else a
+
+
+def nan_max(a, b):
+    """The larger of a and b; b when either is NaN (a NaN b is kept)."""
+    return b if not (b <= a) else a
+
+
+def widen(lo, hi, d):
+    """The range [lo, hi] widened to hold d. A NaN d makes both ends NaN, and the next d
+    replaces them: over values that are all NaN (positions before the first build) the range
+    is NaN."""
+    return nan_min(lo, d), nan_max(hi, d)
 
 
 def displacement_spread(lo_x, hi_x, lo_y, hi_y, lo_z, hi_z):
@@ -373,6 +505,21 @@ def facet_drag(drag, pn, inv_m, nx, ny, nz):
     return 0.0, 0.0, 0.0
 
 
+def facet_normal(ax, ay, az, bx, by, bz, cx, cy, cz):
+    """N = (b - a) x (c - a) = 2 A n of the triangle (a, b, c): A its area, n its unit normal
+    (outward for the surface mesh's winding)."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = cx - ax, cy - ay, cz - az
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+def facet_force(drag, ax, ay, az, bx, by, bz, cx, cy, cz, px, py, pz, inv_m):
+    """The drag on the surface-mesh triangle (a, b, c) (``facet_drag`` of its
+    ``facet_normal``), moved by its voxel of momentum p and 1 / m ``inv_m``."""
+    nx, ny, nz = facet_normal(ax, ay, az, bx, by, bz, cx, cy, cz)
+    return facet_drag(drag, px * nx + py * ny + pz * nz, inv_m, nx, ny, nz)
+
+
 def mesh_corner(c, size, L, has_x, has_y, has_z):
     """Offset of corner c (bits: x, y, z; 1 the + side) of a voxel from its centre in its own
     frame: half its current size along an axis where it has a neighbour on that side, half
@@ -393,12 +540,61 @@ def corner_point(x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, o
             z + dot3(r20, r21, r22, ox, oy, oz))
 
 
+def voxel_corner(c, x, y, z, R, size, L, has):
+    """Corner c of a voxel (``mesh_corner``) in world axes (``corner_point``): its centre
+    (x, y, z), rotation R (rows), current size, and ``has``: whether it has a neighbour on
+    each side (-x, +x, -y, +y, -z, +z)."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    ox, oy, oz = mesh_corner(c, size, L, has[(c >> 2) & 1], has[2 + ((c >> 1) & 1)],
+                             has[4 + (c & 1)])
+    return corner_point(x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
+
+
 def load_sum(a0, a1, a2, b0, b1, b2, sign):
     """A voxel's total of one row of its links' loads: the links it is the negative end of
     (a: on its +x, +y, +z faces) plus ``sign`` times those it is the positive end of (b: on
     its -x, -y, -z faces); a face without a link contributes 0. Forces take sign -1 (a link
     pushes its two ends oppositely), moments +1 (each end has its own row)."""
     return (a0 + a1 + a2) + sign * (b0 + b1 + b2)
+
+
+def voxel_loads(a0, a1, a2, b0, b1, b2):
+    """A voxel's force and moment from its links' loads (``link_loads``' nine values, float64):
+    a0, a1, a2 of the links on its +x, +y, +z faces (it is their negative end: force rows
+    0-2, moment rows 3-5), b0, b1, b2 of those on its -x, -y, -z faces (their positive end:
+    minus the force, moment rows 6-8); zeros for a face without a link (``load_sum``)."""
+    return (load_sum(a0[0], a1[0], a2[0], b0[0], b1[0], b2[0], -1.0),
+            load_sum(a0[1], a1[1], a2[1], b0[1], b1[1], b2[1], -1.0),
+            load_sum(a0[2], a1[2], a2[2], b0[2], b1[2], b2[2], -1.0),
+            load_sum(a0[3], a1[3], a2[3], b0[6], b1[6], b2[6], 1.0),
+            load_sum(a0[4], a1[4], a2[4], b0[7], b1[7], b2[7], 1.0),
+            load_sum(a0[5], a1[5], a2[5], b0[8], b1[8], b2[8], 1.0))
+
+
+# ---------------------------------------------------------------- the run around the steps
+def frame_due(k, p):
+    """Whether step k of the robot ``p`` records a frame (frame k // p.record)."""
+    return p.record > 0 and k % p.record == 0
+
+
+def com_due(k, p, taken, rows):
+    """Whether step k takes a centre-of-mass sample: every ``p.com_every`` steps after
+    settling, while fewer than rows - 1 were taken (the last row is the final position's)."""
+    after = k - p.settle_steps
+    return after >= 0 and after % p.com_every == 0 and taken < rows - 1
+
+
+def step_status(diverged, insane, overfull):
+    """How a step ended (``sim.system``'s STATUS_*), its failures in this order: a link
+    diverged, a voxel left the sane range (or went NaN), a voxel has more contact candidates
+    than the policy keeps; STATUS_OK if none."""
+    if diverged:
+        return STATUS_STRAIN
+    if insane:
+        return STATUS_NONFINITE
+    if overfull:
+        return STATUS_CONTACTS
+    return STATUS_OK
 
 
 def centre_of_mass(n, weights, stride, column, pos):
@@ -544,11 +740,14 @@ def voxel_world(p):
 # ---------------------------------------------------------------- targets
 PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
-    "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "to_link",
-    "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame", "frame_damping",
-    "damped", "link_loads", "link_diverged", "candidate_radius", "contact_overlap",
-    "displacement_spread", "contact_push", "facet_drag",
-    "mesh_corner", "corner_point", "load_sum", "centre_of_mass", "face_drag", "voxel_update", "voxel_world",
+    "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "actuation", "voxel_size",
+    "to_link", "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame",
+    "frame_damping", "damped", "link_loads", "link_diverged", "rest_length", "link_frame",
+    "frame_mode", "reframe", "link_response", "candidate_radius", "contact_overlap",
+    "contacts_stale", "travel_after", "nan_min", "nan_max", "widen", "displacement_spread",
+    "contact_push", "facet_drag", "facet_normal", "facet_force", "mesh_corner", "corner_point",
+    "voxel_corner", "load_sum", "voxel_loads", "frame_due", "com_due", "step_status",
+    "centre_of_mass", "face_drag", "voxel_update", "voxel_world",
 )
 
 
@@ -568,16 +767,23 @@ def compiled(jit, fma_impl, real=None) -> SimpleNamespace:
     if real is not None:
         space.update({key: _as_real(value, real) for key, value in globals().items()
                       if _is_float_constant(value)})
-    for name in PIECES:
-        f = globals()[name]
+    return bind(jit, [globals()[name] for name in PIECES], space, real)
+
+
+def bind(jit, functions, space, real=None) -> SimpleNamespace:
+    """Copies of ``functions`` whose global names resolve in ``space`` (a dict, which each
+    copy joins under its name, compiled by ``jit``, so that the copies call one another), their
+    float literals as ``real`` when it is given (``compiled``). Returns them by name. The way
+    ``sim.substeps`` compiles its pieces against a target's physics."""
+    for f in functions:
         code = f.__code__
         if real is not None:
             code = code.replace(co_consts=tuple(_as_real(c, real) if _is_float_constant(c) else c
                                                 for c in code.co_consts))
-        copy = types.FunctionType(code, space, name, f.__defaults__, f.__closure__)
-        copy.__doc__, copy.__qualname__, copy.__module__ = f.__doc__, f.__qualname__, __name__
-        space[name] = jit(copy)
-    return SimpleNamespace(**{name: space[name] for name in PIECES})
+        copy = types.FunctionType(code, space, f.__name__, f.__defaults__, f.__closure__)
+        copy.__doc__, copy.__qualname__, copy.__module__ = f.__doc__, f.__qualname__, f.__module__
+        space[f.__name__] = jit(copy)
+    return SimpleNamespace(**{f.__name__: space[f.__name__] for f in functions})
 
 
 def _is_float_constant(value) -> bool:

@@ -166,6 +166,7 @@ class Batch(NamedTuple):
     phase: np.ndarray
     ext_force: np.ndarray
     nbr: np.ndarray  # voxel indices within the robot (-1: exposed face)
+    exposed: np.ndarray  # (N,) int64 bit f set: face f exposed (``exposed_faces``)
     link_neg: np.ndarray  # voxel indices within the robot
     link_pos: np.ndarray
     link_axis: np.ndarray
@@ -450,7 +451,7 @@ def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
 
     ``mesh_vert`` (nv, 8): for each vertex, 8 voxel + corner of every voxel whose cell has
     that lattice corner (-1 pads); its position is the mean over them of the voxel's centre
-    plus its rotated corner (``kernels.mesh_drag_kernel``). ``mesh_face`` (nf, 4): a
+    plus its rotated corner (``kernels.mesh_vertices_kernel``). ``mesh_face`` (nf, 4): a
     triangle's three vertices and the voxel whose exposed face it covers. Faces come voxel by
     voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each; vertices
     are numbered in the order the triangles first meet them, and list their voxels in corner
@@ -482,10 +483,18 @@ def _padded(tables: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def exposed_faces(nbr: np.ndarray) -> np.ndarray:
+    """Each voxel's exposed faces as bits: bit f set when face f (ordered as ``nbr``: -x, +x,
+    -y, +y, -z, +z) has no neighbour. Both engines' drag on exposed faces reads it
+    (``physics.face_drag``)."""
+    return ((nbr < 0) * (1 << np.arange(6))).sum(axis=1).astype(np.int64)
+
+
 def pack(robots: list[Robot]) -> tuple[Batch, State]:
     """Concatenate robots into one Batch and its initial State."""
     voff = _offsets([len(r.pos) for r in robots])
     phase = np.concatenate([r.phase for r in robots])
+    nbr = np.concatenate([r.nbr for r in robots])
     batch = Batch(
         voff=voff,
         loff=_offsets([len(r.link_neg) for r in robots]),
@@ -497,6 +506,7 @@ def pack(robots: list[Robot]) -> tuple[Batch, State]:
         cos_phase=np.cos(phase),
         sin_phase=np.sin(phase),
         phase=phase,
+        exposed=exposed_faces(nbr),
         fparams=np.stack([r.fparams for r in robots]),
         iparams=np.stack([r.iparams for r in robots]),
         **{name: np.concatenate([getattr(r, name) for r in robots]) for name in CONCATENATED},

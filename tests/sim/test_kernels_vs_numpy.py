@@ -234,7 +234,7 @@ def test_collision_pairs_and_forces_match_brute_force():
                 want.add(tuple(sorted((i, j))))
     assert got == want and len(want) > 0
     force[:] = 0.0
-    kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
+    kernels.contact_forces_kernel(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12)
     touching = [(i, j) for i, j in want
                 if np.linalg.norm(state.pos[i] - state.pos[j]) < 0.05]
@@ -244,7 +244,7 @@ def test_collision_pairs_and_forces_match_brute_force():
 
 
 def _contact_case():
-    """A cup of 4^3 voxels (L = 5 cm), its parts for ``collide_kernel``, and a call of it."""
+    """A cup of 4^3 voxels (L = 5 cm), its parts for ``contact_list_kernel``, and a call of it."""
     body = np.ones((4, 4, 4), int)
     body[1:3, 1:3, 1:] = 0
     scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
@@ -255,9 +255,8 @@ def _contact_case():
     margin = kernels.COLLIDE_MARGIN * p.L
 
     def collide(contacts):
-        return kernels.collide_kernel(p, contacts, voxels.surface, voxels.near, mine.pos,
-                                      mine.lin_mom, work.size, voxels.vconst, work.pairs,
-                                      work.partners, work.built, work.force)
+        return kernels.contact_list_kernel(p, contacts, voxels.surface, voxels.near, mine.pos,
+                                           work.pairs, work.partners, work.built)
 
     return p, voxels, mine, work, margin, collide
 
@@ -367,7 +366,7 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     count = kernels.collision_pairs(batch.surface, state.pos, batch.near, 0.06, pairs,
                                     np.zeros(len(state.pos), np.int64))
     force[:] = 0.0
-    kernels.collision_forces(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
+    kernels.contact_forces_kernel(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
     assert np.abs(force).max() > 0
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12 * np.abs(force).max())
 

@@ -17,7 +17,6 @@ from softevo.sim.mesh import (
     voxel_axes,
     voxel_corners,
 )
-from softevo.sim.system import N_VCONST
 
 L = 0.01
 
@@ -178,8 +177,9 @@ def test_fast_mesh_agrees_with_slow_loops(seed):
 
 
 def test_vertex_mean_is_the_drag_kernels():
-    """The drag kernel's vertices (corners from quaternions and sizes, in the step) are
-    ``mesh_vertices`` of those corners: one definition of the mesh."""
+    """The kernels' vertices (corners from quaternions and sizes, in the step:
+    ``kernels.mesh_vertices_kernel``) are ``mesh_vertices`` of those corners: one definition
+    of the mesh."""
     rng = np.random.default_rng(7)
     voxels = l_shape()
     nbr, mesh_vert, mesh_face = lattice_mesh(voxels)
@@ -189,23 +189,7 @@ def test_vertex_mean_is_the_drag_kernels():
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     size = L * (1 + rng.uniform(-0.2, 0.2, n))
     vert_pos, corner_scratch = np.zeros((len(mesh_vert), 3)), np.zeros((3, 8, n))
-    vconst = np.ones((n, N_VCONST))
-    kernels.mesh_drag_kernel(
-        0.0,
-        mesh_vert,
-        mesh_face,
-        nbr,
-        L,
-        pos,
-        quat,
-        np.zeros((n, 3)),
-        vconst,
-        size,
-        vert_pos,
-        corner_scratch,
-        np.zeros((len(mesh_face), 3)),
-        np.zeros((n, 3)),
-    )
+    kernels.mesh_vertices_kernel(mesh_vert, nbr, L, pos, quat, size, vert_pos, corner_scratch)
     corners = np.zeros((n, 8, 3))
     for v in range(n):
         turn = np.array(kernels.rotation_matrix(*quat[v])).reshape(3, 3)

@@ -244,7 +244,7 @@ def test_voxcad_contact_repels_spheres_of_one_and_a_half_voxels_undamped():
     pairs = np.array([[0, 1]])
     for reach, stiff, damp, want in ((0.5, 1.0, 1.0, 0.0), (0.75, 0.5, 0.0, E * L * 0.3 * L)):
         force = np.zeros((2, 3))
-        kernels.collision_forces(1, pairs, pos, mom, size, vconst, force, reach, stiff, damp)
+        kernels.contact_forces_kernel(1, pairs, pos, mom, size, vconst, force, reach, stiff, damp)
         assert force[1, 0] == pytest.approx(want, rel=1e-12, abs=1e-15)
         assert force[0, 0] == -force[1, 0]
     robot = system.build_robot(parse_scene({"body": [[[1]]], "model": "voxcad-land-water"}))
@@ -272,7 +272,7 @@ def test_a_sliding_voxel_stops_where_coulomb_friction_says():
 
 
 def test_nearby_rows_ascend_with_their_pads_at_the_end():
-    """``kernels.listed`` stops at the first entry past the voxel it looks for, so every row
+    """``substeps.listed`` stops at the first entry past the voxel it looks for, so every row
     of ``near`` ascends and its -1 pads come last, for one hop (the face neighbours) as for
     more; and ``listed`` agrees with set membership on every pair."""
     body = np.ones((3, 4, 3), int)
@@ -285,5 +285,6 @@ def test_nearby_rows_ascend_with_their_pads_at_the_end():
             assert np.all(np.diff(kept) > 0) and np.all(row[len(kept):] == -1)
             members = {int(w) for w in kept}
             assert members == _walk(robot.nbr, v, hops)
+            flat, width = near.reshape(-1), near.shape[1]
             for j in range(len(near)):
-                assert kernels.listed(near, v, j) == (j in members)
+                assert kernels.listed(flat, width, v, j) == (j in members)
