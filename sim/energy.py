@@ -74,9 +74,8 @@ from .system import (
 # changes (``sim.cache``), as the engine's own are
 _HERE = Path(__file__).parent
 drop_foreign_entries(_HERE / "__pycache__", "energy")
-drop_stale_entries(_HERE / "__pycache__",
-                   [_HERE / name for name in ("energy.py", "kernels.py", "physics.py", "system.py")],
-                   "energy")
+SOURCES = ("energy.py", "kernels.py", "physics.py", "substeps.py", "system.py")
+drop_stale_entries(_HERE / "__pycache__", [_HERE / name for name in SOURCES], "energy")
 
 # the physics compiled as the CPU engine compiles it (same fma, same flags): the audit's link
 # frames take the same decisions as the engine's
@@ -418,13 +417,11 @@ def audit_run(batch, state, real, series):
         if k < p.steps:  # the engine's step (``kernels.step``), sub-step by sub-step
             bad = kernels.link_forces(p, links, body, work)
             f_engine[:], m_engine[:] = work.force, work.moment
-            contacts = kernels.collide(p, voxels, body, work, contacts)
+            contacts = kernels.contact_list(p, voxels, body, work, contacts)
+            kernels.contact_forces(p, voxels, body, work, contacts)
             f_with_contacts[:] = work.force
-            if p.mesh_drag > 0.0:
-                kernels.mesh_drag_kernel(p.mesh_drag, voxels.mesh_vert, voxels.mesh_face,
-                                         voxels.nbr, p.L, body.pos, body.quat, body.lin_mom,
-                                         voxels.vconst, work.size, work.vert_pos, work.corners,
-                                         work.facet_force, work.force)
+            kernels.mesh_vertices(p, voxels, body, work)
+            kernels.mesh_drag(p, voxels, body, work)
             f_with_drag[:] = work.force
         # the energies of the state before the step, and the actuator's work since the last
         e_links, a_links, jumps, a_damp = link_pass(
@@ -447,8 +444,7 @@ def audit_run(batch, state, real, series):
             break
         pos0[:], quat0[:], mom0[:], ang0[:] = body.pos, body.quat, body.lin_mom, body.ang_mom
         speed2 = kernels.voxel_update(p, voxels, body, work)
-        contacts = kernels.Contacts(contacts.count,
-                                    contacts.travel + math.sqrt(max(speed2, 0.0)) * p.dt)
+        contacts = kernels.Contacts(contacts.count, kernels.travel_after(contacts.travel, speed2, p.dt))
         nxt = series[k + 1]
         nxt[C_ALINK:] = row[C_ALINK:]
         step_works(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, pos0, quat0,
