@@ -45,30 +45,11 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from . import kernels, physics
+from . import kernels, physics, system
 from .cache import drop_foreign_entries, drop_stale_entries
 from .physics import COLLIDE_MARGIN
 from .result import prepare
 from .scene import Scene
-from .system import (
-    ENV_LAND,
-    F_DT,
-    FLAG_FIXED,
-    I_STEPS,
-    STATUS_CONTACTS,
-    STATUS_NONFINITE,
-    STATUS_OK,
-    STATUS_STRAIN,
-    V_CCOLL,
-    V_CGANG,
-    V_CGLIN,
-    V_INV_INERTIA,
-    V_INV_MASS,
-    V_KFLOOR,
-    V_MASS,
-    V_WEIGHT,
-    pack,
-)
 
 # the audit's cached code inlines the engine's sub-steps: dropped when any of their sources
 # changes (``sim.cache``), as the engine's own are
@@ -81,8 +62,10 @@ drop_stale_entries(_HERE / "__pycache__", [_HERE / name for name in SOURCES], "e
 # frames take the same decisions as the engine's
 _phys = physics.compiled(njit(inline="always", fastmath=kernels.FASTMATH, error_model="numpy"),
                          kernels.fma)
-link_geometry, small_frame, large_frame = _phys.link_geometry, _phys.small_frame, _phys.large_frame
+link_geometry, link_frame, reframe = _phys.link_geometry, _phys.link_frame, _phys.reframe
+frame_mode = _phys.frame_mode
 link_loads, face_drag, voxel_world = _phys.link_loads, _phys.face_drag, _phys.voxel_world
+opposite = kernels.opposite
 JIT = dict(cache=True, error_model="numpy")
 
 # columns of the audit's series, one row per step (row k: the state before step k, the
@@ -117,6 +100,13 @@ def link_energy(k_axial, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z):
     return (0.5 * k_axial * d * d + 0.5 * a2 * t2x * t2x + 0.5 * b1 * (ey * ey + ez * ez)
             - b2 * ey * (t1z + t2z) + b2 * ez * (t1y + t2y)
             + b3 * (t1z * t1z + t1z * t2z + t2z * t2z + t1y * t1y + t1y * t2y + t2y * t2y))
+
+
+@njit(inline="always", **JIT)
+def frame_energy(k_axial, a2, b1, b2, b3, dd):
+    """``link_energy`` of the deformation tuple ``physics.link_frame`` gives."""
+    d, ey, ez, t1y, t1z, t2x, t2y, t2z = dd
+    return link_energy(k_axial, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
 
 
 @njit(**JIT)
@@ -154,27 +144,14 @@ def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, mod
             quat[a, 0], quat[a, 1], quat[a, 2], quat[a, 3], quat[b, 0], quat[b, 1], quat[b, 2],
             quat[b, 3], pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2], ax)
         k_ax, a2, b1, b2, b3 = p.a1 * s * rest / L, p.a2 * s, p.b1 * s, p.b2 * s, p.b3 * s
-        if mode[j] >= 0.0:
-            W, d, ey, ez, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-            mode[j] = 1.0
-            if leave:
-                before = link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
-                W, d, ey, ez, t1y, t1z, t2x, t2y, t2z, enter = large_frame(
-                    R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-                jumps += link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y,
-                                     t2z) - before
-                mode[j] = -1.0
-        else:
-            W, d, ey, ez, t1y, t1z, t2x, t2y, t2z, enter = large_frame(
-                R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-            if enter:
-                before = link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
-                W, d, ey, ez, t1y, t1z, t2x, t2y, t2z, leave = small_frame(
-                    R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
-                jumps += link_energy(k_ax, a2, b1, b2, b3, d, ey, ez, t1y, t1z, t2x, t2y,
-                                     t2z) - before
-                mode[j] = 1.0
+        small = mode[j] >= 0.0
+        W, dd, change = link_frame(small, R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+        mode[j] = frame_mode(small)
+        if change:  # the engine's hysteresis: computed again in the other frame, flipped
+            before = frame_energy(k_ax, a2, b1, b2, b3, dd)
+            W, dd, _, mode[j] = reframe(small, R, ax, rx, ry, rz, ow, ox, oy, oz, rest)
+            jumps += frame_energy(k_ax, a2, b1, b2, b3, dd) - before
+        d, ey, ez, t1y, t1z, t2x, t2y, t2z = dd
         damp = damping[j] if was != 0.0 and was == mode[j] else 0.0
         damper[j] = k_ax * damp * (d - previous[j])
         previous[j] = d
@@ -189,20 +166,10 @@ def link_pass(p, neg, pos_, axis, stiff, damping, pos, quat, size, old_size, mod
                                 t1y, t1z, t2x, t2y, t2z)
         # the axial force's change, along the beam's x axis in world axes (W's column 0)
         df = p.a1 * s / L * (rest * d - old_rest * d_old)
-        dforce[a, 0] += df * W[0]
-        dforce[a, 1] += df * W[3]
-        dforce[a, 2] += df * W[6]
-        dforce[b, 0] -= df * W[0]
-        dforce[b, 1] -= df * W[3]
-        dforce[b, 2] -= df * W[6]
+        opposite(dforce, a, b, df * W[0], df * W[3], df * W[6])
         fx, fy, fz, max_, may, maz, mbx, mby, mbz = link_loads(
             W, s, rest, L, p.a1, p.a2, p.b1, p.b2, p.b3, d, ey, ez, t1y, t1z, t2x, t2y, t2z)
-        force[a, 0] += fx
-        force[a, 1] += fy
-        force[a, 2] += fz
-        force[b, 0] -= fx
-        force[b, 1] -= fy
-        force[b, 2] -= fz
+        opposite(force, a, b, fx, fy, fz)
         moment[a, 0] += max_
         moment[a, 1] += may
         moment[a, 2] += maz
@@ -240,7 +207,7 @@ def contact_pass(p, count, pairs, pos, size, old_size, vconst, force, dforce):
         i, j = pairs[q, 0], pairs[q, 1]
         dx, dy, dz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
         dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        ki, kj = vconst[i, V_KFLOOR], vconst[j, V_KFLOOR]
+        ki, kj = vconst[i, system.V_KFLOOR], vconst[j, system.V_KFLOOR]
         k = p.contact_stiff * (ki if ki == kj else 2.0 * ki * kj / (ki + kj))
         overlap = reach * (size[i] + size[j]) - dist
         before = f_old = 0.0
@@ -250,23 +217,13 @@ def contact_pass(p, count, pairs, pos, size, old_size, vconst, force, dforce):
         if overlap > 0.0 and dist > 0.0:
             u = 0.5 * k * overlap * overlap
             f = k * overlap / dist
-            force[j, 0] += f * dx
-            force[j, 1] += f * dy
-            force[j, 2] += f * dz
-            force[i, 0] -= f * dx
-            force[i, 1] -= f * dy
-            force[i, 2] -= f * dz
+            opposite(force, j, i, f * dx, f * dy, f * dz)
         else:
             u = f = 0.0
         energy += u
         work += u - before
         df = f - f_old
-        dforce[j, 0] += df * dx
-        dforce[j, 1] += df * dy
-        dforce[j, 2] += df * dz
-        dforce[i, 0] -= df * dx
-        dforce[i, 1] -= df * dy
-        dforce[i, 2] -= df * dz
+        opposite(dforce, j, i, df * dx, df * dy, df * dz)
     return energy, work
 
 
@@ -278,18 +235,19 @@ def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, f_links, 
     plus gravity and the floor, the centre of mass). Returns the floor's actuator work and
     the change of S that the size change made (``dforce``, the links' and contacts' share,
     plus the floor's)."""
-    land = p.env == ENV_LAND
+    land = p.env == system.ENV_LAND
     kin = rot = grav = floor = power = work = dpower = 0.0
     total = cx = cy = cz = 0.0
     for v in range(len(flags)):
-        m, inv_m, inv_i = vconst[v, V_MASS], vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
-        w = vconst[v, V_WEIGHT]
+        m, inv_m = vconst[v, system.V_MASS], vconst[v, system.V_INV_MASS]
+        inv_i = vconst[v, system.V_INV_INERTIA]
+        w = vconst[v, system.V_WEIGHT]
         total += w
         cx += w * pos[v, 0]
         cy += w * pos[v, 1]
         cz += w * pos[v, 2]
         grav += m * p.gravity * pos[v, 2]
-        if flags[v] & FLAG_FIXED:
+        if flags[v] & system.FLAG_FIXED:
             continue
         px, py, pz = lin_mom[v, 0], lin_mom[v, 1], lin_mom[v, 2]
         lx, ly, lz = ang_mom[v, 0], ang_mom[v, 1], ang_mom[v, 2]
@@ -299,11 +257,11 @@ def state_row(p, flags, vconst, pos, lin_mom, ang_mom, size, old_size, f_links, 
         if land:
             pen = 0.5 * size[v] - pos[v, 2]
             if pen >= 0.0:
-                floor += 0.5 * vconst[v, V_KFLOOR] * pen * pen
-                fz += vconst[v, V_KFLOOR] * pen
+                floor += 0.5 * vconst[v, system.V_KFLOOR] * pen * pen
+                fz += vconst[v, system.V_KFLOOR] * pen
             old = 0.5 * old_size[v] - pos[v, 2]
-            work += (0.5 * vconst[v, V_KFLOOR] * (max(pen, 0.0) ** 2 - max(old, 0.0) ** 2))
-            dpower += inv_m * vconst[v, V_KFLOOR] * (max(pen, 0.0) - max(old, 0.0)) * pz
+            work += (0.5 * vconst[v, system.V_KFLOOR] * (max(pen, 0.0) ** 2 - max(old, 0.0) ** 2))
+            dpower += inv_m * vconst[v, system.V_KFLOOR] * (max(pen, 0.0) - max(old, 0.0)) * pz
         dpower += inv_m * (dforce[v, 0] * px + dforce[v, 1] * py + dforce[v, 2] * pz)
         power += inv_m * ((f_links[v, 0] + f_contacts[v, 0]) * px
                           + (f_links[v, 1] + f_contacts[v, 1]) * py + fz * pz)
@@ -328,9 +286,10 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
     world = voxel_world(p)
     dt, g, drag, water, land = world[0], world[1], world[2], world[3], world[4]
     for v in range(len(flags)):
-        if flags[v] & FLAG_FIXED:
+        if flags[v] & system.FLAG_FIXED:
             continue
-        m, inv_m, inv_i = vconst[v, V_MASS], vconst[v, V_INV_MASS], vconst[v, V_INV_INERTIA]
+        m, inv_m = vconst[v, system.V_MASS], vconst[v, system.V_INV_MASS]
+        inv_i = vconst[v, system.V_INV_INERTIA]
         v0x, v0y, v0z = mom0[v, 0] * inv_m, mom0[v, 1] * inv_m, mom0[v, 2] * inv_m
         # v_mid dt and omega_mid dt: what a force's and a moment's work is taken over
         vmx = 0.5 * (mom0[v, 0] + lin_mom[v, 0]) * inv_m * dt
@@ -367,7 +326,7 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
         row[C_DDRAG] += dx * vmx + dy * vmy + dz * vmz
         ex, ey, ez = ext_force[v, 0], ext_force[v, 1], ext_force[v, 2]
         row[C_EXT] += ex * vmx + ey * vmy + ez * vmz
-        c_lin, c_ang = vconst[v, V_CGLIN], vconst[v, V_CGANG]
+        c_lin, c_ang = vconst[v, system.V_CGLIN], vconst[v, system.V_CGANG]
         row[C_DGLOB] -= (c_lin * (v0x * vmx + v0y * vmy + v0z * vmz)
                          + c_ang * (w0x * wmx + w0y * wmy + w0z * wmz))
         # every force the model names: links (damped), contacts, drag, external, global
@@ -378,9 +337,9 @@ def step_works(p, flags, ext_force, nbr, vconst, pos0, quat0, mom0, ang0, lin_mo
         if land:
             pen = 0.5 * size[v] - pos0[v, 2]
             if pen >= 0.0:
-                damping = -vconst[v, V_CCOLL] * v0z
+                damping = -vconst[v, system.V_CCOLL] * v0z
                 row[C_DFLOOR] += damping * vmz
-                fz += vconst[v, V_KFLOOR] * pen + damping
+                fz += vconst[v, system.V_KFLOOR] * pen + damping
         p1x, p1y, p1z = lin_mom[v, 0], lin_mom[v, 1], lin_mom[v, 2]
         p0x, p0y, p0z = mom0[v, 0], mom0[v, 1], mom0[v, 2]
         change = 0.5 * inv_m * ((p1x * p1x + p1y * p1y + p1z * p1z)
@@ -408,7 +367,7 @@ def audit_run(batch, state, real, series):
     f_with_contacts, f_with_drag = np.zeros((n, 3)), np.zeros((n, 3))
     pos0, quat0 = np.zeros((n, 3)), np.zeros((n, 4))
     mom0, ang0 = np.zeros((n, 3)), np.zeros((n, 3))
-    code, done = STATUS_OK, p.steps
+    code, done = system.STATUS_OK, p.steps
     bad, speed2 = 0, 0.0
     for k in range(p.steps + 1):
         row = series[k]  # its works hold steps 0 .. k-1 (the previous step copied them)
@@ -452,7 +411,8 @@ def audit_run(batch, state, real, series):
                    f_links, m_links, f_with_contacts, f_spring, f_with_drag, torque, extra,
                    nxt)
         if bad or speed2 < 0.0 or contacts.count < 0:
-            code = STATUS_STRAIN if bad else (STATUS_NONFINITE if speed2 < 0.0 else STATUS_CONTACTS)
+            code = (system.STATUS_STRAIN if bad else system.STATUS_NONFINITE if speed2 < 0.0
+                    else system.STATUS_CONTACTS)
             done = k + 1
             break
     return code, done, body.pos.copy()
@@ -563,14 +523,14 @@ def audit(scene: dict | Scene, engine: str = "numba",
 
     parsed, robots, results, runnable = prepare([scene])
     robot = robots[0]
-    dt = float(robot.fparams[F_DT])
+    dt = float(robot.fparams[system.F_DT])
     if not runnable:
         return Audit(np.zeros((1, N_COLUMNS)), dt, False, engine, np.zeros((0, 3)))
-    batch, state = pack([robot])
-    steps = int(robot.iparams[I_STEPS])
+    batch, state = system.pack([robot])
+    steps = int(robot.iparams[system.I_STEPS])
     series = np.zeros((steps + 1, N_COLUMNS))
     code, done, final = audit_run(batch, state, REALS[parsed[0].options.precision], series)
-    stable = code == STATUS_OK
+    stable = code == system.STATUS_OK
     agreement = None
     if final_positions is not None and np.shape(final_positions) == final.shape:
         agreement = float(np.max(np.linalg.norm(final - np.asarray(final_positions), axis=1),

@@ -553,6 +553,18 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
     return count
 
 
+@njit(**INLINE)
+def opposite(out, a, b, x, y, z):
+    """A pair's equal and opposite vectors: (x, y, z) added to row a of ``out``, taken from
+    row b."""
+    out[a, 0] += x
+    out[a, 1] += y
+    out[a, 2] += z
+    out[b, 0] -= x
+    out[b, 1] -= y
+    out[b, 2] -= z
+
+
 @njit(**JIT)
 def contact_forces_kernel(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5,
                           stiff=1.0, damp=1.0):
@@ -568,12 +580,7 @@ def contact_forces_kernel(count, pairs, pos, lin_mom, size, vconst, force, reach
         touch, fx, fy, fz = pair_force(P, LM, size, VC, nc, i, j, reach, stiff, damp)
         if not touch:
             continue
-        force[j, 0] += fx
-        force[j, 1] += fy
-        force[j, 2] += fz
-        force[i, 0] -= fx
-        force[i, 1] -= fy
-        force[i, 2] -= fz
+        opposite(force, j, i, fx, fy, fz)
 
 
 @njit(**JIT)

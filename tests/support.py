@@ -32,6 +32,13 @@ def softevo(capsys, *args: str) -> tuple[int, str, str]:
     return code, captured.out, captured.err
 
 
+def softevo_ok(capsys, *args: str) -> str:
+    """``softevo ARGS`` in this process, which must succeed: its standard output."""
+    code, out, err = softevo(capsys, *args)
+    assert code == 0, err
+    return out
+
+
 def softevo_process(
     *args: str, env: dict | None = None, cwd: Path | None = None, timeout: float = 300
 ) -> subprocess.CompletedProcess:

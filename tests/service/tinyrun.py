@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +15,7 @@ from softevo.service.runs.executors import Executor, InlineExecutor
 from softevo.service.runs.submit import create
 from softevo.service.storage import open_database
 from softevo.service.storage.models import EvaluationRow, IndividualRow, PopulationMemberRow, RunRow
+from tests.service.rq_support import Processes, service_env
 
 TINY = Treatment(
     "land-water",
@@ -40,6 +43,24 @@ def new_run(engine: Engine, treatment: Treatment = TINY) -> int:
 
 def run_to_end(engine: Engine, run_id: int, executor: Executor | None = None) -> None:
     Coordinator(engine, executor or InlineExecutor()).run([run_id])
+
+
+@contextmanager
+def served(folder: Path, treatment: Treatment, **env: str) -> Iterator[tuple[Engine, str, int, str]]:
+    """A finished tiny run of ``treatment`` in SQLite under ``folder`` and ``softevo serve`` on
+    it (no coordinator; ``env``: more of the server's environment). Yields the engine, the
+    database URL, the run's id and the server's base URL."""
+    url = f"sqlite:///{folder / 'served.db'}"
+    engine = open_database(url)
+    run_id = new_run(engine, treatment)
+    run_to_end(engine, run_id)
+    group = Processes(folder, service_env(url, None, SOFTEVO_COORDINATOR="false", **env))
+    try:
+        _, base = group.serve()
+        yield engine, url, run_id, base
+    finally:
+        group.stop_all()
+        engine.dispose()
 
 
 def stored(folder: Path, name: str, finished: bool = True) -> tuple[str, int]:

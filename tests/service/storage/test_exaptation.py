@@ -16,12 +16,10 @@ from sqlalchemy import select, text
 
 from softevo.evolution.treatments import Treatment
 from softevo.service.cli import main
-from softevo.service.storage import open_database
 from softevo.service.storage.models import IndividualRow, PopulationMemberRow
 from tests.service import tinyrun
-from tests.service.rq_support import Processes, service_env
 from tests.service.storage.test_sql_cookbook import cookbook
-from tests.support import softevo
+from tests.support import softevo_ok
 
 WATER_LAND = Treatment(
     "water-land", 0.1, population=4, generations=5, workspace=(4, 4, 4), cycles=2, switch_at=2, seed=3
@@ -31,22 +29,11 @@ WATER_LAND = Treatment(
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
     """A finished tiny water->land run in SQLite and ``softevo serve`` on it."""
-    tmp_path = tmp_path_factory.mktemp("exaptation")
-    url = f"sqlite:///{tmp_path / 'wl.db'}"
-    engine = open_database(url)
-    run_id = tinyrun.new_run(engine, WATER_LAND)
-    tinyrun.run_to_end(engine, run_id)
-    group = Processes(tmp_path, service_env(url, None, SOFTEVO_COORDINATOR="false"))
-    _, base = group.serve()
-    yield engine, url, run_id, base
-    group.stop_all()
-    engine.dispose()
+    with tinyrun.served(tmp_path_factory.mktemp("exaptation"), WATER_LAND) as served_run:
+        yield served_run
 
 
-def cli(capsys, *args: str) -> str:
-    code, out, err = softevo(capsys, *args)
-    assert code == 0, err
-    return out
+cli = softevo_ok
 
 
 def test_exaptation_agrees_across_cli_sql_and_rest(served, capsys):

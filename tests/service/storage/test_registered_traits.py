@@ -16,12 +16,11 @@ from sqlalchemy import Engine, select
 
 from softevo.evolution import traits
 from softevo.evolution.treatments import Treatment
-from softevo.service.storage import open_database, phylogeny
+from softevo.service.storage import phylogeny
 from softevo.service.storage.exaptation import exaptation
 from softevo.service.storage.models import EvaluationRow
 from tests.service import tinyrun
-from tests.service.rq_support import Processes, service_env
-from tests.support import softevo
+from tests.support import softevo_ok
 
 ROOT = Path(__file__).resolve().parents[3]
 PLUGIN = {"SOFTEVO_PLUGINS": "tests.service.plugin_height", "PYTHONPATH": str(ROOT)}
@@ -96,22 +95,11 @@ def test_a_registered_trait_is_stored_and_followed_along_lines(height_trait, eng
 def served(height_trait, tmp_path_factory):
     """A finished tiny water->land run in SQLite and ``softevo serve`` on it with the plugin
     that registers ``height``."""
-    tmp_path = tmp_path_factory.mktemp("registered")
-    url = f"sqlite:///{tmp_path / 'wl.db'}"
-    engine = open_database(url)
-    run_id = tinyrun.new_run(engine, WATER_LAND)
-    tinyrun.run_to_end(engine, run_id)
-    group = Processes(tmp_path, service_env(url, None, SOFTEVO_COORDINATOR="false", **PLUGIN))
-    _, base = group.serve()
-    yield engine, url, run_id, base
-    group.stop_all()
-    engine.dispose()
+    with tinyrun.served(tmp_path_factory.mktemp("registered"), WATER_LAND, **PLUGIN) as served_run:
+        yield served_run
 
 
-def cli(capsys, *args: str) -> str:
-    code, out, err = softevo(capsys, *args)
-    assert code == 0, err
-    return out
+cli = softevo_ok
 
 
 def test_a_registered_trait_reaches_the_command_line(served, capsys, monkeypatch):
