@@ -1,0 +1,163 @@
+"""A run's MAP-Elites archive, computed from its stored evaluations (``run_archive``).
+
+The archive after generation ``g`` is ``evolution.archive.elites`` over the run's
+evaluations of generations ``0 .. g`` in the order they were evaluated: by generation, then
+by individual id within a generation. It needs no table of its own and works on any run
+(``map-elites``, ``afpo``, ``pareto``): the elite of a cell is the farthest evaluation whose
+measures fall in it, the earliest among equals. Distance and the measures are read from the
+evaluations table (a built-in trait's column, a registered trait's value in
+``descriptors``: ``service.storage.trait_sql``).
+
+Worlds: distances in two worlds do not compare, so an archive holds the evaluations of one
+world (``evaluations.environment``). By default that is the world the run evaluated at
+generation ``g`` (for a land -> water run past its switch, water: the archive the algorithm
+is filling now); ``world`` picks another world the run evaluated in (``worlds`` lists them
+in the order the run met them; a gradual switch's compound worlds are worlds of their own).
+``history`` gives the coverage and QD score of the same world's archive after each stored
+generation ``0 .. g`` (zero before the run first evaluated there).
+
+The grid comes from the run's stored treatment settings (``grid_from_settings``): the
+``map-elites`` options ``measures``, ``cells`` and ``measure_bounds`` where stored, else the
+defaults below, so that the archive of a run of any algorithm can be drawn.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from sqlalchemy import Connection, func, select
+
+from softevo.errors import UserError
+from softevo.evolution.archive import Candidate, Grid, coverage, elites, qd_score, summary
+from softevo.service.storage.models import EvaluationRow, GenerationRow, RunRow, TreatmentRow
+from softevo.service.storage.rows import finite
+from softevo.service.storage.trait_sql import trait_values
+
+DEFAULT_MEASURES = ("frequency", "branching")
+DEFAULT_CELLS = (6, 6)
+# the bounds of a measure whose run stores none: frequency spans the linear mapping's default
+# 1-5 Hz and the paper mapping's (0, 4) Hz; the indices are shares in [0, 1]
+DEFAULT_BOUNDS = {
+    "frequency": (0.0, 5.0),
+    "branching": (0.0, 1.0),
+    "symmetry": (0.0, 1.0),
+    "active_share": (0.0, 1.0),
+}
+
+
+def grid_from_settings(settings: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]] = DEFAULT_BOUNDS) -> Grid:
+    """The grid of a run's stored treatment ``settings``: its ``measures``, ``cells`` and
+    ``measure_bounds`` (flattened low, high per measure), each absent one its default
+    (``DEFAULT_MEASURES``, six cells per measure, ``bounds`` by measure). UserError for a
+    measure without bounds or a grid that does not fit together."""
+    measures = tuple(settings.get("measures") or DEFAULT_MEASURES)
+    cells = tuple(int(count) for count in settings.get("cells") or (DEFAULT_CELLS[0],) * len(measures))
+    flat = settings.get("measure_bounds")
+    if flat:
+        pairs = tuple((float(flat[k]), float(flat[k + 1])) for k in range(0, len(flat) - 1, 2))
+    else:
+        missing = [name for name in measures if name not in bounds]
+        if missing:
+            raise UserError(f"no bounds for measure(s) {', '.join(missing)}: the run stores no measure_bounds")
+        pairs = tuple(bounds[name] for name in measures)
+    try:
+        return Grid(measures, pairs, cells)
+    except ValueError as exc:
+        raise UserError(f"the run's archive grid: {exc}") from exc
+
+
+def _run_settings(conn: Connection, run_id: int) -> tuple[dict[str, Any], int]:
+    """(stored treatment settings, last stored generation) of run ``run_id``; UserError for
+    an unknown run."""
+    runs, treatments = RunRow.__table__, TreatmentRow.__table__
+    row = conn.execute(
+        select(treatments.c.settings, runs.c.generation)
+        .join(treatments, runs.c.treatment_id == treatments.c.id)
+        .where(runs.c.id == run_id)
+    ).first()
+    if row is None:
+        raise UserError(f"no run {run_id}")
+    return dict(row.settings or {}), int(row.generation)
+
+
+def run_worlds(conn: Connection, run_id: int) -> list[str]:
+    """The worlds run ``run_id`` evaluated in, in the order it first did."""
+    ev = EvaluationRow.__table__
+    first = func.min(ev.c.generation)
+    rows = conn.execute(
+        select(ev.c.environment, first).where(ev.c.run_id == run_id).group_by(ev.c.environment)
+        .order_by(first, ev.c.environment)
+    ).all()
+    return [row.environment for row in rows]
+
+
+def world_at(conn: Connection, run_id: int, generation: int) -> str | None:
+    """The world run ``run_id`` evaluated in at ``generation`` (None if not stored)."""
+    gen = GenerationRow.__table__
+    return conn.execute(
+        select(gen.c.environment).where(gen.c.run_id == run_id, gen.c.generation == generation)
+    ).scalar()
+
+
+def candidates(conn: Connection, run_id: int, grid: Grid, world: str, generation: int) -> list[Candidate]:
+    """The evaluations of run ``run_id`` in ``world`` of generations ``0 .. generation`` as
+    archive candidates, in the order they were evaluated (generation, then individual id)."""
+    ev = EvaluationRow.__table__
+    try:
+        values = trait_values(grid.measures)
+    except KeyError as exc:
+        raise UserError(f"the run's archive measures: {exc.args[0]}") from exc
+    query = (
+        select(ev.c.individual_id, ev.c.generation, ev.c.distance, *values)
+        .where(ev.c.run_id == run_id, ev.c.environment == world, ev.c.generation <= generation)
+        .order_by(ev.c.generation, ev.c.individual_id)
+    )
+    return [
+        Candidate(int(row["individual_id"]), row["distance"], {name: row[name] for name in grid.measures},
+                  int(row["generation"]))
+        for row in conn.execute(query).mappings()
+    ]
+
+
+def history(grid: Grid, ordered: Sequence[Candidate], generation: int) -> tuple[dict, list[dict[str, Any]]]:
+    """(the archive after ``generation``, [{generation, coverage, qd_score, filled}] after each
+    generation 0 .. ``generation``) of candidates ``ordered`` by generation."""
+    archive: dict = {}
+    rows, position = [], 0
+    for g in range(generation + 1):
+        end = position
+        while end < len(ordered) and ordered[end].generation <= g:
+            end += 1
+        archive = elites(grid, ordered[position:end], archive)
+        position = end
+        rows.append({"generation": g, "coverage": coverage(grid, archive), "qd_score": qd_score(archive),
+                     "filled": len(archive)})
+    return archive, rows
+
+
+def run_archive(
+    conn: Connection, run_id: int, generation: int | None = None, world: str | None = None
+) -> dict[str, Any]:
+    """The archive of run ``run_id`` after ``generation`` (default the last stored) in
+    ``world`` (default the one evaluated at that generation): ``evolution.archive.summary``
+    (measures, bounds, cells, coverage, qd_score, filled, elites) with ``run``,
+    ``generation``, ``world``, ``worlds`` and ``history`` (module doc). UserError for an
+    unknown run, a run with no generation stored, a generation not stored or a world the run
+    never evaluated in."""
+    settings, last = _run_settings(conn, run_id)
+    if last < 0:
+        raise UserError(f"run {run_id} has stored no generation yet")
+    if generation is None:
+        generation = last
+    if not 0 <= generation <= last:
+        raise UserError(f"run {run_id} has stored generations 0..{last}, not {generation}")
+    worlds = run_worlds(conn, run_id)
+    if world is None:
+        world = world_at(conn, run_id, generation) or worlds[-1]
+    elif world not in worlds:
+        raise UserError(f"run {run_id} evaluated in {', '.join(worlds)}, not {world!r}")
+    grid = grid_from_settings(settings)
+    archive, per_generation = history(grid, candidates(conn, run_id, grid, world, generation), generation)
+    return finite({"run": run_id, "generation": generation, "world": world, "worlds": worlds,
+                   **summary(grid, archive), "history": per_generation})
