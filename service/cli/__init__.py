@@ -67,9 +67,19 @@ def _register() -> None:
     """
     if app.registered_commands or app.registered_groups:
         return
-    from softevo.service.cli import analysis, dashboard, evolution, phylogeny, plan, runs, service, sim
+    from softevo.service.cli import (
+        analysis,
+        archive,
+        dashboard,
+        evolution,
+        phylogeny,
+        plan,
+        runs,
+        service,
+        sim,
+    )
 
-    for module in (sim, evolution, runs, service, analysis, dashboard, phylogeny, plan):
+    for module in (sim, evolution, runs, service, analysis, dashboard, phylogeny, archive, plan):
         module.register(app)
 
 

@@ -11,8 +11,10 @@ evaluations table (a built-in trait's column, a registered trait's value in
 Worlds: distances in two worlds do not compare, so an archive holds the evaluations of one
 world (``evaluations.environment``). By default that is the world the run evaluated at
 generation ``g`` (for a land -> water run past its switch, water: the archive the algorithm
-is filling now); ``world`` picks another world the run evaluated in (``worlds`` lists them
-in the order the run met them; a gradual switch's compound worlds are worlds of their own).
+is filling now); ``world`` picks another world the run evaluated in (``environment`` in the
+JSON, ``--environment`` and ``?environment=`` on the command line and REST; ``environments``
+lists them in the order the run met them; a gradual switch's compound worlds are worlds of
+their own).
 ``history`` gives the coverage and QD score of the same world's archive after each stored
 generation ``0 .. g`` (zero before the run first evaluated there).
 
@@ -46,7 +48,9 @@ DEFAULT_BOUNDS = {
 }
 
 
-def grid_from_settings(settings: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]] = DEFAULT_BOUNDS) -> Grid:
+def grid_from_settings(
+    settings: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]] = DEFAULT_BOUNDS
+) -> Grid:
     """The grid of a run's stored treatment ``settings``: its ``measures``, ``cells`` and
     ``measure_bounds`` (flattened low, high per measure), each absent one its default
     (``DEFAULT_MEASURES``, six cells per measure, ``bounds`` by measure). UserError for a
@@ -59,7 +63,7 @@ def grid_from_settings(settings: Mapping[str, Any], bounds: Mapping[str, tuple[f
     else:
         missing = [name for name in measures if name not in bounds]
         if missing:
-            raise UserError(f"no bounds for measure(s) {', '.join(missing)}: the run stores no measure_bounds")
+            raise UserError(f"no bounds for measure(s) {', '.join(missing)}: the run stores none")
         pairs = tuple(bounds[name] for name in measures)
     try:
         return Grid(measures, pairs, cells)
@@ -142,7 +146,8 @@ def run_archive(
     """The archive of run ``run_id`` after ``generation`` (default the last stored) in
     ``world`` (default the one evaluated at that generation): ``evolution.archive.summary``
     (measures, bounds, cells, coverage, qd_score, filled, elites) with ``run``,
-    ``generation``, ``world``, ``worlds`` and ``history`` (module doc). UserError for an
+    ``generation``, ``environment`` (the world), ``environments`` (every world the run evaluated
+    in) and ``history`` (module doc). UserError for an
     unknown run, a run with no generation stored, a generation not stored or a world the run
     never evaluated in."""
     settings, last = _run_settings(conn, run_id)
@@ -159,5 +164,5 @@ def run_archive(
         raise UserError(f"run {run_id} evaluated in {', '.join(worlds)}, not {world!r}")
     grid = grid_from_settings(settings)
     archive, per_generation = history(grid, candidates(conn, run_id, grid, world, generation), generation)
-    return finite({"run": run_id, "generation": generation, "world": world, "worlds": worlds,
+    return finite({"run": run_id, "generation": generation, "environment": world, "environments": worlds,
                    **summary(grid, archive), "history": per_generation})
