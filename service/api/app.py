@@ -38,6 +38,7 @@ from softevo.service.api.guards import BodyLimits, ConcurrencyLimit
 from softevo.service.api.headers import SecurityHeaders
 from softevo.service.api.read_cache import ReadCache
 from softevo.service.api.routes import analyses, experiments, exports, health, individuals, phylogeny, runs
+from softevo.service.api.routes import archive as archive_routes
 from softevo.service.api.routes import plan as plan_routes
 from softevo.service.api.routes import worlds as world_routes
 from softevo.service.api.schemas import problem_line, request_problems
@@ -285,7 +286,7 @@ def create_app(settings: Settings | None = None, read_only: bool = False) -> Fas
     )
     app.state.settings = settings
     install_error_handlers(app)
-    for module in (health, experiments, analyses, exports, runs, individuals, phylogeny):
+    for module in (health, experiments, analyses, exports, runs, individuals, phylogeny, archive_routes):
         app.include_router(_reads_of(module.router) if read_only else module.router)
     app.include_router(world_routes.router)  # the world registry, read-only
     app.include_router(plan_routes.router)  # POST, but it stores nothing: read-only servers too

@@ -1,6 +1,8 @@
-// Run page: fitness curves over generations and the Pareto front of a chosen generation.
+// Run page: fitness curves over generations, the Pareto front and the archive of elites
+// (archive.js) of a chosen generation.
 // Plotly is the global from /dashboard/static/vendor/plotly.min.js (the plotly package's copy).
 import { LIVE, badge, el, errorLine, fill, fmt, getJSON, page, poll, showHealth, table } from "./api.js";
+import { archiveError, archiveSummary, drawArchive, wireArchiveClicks } from "./archive.js";
 import { FONT, LEGEND_TOP, MARGIN, PLOT_CONFIG, withAlpha } from "./plots.js";
 import { world } from "./worlds.js";
 
@@ -8,7 +10,7 @@ const runId = Number(document.getElementById("run").dataset.run);
 const POLL_MS = 2000;
 const FILL_ALPHA = 0.12; // of a world's colour (worlds.js), behind the curves
 
-const state = { run: null, generation: -2, fronts: new Map(), shown: null };
+const state = { run: null, generation: -2, fronts: new Map(), archives: new Map(), shown: null };
 
 function facts(run) {
   const s = run.treatment.settings;
@@ -164,6 +166,25 @@ function drawFront(front) {
   ));
 }
 
+async function archiveOf(generation) {
+  const live = state.run && LIVE.has(state.run.status) && generation === state.run.generation;
+  if (!live && state.archives.has(generation)) return state.archives.get(generation);
+  const archive = await getJSON(`/runs/${runId}/archive?generation=${generation}`);
+  state.archives.set(generation, archive);
+  return archive;
+}
+
+async function showArchive(generation) {
+  try {
+    const archive = await archiveOf(generation);
+    if (state.shown !== generation) return;
+    fill("archive-summary", archiveSummary(archive));
+    drawArchive("archive", archive);
+  } catch (error) {
+    archiveError("archive-summary", error);
+  }
+}
+
 async function showFront(generation) {
   const slider = document.getElementById("front-generation");
   slider.value = String(generation);
@@ -175,6 +196,7 @@ async function showFront(generation) {
   } catch (error) {
     fill("front-table", errorLine(error));
   }
+  await showArchive(generation);
 }
 
 async function refresh() {
@@ -220,7 +242,9 @@ async function main() {
     return;
   }
   Plotly.newPlot("front", [], { font: FONT, margin: { l: 60, r: 20, t: 10, b: 45 } }, PLOT_CONFIG);
+  Plotly.newPlot("archive", [], { font: FONT, margin: { l: 70, r: 20, t: 10, b: 50 } }, PLOT_CONFIG);
   wireClicks();
+  wireArchiveClicks("archive");
   poll(async () => {
     try {
       return await refresh();
