@@ -53,6 +53,7 @@ TITLES = {
     "robots": "Robots sampled from the fronts",
     "start_end": "Descriptors at the start vs the end of evolution",
     "exaptation": "Founder lines across the switch",  # analysis.exaptation, transition runs only
+    "qd": "Quality-diversity over generations",  # analysis.qd: each run's MAP-Elites archive
 }
 FIGURES = tuple(TITLES)
 
@@ -83,6 +84,8 @@ def figure_size(name: str, n_treatments: int, n_transitions: int = 0) -> tuple[f
     if name == "transitions":
         return (15.0, 4.0 * max(1, n_transitions) + 0.4)
     if name == "exaptation":
+        return (14.0, 4.8)
+    if name == "qd":
         return (14.0, 4.8)
     if name == "robots":
         per_row = min(2, n)

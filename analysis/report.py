@@ -17,6 +17,8 @@ service) reads the data and binds the robots. ``out_dir`` receives::
     statistics.csv       every pairwise comparison (secondary): its family, test, p, A12,
                          detectable A12 and interval (analysis.stats_tables.statistics_table)
     treatment_summary.csv  means and t intervals over repetitions per treatment and metric
+    qd.csv               QD score and coverage per treatment and generation, mean and t interval
+                         over runs (analysis.qd; given qd=)
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from softevo.analysis.exaptation import ExaptationData, exaptation_figure, run_s
 from softevo.analysis.findings import Finding, findings_display, findings_frame, headline_findings
 from softevo.analysis.methods import evaluation_methods, methods_text
 from softevo.analysis.motion import animate
+from softevo.analysis.qd import final_table, qd_curves, qd_figure
 from softevo.analysis.run_summary import run_summary
 from softevo.analysis.stats_tables import (
     INTERVAL,
@@ -490,12 +493,14 @@ def write_report(
     progress: bool = False,
     seed: int = 0,
     exaptation: ExaptationData | None = None,
+    qd: pd.DataFrame | None = None,
 ) -> Report:
     """Write the report of ``data`` into ``out_dir`` (see the module doc). Without ``robots``
     the robot renders, the evaluation settings and the animation are left out. ``seed``
     is accepted and unused (the intervals are t intervals: nothing resamples). ``exaptation``
     (``analysis.exaptation``; transition runs' founders and surviving lines) adds the
-    exaptation section and ``exaptation.csv``."""
+    exaptation section and ``exaptation.csv``; ``qd`` (``analysis.qd.QD_COLUMNS``: each run's
+    archive per generation) the quality-diversity figure, section and ``qd.csv``."""
     if data.generations.empty:
         raise UserError(f"experiment e{data.experiment['id']} has no stored generation yet")
     out = _output_dir(out_dir)
@@ -522,6 +527,13 @@ def write_report(
             if made is not None:
                 figures.append(made)
             exaptation_stats.to_csv(out / "exaptation.csv", index=False)
+        qd_stats = None
+        if qd is not None and not qd.empty:
+            qd_stats = qd_curves(data, qd)
+            made = qd_figure(data, qd_stats, figures_dir)
+            if made is not None:
+                figures.append(made)
+            qd_stats.to_csv(out / "qd.csv", index=False)
         gif = None
         if animation:
             step("animation of the best robot")
@@ -535,7 +547,8 @@ def write_report(
         stats.to_csv(paths["statistics"], index=False)
         summary.to_csv(paths["treatment_summary"], index=False)
         evaluation = None if robots is None else evaluation_text(robots, data)
-        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats, findings, runs)
+        doc = build_document(data, stats, summary, figures, gif, evaluation, exaptation_stats, findings, runs,
+                             qd_stats)
         markdown, page = out / "report.md", out / "report.html"
         markdown.write_text(to_markdown(doc, out), encoding="utf-8")
         page.write_text(to_html(doc), encoding="utf-8")
@@ -620,11 +633,12 @@ def build_document(
     exaptation: pd.DataFrame | None = None,
     findings: list[Finding] | None = None,
     runs: pd.DataFrame | None = None,
+    qd: pd.DataFrame | None = None,
 ) -> Document:
     """The report's content, in order; ``evaluation`` is ``evaluation_text``; ``exaptation``
     the per-run statistics of ``analysis.exaptation.run_statistics``; ``findings`` those of
     ``analysis.findings.headline_findings`` (computed here when not given); ``runs`` the
-    per-run summary (``analysis.run_summary``)."""
+    per-run summary (``analysis.run_summary``); ``qd`` the curves of ``analysis.qd.qd_curves``."""
     experiment = data.experiment
     doc = Document(f"softevo report: experiment e{experiment['id']} \u201c{experiment['name']}\u201d")
     created = _as_utc(experiment.get("created_at"))
@@ -678,6 +692,8 @@ def build_document(
     _animation_block(doc, data, gif)
     if exaptation is not None and not exaptation.empty:
         exaptation_block(doc, exaptation)
+    if qd is not None and not qd.empty:
+        qd_block(doc, qd)
     doc.heading("Statistics")
     if note is not None:
         doc.paragraph(f"Warning: {note}.")
@@ -748,6 +764,18 @@ def exaptation_block(doc: Document, stats: pd.DataFrame) -> None:
     shown = ["treatment", "repetition", "founders", "founders_surviving", "final_from_founders",
              "voxel_count_shift", "active_share_shift", "symmetry_shift"]  # fmt: skip
     doc.table(stats[shown].round(3))
+
+
+def qd_block(doc: Document, curves: pd.DataFrame) -> None:
+    doc.heading("Quality-diversity")
+    doc.paragraph(
+        "Per treatment at its last generation (each run one observation; mean and 95% t interval, "
+        "none below two runs): the QD score (the sum of the elites' distances) and coverage (the "
+        "share of cells filled) of each run's MAP-Elites archive, the best robot of each cell of "
+        "the archive's measures in the world evaluated then. Every generation: qd.csv; per run: "
+        "softevo archive RUN."
+    )
+    doc.table(final_table(curves).round(3))
 
 
 def _version() -> str:

@@ -161,6 +161,8 @@ MEASURE_RANGES: dict[str, tuple[float, float]] = {
     "voxel_count": (0.0, math.inf),
     "frequency": (0.0, math.inf),
     "frequency_active": (0.0, math.inf),
+    "qd_score": (0.0, math.inf),  # a MAP-Elites archive's (analysis.qd)
+    "coverage": (0.0, 1.0),
 }
 
 

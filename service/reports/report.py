@@ -16,10 +16,12 @@ from sqlalchemy import Connection, Engine
 from softevo.analysis import motion, robots
 from softevo.analysis import report as analysis_report
 from softevo.analysis.exaptation import ExaptationData
+from softevo.analysis.qd import QD_COLUMNS
 from softevo.analysis.report import Report, Robots
 from softevo.evolution import traits
 from softevo.service.reports.data import load_experiment
 from softevo.service.storage import open_database
+from softevo.service.storage.archive import run_qd_curve
 from softevo.service.storage.exaptation import exaptation
 from softevo.service.storage.experiments import evaluation_frequencies, resolve_experiment
 from softevo.service.storage.individuals import individual_record, stored_genomes
@@ -117,6 +119,16 @@ def exaptation_data(engine: Engine, data) -> ExaptationData:
     return ExaptationData(pd.DataFrame(runs), pd.DataFrame(founders), pd.DataFrame(lines))
 
 
+def qd_data(engine: Engine, data) -> pd.DataFrame:
+    """Each run's archive coverage and QD score per stored generation
+    (``service.storage.archive.run_qd_curve``), as ``analysis.qd.QD_COLUMNS``."""
+    rows = []
+    with engine.connect() as conn:
+        for run_id in data.runs["run_id"]:
+            rows += [{"run_id": int(run_id), **row} for row in run_qd_curve(conn, int(run_id))]
+    return pd.DataFrame(rows, columns=list(QD_COLUMNS))
+
+
 def _load(source, experiment: int | str):
     engine = engine_of(source)
     with engine.connect() as conn:
@@ -136,6 +148,7 @@ def write_report(
     (animation, progress, seed)."""
     engine, data = _load(source, experiment)
     options.setdefault("exaptation", exaptation_data(engine, data))
+    options.setdefault("qd", qd_data(engine, data))
     robots_of = stored_robots(engine, int(data.experiment["id"]))
     return analysis_report.write_report(data, out_dir, robots=robots_of, **options)
 
@@ -144,4 +157,5 @@ def report_html(source: str | Engine | Connection | Any | None, experiment: int 
     """The report page of ``experiment`` as a string, built in a temporary directory."""
     engine, data = _load(source, experiment)
     robots_of = stored_robots(engine, int(data.experiment["id"]))
-    return analysis_report.report_html(data, robots_of, exaptation=exaptation_data(engine, data))
+    return analysis_report.report_html(data, robots_of, exaptation=exaptation_data(engine, data),
+                                       qd=qd_data(engine, data))

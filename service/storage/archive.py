@@ -166,3 +166,21 @@ def run_archive(
     archive, per_generation = history(grid, candidates(conn, run_id, grid, world, generation), generation)
     return finite({"run": run_id, "generation": generation, "environment": world, "environments": worlds,
                    **summary(grid, archive), "history": per_generation})
+
+
+def run_qd_curve(conn: Connection, run_id: int) -> list[dict[str, Any]]:
+    """After each stored generation of run ``run_id``, the coverage and QD score of the
+    archive of the world evaluated at that generation (the archive the run was filling then;
+    a transition's curve moves on to its new world's archive): [{generation, environment,
+    coverage, qd_score, filled}]; empty before any generation. UserError for an unknown run."""
+    settings, last = _run_settings(conn, run_id)
+    if last < 0:
+        return []
+    grid = grid_from_settings(settings)
+    gen = GenerationRow.__table__
+    evaluated = dict(conn.execute(
+        select(gen.c.generation, gen.c.environment).where(gen.c.run_id == run_id, gen.c.generation <= last)
+    ).all())
+    per_world = {world: history(grid, candidates(conn, run_id, grid, world, last), last)[1]
+                 for world in set(evaluated.values())}
+    return [{"environment": evaluated[g], **per_world[evaluated[g]][g]} for g in sorted(evaluated)]

@@ -117,8 +117,9 @@ def test_the_analysis_report_needs_only_the_data(tiny_data, tmp_path):
     from softevo.analysis.report import write_report as write_from_data
 
     result = write_from_data(tiny_data, tmp_path, robots=None)
-    # the exaptation figure needs the phylogeny, given as exaptation= (service.reports.report does)
-    needing_more = ("robots", "exaptation")
+    # the exaptation and QD figures need the phylogeny and the archives, given as exaptation= and
+    # qd= (service.reports.report does)
+    needing_more = ("robots", "exaptation", "qd")
     assert [f.name for f in result.figures] == [name for name in FIGURES if name not in needing_more]
     assert result.animation is None
     assert "Evaluation: voxel edge" not in result.html.read_text(encoding="utf-8")
