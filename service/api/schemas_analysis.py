@@ -55,6 +55,18 @@ class Curve(BaseModel):
     high: list[float | None]
 
 
+class QDCurve(BaseModel):
+    treatment: str
+    metric: str = Field(description="qd_score | coverage (analysis.qd.METRICS)")
+    label: str
+    generation: list[int]
+    environment: list[str] = Field(description="the world whose archive each generation shows")
+    n: list[int] = Field(description="runs that stored the generation")
+    mean: list[float | None] = Field(description="mean over runs of their archives after the generation")
+    low: list[float | None] = Field(description="95% t interval (null below 2 runs), clipped to its range")
+    high: list[float | None]
+
+
 class Points(BaseModel):
     individual_id: list[int]
     run_id: list[int]
@@ -117,6 +129,7 @@ class ExperimentAnalysisOut(BaseModel):
     interval: str = Field(description="how the curves' and treatments' intervals are computed")
     treatments: list[AnalysisTreatment]
     curves: list[Curve]
+    qd: list[QDCurve] = Field(description="QD score and coverage of the runs' MAP-Elites archives")
     fronts: list[Front]
     descriptors: list[Descriptor]
     statistics: list[StatisticRow]

@@ -8,6 +8,9 @@ by the same ``analysis`` functions on the same ``ExperimentData``.
 - ``curves``: best distance per generation, mean over runs with its 95% t interval
   (``analysis.stats_tables.fitness_curves``, one value per run per generation, thinned to
   about 500 generations);
+- ``qd``: per treatment and metric (QD score, coverage), the mean over its runs of their
+  MAP-Elites archives after each generation with its 95% t interval (``analysis.qd.qd_curves``
+  over ``service.reports.report.qd_data``: each run's archive of the world it evaluated then);
 - ``fronts``: the display populations of all runs pooled in the distance / active share
   (energy) plane and their non-dominated front (``analysis.figures.pareto_front``), as in
   the paper's figures 8, 13, 18 and 20; at most ``MAX_POINTS`` points per treatment (an
@@ -39,10 +42,12 @@ from sqlalchemy import Engine
 from softevo.analysis.data import ExperimentData
 from softevo.analysis.figures import pareto_front, treatment_colors
 from softevo.analysis.findings import FINDING_COLUMNS, findings_table
+from softevo.analysis.qd import METRICS as QD_METRICS
+from softevo.analysis.qd import qd_curves
 from softevo.analysis.stats_tables import INTERVAL, ci_table, fitness_curves, metric_labels, statistics_table
 from softevo.evolution import traits
 from softevo.service.reports.data import load_experiment
-from softevo.service.reports.report import engine_of
+from softevo.service.reports.report import engine_of, qd_data
 from softevo.service.storage.rows import finite
 
 MAX_POINTS = 2000  # population members drawn per treatment's front panel
@@ -58,7 +63,8 @@ STAT_FIELDS = (
 def experiment_analysis(source: str | Engine, experiment_id: int) -> dict[str, Any]:
     """The page's data for experiment ``experiment_id`` (see the module doc); UserError if
     there is no such experiment or it has no runs."""
-    data = load_experiment(engine_of(source), experiment_id)
+    engine = engine_of(source)
+    data = load_experiment(engine, experiment_id)
     experiment = data.experiment
     return finite(
         {
@@ -66,6 +72,7 @@ def experiment_analysis(source: str | Engine, experiment_id: int) -> dict[str, A
             "interval": INTERVAL,
             "treatments": treatments(data),
             "curves": curves(data),
+            "qd": qd(data, qd_curves(data, qd_data(engine, data))),
             "fronts": fronts(data),
             "descriptors": descriptors(data),
             "findings": _records(findings_table(data, design_figures=False), FINDING_COLUMNS),
@@ -144,6 +151,20 @@ def curves(data: ExperimentData) -> list[dict[str, Any]]:
         }
         for name in data.treatment_names
     ]
+
+
+def qd(data: ExperimentData, table: pd.DataFrame) -> list[dict[str, Any]]:
+    """Per treatment and QD metric (``analysis.qd.METRICS``) with a curve: its label,
+    generations, the world of each, runs, mean, low and high."""
+    found = []
+    for name in data.treatment_names:
+        for metric, label in QD_METRICS.items():
+            part = table[(table["treatment"] == name) & (table["metric"] == metric)]
+            if part.empty:
+                continue
+            columns = _columns(part, ("generation", "environment", "n", "mean", "low", "high"))
+            found.append({"treatment": name, "metric": metric, "label": label, **columns})
+    return found
 
 
 def _sample(frame: pd.DataFrame, front: pd.DataFrame, limit: int) -> pd.DataFrame:

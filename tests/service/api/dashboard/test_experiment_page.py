@@ -242,3 +242,26 @@ def test_the_screenshot_script_saves_the_pages(compared_db, tmp_path):
     assert pages["experiment-page.png"].height > 2500  # the whole page, every panel
     for image in pages.values():
         assert len(image.convert("RGB").getcolors(1 << 20) or []) > 200  # drawn, not a blank page
+
+
+def test_qd_panels_show_the_mean_of_the_runs_archives(compared_url, compared_db, analysis, open_page):
+    qd = analysis["qd"]
+    assert sorted((c["treatment"], c["metric"]) for c in qd) == sorted(
+        (t.name, metric) for t in compared.TREATMENTS for metric in ("qd_score", "coverage")
+    )
+    for treatment in analysis["treatments"]:
+        runs = [run["run_id"] for run in treatment["runs"]]
+        archives = [httpx.get(f"{compared_url}/runs/{run_id}/archive").json() for run_id in runs]
+        for metric in ("qd_score", "coverage"):
+            curve = next(c for c in qd if c["treatment"] == treatment["name"] and c["metric"] == metric)
+            assert curve["generation"][-1] == archives[0]["generation"]
+            assert curve["environment"][-1] == archives[0]["environment"]
+            values = [archive[metric] for archive in archives]
+            assert curve["n"][-1] == len(values) == compared.REPETITIONS
+            assert curve["mean"][-1] == pytest.approx(sum(values) / len(values))
+            assert curve["low"][-1] <= curve["mean"][-1] <= curve["high"][-1]
+    page = open_experiment(open_page(compared_url), compared_url, compared_db.experiment_id)
+    for metric in ("qd_score", "coverage"):
+        panel = page.locator(f"#qd-{metric}")
+        panel.locator(".scatterlayer .trace").first.wait_for(timeout=READY_MS)
+        assert panel.locator(".scatterlayer .trace").count() == 2 * TREATMENTS  # a band and a mean each

@@ -1,5 +1,6 @@
 // Experiment page: the treatments side by side, from GET /experiments/{id}/analysis
-// (service.reports.report.experiment): fitness curves with 95% intervals over runs, aggregated
+// (service.reports.report.experiment): fitness curves and the runs' QD score and coverage with
+// 95% intervals over runs, aggregated
 // Pareto fronts, descriptor distributions, the statistics table with families, every run,
 // and the downloads (GET /experiments/{id}/export). Polled while a run is live.
 import { LIVE, el, errorLine, fill, fmt, getJSON, page, poll, progressBar, root, showHealth, table } from "./api.js";
@@ -163,6 +164,46 @@ function drawFitness(analysis) {
     "comparable, so a transition's curve continues in its new world's panel. Dashed lines: a transition's switch.";
 }
 
+/** QD score and coverage over generations (the runs' MAP-Elites archives, analysis.qd): a
+ * panel each, per treatment the mean over its runs with the 95% t band where there is one. */
+function drawQD(analysis) {
+  const colors = Object.fromEntries(analysis.treatments.map((t) => [t.name, t.color]));
+  const metrics = [...new Set(analysis.qd.map((c) => c.metric))];
+  const made = metrics.map((metric) => smallPanel({ id: `qd-${metric}`, "data-metric": metric }));
+  fill("qd", made.map(([figure]) => figure));
+  metrics.forEach((metric, k) => {
+    const curves = analysis.qd.filter((c) => c.metric === metric);
+    setTitle(made[k][1], curves[0].label);
+    const traces = [];
+    for (const curve of curves) {
+      const color = colors[curve.treatment];
+      const banded = curve.generation.map((g, i) => [g, curve.low[i], curve.high[i]]).filter(([, low]) => low !== null);
+      if (banded.length > 0) {
+        traces.push({
+          x: [...banded.map((b) => b[0]), ...banded.map((b) => b[0]).reverse()],
+          y: [...banded.map((b) => b[2]), ...banded.map((b) => b[1]).reverse()],
+          fill: "toself", fillcolor: withAlpha(color, 0.18), line: { width: 0 }, mode: "lines",
+          hoverinfo: "skip", showlegend: false, legendgroup: curve.treatment,
+        });
+      }
+      traces.push({
+        x: curve.generation, y: curve.mean, name: curve.treatment, legendgroup: curve.treatment, showlegend: k === 0,
+        mode: curve.generation.length > 1 ? "lines" : "lines+markers", line: { color, width: 2 },
+        customdata: curve.n.map((n, i) => [n, curve.low[i], curve.high[i], curve.environment[i]]),
+        hovertemplate: `${curve.treatment}<br>generation %{x} (%{customdata[3]})<br>mean %{y:.3f}` +
+          "<br>95% CI [%{customdata[1]:.3f}, %{customdata[2]:.3f}]<br>runs %{customdata[0]}<extra></extra>",
+      });
+    }
+    const layout = {
+      font: FONT, margin: SMALL_MARGIN, hovermode: "closest", showlegend: k === 0, legend: LEGEND_RIGHT,
+      xaxis: { title: { text: "generation" }, tickformat: "d", zeroline: false },
+      yaxis: { rangemode: "tozero", zeroline: false, range: metric === "coverage" ? [0, 1] : undefined },
+      shapes: switchLines(analysis.treatments),
+    };
+    Plotly.react(made[k][1], traces, layout, PLOT_CONFIG);
+  });
+}
+
 /** A small plot under its own title: a title above the plot, not in it, where Plotly's
  * toolbar (top right, on hover) would cover it. Returns [figure, plot div]. */
 function smallPanel(attributes) {
@@ -296,6 +337,7 @@ function showAnalysis(analysis) {
   state.analysis = analysis;
   drawTreatments(analysis.treatments);
   drawFitness(analysis);
+  drawQD(analysis);
   drawFronts(analysis);
   drawDescriptors(analysis);
   wireStatistics(analysis.statistics);
