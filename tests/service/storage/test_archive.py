@@ -2,8 +2,9 @@
 and ``GET /runs/{id}/archive`` give the same JSON; each elite is the farthest evaluation of its
 world whose measures fall in its cell, one per cell, checked independently from the rows
 ``softevo export`` writes (the cell rule written out again here with numpy, not
-``evolution.archive``); the history ends at the archive; a bad run, generation or world is one
-clean line (exit 2) on the command line and a 404 over REST."""
+``evolution.archive``) and by docs/sql.md's archive query; the history ends at the archive; a
+bad run, generation or world is one clean line (exit 2) on the command line and a 404 over
+REST."""
 
 from __future__ import annotations
 
@@ -13,9 +14,11 @@ import httpx
 import numpy as np
 import pandas as pd
 import pytest
+from sqlalchemy import text
 
 from softevo.evolution.archive import EPSILON
 from tests.service import tinyrun
+from tests.service.storage.test_sql_cookbook import cookbook
 from tests.support import softevo, softevo_ok
 
 
@@ -25,7 +28,7 @@ def served(tmp_path_factory):
     ``softevo export`` individuals (one row per evaluation)."""
     folder = tmp_path_factory.mktemp("archive")
     with tinyrun.served(folder, tinyrun.TINY) as (engine, url, run_id, base):
-        yield url, run_id, base, folder
+        yield url, run_id, base, folder, engine
 
 
 def exported(capsys, url: str, run_id: int, folder) -> pd.DataFrame:
@@ -52,7 +55,7 @@ def expected_elites(rows: pd.DataFrame, archive: dict, world: str, generation: i
 
 @pytest.mark.parametrize("where", [(), ("2", "land"), ("4", "land"), ("3", "water")])
 def test_cli_and_rest_agree_and_each_elite_is_its_cells_farthest(served, capsys, where):
-    url, run_id, base, folder = served
+    url, run_id, base, folder, engine = served
     args, params = (), {}
     if where:
         args = ("--generation", where[0], "--environment", where[1])
@@ -68,6 +71,12 @@ def test_cli_and_rest_agree_and_each_elite_is_its_cells_farthest(served, capsys,
     assert len(cells) == len(set(cells)) == cli["filled"] >= 1  # one elite per cell
     expected = expected_elites(exported(capsys, url, run_id, folder), cli, world, generation)
     assert {tuple(e["cell"]): (e["individual"], e["distance"]) for e in cli["elites"]} == expected
+    (low_x, high_x), (low_y, high_y) = cli["bounds"]
+    grid = {"low_x": low_x, "high_x": high_x, "cells_x": 6, "low_y": low_y, "high_y": high_y, "cells_y": 6}
+    with engine.connect() as conn:  # docs/sql.md's archive query: the same elites
+        rows = conn.execute(text(cookbook()["archive"]), {"run_id": run_id, "environment": world,
+                                                          "generation": generation, **grid}).all()
+    assert {(row.cell_x, row.cell_y): (row.individual_id, row.distance) for row in rows} == expected
     assert cli["coverage"] == pytest.approx(len(expected) / 36)
     assert cli["qd_score"] == pytest.approx(sum(d for _, d in expected.values()))
     history = cli["history"]
@@ -78,7 +87,7 @@ def test_cli_and_rest_agree_and_each_elite_is_its_cells_farthest(served, capsys,
 
 
 def test_text_shows_the_grid(served, capsys):
-    url, run_id, _, _ = served
+    url, run_id, _, _, _ = served
     args = ("archive", f"r{run_id}", "--db", url, "--environment", "land")
     text = softevo_ok(capsys, *args)
     summary = json.loads(softevo_ok(capsys, *args, "--json"))
@@ -98,7 +107,7 @@ def test_text_shows_the_grid(served, capsys):
     ],
 )
 def test_bad_input_is_one_line(served, capsys, args, query, message):
-    url, run_id, base, _ = served
+    url, run_id, base, _, _ = served
     code, out, err = softevo(capsys, "archive", *(a.format(run=run_id) for a in args), "--db", url)
     assert code == 2 and out == "" and message in err and err.count("error:") == 1 and "Traceback" not in err
     response = httpx.get(base + query.format(run=run_id))

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy import text
 
+from softevo.service.storage.archive import run_archive
 from softevo.service.storage.exaptation import exaptation
 from tests.service import handbuilt
 
@@ -56,7 +57,26 @@ def test_the_cookbook_has_every_example():
         "surviving",
         "first_change",
         "dominant_founders",
+        "archive",
     }
+
+
+DEFAULT_GRID = {"low_x": 0.0, "high_x": 5.0, "cells_x": 6, "low_y": 0.0, "high_y": 1.0, "cells_y": 6}
+
+
+def test_archive(built):
+    """Every hand-built evaluation has frequency 2 and branching 0.1 (cell (2, 0)): the cell's
+    elite is the world's farthest evaluation up to the generation (local id x 1 on land, x 2
+    in water; 9 failed, but its distance stands)."""
+    engine, run_id, ids, local, query = built
+    for world, generation, best in (("land", 1, 6), ("water", 2, 9), ("water", 3, 12)):
+        rows = query("archive", run_id=run_id, environment=world, generation=generation, **DEFAULT_GRID)
+        assert [(row[0], row[1], local[row[2]], row[3]) for row in rows] == [
+            (2, 0, best, handbuilt.distance(best, world))
+        ]
+        with engine.connect() as conn:
+            archive = run_archive(conn, run_id, generation, world)
+        assert [(e["cell"], e["individual"]) for e in archive["elites"]] == [([2, 0], ids[best])]
 
 
 def test_switch(built):
