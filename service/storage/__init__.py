@@ -15,6 +15,7 @@ parameters), one module per noun:
 - ``status``: run summaries and lineage records for displays; ``phylogeny``: lineages;
   ``run_tree``: a run's tree (paged) and the dashboard's bounded sample of it;
   ``exaptation``: founders' lines across an environment switch (``docs/sql.md``);
+  ``archive``: a run's MAP-Elites archive and its QD score per generation, from its evaluations;
   ``export``: CSV/Parquet files; ``rows``: result rows as JSON-ready dicts;
 - ``store``: the write and lookup functions re-exported by their former home.
 """
