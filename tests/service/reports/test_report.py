@@ -179,3 +179,25 @@ def test_report_numbers_say_zero_and_no_interval_plainly():
     assert interval_cell(3.93e-16, -1e-16, 2e-16) == "0 [0, 0]"
     assert interval_cell(2.0, 1.25, 2.75) == "2 [1.25, 2.75]"
     assert interval_cell(float("nan"), float("nan"), float("nan")) == ""
+
+
+def test_qd_figure_and_table_are_the_runs_archives(report, tiny):
+    """qd.csv's mean at each treatment's last generation is the mean over its runs of their
+    archives (``service.storage.archive.run_archive``), and the report has the QD section."""
+    import pandas as pd
+
+    from softevo.service.storage.archive import run_archive
+
+    result, out = report
+    curves = pd.read_csv(out / "qd.csv")
+    assert set(curves["metric"]) == {"qd_score", "coverage"}
+    with tiny.engine.connect() as conn:
+        archives = {run_id: run_archive(conn, run_id) for run_id in tiny.run_ids}
+    runs = pd.read_csv(out / "summary.csv")[["run_id", "treatment"]]
+    for name, part in runs.groupby("treatment"):
+        last = curves[(curves["treatment"] == name) & (curves["metric"] == "qd_score")].iloc[-1]
+        values = [archives[int(run_id)]["qd_score"] for run_id in part["run_id"]]
+        assert int(last["generation"]) == archives[int(part["run_id"].iloc[0])]["generation"]
+        assert last["n"] == len(values) and last["mean"] == pytest.approx(sum(values) / len(values))
+    page = result.html.read_text(encoding="utf-8")
+    assert "Quality-diversity" in page and '<figure id="qd">' in page
