@@ -112,3 +112,20 @@ def test_bad_input_is_one_line(served, capsys, args, query, message):
     assert code == 2 and out == "" and message in err and err.count("error:") == 1 and "Traceback" not in err
     response = httpx.get(base + query.format(run=run_id))
     assert response.status_code == 404 and message in response.json()["detail"]
+
+
+def test_the_grid_is_the_stored_settings_or_the_defaults():
+    from softevo.errors import UserError
+    from softevo.service.storage.archive import grid_from_settings
+
+    plain = grid_from_settings(tinyrun.TINY.to_settings())  # an afpo run: no map-elites options
+    assert plain.measures == ("frequency", "branching") and plain.cells == (6, 6)
+    assert plain.bounds == ((0, 5), (0, 1))
+    stored = grid_from_settings({"measures": ["symmetry", "voxel_count", "frequency"], "cells": [2, 3, 4],
+                                 "measure_bounds": [0, 1, 0, 64, 1, 5]})
+    assert stored.measures == ("symmetry", "voxel_count", "frequency") and stored.cells == (2, 3, 4)
+    assert stored.bounds == ((0, 1), (0, 64), (1, 5))
+    with pytest.raises(UserError, match="no bounds for measure.s. voxel_count"):
+        grid_from_settings({"measures": ["frequency", "voxel_count"]})
+    with pytest.raises(UserError, match="low < high"):
+        grid_from_settings({"measure_bounds": [5, 0, 0, 1]})
