@@ -9,8 +9,9 @@ from PIL import Image
 
 from softevo.analysis import figures
 from softevo.analysis.exaptation import exaptation_figure, run_statistics
+from softevo.analysis.qd import qd_curves, qd_figure
 from softevo.analysis.stats_tables import fitness_curves, statistics_table
-from softevo.service.reports.report import exaptation_data, stored_robots
+from softevo.service.reports.report import exaptation_data, qd_data, stored_robots
 
 # 2 treatments (one transition): hand-computed from figures.figure_size at 100 dpi
 EXPECTED_PX = {
@@ -21,6 +22,7 @@ EXPECTED_PX = {
     "robots": (1440, 300),  # 2 treatments x 3 robots of 2.4 in, one row of 2.6 in + 0.4 in
     "start_end": (1600, 900),
     "exaptation": (1400, 480),
+    "qd": (1400, 480),
 }
 
 
@@ -38,6 +40,7 @@ def _make(name, data, tests, curves, engine, out):
         "robots": lambda: figures.robots_figure(data, stored_robots(engine).phenotypes, out),
         "start_end": lambda: figures.start_end_figure(data, tests, out),
         "exaptation": lambda: _exaptation(data, engine, out),
+        "qd": lambda: qd_figure(data, qd_curves(data, qd_data(engine, data)), out),
     }[name]()
 
 
