@@ -76,7 +76,7 @@ class WorkerArray:
 def worker_name_expression() -> str:
     """The shell expression of a task's worker name: ``slurm-<job>_<task>`` (``-r<n>`` after
     SLURM's n-th restart of it)."""
-    return 'slurm-${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}${SLURM_RESTART_COUNT:+-r$SLURM_RESTART_COUNT}'
+    return "slurm-${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}${SLURM_RESTART_COUNT:+-r$SLURM_RESTART_COUNT}"
 
 
 def batch_script(array: WorkerArray) -> str:

@@ -144,7 +144,10 @@ def test_documented_slurm_array_survives_scancel_of_a_worker_mid_job(tmp_path):
         run_id = submit(base, TREATMENT)
         worker = f"slurm-{job}_1"
         held = wait_for(
-            lambda: job_held_by(redis.url, env["SOFTEVO_QUEUE"], worker), 120, f"{worker} to hold a job", 0.005
+            lambda: job_held_by(redis.url, env["SOFTEVO_QUEUE"], worker),
+            120,
+            f"{worker} to hold a job",
+            every=0.005,
         )
         shell(lines[2], shell_env, tmp_path)
         wait_for(lambda: f"{job}_1" not in array_tasks(job), 60, f"array task {job}_1 to end")
