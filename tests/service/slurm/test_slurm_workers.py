@@ -180,3 +180,29 @@ def test_documented_slurm_array_survives_scancel_of_a_worker_mid_job(tmp_path):
         for log in sorted(tmp_path.glob("softevo-worker-*.log")):
             print(f"--- {log.name}\n{log.read_text()[-3000:]}")
         redis.stop()
+
+
+def test_a_job_sbatch_refuses_is_one_line(tmp_path):
+    problem = slurm_problem()
+    if problem:
+        pytest.skip(problem)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "softevo.service.cli",
+            "slurm-workers",
+            "--array",
+            "2",
+            "--partition",
+            "nosuch",
+        ],
+        env={**os.environ, "SOFTEVO_REDIS_URL": "redis://127.0.0.1:6379/0"},
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2 and done.stdout == "", done
+    assert done.stderr.startswith("error: sbatch refused the worker array: sbatch: error: ")
+    assert "partition" in done.stderr and done.stderr.count("\n") == 1, done.stderr
