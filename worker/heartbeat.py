@@ -20,17 +20,16 @@ machine goes, the entries expire ``ttl`` seconds after the last beat.
 
 (the URL travels in the environment, not on the command line where ``ps`` shows it).
 
-SIGTERM and SIGINT are ignored: they are meant for the worker, but reach this process too
-when they go to the whole process group (Ctrl-C in a terminal, ``scancel`` or a time limit
-under SLURM); a heartbeat that died of them would leave a worker finishing its job (RQ's warm
-shutdown) looking dead, its job run twice. This process ends with the worker's pipe.
+SIGTERM and SIGINT are ignored (the worker starts this process so: ``rq_worker.start_heartbeat``):
+they are meant for the worker, but reach this process too when they go to all of the
+worker's processes (Ctrl-C in a terminal, ``scancel`` or a time limit under SLURM). This
+process ends with the worker's pipe.
 """
 
 from __future__ import annotations
 
 import os
 import select
-import signal
 import sys
 import time
 
@@ -89,6 +88,4 @@ def _beat_quietly(connection: Redis, registry_key: str, name: str | None, ttl: i
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     run(os.environ["SOFTEVO_HEARTBEAT_REDIS"], sys.argv[1], int(sys.argv[2]))
