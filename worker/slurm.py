@@ -8,11 +8,11 @@ shell reach it:
   to the worker, which takes no new job and finishes the one it runs (RQ's warm shutdown),
   then exits. At the limit itself (and on ``scancel`` or preemption) SLURM sends SIGTERM to
   every process of the task, then SIGKILL ``KillWait`` seconds later: the worker finishes
-  its job if it can (a simulation in progress is not interrupted), else it dies, its heartbeat stops, and the coordinator's registry cleanup puts
-  the job back in the queue within the heartbeat's ttl. The heartbeat process ignores
-  SIGTERM (``rq_worker.start_heartbeat``), so that a worker finishing its job never looks
-  dead. Nothing is lost: evaluations are deterministic, so a job run again gives the same
-  result.
+  its job if it can (a simulation in progress is not interrupted), else it dies, its
+  heartbeat stops, and the coordinator's registry cleanup puts the job back in the queue
+  within the heartbeat's ttl. The heartbeat process ignores SIGTERM
+  (``rq_worker.start_heartbeat``), so that a worker finishing its job never looks dead.
+  Nothing is lost: evaluations are deterministic, so a job run again gives the same result.
 - ``--requeue``: a worker preempted (``PreemptMode=REQUEUE``) or whose node failed is
   started again by SLURM; each start has a worker name of its own
   (``slurm-<job>_<task>``, ``-r<n>`` after the n-th restart), since RQ refuses a name that
