@@ -13,7 +13,7 @@ import typer
 
 from softevo.errors import UserError
 from softevo.service.cli.options import device_option, engine_option, redis_url_option
-from softevo.service.settings import Settings
+from softevo.service.settings import Settings, variable
 from softevo.worker.slurm import DRAIN, OUTPUT
 
 
@@ -153,7 +153,7 @@ def slurm_workers(
         return
     if not settings.redis_url:
         raise UserError("softevo slurm-workers needs a Redis URL: set SOFTEVO_REDIS_URL or --redis-url")
-    job = submit(script, {**os.environ, "SOFTEVO_REDIS_URL": settings.redis_url})
+    job = submit(script, {**os.environ, variable("redis_url"): settings.redis_url})
     typer.echo(job)
     typer.echo(f"submitted {array} worker(s) as SLURM job array {job} on queue {settings.queue}", err=True)
 
