@@ -233,13 +233,21 @@ class Settings(BaseSettings):
         return hashlib.sha1(text.encode()).hexdigest()[:12]
 
 
+def variable(name: str) -> str:
+    """The environment variable of setting ``name`` (``redis_url`` -> ``SOFTEVO_REDIS_URL``),
+    for a command that hands a setting on to processes it starts (``softevo slurm-workers``)."""
+    if name not in Settings.model_fields:
+        raise KeyError(f"no setting {name!r}")
+    return f"SOFTEVO_{name.upper()}"
+
+
 def settings_table() -> str:
     """The Markdown table of every setting (docs/cluster.md, "Settings")."""
     lines = ["| variable | used by | meaning | default |", "| --- | --- | --- | --- |"]
     for name, info in Settings.model_fields.items():
         extra = info.json_schema_extra or {}
         default = extra.get("default_text") or ("unset" if info.default is None else _plain(info.default))
-        lines.append(f"| `SOFTEVO_{name.upper()}` | {extra['used_by']} | {info.description} | {default} |")
+        lines.append(f"| `{variable(name)}` | {extra['used_by']} | {info.description} | {default} |")
     return "\n".join(lines) + "\n"
 
 

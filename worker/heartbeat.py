@@ -19,6 +19,11 @@ machine goes, the entries expire ``ttl`` seconds after the last beat.
     SOFTEVO_HEARTBEAT_REDIS=redis://... python -m softevo.worker.heartbeat QUEUE TTL_SECONDS
 
 (the URL travels in the environment, not on the command line where ``ps`` shows it).
+
+SIGTERM and SIGINT are ignored (the worker starts this process so: ``rq_worker.start_heartbeat``):
+they are meant for the worker, but reach this process too when they go to all of the
+worker's processes (Ctrl-C in a terminal, ``scancel`` or a time limit under SLURM). This
+process ends with the worker's pipe.
 """
 
 from __future__ import annotations

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -260,14 +261,29 @@ def default_name() -> str:
     return f"{socket.gethostname()}-{os.getpid()}"
 
 
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)  # a worker's stop signals; its heartbeat ignores them
+
+
 def start_heartbeat(redis_url: str, queue: str, ttl: int) -> subprocess.Popen:
-    """The companion heartbeat process (see ``worker.heartbeat``), fed names on its stdin."""
-    return subprocess.Popen(
-        [sys.executable, "-m", "softevo.worker.heartbeat", queue, str(ttl)],
-        stdin=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "SOFTEVO_HEARTBEAT_REDIS": redis_url},
-    )
+    """The companion heartbeat process (see ``worker.heartbeat``), fed names on its stdin.
+
+    It ignores SIGTERM and SIGINT from its first instruction on (an ignored signal stays
+    ignored across fork and exec, so they are ignored here while it starts): those signals
+    reach every process of the worker at once (Ctrl-C, ``scancel``, a SLURM time limit), and a
+    heartbeat dead of them, even while it imports, would leave the worker's job looking alive
+    for the job timeout, or a worker finishing its job looking dead. It ends with the
+    worker's pipe."""
+    previous = {number: signal.signal(number, signal.SIG_IGN) for number in STOP_SIGNALS}
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-m", "softevo.worker.heartbeat", queue, str(ttl)],
+            stdin=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "SOFTEVO_HEARTBEAT_REDIS": redis_url},
+        )
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def _announce(heartbeat: subprocess.Popen, name: str) -> None:
@@ -345,12 +361,12 @@ def run_worker(
     within ``connect_timeout`` seconds of the start."""
     logging.basicConfig(level=logging_level, format="%(asctime)s %(name)s %(message)s")
     wait_for_redis(redis_url, connect_timeout)
-    seconds = warm(threads)
-    log.info("simulator ready in %.1f s (%d numba thread(s))", seconds, threads)
-    heartbeat = start_heartbeat(redis_url, queue, heartbeat_ttl)
+    heartbeat = start_heartbeat(redis_url, queue, heartbeat_ttl)  # it starts while the simulator warms
     base = worker_name = name or default_name()
     restarts, delay = 0, 1.0
     try:
+        seconds = warm(threads)
+        log.info("simulator ready in %.1f s (%d numba thread(s))", seconds, threads)
         while True:
             worker = None
             try:

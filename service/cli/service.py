@@ -1,4 +1,5 @@
-"""``softevo serve`` (REST API + coordinator) and ``softevo worker`` (RQ worker).
+"""``softevo serve`` (REST API + coordinator), ``softevo worker`` (RQ worker) and
+``softevo slurm-workers`` (workers as a SLURM job array).
 
 Both read their settings from ``SOFTEVO_*`` environment variables (``service.settings``);
 the options below override them for one invocation.
@@ -12,7 +13,8 @@ import typer
 
 from softevo.errors import UserError
 from softevo.service.cli.options import device_option, engine_option, redis_url_option
-from softevo.service.settings import Settings
+from softevo.service.settings import Settings, variable
+from softevo.worker.slurm import DRAIN, OUTPUT
 
 
 def serve(
@@ -105,7 +107,59 @@ def worker(
     )
 
 
+def slurm_workers(
+    array: Annotated[int, typer.Option("--array", help="workers: array tasks of one worker each")],
+    redis_url: redis_url_option("default $SOFTEVO_REDIS_URL; travels in the job's environment") = None,
+    queue: Annotated[str | None, typer.Option("--queue", help="default $SOFTEVO_QUEUE")] = None,
+    time: Annotated[
+        str | None, typer.Option("--time", help="each worker's time limit (sbatch --time, 30:00, 1-12)")
+    ] = None,
+    drain: Annotated[
+        int, typer.Option("--drain", help="seconds before the time limit that a worker stops taking jobs")
+    ] = DRAIN,
+    partition: Annotated[str | None, typer.Option("--partition", help="sbatch --partition")] = None,
+    threads: Annotated[int, typer.Option("--threads", help="numba threads (and CPUs) per worker")] = 1,
+    output: Annotated[str, typer.Option("--output", help="sbatch's log file pattern")] = OUTPUT,
+    sbatch: Annotated[
+        list[str] | None, typer.Option("--sbatch", help="one more sbatch option (--sbatch=--account=abc)")
+    ] = None,
+    show: Annotated[bool, typer.Option("--print", help="print the sbatch script; submit nothing")] = False,
+) -> None:
+    """Start workers as a SLURM job array (sbatch) against the coordinator's Redis.
+
+    Prints the array's job id (scancel JOB_TASK stops one worker; its job goes back to the
+    queue). Each worker drains on the SIGTERM that SLURM sends --drain seconds before the
+    time limit (docs/cluster.md, "SLURM").
+    """
+    import os
+
+    from softevo.worker.slurm import WorkerArray, batch_script, submit
+
+    settings = Settings.load(redis_url=redis_url, queue=queue)
+    script = batch_script(
+        WorkerArray(
+            workers=array,
+            queue=settings.queue,
+            threads=threads,
+            time=time,
+            drain=drain,
+            partition=partition,
+            output=output,
+            sbatch=tuple(sbatch or ()),
+        )
+    )
+    if show:
+        typer.echo(script, nl=False)
+        return
+    if not settings.redis_url:
+        raise UserError("softevo slurm-workers needs a Redis URL: set SOFTEVO_REDIS_URL or --redis-url")
+    job = submit(script, {**os.environ, variable("redis_url"): settings.redis_url})
+    typer.echo(job)
+    typer.echo(f"submitted {array} worker(s) as SLURM job array {job} on queue {settings.queue}", err=True)
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``serve`` and ``worker`` to ``app``."""
+    """Add ``serve``, ``worker`` and ``slurm-workers`` to ``app``."""
     for command in (serve, worker):
         app.command(name=command.__name__)(command)
+    app.command(name="slurm-workers")(slurm_workers)

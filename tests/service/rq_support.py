@@ -43,26 +43,30 @@ def wait_for(condition: Callable[[], object], timeout: float, what: str, every: 
 
 
 class RedisServer:
-    """A private ``redis-server`` (persistence off) that a test may stop and start again."""
+    """A private ``redis-server`` (persistence off) that a test may stop and start again;
+    with ``password``, one that refuses clients without it (``requirepass``)."""
 
-    def __init__(self) -> None:
+    def __init__(self, password: str | None = None) -> None:
         binary = shutil.which("redis-server")
         if binary is None:
             pytest.skip("redis-server is not installed")
         self.binary = binary
         self.port = free_port()
         self.dir = tempfile.mkdtemp(prefix="softevo-redis-")
+        self.password = password
         self.process: subprocess.Popen | None = None
         self.start()
 
     @property
     def url(self) -> str:
-        return f"redis://127.0.0.1:{self.port}/0"
+        secret = f":{self.password}@" if self.password else ""
+        return f"redis://{secret}127.0.0.1:{self.port}/0"
 
     def start(self) -> None:
+        secret = ["--requirepass", self.password] if self.password else []
         self.process = subprocess.Popen(
             [self.binary, "--bind", "127.0.0.1", "--port", str(self.port), "--save", "",
-             "--appendonly", "no", "--dir", self.dir],
+             "--appendonly", "no", "--dir", self.dir, *secret],
             stdout=subprocess.DEVNULL,
         )  # fmt: skip
         wait_for(lambda: Redis.from_url(self.url).ping(), 10, "redis-server to start")
