@@ -1,9 +1,18 @@
 """The ask/tell algorithm (``Evolution``) and the algorithms it runs: each a registered
 ``Algorithm`` composed of operators (``evolution.operators``), as pymoo composes its own:
 the objectives it adds to the run's, its survival and its variations. ``pareto`` (the
-paper's plain Pareto optimisation) and ``afpo`` (Age-Fitness Pareto Optimisation) are two
+paper's plain Pareto optimisation), ``afpo`` (Age-Fitness Pareto Optimisation) and
+``map-elites`` (MAP-Elites over the run's grid of traits, ``EvolutionConfig.grid``) are three
 registrations; a new algorithm is one more (``register``; ``names()`` lists them). A run's
 ``EvolutionConfig.mode`` names its algorithm.
+
+``map-elites`` (docs/algorithm.md): its survival keeps the elites of a pyribs ``GridArchive``
+fed survivors and offspring in id order (``operators.archive_survival``), so its population
+is the archive, however many cells are filled; its variation makes ``population_size``
+children of parents drawn uniformly from the elites (``operators.uniform_mutants``). Each
+candidate's measures are its traits as storage records them (``Individual.trait_values``),
+so the archive after each generation is ``archive.elites`` replayed over the stored
+evaluations (``archive.current``).
 
 A generation:
 1. every survivor's age grows by one;

@@ -30,7 +30,8 @@ after generation g is thus ``elites`` of the evaluations of generations 0 .. g *
 g's world* (``current``): for a run in one world, all of them.
 
 ``grid_of(treatment)`` is the grid of a treatment's options ``measures``, ``cells`` and
-``measure_bounds`` (``evolution.options``). ``summary(grid, elites)`` is the JSON of ``softevo archive`` and ``GET /runs/{id}/archive``.
+``measure_bounds`` (``evolution.options``). ``summary(grid, elites)`` is the JSON of
+``softevo archive`` and ``GET /runs/{id}/archive``.
 The QD score is the sum over elites of their distance less ``QD_OFFSET`` (pyribs'
 ``qd_score`` with ``qd_score_offset``), coverage the share of cells filled.
 """

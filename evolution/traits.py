@@ -76,7 +76,8 @@ BUILT_IN = (
     Trait("frequency", "frequency (Hz)", column=True, header="freq", bounds=FREQUENCY_BOUNDS),
     Trait("symmetry", "symmetry index", column=True, header="symm", bounds=(0.0, 1.0)),
     Trait("branching", "branching index", column=True, header="branch", bounds=(0.0, 1.0)),
-    Trait("shape_entropy", "shape entropy (bits)", column=True, header="entropy", bounds=SHAPE_ENTROPY_BOUNDS),
+    Trait("shape_entropy", "shape entropy (bits)", column=True, header="entropy",
+          bounds=SHAPE_ENTROPY_BOUNDS),
 )
 _REGISTRY: Registry[Trait] = Registry("trait", BUILT_IN)
 unregister, get, names, all_traits = _REGISTRY.unregister, _REGISTRY.get, _REGISTRY.names, _REGISTRY.records

@@ -22,7 +22,9 @@ The algorithm and the physics: ``algorithm`` is ``pareto`` (the paper's plain 3-
 Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
 ``evolution.algorithm``) or ``afpo`` (Age-Fitness Pareto, a named variant: the remedy the paper
 names for its algorithm's loss of diversity), or any algorithm registered since
-(``evolution.algorithm.register``); ``model`` is the physics model of every
+(``evolution.algorithm.register``), such as ``map-elites`` (MAP-Elites over the grid of
+``measures``, ``cells`` and ``measure_bounds``: ``grid()``, ``evolution.archive.grid_of``; the
+other algorithms take these options' defaults only); ``model`` is the physics model of every
 evaluation's scene (``sim.models.names()``: ``voxelyze-2``, or ``voxcad-land-water``, the
 paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
 encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-logistic`` (the

