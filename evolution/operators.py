@@ -106,9 +106,9 @@ def archive_survival(candidates: Candidates, size: int, rng: np.random.Generator
     grid (``add_single``: a row takes an empty cell, or a held one when strictly farther:
     ``evolution.archive.elites``'s rule); the rows kept are its elites, however many (the
     population size is the batch's). A row with a distance or measure that is not finite
-    goes in no cell. Measures are clipped to their bounds first: the cell is the same
-    (pyribs clips the index), and a far value cannot overflow pyribs' 32-bit index. Draws
-    nothing."""
+    goes in no cell. Measures are clipped to one grid's width beyond their bounds first: the
+    cell is the same (pyribs clips the index), and a far value cannot overflow pyribs'
+    32-bit index. Draws nothing."""
     from ribs.archives import GridArchive  # pyribs loads numba and scikit-learn: when first used
 
     grid, measures = candidates.grid, candidates.measures
@@ -118,6 +118,7 @@ def archive_survival(candidates: Candidates, size: int, rng: np.random.Generator
                           qd_score_offset=QD_OFFSET)
     distances = -candidates.column("distance")  # minimisation form back to the distance
     low, high = np.array(grid.bounds, dtype=float).T
+    low, high = low - (high - low), high + (high - low)
     for row, (distance, values) in enumerate(zip(distances, measures, strict=True)):
         if np.isfinite(distance) and np.all(np.isfinite(values)):
             archive.add_single([row], distance, np.clip(values, low, high))
@@ -138,7 +139,6 @@ def random_newcomers(count: int) -> Variation:
 
     newcomers.__name__ = f"random_newcomers({count})"
     return newcomers
-
 
 
 def uniform_mutants(breeder: Breeder, parents: Sequence[Individual]) -> list[Individual]:

@@ -81,7 +81,7 @@ def test_truncation_keeps_the_best_valid_rows_by_id():
 
 def test_a_registered_toy_runs_its_operators_through_the_one_evaluation():
     with register_toy():
-        assert algorithm.names() == ("afpo", "pareto", NAME)
+        assert algorithm.names() == ("afpo", "pareto", "map-elites", NAME)
         algo = Evolution(config(mode=NAME))
         algo.tell(evaluations(algo, algo.ask()))
         for _ in range(3):
