@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[3]
 # land for generations 0-1, water from 2: the archive starts afresh in water
 MAP_ELITES = Treatment("land-water", 0.1, name="tiny map-elites", algorithm="map-elites", population=5,
                        generations=4, switch_at=2, workspace=(4, 4, 4), cycles=2, seed=11,
-                       measures=("frequency", "branching"), cells=(4, 4))
+                       measures=("frequency", "voxel_count"), cells=(4, 4))
 
 
 def stored_archives(engine, run_id: int, treatment: Treatment = MAP_ELITES) -> dict[int, list[tuple]]:
