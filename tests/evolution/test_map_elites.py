@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from ribs.archives import GridArchive
 
+import softevo
 from softevo.errors import UserError
 from softevo.evolution import Evolution, algorithm, archive, options, traits
 from softevo.evolution.archive import EPSILON, Candidate, Grid, current, elites, grid_of
@@ -249,3 +250,14 @@ def test_a_wrong_grid_is_one_line(changes, message):
     with pytest.raises(UserError) as caught:
         Treatment("land", 1.0, **{"algorithm": "map-elites", **changes})
     assert str(caught.value).startswith(message) and "\n" not in str(caught.value)
+
+
+def test_softevo_evolve_runs_map_elites():
+    local = softevo.evolve("land", 1.0, population=3, generations=3, workspace=(3, 3, 3), cycles=1, seed=2,
+                           algorithm="map-elites", measures=("frequency", "voxel_count"), cells=(3, 9))
+    config = local.evolution.config
+    assert config.mode == "map-elites" and config.grid == Grid(("frequency", "voxel_count"),
+                                                                ((0.0, 5.0), (1.0, 27.0)), (3, 9))
+    assert local.evolution.next_id == 3 * 3  # a batch of the population size each generation
+    with pytest.raises(UserError, match="cells: one count per measure"):
+        softevo.evolve("land", 1.0, algorithm="map-elites", cells=(4,))
