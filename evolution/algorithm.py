@@ -1,9 +1,18 @@
 """The ask/tell algorithm (``Evolution``) and the algorithms it runs: each a registered
 ``Algorithm`` composed of operators (``evolution.operators``), as pymoo composes its own:
 the objectives it adds to the run's, its survival and its variations. ``pareto`` (the
-paper's plain Pareto optimisation) and ``afpo`` (Age-Fitness Pareto Optimisation) are two
+paper's plain Pareto optimisation), ``afpo`` (Age-Fitness Pareto Optimisation) and
+``map-elites`` (MAP-Elites over the run's grid of traits, ``EvolutionConfig.grid``) are three
 registrations; a new algorithm is one more (``register``; ``names()`` lists them). A run's
 ``EvolutionConfig.mode`` names its algorithm.
+
+``map-elites`` (docs/algorithm.md): its survival keeps the elites of a pyribs ``GridArchive``
+fed survivors and offspring in id order (``operators.archive_survival``), so its population
+is the archive, however many cells are filled; its variation makes ``population_size``
+children of parents drawn uniformly from the elites (``operators.uniform_mutants``). Each
+candidate's measures are its traits as storage records them (``Individual.trait_values``),
+so the archive after each generation is ``archive.elites`` replayed over the stored
+evaluations (``archive.current``).
 
 A generation:
 1. every survivor's age grows by one;
@@ -59,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from softevo.evolution.archive import Grid
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import (
     EncodingConfig,
@@ -71,10 +81,12 @@ from softevo.evolution.operators import (
     Candidates,
     Survival,
     Variation,
+    archive_survival,
     evosoro_survival,
     mutate_each,
     nsga2_survival,
     random_newcomers,
+    uniform_mutants,
 )
 from softevo.evolution.outcome import Outcome
 from softevo.evolution.selection import (
@@ -96,14 +108,17 @@ class Algorithm:
     population size), ``variations`` (each makes part of a generation's new individuals
     from the survivors, their offspring joined in order), ``objectives`` it adds to the
     run's for selection (AFPO's ``age``, the one objective given at selection rather than
-    computed; one with a value function is computed for each evaluation as the run's are)
-    and a one-line ``description``."""
+    computed; one with a value function is computed for each evaluation as the run's are),
+    ``archive`` (its survival keeps a MAP-Elites archive over the run's grid,
+    ``EvolutionConfig.grid``: its candidates carry their measures) and a one-line
+    ``description``."""
 
     name: str
     survival: Survival
     variations: tuple[Variation, ...] = (mutate_each,)
     objectives: tuple[Objective, ...] = ()
     description: str = ""
+    archive: bool = False
 
 
 AFPO = Algorithm(
@@ -113,7 +128,12 @@ PARETO = Algorithm(
     "pareto", evosoro_survival, (mutate_each,), (),
     "the paper's: evosoro's Pareto selection over the objectives, mutation only")
 
-ALGORITHMS: Registry[Algorithm] = Registry("algorithm", (AFPO, PARETO))
+MAP_ELITES = Algorithm(
+    "map-elites", archive_survival, (uniform_mutants,), (),
+    "MAP-Elites: the farthest robot of each cell of a grid of traits, parents drawn uniformly from them",
+    archive=True)
+
+ALGORITHMS: Registry[Algorithm] = Registry("algorithm", (AFPO, PARETO, MAP_ELITES))
 """The algorithms a run may name (``EvolutionConfig.mode``, a treatment's ``algorithm``)."""
 register, unregister, get = ALGORITHMS.register, ALGORITHMS.unregister, ALGORITHMS.get
 
@@ -137,7 +157,9 @@ class EvolutionConfig:
     starting world; ``encoding`` develops the genomes the algorithm breeds); descriptors:
     compute shape descriptors at each tell (off where the evaluator computes them, as the
     workers do); objectives: what selection optimises (``selection.Objective``s; the
-    algorithm may add its own: ``afpo`` adds age); mode: the registered algorithm's name.
+    algorithm may add its own: ``afpo`` adds age); mode: the registered algorithm's name;
+    grid: the MAP-Elites grid (``evolution.archive.Grid``) of an algorithm with an archive
+    (``Algorithm.archive``), None for the others.
     """
 
     population_size: int = PAPER_POPULATION
@@ -146,6 +168,7 @@ class EvolutionConfig:
     evaluation: EvaluationSpec = field(default_factory=EvaluationSpec)
     objectives: tuple[Objective, ...] = PAPER_OBJECTIVES
     descriptors: bool = True
+    grid: Grid | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in ALGORITHMS:
@@ -158,6 +181,14 @@ class EvolutionConfig:
         resolved = tuple(o if o.value is not None else objective_named(o.name, o.direction)
                          for o in self.objectives)
         object.__setattr__(self, "objectives", resolved)
+        if self.algorithm.archive:
+            if self.grid is None:
+                raise ValueError(f"algorithm {self.mode} keeps an archive: it needs a grid")
+            if "distance" not in [o.name for o in resolved]:
+                raise ValueError(f"algorithm {self.mode} keeps the farthest robots: distance must be an "
+                                 "objective")
+        elif self.grid is not None:
+            raise ValueError(f"algorithm {self.mode} keeps no archive: it takes no grid")
 
     @property
     def encoding(self) -> EncodingConfig:
@@ -181,8 +212,9 @@ class EvolutionConfig:
         return tuple(o for o in self.selection_objectives if o.value is not None)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain JSON: the evaluation as its dict, each objective as [name, direction]."""
-        return {
+        """Plain JSON: the evaluation as its dict, each objective as [name, direction], the
+        grid (where there is one) as ``Grid.to_json``."""
+        data = {
             "population_size": self.population_size,
             "mode": self.mode,
             "seed": self.seed,
@@ -190,6 +222,9 @@ class EvolutionConfig:
             "objectives": [[o.name, o.direction] for o in self.objectives],
             "descriptors": self.descriptors,
         }
+        if self.grid is not None:
+            data["grid"] = self.grid.to_json()
+        return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> EvolutionConfig:
@@ -214,6 +249,10 @@ class EvolutionConfig:
             })
         if "objectives" in data:
             data["objectives"] = tuple(objective_named(n, d) for n, d in data["objectives"])
+        if data.get("grid") is not None:
+            grid = data["grid"]
+            data["grid"] = Grid(tuple(grid["measures"]), tuple(tuple(pair) for pair in grid["bounds"]),
+                                tuple(grid["cells"]))
         return cls(**data)
 
 
@@ -287,6 +326,12 @@ class Evolution:
         return self.started and not self.pending
 
     # ---- internals -------------------------------------------------------------------------
+    @property
+    def batch_size(self) -> int:
+        """How many new individuals a variation that breeds batches makes (``uniform_mutants``):
+        the population size."""
+        return self.config.population_size
+
     def _new_id(self) -> int:
         self.next_id += 1
         return self.next_id - 1
@@ -374,9 +419,22 @@ class Evolution:
         order = np.argsort([ind.id for ind in combined], kind="stable")
         ages = np.array([ind.age for ind in combined])
         candidates = Candidates(F[order], self.config.selection_objectives, ages[order], valid[order])
+        grid = self.config.grid
+        if self.config.algorithm.archive and grid is not None:
+            candidates = candidates._replace(grid=grid, measures=self._measures(combined)[order])
         kept = self.config.algorithm.survival(candidates, self.config.population_size, self.rng)
         self.population = [combined[i] for i in order[kept]]
         self.pending = []
+
+    def _measures(self, individuals: Sequence[Individual]) -> np.ndarray:
+        """(n, k) float: each individual's values of the grid's k measures, as storage records
+        them (``Individual.trait_values``), NaN where it has none."""
+        names = self.config.grid.measures
+        rows = []
+        for ind in individuals:
+            values = ind.trait_values(self.config.encoding, names)
+            rows.append([np.nan if values.get(name) is None else float(values[name]) for name in names])
+        return np.array(rows, dtype=float).reshape(len(individuals), len(names))
 
     # ---- state -----------------------------------------------------------------------------
     def state_to_dict(self) -> dict[str, Any]:

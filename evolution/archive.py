@@ -16,7 +16,22 @@ generation g is therefore ``elites`` of the evaluations of generations 0 .. g, w
 storage, the command line, REST and the report compute it from the stored evaluations: the
 archive needs no table of its own, and a resumed run's archive is its evaluations'.
 
-``summary(grid, elites)`` is the JSON of ``softevo archive`` and ``GET /runs/{id}/archive``.
+The order is the one the algorithm inserts in (``evolution.operators.archive_survival``):
+by generation, then within a generation by the individual's run-local id (``local_id`` of
+the stored individuals and evaluations), ascending; a generation's evaluations are its
+individuals in the order they were bred, which is their ids' order. Failed evaluations are
+candidates like the others (their distance is 0); one without a value for some measure (an
+empty body has no descriptors) falls in no cell.
+
+A world left behind leaves its archive behind: at a transition's switch (and at each
+generation of a gradual switch-over: ``evolution.treatments``) the elites are evaluated
+again in the new world and the archive starts afresh from those evaluations. The archive
+after generation g is thus ``elites`` of the evaluations of generations 0 .. g *in generation
+g's world* (``current``): for a run in one world, all of them.
+
+``grid_of(treatment)`` is the grid of a treatment's options ``measures``, ``cells`` and
+``measure_bounds`` (``evolution.options``). ``summary(grid, elites)`` is the JSON of
+``softevo archive`` and ``GET /runs/{id}/archive``.
 The QD score is the sum over elites of their distance less ``QD_OFFSET`` (pyribs'
 ``qd_score`` with ``qd_score_offset``), coverage the share of cells filled.
 """
@@ -28,8 +43,11 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from softevo.evolution import traits
+
 EPSILON = 1e-6  # pyribs' GridArchive default
 QD_OFFSET = 0.0  # distances are displacements >= 0: the QD score is the sum of the elites'
+MAX_CELLS = 10_000  # the most cells a treatment's grid may have (its elites are the population)
 
 
 @dataclass(frozen=True)
@@ -148,3 +166,59 @@ def summary(grid: Grid, archive: Mapping[tuple[int, ...], Elite]) -> dict[str, A
     ordered = sorted(archive.values(), key=lambda elite: grid.index(elite.cell))
     return {**grid.to_json(), "coverage": coverage(grid, archive), "qd_score": qd_score(archive),
             "filled": len(archive), "elites": [elite.to_json(grid) for elite in ordered]}
+
+
+def current(candidates: Iterable[Candidate], world_of: Mapping[int, str], generation: int
+            ) -> list[Candidate]:
+    """The candidates of generations 0 .. ``generation`` evaluated in ``generation``'s world,
+    in insertion order (generation, then individual): those the archive after
+    ``generation`` is made of. ``world_of`` maps each candidate's generation to its world
+    (the stored evaluations' ``environment``)."""
+    world = world_of[generation]
+    kept = [c for c in candidates if c.generation <= generation and world_of[c.generation] == world]
+    return sorted(kept, key=lambda c: (c.generation, c.individual))
+
+
+def grid_of(treatment: Any) -> Grid:
+    """The grid of a treatment's ``measures`` (registered traits), ``cells`` (one count per
+    measure) and ``measure_bounds`` (low, high per measure, flattened; none: each trait's
+    ``bounds``, ``voxel_count``'s 1 .. the workspace's volume). ValueError, in one line, for
+    a measure that is not a registered trait or has no bounds, counts that do not match,
+    bounds with low >= high or more than ``MAX_CELLS`` cells."""
+    measures = tuple(treatment.measures)
+    cells = tuple(int(count) for count in treatment.cells)
+    given = tuple(float(value) for value in (treatment.measure_bounds or ()))
+    if not measures:
+        raise ValueError("measures: name at least one trait")
+    if len(set(measures)) != len(measures):
+        raise ValueError(f"measures: each trait once (got {', '.join(measures)})")
+    unknown = [name for name in measures if name not in traits.names()]
+    if unknown:
+        raise ValueError(f"measures: {', '.join(unknown)} is no registered trait; choose among "
+                         f"{', '.join(traits.names())}")
+    if len(cells) != len(measures):
+        raise ValueError(f"cells: one count per measure ({len(measures)}: {', '.join(measures)}; "
+                         f"got {len(cells)})")
+    if given and len(given) != 2 * len(measures):
+        raise ValueError(f"measure_bounds: low,high for each of the {len(measures)} measures "
+                         f"({2 * len(measures)} numbers; got {len(given)})")
+    bounds = []
+    for k, name in enumerate(measures):
+        pair = given[2 * k: 2 * k + 2] if given else _bounds_of(name, treatment)
+        if pair is None:
+            raise ValueError(f"measure {name} has no bounds of its own: give measure_bounds")
+        if not (math.isfinite(pair[0]) and math.isfinite(pair[1]) and pair[0] < pair[1]):
+            raise ValueError(f"measure_bounds of {name} must be finite with low < high "
+                             f"(got {pair[0]:g},{pair[1]:g})")
+        bounds.append((float(pair[0]), float(pair[1])))
+    if math.prod(cells) > MAX_CELLS:
+        raise ValueError(f"cells: at most {MAX_CELLS:,} in all (got {'x'.join(map(str, cells))} = "
+                         f"{math.prod(cells):,})")
+    return Grid(measures, tuple(bounds), cells)
+
+
+def _bounds_of(name: str, treatment: Any) -> tuple[float, float] | None:
+    """A measure's own bounds: its trait's, ``voxel_count``'s from the treatment's workspace."""
+    if name == "voxel_count":
+        return 1.0, float(max(2, math.prod(treatment.workspace)))
+    return traits.get(name).bounds

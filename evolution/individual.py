@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,6 +58,24 @@ class Individual:
         breeding judged it) for ``phenotype`` to return; returns it."""
         self._developed = (self.genome, encoding, phenotype)
         return phenotype
+
+    def trait_values(self, encoding: EncodingConfig, names: Sequence[str] | None = None) -> dict[str, Any]:
+        """The evaluated individual's traits (``evolution.traits``) as storage records them:
+        a built-in one (a column of its own) from its objectives, else its body's active share
+        and voxel count, else its descriptors; a registered one computed from its phenotype
+        (``traits.computed``, as ``runner.tell_generation`` adds them to the descriptors;
+        only when ``names``, if given, asks for one), else its descriptors. A trait without
+        a value is None or absent."""
+        from softevo.evolution import traits
+
+        phenotype = self.phenotype(encoding)
+        values: dict[str, Any] = {**(self.descriptors or {})}
+        wanted = traits.registered() if names is None else set(traits.registered()) & set(names)
+        if wanted:
+            values.update(traits.computed(phenotype))
+        values.update({"active_share": phenotype.active_share, "voxel_count": float(phenotype.voxel_count),
+                       **(self.objectives or {})})
+        return values
 
     def clear_evaluation(self) -> None:
         self.objectives = self.descriptors = self.environment = None

@@ -36,7 +36,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from softevo.errors import UserError
-from softevo.evolution import algorithm, environments, genotype, selection
+from softevo.evolution import algorithm, environments, genotype, selection, traits
+from softevo.evolution.archive import MAX_CELLS
 from softevo.sim import models
 from softevo.sim.registry import Registry
 from softevo.sim.scene import DEFAULT_CYCLES, MAX_SIDE
@@ -260,6 +261,18 @@ def _body_rules() -> tuple[str, ...]:
     return tuple(genotype.BODY_RULES)
 
 
+MAX_MEASURES = 6  # the most traits a MAP-Elites grid spans
+MAX_CELLS_ASKED = 1_000  # the most cells per measure a request may ask
+
+
+def _traits_named(names: Sequence[str]) -> None:
+    """ValueError for a name that is no registered trait (``evolution.traits``)."""
+    unknown = [name for name in names if name not in traits.names()]
+    if unknown:
+        raise ValueError(f"{', '.join(unknown)} is no registered trait; choose among "
+                         f"{', '.join(traits.names())}")
+
+
 def _include_distance(names: Sequence[str]) -> None:
     """ValueError for objectives without distance (naming first a name that is no registered
     objective, ``evolution.selection``). Names are not checked otherwise here: settings stored
@@ -318,10 +331,18 @@ BUILT_IN = (
            help="generations of each run"),
     Option("algorithm", "search", str, "afpo", choices=algorithm.names, paper="pareto", methods=False,
            help="pareto: the paper's plain 3-objective Pareto optimisation (mutation only); afpo: "
-           "Age-Fitness Pareto, a named variant (age objective, one random newcomer a generation)"),
+           "Age-Fitness Pareto, a named variant (age objective, one random newcomer a generation); "
+           "map-elites: MAP-Elites over the grid of measures and cells (the farthest robot of each cell)"),
     Option("objectives", "search", str, (), many=16, check=_include_distance, methods=False,
            help="names of the objectives selection optimises, each a registered one, distance among "
            "them (evolution.selection; none: the paper's distance, active_share, voxel_count)"),
+    Option("measures", "search", str, ("frequency", "branching"), many=MAX_MEASURES, check=_traits_named,
+           methods=False, help="map-elites: the registered traits whose grid the archive covers "
+           "(evolution.traits)"),
+    Option("cells", "search", int, (6, 6), many=MAX_MEASURES, least=1, most=MAX_CELLS, limit=MAX_CELLS_ASKED,
+           methods=False, help="map-elites: cells per measure"),
+    Option("measure_bounds", "search", float, (), many=2 * MAX_MEASURES, methods=False,
+           help="map-elites: LO,HI of each measure in turn (none: each trait's own bounds)"),
     Option("seed", "seeds", int, 0, least=0, limit=MAX_INT32 - 1000, methods=False,
            help="repetition r runs with seed + r"),
     Option("repetitions", "seeds", int, 1, least=1, limit=1000, methods=False,

@@ -22,6 +22,16 @@ which changes with the world, does not). ``integer`` (a count), ``required`` (ev
 evaluation has a value, a failed one its worst) and ``header`` (a short column title for
 tables) say how storage, REST and the command line show it: the built-in columns and the
 REST fields of a trait are generated from these records, never written out again.
+
+``bounds`` (low, high), where a trait has a range of its own, make it a MAP-Elites measure
+without bounds given (``evolution.archive.grid_of``): ``active_share``, ``symmetry`` and
+``branching`` 0..1 (shares and an index in [0, 1]); ``shape_entropy`` 0..log2(10) bits (a
+surface vertex's angle defect is (4 - n) pi/2 for the n = 3 .. 12 exposed squares around it:
+at most ten bins, ``evolution.descriptors``); ``frequency`` 0..5 Hz, the range of every
+bounded control mapping (``linear``: 1..5 Hz by default; the evosoro mappings read through the
+logistic or clipped: 0..4 Hz; an unbounded mapping's faster robots fall in the top cell).
+``voxel_count``'s range is the treatment's workspace (1 .. its volume): ``grid_of`` gives it
+from there; ``distance``, the fitness, has none.
 """
 
 from __future__ import annotations
@@ -31,7 +41,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from softevo.evolution.genotype import EVOSORO_MAX_FREQUENCY, EncodingConfig
 from softevo.sim.registry import Registry
+
+FREQUENCY_BOUNDS = (0.0, max(EncodingConfig().frequency_range[1], EVOSORO_MAX_FREQUENCY))  # Hz
+SHAPE_ENTROPY_BOUNDS = (0.0, math.log2(10))  # bits: at most ten curvature bins (module doc)
 
 
 @dataclass(frozen=True)
@@ -47,6 +61,7 @@ class Trait:
     integer: bool = False
     required: bool = False
     header: str = ""
+    bounds: tuple[float, float] | None = None
 
     @property
     def title(self) -> str:
@@ -56,12 +71,13 @@ class Trait:
 
 BUILT_IN = (
     Trait("distance", "distance (voxel lengths)", along_lines=False, column=True, required=True),
-    Trait("active_share", "active share", column=True, required=True, header="active"),
+    Trait("active_share", "active share", column=True, required=True, header="active", bounds=(0.0, 1.0)),
     Trait("voxel_count", "voxel count", column=True, integer=True, required=True, header="voxels"),
-    Trait("frequency", "frequency (Hz)", column=True, header="freq"),
-    Trait("symmetry", "symmetry index", column=True, header="symm"),
-    Trait("branching", "branching index", column=True, header="branch"),
-    Trait("shape_entropy", "shape entropy (bits)", column=True, header="entropy"),
+    Trait("frequency", "frequency (Hz)", column=True, header="freq", bounds=FREQUENCY_BOUNDS),
+    Trait("symmetry", "symmetry index", column=True, header="symm", bounds=(0.0, 1.0)),
+    Trait("branching", "branching index", column=True, header="branch", bounds=(0.0, 1.0)),
+    Trait("shape_entropy", "shape entropy (bits)", column=True, header="entropy",
+          bounds=SHAPE_ENTROPY_BOUNDS),
 )
 _REGISTRY: Registry[Trait] = Registry("trait", BUILT_IN)
 unregister, get, names, all_traits = _REGISTRY.unregister, _REGISTRY.get, _REGISTRY.names, _REGISTRY.records
@@ -75,7 +91,17 @@ def register(trait: Trait) -> Trait:
     if trait.compute is None or trait.column or trait.required:
         raise ValueError("a registered trait computes itself from the phenotype, has no column and may "
                          "have no value")
+    if trait.bounds is not None and not _proper(trait.bounds):
+        raise ValueError(f"trait {trait.name!r}: bounds must be two finite numbers low < high")
     return _REGISTRY.register(trait)
+
+
+def _proper(bounds: tuple[float, float]) -> bool:
+    try:
+        low, high = (float(value) for value in bounds)
+    except (TypeError, ValueError):
+        return False
+    return math.isfinite(low) and math.isfinite(high) and low < high
 
 
 def columns() -> tuple[str, ...]:

@@ -22,7 +22,9 @@ The algorithm and the physics: ``algorithm`` is ``pareto`` (the paper's plain 3-
 Pareto optimisation, mutation only: evosoro's ``ParetoOptimization``, see
 ``evolution.algorithm``) or ``afpo`` (Age-Fitness Pareto, a named variant: the remedy the paper
 names for its algorithm's loss of diversity), or any algorithm registered since
-(``evolution.algorithm.register``); ``model`` is the physics model of every
+(``evolution.algorithm.register``), such as ``map-elites`` (MAP-Elites over the grid of
+``measures``, ``cells`` and ``measure_bounds``: ``grid()``, ``evolution.archive.grid_of``; the
+other algorithms take these options' defaults only); ``model`` is the physics model of every
 evaluation's scene (``sim.models.names()``: ``voxelyze-2``, or ``voxcad-land-water``, the
 paper's own engine, whose ``distance`` is the 3-D displacement in both worlds). The
 encoding's paper choices (``evolution.genotype``): ``control_mapping`` ``evosoro-logistic`` (the
@@ -61,6 +63,8 @@ from typing import Any
 from softevo.errors import UserError
 from softevo.evolution import environments, options
 from softevo.evolution.algorithm import EvolutionConfig
+from softevo.evolution.algorithm import get as algorithm_of
+from softevo.evolution.archive import Grid, grid_of
 from softevo.evolution.evaluation import EvaluationSpec
 from softevo.evolution.genotype import EVOSORO_MAPPINGS, EncodingConfig
 from softevo.evolution.options import PARTS, STIFFNESS_RANGE_MPA
@@ -166,6 +170,28 @@ class Treatment:
             raise UserError(f"control_mapping {self.control_mapping} gives one frequency per robot: "
                             "it cannot be combined with frequency_per_voxel")
         self._validate_switch()
+        self._validate_grid()
+
+    def _validate_grid(self) -> None:
+        """A MAP-Elites grid (``measures``, ``cells``, ``measure_bounds``) for an algorithm with
+        an archive (``evolution.archive.grid_of``); the others take the defaults only."""
+        grid_options = ("measures", "cells", "measure_bounds")
+        if not algorithm_of(self.algorithm).archive:
+            changed = [name for name in grid_options if getattr(self, name) != options.option(name).default]
+            if changed:
+                raise UserError(f"{', '.join(changed)}: only an algorithm with an archive takes a grid "
+                                f"(map-elites; got algorithm {self.algorithm})")
+            return
+        try:
+            grid_of(self)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+
+    def grid(self) -> Grid | None:
+        """The MAP-Elites grid of the treatment's runs (``evolution.archive.grid_of``), or None
+        for an algorithm without an archive."""
+        return grid_of(self) if algorithm_of(self.algorithm).archive else None
+
     def _validate_switch(self) -> None:
         over = self.switch_over
         if isinstance(over, bool) or not isinstance(over, int) or over < 0:
@@ -233,6 +259,7 @@ class Treatment:
             evaluation=self.evaluation,
             descriptors=False,
             objectives=self.objective_list(),
+            grid=self.grid(),
         )
 
     def switch_generation(self) -> int | None:

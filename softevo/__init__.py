@@ -83,6 +83,9 @@ def evolve(
     switch_over: int = 0,
     objectives: tuple[str, ...] = (),
     algorithm: str | None = None,
+    measures: tuple[str, ...] | None = None,
+    cells: tuple[int, ...] | None = None,
+    measure_bounds: tuple[float, ...] | None = None,
     progress: bool = False,
 ):
     """A local run in memory (no database) of the treatment ``softevo run`` would store:
@@ -92,8 +95,10 @@ def evolve(
     ``stiffness_mpa``, for ``generations`` generations (0 .. generations - 1), selecting on
     ``objectives`` (names of registered objectives, ``evolution.selection.OBJECTIVES``; empty:
     the paper's), with ``algorithm`` (a registered one, ``evolution.algorithm.names()``;
-    default AFPO). Unset sizes are the quick start's (``evolution.treatments.QUICK_START``:
-    land, 1 MPa, 8 robots of 5x5x5 for 8 generations of 4 cycles).
+    default AFPO; ``map-elites`` over the grid of ``measures``, ``cells`` and
+    ``measure_bounds``, docs/algorithm.md). Unset sizes are the quick start's
+    (``evolution.treatments.QUICK_START``: land, 1 MPa, 8 robots of 5x5x5 for 8 generations of
+    4 cycles).
 
     It asks, evaluates and tells as ``softevo run`` does: the tasks go through the workers'
     job function (``worker.evaluate.evaluate_generation``: each genome's failure its own,
@@ -113,7 +118,10 @@ def evolve(
              "generations": generations, "workspace": workspace, "cycles": cycles}
     sizes = {key: QUICK_START[key] if value is None else value for key, value in given.items()}
     sizes["workspace"] = tuple(sizes["workspace"])
-    chosen = {} if algorithm is None else {"algorithm": algorithm}
+    grid = {"measures": measures, "cells": cells, "measure_bounds": measure_bounds}
+    chosen = {key: tuple(value) for key, value in grid.items() if value is not None}
+    if algorithm is not None:
+        chosen["algorithm"] = algorithm
     treatment = Treatment(**sizes, seed=seed, switch_at=switch_at, switch_over=switch_over,
                           objectives=tuple(objectives), **chosen)
     history: list[dict[str, Any]] = []

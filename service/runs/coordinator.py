@@ -223,9 +223,10 @@ def _objectives_with_body(run: ActiveRun, ind) -> dict[str, float]:
 
 def _trait_columns(run: ActiveRun, ind) -> dict[str, Any]:
     """{name: value} of each trait with a column of its own (``evolution.traits``): from the
-    objectives (``_objectives_with_body``), else from the descriptors; a count as an int,
-    a trait every evaluation has (``required``) KeyError when missing, never None."""
-    measured = {**(ind.descriptors or {}), **_objectives_with_body(run, ind)}
+    objectives, else the body, else the descriptors (``Individual.trait_values``, which the
+    MAP-Elites archive reads too); a count as an int, a trait every evaluation has
+    (``required``) KeyError when missing, never None."""
+    measured = ind.trait_values(run.algorithm.config.encoding, traits.columns())
     values: dict[str, Any] = {}
     for trait in traits.column_traits():
         value = measured[trait.name] if trait.required else measured.get(trait.name)

@@ -52,13 +52,13 @@ def test_afpo_and_pareto_run_as_before_they_were_records(name):
     assert state_digest(mode, schedule) == BEFORE[name]
 
 
-def test_the_built_in_algorithms_are_two_registrations_of_operators():
-    assert algorithm.names() == ("afpo", "pareto")
+def test_the_built_in_algorithms_are_registrations_of_operators():
+    assert algorithm.names() == ("afpo", "pareto", "map-elites")
     afpo, pareto = algorithm.get("afpo"), algorithm.get("pareto")
     assert afpo.objectives == (AGE_OBJECTIVE,) and pareto.objectives == ()
     assert len(afpo.variations) == 2 and len(pareto.variations) == 1
     assert EvolutionConfig(mode="afpo").selection_objectives == PAPER_OBJECTIVES + (AGE_OBJECTIVE,)
-    with pytest.raises(ValueError, match="mode must be one of \\('afpo', 'pareto'\\)"):
+    with pytest.raises(ValueError, match="mode must be one of \\('afpo', 'pareto', 'map-elites'\\)"):
         EvolutionConfig(mode="toy")
     with pytest.raises(ValueError, match="algorithm 'afpo' is built in"):
         algorithm.unregister("afpo")
@@ -81,7 +81,7 @@ def test_truncation_keeps_the_best_valid_rows_by_id():
 
 def test_a_registered_toy_runs_its_operators_through_the_one_evaluation():
     with register_toy():
-        assert algorithm.names() == ("afpo", "pareto", NAME)
+        assert algorithm.names() == ("afpo", "pareto", "map-elites", NAME)
         algo = Evolution(config(mode=NAME))
         algo.tell(evaluations(algo, algo.ask()))
         for _ in range(3):

@@ -34,12 +34,12 @@ def stored(url: str) -> tuple[list[str], list[tuple[str, int]]]:
 
 
 def test_the_rest_schema_offers_an_algorithm_once_it_is_registered():
-    with pytest.raises(ValidationError, match="must be one of afpo, pareto"):
+    with pytest.raises(ValidationError, match="must be one of afpo, pareto, map-elites"):
         TreatmentIn(**SMALL, algorithm=NAME)
     with register_toy():
         assert TreatmentIn(**SMALL, algorithm=NAME).algorithm == NAME
         enum = TreatmentIn.model_json_schema()["properties"]["algorithm"]["enum"]
-        assert enum == ["afpo", "pareto", NAME]
+        assert enum == ["afpo", "pareto", "map-elites", NAME]
 
 
 def test_softevo_run_runs_a_plugins_algorithm(tmp_path):
@@ -52,7 +52,7 @@ def test_softevo_run_runs_a_plugins_algorithm(tmp_path):
     assert algorithms == [NAME] and [status for status, _ in runs] == ["finished"]
     unknown = softevo_process(*options, cwd=REPO)  # the plugin not loaded: one line, status 2
     assert unknown.returncode == 2 and unknown.stderr.count("\n") == 1
-    assert "unknown algorithm 'toy'; choose one of afpo, pareto" in unknown.stderr
+    assert "unknown algorithm 'toy'; choose one of afpo, pareto, map-elites" in unknown.stderr
 
 
 @pytest.mark.slow
