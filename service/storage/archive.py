@@ -18,9 +18,10 @@ their own).
 ``history`` gives the coverage and QD score of the same world's archive after each stored
 generation ``0 .. g`` (zero before the run first evaluated there).
 
-The grid comes from the run's stored treatment settings (``grid_from_settings``): the
-``map-elites`` options ``measures``, ``cells`` and ``measure_bounds`` where stored, else the
-defaults below, so that the archive of a run of any algorithm can be drawn.
+The grid comes from the run's stored treatment settings (``grid_from_settings``: the
+treatment's ``evolution.archive.grid_of``): the ``map-elites`` options ``measures``, ``cells``
+and ``measure_bounds`` where stored, else their declared defaults, so that the archive of a run
+of any algorithm can be drawn.
 """
 
 from __future__ import annotations
@@ -31,42 +32,20 @@ from typing import Any
 from sqlalchemy import Connection, func, select
 
 from softevo.errors import UserError
-from softevo.evolution.archive import Candidate, Grid, coverage, elites, qd_score, summary
+from softevo.evolution.archive import Candidate, Grid, coverage, elites, grid_of, qd_score, summary
+from softevo.evolution.treatments import Treatment
 from softevo.service.storage.models import EvaluationRow, GenerationRow, RunRow, TreatmentRow
 from softevo.service.storage.rows import finite
 from softevo.service.storage.trait_sql import trait_values
 
-DEFAULT_MEASURES = ("frequency", "branching")
-DEFAULT_CELLS = (6, 6)
-# the bounds of a measure whose run stores none: frequency spans the linear mapping's default
-# 1-5 Hz and the paper mapping's (0, 4) Hz; the indices are shares in [0, 1]
-DEFAULT_BOUNDS = {
-    "frequency": (0.0, 5.0),
-    "branching": (0.0, 1.0),
-    "symmetry": (0.0, 1.0),
-    "active_share": (0.0, 1.0),
-}
 
-
-def grid_from_settings(
-    settings: Mapping[str, Any], bounds: Mapping[str, tuple[float, float]] = DEFAULT_BOUNDS
-) -> Grid:
-    """The grid of a run's stored treatment ``settings``: its ``measures``, ``cells`` and
-    ``measure_bounds`` (flattened low, high per measure), each absent one its default
-    (``DEFAULT_MEASURES``, six cells per measure, ``bounds`` by measure). UserError for a
-    measure without bounds or a grid that does not fit together."""
-    measures = tuple(settings.get("measures") or DEFAULT_MEASURES)
-    cells = tuple(int(count) for count in settings.get("cells") or (DEFAULT_CELLS[0],) * len(measures))
-    flat = settings.get("measure_bounds")
-    if flat:
-        pairs = tuple((float(flat[k]), float(flat[k + 1])) for k in range(0, len(flat) - 1, 2))
-    else:
-        missing = [name for name in measures if name not in bounds]
-        if missing:
-            raise UserError(f"no bounds for measure(s) {', '.join(missing)}: the run stores none")
-        pairs = tuple(bounds[name] for name in measures)
+def grid_from_settings(settings: Mapping[str, Any]) -> Grid:
+    """The grid of a run's stored treatment ``settings`` (``evolution.archive.grid_of`` of the
+    treatment they describe: the ``map-elites`` options where stored, else their defaults,
+    so that the archive of a run of any algorithm can be drawn). UserError for settings that
+    do not make a grid."""
     try:
-        return Grid(measures, pairs, cells)
+        return grid_of(Treatment.from_settings(dict(settings)))
     except ValueError as exc:
         raise UserError(f"the run's archive grid: {exc}") from exc
 

@@ -116,16 +116,18 @@ def test_bad_input_is_one_line(served, capsys, args, query, message):
 
 def test_the_grid_is_the_stored_settings_or_the_defaults():
     from softevo.errors import UserError
+    from softevo.evolution import traits
     from softevo.service.storage.archive import grid_from_settings
 
-    plain = grid_from_settings(tinyrun.TINY.to_settings())  # an afpo run: no map-elites options
-    assert plain.measures == ("frequency", "branching") and plain.cells == (6, 6)
-    assert plain.bounds == ((0, 5), (0, 1))
-    stored = grid_from_settings({"measures": ["symmetry", "voxel_count", "frequency"], "cells": [2, 3, 4],
+    plain = tinyrun.TINY.to_settings()  # an afpo run: the map-elites options' defaults
+    for settings in (plain, {k: v for k, v in plain.items() if k not in ("measures", "cells")}):
+        grid = grid_from_settings(settings)
+        assert grid.measures == ("frequency", "branching") and grid.cells == (6, 6)
+        assert grid.bounds == (traits.get("frequency").bounds, traits.get("branching").bounds)
+    stored = grid_from_settings({**plain, "algorithm": "map-elites",
+                                 "measures": ["symmetry", "voxel_count", "frequency"], "cells": [2, 3, 4],
                                  "measure_bounds": [0, 1, 0, 64, 1, 5]})
     assert stored.measures == ("symmetry", "voxel_count", "frequency") and stored.cells == (2, 3, 4)
     assert stored.bounds == ((0, 1), (0, 64), (1, 5))
-    with pytest.raises(UserError, match="no bounds for measure.s. voxel_count"):
-        grid_from_settings({"measures": ["frequency", "voxel_count"]})
     with pytest.raises(UserError, match="low < high"):
-        grid_from_settings({"measure_bounds": [5, 0, 0, 1]})
+        grid_from_settings({**plain, "algorithm": "map-elites", "measure_bounds": [5, 0, 0, 1]})
