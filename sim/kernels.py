@@ -18,7 +18,8 @@ takes frames and centre-of-mass samples (``sample``) and stops at the first fail
 - ``mesh_vertices``, ``mesh_drag`` (water, the paper's engine's model): drag on the
   triangles of the deformed surface mesh; otherwise ``voxel_update`` puts the drag on each
   voxel's exposed faces;
-- ``voxel_update``, one pass over the voxels (``voxel_update_kernel``), each voxel in turn:
+- ``voxel_update``, one branch-free SIMD pass over the voxels (``voxel_update_kernel``; a second
+  pass gives the few voxels that turn past the quaternion series their exact rotation):
   - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
     quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
   - floor contact: on land, normal force k_floor pen - c_coll v_z for pen = s/2 - z >= 0,
