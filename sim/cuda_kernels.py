@@ -100,6 +100,7 @@ contacts_stale, travel_after, widen = phys.contacts_stale, phys.travel_after, ph
 nan_min, nan_max, displacement_spread = phys.nan_min, phys.nan_max, phys.displacement_spread
 facet_force, voxel_corner = phys.facet_force, phys.voxel_corner
 voxel_update_of, voxel_world, centre_of_mass = phys.voxel_update, phys.voxel_world, phys.centre_of_mass
+voxel_turn = phys.voxel_turn
 frame_due, com_due, step_status = phys.frame_due, phys.com_due, phys.step_status
 # the array-reading pieces both engines share (``sim.substeps``)
 sub = substeps.compiled(device, phys)
@@ -474,23 +475,24 @@ def voxel_update(world, t, nt, n, FL, VC, exposed, ext, ST, pos, quat, lm, am, s
     voxels; flag[1] set if one left the sane range."""
     fastest = 0.0
     sane_all = True
+    dt = world[0]
     for v in range(t, n, nt):
-        if FL[v] & FLAG_FIXED:
-            lm[3 * v], lm[3 * v + 1], lm[3 * v + 2] = 0.0, 0.0, 0.0
-            am[3 * v], am[3 * v + 1], am[3 * v + 2] = 0.0, 0.0, 0.0
-            continue
         c0 = v * N_VCONST
-        (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2,
-         sane) = voxel_update_of(
+        (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane,
+         turn) = voxel_update_of(
             world, (VC[c0 + V_MASS], VC[c0 + V_INV_MASS], VC[c0 + V_INV_INERTIA],
                     VC[c0 + V_CGLIN], VC[c0 + V_CGANG], VC[c0 + V_KFLOOR],
-                    VC[c0 + V_CCOLL]), exposed[v], size[v],
+                    VC[c0 + V_CCOLL]), exposed[v], size[v], FL[v] & FLAG_FIXED != 0,
             force[3 * v] + ext[3 * v], force[3 * v + 1] + ext[3 * v + 1],
             force[3 * v + 2] + ext[3 * v + 2], moment[3 * v], moment[3 * v + 1],
             moment[3 * v + 2], pos[3 * v], pos[3 * v + 1], pos[3 * v + 2],
             quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3],
             lm[3 * v], lm[3 * v + 1], lm[3 * v + 2], am[3 * v], am[3 * v + 1],
             am[3 * v + 2], ST[v] != 0)
+        if turn:  # past the series: the exact rotation (``physics.voxel_turn``)
+            qw, qx, qy, qz, sane_q = voxel_turn(VC[c0 + V_INV_INERTIA], dt, lx, ly, lz, qw, qx,
+                                                qy, qz)
+            sane = sane and sane_q
         ST[v] = 1 if still else 0
         pos[3 * v], pos[3 * v + 1], pos[3 * v + 2] = x, y, z
         quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3] = qw, qx, qy, qz

@@ -18,7 +18,8 @@ takes frames and centre-of-mass samples (``sample``) and stops at the first fail
 - ``mesh_vertices``, ``mesh_drag`` (water, the paper's engine's model): drag on the
   triangles of the deformed surface mesh; otherwise ``voxel_update`` puts the drag on each
   voxel's exposed faces;
-- ``voxel_update``, one pass over the voxels (``voxel_update_kernel``), each voxel in turn:
+- ``voxel_update``, one branch-free SIMD pass over the voxels (``voxel_update_kernel``; a second
+  pass gives the few voxels that turn past the quaternion series their exact rotation):
   - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
     quadratic drag -0.5 rho C_d s^2 v_n^2 n on exposed faces moving outward (v_n > 0);
   - floor contact: on land, normal force k_floor pen - c_coll v_z for pen = s/2 - z >= 0,
@@ -135,6 +136,10 @@ llvmlite.binding.set_option("softevo", "-vectorize-memory-check-threshold=1024")
 # form where its cost model says so (issue 47: float64 code measured unchanged, the mixed
 # quadruped about 6% faster). Process-wide, like the setting above.
 llvmlite.binding.set_option("softevo", "-vectorizer-maximize-bandwidth")
+# The voxel update's vector loop (``voxel_pass``) reads and writes some 30 strided locations,
+# each needing a runtime check that its offsets do not wrap: more than LLVM's default budget
+# of 16 such assumptions. Process-wide, like the settings above.
+llvmlite.binding.set_option("softevo", "-vectorize-scev-check-threshold=256")
 
 
 @intrinsic
@@ -197,6 +202,7 @@ def by_precision(name):
 
 dot3, qmul, qrot, rotvec = _phys.dot3, _phys.qmul, _phys.qrot, _phys.rotvec
 quat_from_rotvec, rotation_matrix = _phys.quat_from_rotvec, _phys.rotation_matrix
+quat_from_small_rotvec, voxel_turn = _phys.quat_from_small_rotvec, _phys.voxel_turn
 actuation, voxel_size = _phys.actuation, _phys.voxel_size
 link_geometry_of, link_frame = by_precision("link_geometry"), by_precision("link_frame")
 reframe, link_response = by_precision("reframe"), by_precision("link_response")
@@ -660,18 +666,24 @@ def mesh_vertices_kernel(mesh_vert, nbr, L, pos, quat, size, vert_pos, corners):
 
 
 @njit(**JIT)
-def mesh_drag_kernel(drag, mesh_face, lin_mom, vconst, vert_pos, facet_force, force):
+def mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, facet_force, force):
     """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
     surface mesh (vertices ``vert_pos``: ``mesh_vertices_kernel``) moving into the fluid,
     -``drag`` A (v.n)^2 n, A its area, n its unit normal and v the velocity of the voxel
-    whose face it covers (``physics.facet_force``; ``drag`` = 0.5 rho C_d). Each triangle's
-    drag into ``facet_force``, then those added to their voxels' forces in triangle order."""
+    whose face it covers (``physics.facet_force``; ``drag`` = 0.5 rho C_d; ``inv_mass``: each
+    voxel's 1 / m). Each triangle's drag into ``facet_force`` (one branch-free loop over the
+    triangles, its reads gathers on flat views with unsigned offsets: SIMD), then those added
+    to their voxels' forces in triangle order."""
+    U = np.uint64
+    T, V, LM, FF = mesh_face.reshape(-1), vert_pos.reshape(-1), lin_mom.reshape(-1), facet_force.reshape(-1)
     for t in range(len(mesh_face)):
-        a, b, c, v = mesh_face[t, 0], mesh_face[t, 1], mesh_face[t, 2], mesh_face[t, 3]
-        (facet_force[t, 0], facet_force[t, 1], facet_force[t, 2]) = facet_force_of(
-            drag, vert_pos[a, 0], vert_pos[a, 1], vert_pos[a, 2], vert_pos[b, 0],
-            vert_pos[b, 1], vert_pos[b, 2], vert_pos[c, 0], vert_pos[c, 1], vert_pos[c, 2],
-            lin_mom[v, 0], lin_mom[v, 1], lin_mom[v, 2], vconst[v, V_INV_MASS])
+        k = U(4) * U(t)
+        a, b, c, v = U(3) * U(T[k]), U(3) * U(T[k + U(1)]), U(3) * U(T[k + U(2)]), U(T[k + U(3)])
+        f = U(3) * U(t)
+        FF[f], FF[f + U(1)], FF[f + U(2)] = facet_force_of(
+            drag, V[a], V[a + U(1)], V[a + U(2)], V[b], V[b + U(1)], V[b + U(2)], V[c],
+            V[c + U(1)], V[c + U(2)], LM[U(3) * v], LM[U(3) * v + U(1)], LM[U(3) * v + U(2)],
+            inv_mass[v])
     for t in range(len(mesh_face)):
         v = mesh_face[t, 3]
         force[v, 0] += facet_force[t, 0]
@@ -680,11 +692,78 @@ def mesh_drag_kernel(drag, mesh_face, lin_mom, vconst, vert_pos, facet_force, fo
 
 
 # ---------------------------------------------------------------- voxels
+@intrinsic
+def bits_of(typingctx, x):
+    """The float64 x's bits as an int64: for x >= 0 (or NaN) in the same order as x, so that
+    a loop's largest value is an integer maximum, which LLVM vectorizes (a float maximum it
+    vectorizes only with 'nnan', which ``FASTMATH`` leaves out)."""
+    if x != types.float64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], llvmlite.ir.IntType(64))
+
+    return types.int64(types.float64), codegen
+
+
+@intrinsic
+def float_of(typingctx, b):
+    """The float64 whose bits are the int64 b (``bits_of``'s inverse)."""
+    if b != types.int64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], llvmlite.ir.DoubleType())
+
+    return types.float64(types.int64), codegen
+
+
+@njit(**INLINE)
+def voxel_pass(world, flags, ext_force, exposed, vcols, pos, quat, lin_mom, ang_mom, size,
+               force, moment, static, contact):
+    """``voxel_update_kernel``'s pass over the voxels for one ``world`` (its switches
+    constants: each caller's loop has only its world's code, and no branch, so LLVM
+    vectorizes it). Returns the bits of the largest squared speed (``bits_of``), whether
+    every voxel stayed sane and how many turned past the series (``physics.voxel_update``)."""
+    U = np.uint64
+    n = U(len(flags))
+    P, Q, LM, AM = pos.reshape(-1), quat.reshape(-1), lin_mom.reshape(-1), ang_mom.reshape(-1)
+    F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vcols.reshape(-1)
+    X, Y, Z = U(0), U(1), U(2)  # a vector's components
+    QW, QX, QY, QZ = U(0), U(1), U(2), U(3)  # a quaternion's, stored (w, x, y, z)
+    insane = 0  # integer reductions: LLVM vectorizes those
+    fastest = 0  # bits of the largest squared speed (>= 0)
+    turns = 0
+    for v in range(len(flags)):
+        a, q, c = U(3) * U(v), U(4) * U(v), U(v)
+        (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane,
+         turn) = voxel_update_of(
+            world, (VC[c + U(V_MASS) * n], VC[c + U(V_INV_MASS) * n],
+                    VC[c + U(V_INV_INERTIA) * n], VC[c + U(V_CGLIN) * n],
+                    VC[c + U(V_CGANG) * n], VC[c + U(V_KFLOOR) * n], VC[c + U(V_CCOLL) * n]),
+            exposed[c], size[c], flags[c] & FLAG_FIXED != 0,
+            F[a + X] + E[a + X], F[a + Y] + E[a + Y], F[a + Z] + E[a + Z],
+            M[a + X], M[a + Y], M[a + Z], P[a + X], P[a + Y], P[a + Z],
+            Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ], LM[a + X], LM[a + Y], LM[a + Z],
+            AM[a + X], AM[a + Y], AM[a + Z], static[c])
+        static[c] = still
+        contact[c] = touch
+        LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
+        P[a + X], P[a + Y], P[a + Z] = x, y, z
+        AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
+        Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ] = qw, qx, qy, qz
+        speed_bits = bits_of(v2)
+        fastest = speed_bits if speed_bits > fastest else fastest
+        insane += 0 if sane else 1
+        turns += 1 if turn else 0
+    return fastest, insane == 0, turns
+
+
 @njit(**JIT)
-def voxel_update_kernel(p, flags, ext_force, exposed, vconst, pos, quat, lin_mom, ang_mom, size,
+def voxel_update_kernel(p, flags, ext_force, exposed, vcols, pos, quat, lin_mom, ang_mom, size,
                         force, moment, static, contact):
-    """Everything that acts on one voxel alone, then its step, in one pass over the voxels
-    (each voxel's state is read once into locals and written once):
+    """Everything that acts on one voxel alone, then its step (each voxel's state is read
+    once into locals and written once):
 
     - world forces: gravity, global damping and, in water, drag, added to the links' and
       collisions' force and moment (each voxel's own mass and damping);
@@ -697,44 +776,44 @@ def voxel_update_kernel(p, flags, ext_force, exposed, vconst, pos, quat, lin_mom
       a sliding voxel in floor contact sticks when friction would reverse it (work-energy), and
       a static one keeps no horizontal momentum.
 
-    Each voxel's update is ``physics.voxel_update``. Fixed voxels feel nothing and keep zero
-    momenta. ``force``/``moment`` hold the link and collision terms (the world forces are
-    added to them in registers); ``exposed``: each voxel's exposed faces (bits, for the drag
-    in water: ``system.exposed_faces``); ``contact`` marks the voxels on the floor. Returns the
-    largest squared speed of a voxel after the step, or -1 if any voxel left the sane range
-    (or went NaN)."""
-    world = voxel_world(p)
-    ok = True
-    speed2 = 0.0
-    # flat views with unsigned offsets (no negative-index wrap-around to test per access)
-    U, nc = np.uint64, np.uint64(vconst.shape[1])
-    P, Q, LM, AM = pos.reshape(-1), quat.reshape(-1), lin_mom.reshape(-1), ang_mom.reshape(-1)
-    F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vconst.reshape(-1)
-    X, Y, Z = U(0), U(1), U(2)  # a vector's components
-    QW, QX, QY, QZ = U(0), U(1), U(2), U(3)  # a quaternion's, stored (w, x, y, z)
-    for v in range(len(flags)):
-        a, q, c = U(3) * U(v), U(4) * U(v), nc * U(v)
-        if flags[v] & FLAG_FIXED:
-            LM[a + X] = LM[a + Y] = LM[a + Z] = 0.0
-            AM[a + X] = AM[a + Y] = AM[a + Z] = 0.0
-            continue
-        x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane = voxel_update_of(
-            world, (VC[c + U(V_MASS)], VC[c + U(V_INV_MASS)], VC[c + U(V_INV_INERTIA)],
-                    VC[c + U(V_CGLIN)], VC[c + U(V_CGANG)], VC[c + U(V_KFLOOR)],
-                    VC[c + U(V_CCOLL)]), exposed[v], size[v],
-            F[a + X] + E[a + X], F[a + Y] + E[a + Y], F[a + Z] + E[a + Z],
-            M[a + X], M[a + Y], M[a + Z], P[a + X], P[a + Y], P[a + Z],
-            Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ], LM[a + X], LM[a + Y], LM[a + Z],
-            AM[a + X], AM[a + Y], AM[a + Z], static[v])
-        static[v] = still
-        contact[v] = touch
-        LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
-        P[a + X], P[a + Y], P[a + Z] = x, y, z
-        AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
-        Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ] = qw, qx, qy, qz
-        speed2 = max(speed2, v2)
-        ok = ok and sane
-    return speed2 if ok else -1.0
+    Each voxel's update is ``physics.voxel_update``, in one branch-free pass over the voxels
+    (``voxel_pass``, one loop per world: land with either friction rule, water, neither),
+    which LLVM compiles to SIMD; the few voxels whose rotation is past the series of that
+    pass (``physics.voxel_turn``) get their orientation in a second pass, only in the steps
+    that have any. Fixed voxels feel nothing and keep zero momenta. ``force``/``moment`` hold
+    the link and collision terms (the world forces are added to them in registers);
+    ``exposed``: each voxel's exposed faces (bits, for the drag in water:
+    ``system.exposed_faces``); ``vcols``: the voxels' constants by column (``Voxels.vcols``);
+    ``contact`` marks the voxels on the floor. Returns the largest squared speed of a voxel
+    after the step, or -1 if any voxel left the sane range (or went NaN)."""
+    dt, g, drag, water, land, mu_s, mu_k, fork, slide = voxel_world(p)
+    if land and fork:
+        fastest, ok, turns = voxel_pass(
+            (dt, g, drag, False, True, mu_s, mu_k, True, slide), flags, ext_force, exposed, vcols,
+            pos, quat, lin_mom, ang_mom, size, force, moment, static, contact)
+    elif land:
+        fastest, ok, turns = voxel_pass(
+            (dt, g, drag, False, True, mu_s, mu_k, False, slide), flags, ext_force, exposed, vcols,
+            pos, quat, lin_mom, ang_mom, size, force, moment, static, contact)
+    elif water:
+        fastest, ok, turns = voxel_pass(
+            (dt, g, drag, True, False, mu_s, mu_k, False, slide), flags, ext_force, exposed, vcols,
+            pos, quat, lin_mom, ang_mom, size, force, moment, static, contact)
+    else:
+        fastest, ok, turns = voxel_pass(
+            (dt, g, drag, False, False, mu_s, mu_k, False, slide), flags, ext_force, exposed, vcols,
+            pos, quat, lin_mom, ang_mom, size, force, moment, static, contact)
+    if turns:
+        inv_inertia = vcols[V_INV_INERTIA]
+        for v in range(len(flags)):
+            lx, ly, lz = ang_mom[v, 0], ang_mom[v, 1], ang_mom[v, 2]
+            step_i = inv_inertia[v] * dt
+            if not quat_from_small_rotvec(lx * step_i, ly * step_i, lz * step_i)[4]:
+                continue
+            quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3], sane = voxel_turn(
+                inv_inertia[v], dt, lx, ly, lz, quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
+            ok = ok and sane
+    return float_of(fastest) if ok else -1.0
 
 
 # ---------------------------------------------------------------- the step
@@ -750,6 +829,7 @@ class Voxels(NamedTuple):
     exposed: np.ndarray  # (n,) bit f set: face f exposed (``system.exposed_faces``)
     surface: np.ndarray  # (s,) voxels with an exposed face
     vconst: np.ndarray  # (n, N_VCONST) mass, damping, floor stiffness, frequency (V_*)
+    vcols: np.ndarray  # (N_VCONST, n) the same by column (``voxel_update_kernel``'s vectors)
     near: np.ndarray  # (n, k) voxels never in contact with each voxel (-1 pads)
     mesh_vert: np.ndarray  # (nv, 8) surface-mesh vertices: 8 voxel + corner (-1 pads)
     mesh_face: np.ndarray  # (nf, 4) surface-mesh triangles: 3 vertices and their voxel
@@ -849,7 +929,7 @@ def mesh_vertices(p, voxels, body, work):
 def mesh_drag(p, voxels, body, work):
     """The drag on the surface mesh's triangles (if on), added to ``work.force``."""
     if p.mesh_drag > 0.0:
-        mesh_drag_kernel(p.mesh_drag, voxels.mesh_face, body.lin_mom, voxels.vconst,
+        mesh_drag_kernel(p.mesh_drag, voxels.mesh_face, body.lin_mom, voxels.vcols[V_INV_MASS],
                          work.vert_pos, work.facet_force, work.force)
 
 
@@ -858,7 +938,7 @@ def voxel_update(p, voxels, body, work):
     """World forces, floor contact and the Euler step of every voxel (``voxel_update_kernel``);
     returns the largest squared speed or -1."""
     return voxel_update_kernel(p, voxels.flags, voxels.ext_force, voxels.exposed,
-                               voxels.vconst, body.pos, body.quat, body.lin_mom, body.ang_mom,
+                               voxels.vcols, body.pos, body.quat, body.lin_mom, body.ang_mom,
                                work.size, work.force, work.moment, work.static, work.contact)
 
 
@@ -920,6 +1000,7 @@ def take_robot(batch, state, r):
                     batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy(),
                     batch.phase[v0:v1].copy(), batch.nbr[v0:v1].copy(),
                     batch.exposed[v0:v1].copy(), batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy(),
+                    np.ascontiguousarray(batch.vconst[v0:v1].T),
                     batch.near[v0:v1].copy(),
                     batch.mesh_vert[batch.moff[r]:batch.moff[r + 1]].copy(),
                     batch.mesh_face[batch.foff[r]:batch.foff[r + 1]].copy())

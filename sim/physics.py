@@ -159,14 +159,27 @@ def rotvec_x0(w, y, z):
 
 def quat_from_rotvec(px, py, pz):
     """Unit quaternion of the rotation vector p (series when the angle is small)."""
+    c, qx, qy, qz, turn = quat_from_small_rotvec(px, py, pz)
+    if turn:
+        return quat_from_large_rotvec(px, py, pz)
+    return c, qx, qy, qz
+
+
+def quat_from_small_rotvec(px, py, pz):
+    """``quat_from_rotvec``'s series, without a branch (vector loops take it), and whether the
+    angle is too large for it (then ``quat_from_large_rotvec`` gives the quaternion)."""
     a2 = 0.25 * dot3(px, py, pz, px, py, pz)  # (half angle)^2
-    if a2 < 1e-2:
-        c = fma(-a2, fma(-a2, 1.0 / 24.0, 0.5), 1.0)
-        f = 0.5 * fma(-a2, fma(-a2, 1.0 / 120.0, 1.0 / 6.0), 1.0)
-    else:
-        h = math.sqrt(a2)
-        c = math.cos(h)
-        f = math.sin(h) / (2.0 * h)
+    c = fma(-a2, fma(-a2, 1.0 / 24.0, 0.5), 1.0)
+    f = 0.5 * fma(-a2, fma(-a2, 1.0 / 120.0, 1.0 / 6.0), 1.0)
+    return c, f * px, f * py, f * pz, not (a2 < 1e-2)
+
+
+def quat_from_large_rotvec(px, py, pz):
+    """Unit quaternion of the rotation vector p, exact (``quat_from_rotvec`` past its series)."""
+    a2 = 0.25 * dot3(px, py, pz, px, py, pz)
+    h = math.sqrt(a2)
+    c = math.cos(h)
+    f = math.sin(h) / (2.0 * h)
     return c, f * px, f * py, f * pz
 
 
@@ -498,11 +511,12 @@ def facet_drag(drag, pn, inv_m, nx, ny, nz):
     """The paper's engine's drag on one surface-mesh facet with N = (nx, ny, nz) = 2 A n
     (A its area, n its unit normal), moved by its voxel of momentum p (pn = p . N, inv_m
     that voxel's 1 / m): -drag A (v.n)^2 n = -drag/2 (p.N)^2 / (m^2 |N|^2) N when it moves
-    into the fluid (pn > 0), else zero (``drag`` = 0.5 rho C_d)."""
-    if pn > 0.0:
-        f = -0.5 * drag * (pn * inv_m) * (pn * inv_m) / (nx * nx + ny * ny + nz * nz)
-        return f * nx, f * ny, f * nz
-    return 0.0, 0.0, 0.0
+    into the fluid (pn > 0), else zero (``drag`` = 0.5 rho C_d). Without a branch (selects),
+    so that the CPU's loop over the facets runs as vectors."""
+    into = pn > 0.0
+    norm2 = nx * nx + ny * ny + nz * nz
+    f = -0.5 * drag * (pn * inv_m) * (pn * inv_m) / (norm2 if into else 1.0)
+    return f * nx if into else 0.0, f * ny if into else 0.0, f * nz if into else 0.0
 
 
 def facet_normal(ax, ay, az, bx, by, bz, cx, cy, cz):
@@ -617,35 +631,34 @@ def centre_of_mass(n, weights, stride, column, pos):
 def face_drag(fx, fy, fz, drag, exposed, qw, qx, qy, qz, vx, vy, vz, area):
     """The force (fx, fy, fz) plus the quadratic drag -0.5 rho C_d s^2 v_n^2 n (``drag`` =
     0.5 rho C_d) of each exposed face moving outward (v_n > 0); ``exposed`` has bit f set when
-    face f (ordered -x, +x, -y, +y, -z, +z) has no neighbour."""
+    face f (ordered -x, +x, -y, +y, -z, +z) has no neighbour. Without a branch: a face that
+    does not drag adds nothing (a select, so vector loops take it)."""
     for a in range(3):
         ex, ey, ez = qrot(qw, qx, qy, qz, 1.0 if a == 0 else 0.0, 1.0 if a == 1 else 0.0,
                           1.0 if a == 2 else 0.0)
         for side in range(2):
-            if not (exposed >> (2 * a + side)) & 1:
-                continue
             sgn = 1.0 if side == 1 else -1.0
             vn = sgn * (vx * ex + vy * ey + vz * ez)
-            if vn > 0.0:
-                f = -drag * area * vn * vn * sgn
-                fx += f * ex
-                fy += f * ey
-                fz += f * ez
+            f = -drag * area * vn * vn * sgn
+            on = ((exposed >> (2 * a + side)) & 1 != 0) & (vn > 0.0)
+            fx = fx + f * ex if on else fx
+            fy = fy + f * ey if on else fy
+            fz = fz + f * ez if on else fz
     return fx, fy, fz
 
 
 # ---------------------------------------------------------------- one voxel
-def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw, qx, qy, qz,
-                 px, py, pz, lx, ly, lz, static):
+def voxel_update(world, own, exposed, size, fixed, fx, fy, fz, mx, my, mz, x, y, z, qw, qx, qy,
+                 qz, px, py, pz, lx, ly, lz, static):
     """Everything that acts on one voxel alone, then its step.
 
     In: the step's constants ``world`` = (dt, gravity g, water drag, in water, on land,
     friction mu_s and mu_k, ``fork``: the paper's engine's friction rule, ``slide``: the
     speed below which a voxel counts as still), the voxel's constants ``own`` = (mass m,
     1 / m, 1 / I, global damping c_lin and c_ang, floor stiffness, collision damping), its
-    exposed faces (bits) and current size; the
-    force f (links, collisions and external, summed) and moment m of the links; its state
-    (position x, orientation q, momenta p and l) and whether static friction holds it.
+    exposed faces (bits), current size and whether it is fixed; the force f (links,
+    collisions and external, summed) and moment m of the links; its state (position x,
+    orientation q, momenta p and l) and whether static friction holds it.
 
     - world forces: gravity -m g z, global damping -c_lin v and -c_ang omega, in water the
       drag on its exposed faces (``face_drag``);
@@ -656,13 +669,21 @@ def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw,
       one stops dead when mu_k N dt would take all its momentum);
     - semi-implicit Euler: momenta first, then position and orientation from the new
       momenta; a sliding voxel in floor contact sticks when friction would reverse it
-      (work-energy), and a static one keeps no horizontal momentum.
+      (work-energy), and a static one keeps no horizontal momentum. A fixed voxel keeps its
+      place and orientation and has zero momenta.
 
     Returns the new state (x, q, p, l), static, whether it touches the floor, its squared
-    speed and whether it stayed in the sane range. (Calls
-    take at most 30 arguments: CPython passes more as a tuple, which numba cannot inline.)"""
+    speed, whether it stayed in the sane range, and ``turn``: whether its rotation this step
+    is past ``quat_from_small_rotvec``'s series. A voxel that turns keeps its orientation q
+    here; ``voxel_turn`` gives the new one (rare: a second pass over the voxels on the CPU).
+
+    Without a branch on a voxel's values (each choice a select between values computed
+    either way), so that the CPU's loop over the voxels runs as vectors; ``world``'s
+    switches are the same for every voxel. (Calls take at most 30 arguments: CPython passes
+    more as a tuple, which numba cannot inline.)"""
     dt, g, drag, water, land, mu_s, mu_k, fork, slide = world
     m, inv_m, inv_i, c_lin, c_ang, kfloor, ccoll = own
+    held_before = static
     vx, vy, vz = px * inv_m, py * inv_m, pz * inv_m
     fx = fma(-c_lin, vx, fx)
     fy = fma(-c_lin, vy, fy)
@@ -680,38 +701,32 @@ def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw,
     if land:
         pen = 0.5 * size - z
         touch = pen >= 0.0
-        if touch:
-            normal = kfloor * pen
-            fz += normal - ccoll * vz
-            if fork:  # the paper's engine (CalcFloorEffect)
-                if vx == 0.0 and vy == 0.0:  # at rest: held while the force is below mu_s N
-                    static = fx * fx + fy * fy < (mu_s * normal) ** 2
-                else:
-                    hv = math.sqrt(vx * vx + vy * vy)
-                    static = mu_k * normal * dt >= m * hv  # friction would stop it
-                    if static:
-                        px, py = 0.0, 0.0
-                    else:
-                        fx = fx - mu_k * normal * vx / hv
-                        fy = fy - mu_k * normal * vy / hv
-            elif static and fx * fx + fy * fy > (mu_s * normal) ** 2:
-                static = False
-            elif not static:
-                hv = math.sqrt(vx * vx + vy * vy)
-                if hv > slide:
-                    fx = fx - mu_k * normal * vx / hv
-                    fy = fy - mu_k * normal * vy / hv
+        normal = kfloor * pen
+        fz = fz + (normal - ccoll * vz) if touch else fz
+        hv = math.sqrt(vx * vx + vy * vy)
+        across = hv if hv > 0.0 else 1.0  # kinetic friction is only taken when hv > 0
+        kx = fx - mu_k * normal * vx / across  # with kinetic friction
+        ky = fy - mu_k * normal * vy / across
+        if fork:  # the paper's engine (CalcFloorEffect)
+            still = (vx == 0.0) & (vy == 0.0)  # at rest: held while the force is below mu_s N
+            held = fx * fx + fy * fy < (mu_s * normal) ** 2
+            stops = mu_k * normal * dt >= m * hv  # moving: friction would stop it
+            slides = touch & (not still) & (not stops)
+            static = touch & ((still & held) | ((not still) & stops))
         else:
-            static = False
+            slides = touch & (not static) & (hv > slide)
+            static = touch & static & (not (fx * fx + fy * fy > (mu_s * normal) ** 2))
+        fx = kx if slides else fx
+        fy = ky if slides else fy
 
     # semi-implicit Euler
     px, py, pz = fma(fx, dt, px), fma(fy, dt, py), fma(fz, dt, pz)
-    if touch:
-        work_ = (fx * px + fy * py) * inv_m * dt
-        if not fork and 0.5 * inv_m * (px * px + py * py) + work_ <= 0.0:
-            static = True
-        if static:
-            px, py = 0.0, 0.0
+    work_ = (fx * px + fy * py) * inv_m * dt
+    sticks = touch & (not fork) & (0.5 * inv_m * (px * px + py * py) + work_ <= 0.0)
+    static = static | sticks
+    px = 0.0 if (touch & static) | fixed else px
+    py = 0.0 if (touch & static) | fixed else py
+    pz = 0.0 if fixed else pz
     step_m = inv_m * dt
     x = fma(px, step_m, x)
     y = fma(py, step_m, y)
@@ -719,14 +734,37 @@ def voxel_update(world, own, exposed, size, fx, fy, fz, mx, my, mz, x, y, z, qw,
     speed2 = dot3(px, py, pz, px, py, pz) * (inv_m * inv_m)
 
     lx, ly, lz = fma(mx, dt, lx), fma(my, dt, ly), fma(mz, dt, lz)
+    lx = 0.0 if fixed else lx
+    ly = 0.0 if fixed else ly
+    lz = 0.0 if fixed else lz
     step_i = inv_i * dt
-    dw, dx, dy, dz = quat_from_rotvec(lx * step_i, ly * step_i, lz * step_i)
+    dw, dx, dy, dz, turn = quat_from_small_rotvec(lx * step_i, ly * step_i, lz * step_i)
+    nw, nx, ny, nz = turned(dw, dx, dy, dz, qw, qx, qy, qz)
+    keep = turn | fixed
+    qw, qx = qw if keep else nw, qx if keep else nx
+    qy, qz = qy if keep else ny, qz if keep else nz
+    static = held_before if fixed else static
+    touch = touch & (not fixed)
+    ok = ((abs(x) < POSITION_BOUND) & (abs(y) < POSITION_BOUND) & (abs(z) < POSITION_BOUND)
+          & (abs(qw) <= 1.0 + 1e-9))
+    return x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, static, touch, speed2, ok, turn
+
+
+def turned(dw, dx, dy, dz, qw, qx, qy, qz):
+    """The orientation q turned by the unit quaternion d, renormalised."""
     qw, qx, qy, qz = qmul(dw, dx, dy, dz, qw, qx, qy, qz)
     norm = 1.0 / math.sqrt(fma(qw, qw, dot3(qx, qy, qz, qx, qy, qz)))
-    qw, qx, qy, qz = qw * norm, qx * norm, qy * norm, qz * norm
-    ok = (abs(x) < POSITION_BOUND and abs(y) < POSITION_BOUND and abs(z) < POSITION_BOUND
-          and abs(qw) <= 1.0 + 1e-9)
-    return x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, static, touch, speed2, ok
+    return qw * norm, qx * norm, qy * norm, qz * norm
+
+
+def voxel_turn(inv_i, dt, lx, ly, lz, qw, qx, qy, qz):
+    """The new orientation of a voxel whose ``voxel_update`` said ``turn`` (its new angular
+    momentum l and its orientation q as that left them), exact, and whether it stayed in the
+    sane range."""
+    step_i = inv_i * dt
+    dw, dx, dy, dz = quat_from_large_rotvec(lx * step_i, ly * step_i, lz * step_i)
+    qw, qx, qy, qz = turned(dw, dx, dy, dz, qw, qx, qy, qz)
+    return qw, qx, qy, qz, abs(qw) <= 1.0 + 1e-9
 
 
 def voxel_world(p):
@@ -740,14 +778,15 @@ def voxel_world(p):
 # ---------------------------------------------------------------- targets
 PIECES = (
     "dot3", "qmul", "qrot", "angle_over_sin", "rotvec", "qmul_x0", "rotvec_x0",
-    "quat_from_rotvec", "rotation_matrix", "waveform", "actuated_size", "actuation", "voxel_size",
+    "quat_from_rotvec", "quat_from_small_rotvec", "quat_from_large_rotvec", "rotation_matrix",
+    "waveform", "actuated_size", "actuation", "voxel_size",
     "to_link", "from_link_matrix", "beam", "link_geometry", "small_frame", "large_frame",
     "frame_damping", "damped", "link_loads", "link_diverged", "rest_length", "link_frame",
     "frame_mode", "reframe", "link_response", "candidate_radius", "contact_overlap",
     "contacts_stale", "travel_after", "nan_min", "nan_max", "widen", "displacement_spread",
     "contact_push", "facet_drag", "facet_normal", "facet_force", "mesh_corner", "corner_point",
     "voxel_corner", "load_sum", "voxel_loads", "frame_due", "com_due", "step_status",
-    "centre_of_mass", "face_drag", "voxel_update", "voxel_world",
+    "centre_of_mass", "face_drag", "voxel_update", "turned", "voxel_turn", "voxel_world",
 )
 
 
