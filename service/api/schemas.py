@@ -216,8 +216,9 @@ class Devices(Strict):
     cores: int | None = Field(None, ge=1, le=100_000, description="CPU workers, one core each")
     gpus: int | None = Field(None, ge=1, le=10_000, description="GPUs (their rate: an estimate)")
     coordinators: int = Field(1, ge=1, le=1_000, description="coordinator processes sharing the runs")
-    executor: Literal[EXECUTOR_KINDS] = Field(  # type: ignore[valid-type]
-        "rq", description="rq: a cluster (softevo serve, Redis workers); local: softevo run's process pool"
+    executor: Literal[EXECUTOR_KINDS] | None = Field(  # type: ignore[valid-type]
+        None, description="rq: a cluster (softevo serve, Redis workers); local: softevo run's process pool; "
+        "left out: this server's own (rq with SOFTEVO_REDIS_URL, else local)"
     )
 
 
