@@ -65,7 +65,7 @@ from softevo.analysis.matching import arrival_generation, last_common_generation
 from softevo.analysis.power import treatment_named
 from softevo.analysis.rank_tests import RankTest, holm, jonckheere_terpstra, mann_whitney
 from softevo.analysis.run_summary import best_distance_at
-from softevo.analysis.stats_tables import ALPHA, POWER
+from softevo.analysis.stats_tables import ALPHA, MIN_TESTED_RUNS, POWER
 from softevo.evolution import environments
 from softevo.evolution.stats import vargha_delaney
 
@@ -273,12 +273,19 @@ def headline_findings(data: ExperimentData, design_figures: bool = True) -> list
     trends = [f for t in TRENDS for f in trend_findings(data, t)]
     transitions = transition_findings(data)
     findings = trends + [paper for paper, _ in transitions] + [equal for _, equal in transitions]
+    findings = [f for f in findings if tested_groups(f)]  # fewer runs: not tested (issue 59.3)
     by_family = {family: [f for f in findings if f.family == family] for family in FAMILIES}
     for family in by_family.values():
         _adjust(family, design_figures)
     for finding in findings:
         finding.row["verdict"] = verdict(finding, by_family[finding.family], findings)
     return [f for family in FAMILIES for f in by_family[family]]
+
+
+def tested_groups(finding: Finding) -> bool:
+    """Whether each group of ``finding`` that holds runs has at least ``MIN_TESTED_RUNS``."""
+    sizes = [g.size for g in finding.final if g.size]
+    return bool(sizes) and min(sizes) >= MIN_TESTED_RUNS
 
 
 def _adjust(family: list[Finding], design_figures: bool) -> None:
