@@ -268,9 +268,10 @@ def _comparison_row(kind: str, question: str, metric: str, generation, names, a,
            "median_b": b.median()}  # fmt: skip
     tested = design != NOT_TESTED and len(a) and len(b)
     few = tested and min(len(a), len(b)) < MIN_TESTED_RUNS
-    if not tested or few:
+    if not tested or few:  # too few runs: the effect described (A12, the difference), not tested
+        a12 = (paired_a12(a.to_numpy(), b.to_numpy()) if paired else vargha_delaney(a, b)) if few else np.nan
         return {**row, "test": few_runs_text(min(len(a), len(b))) if few else design, "U": np.nan,
-                "p": np.nan, "A12": np.nan, "detectable_A12": np.nan,
+                "p": np.nan, "A12": a12, "detectable_A12": np.nan,
                 "difference": a.mean() - b.mean() if few else np.nan, "difference_low": np.nan,
                 "difference_high": np.nan, "interval": ""}  # fmt: skip
     if paired:
