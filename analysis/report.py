@@ -740,8 +740,11 @@ def findings_block(doc: Document, findings: list[Finding]) -> None:
     """The findings table with each finding's start and gain (``analysis.findings``)."""
     doc.heading("Findings")
     if not findings:
-        doc.paragraph("This experiment holds none of the paper's headline comparisons with "
-                      f"{MIN_TESTED_RUNS} or more runs per group (fewer are not tested).")
+        doc.paragraph("This experiment holds none of the paper's headline comparisons.")
+        return
+    if not any(np.isfinite(f.row["p"]) for f in findings):  # issue 59.3: no p-values to show
+        doc.paragraph(f"Not tested: fewer than {MIN_TESTED_RUNS} runs per group in every headline "
+                      "comparison (findings.csv holds their means and A12).")
         return
     doc.paragraph(FINDINGS_METHODS)
     doc.table(findings_display(findings))

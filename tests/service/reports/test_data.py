@@ -31,9 +31,9 @@ def test_the_experiment_is_read_back(tiny, tiny_data):
     assert data.treatments["switch_at"].tolist()[1] == 2 and data.treatments["switch_at"].isna()[0]
     assert sorted(data.runs["run_id"]) == sorted(tiny.run_ids)
     assert (data.runs["status"] == "finished").all()
-    assert len(data.generations) == 4 * 3
+    assert len(data.generations) == 6 * 3
     counts = data.populations.groupby(["run_id", "generation"]).size()
-    assert (counts == 4).all() and len(counts) == 4 * 2  # only the two ends of each run
+    assert (counts == 4).all() and len(counts) == 6 * 2  # only the two ends of each run
     assert sorted(data.populations["generation"].unique()) == [0, 2]
     assert set(data.evaluations["individual_id"]) == set(data.populations["individual_id"])
 
