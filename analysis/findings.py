@@ -363,8 +363,8 @@ def verdict(finding: Finding, family: Sequence[Finding], findings: Sequence[Find
     row = finding.row
     if not np.isfinite(row["p"]):
         sizes = [g.size for g in finding.final if g.size]
-        few = f" ({few_runs_text(min(sizes))})" if sizes and min(sizes) < MIN_TESTED_RUNS else ""
-        return f"not detected; not tested{few}"
+        few = sizes and min(sizes) < MIN_TESTED_RUNS
+        return f"not detected; {few_runs_text(min(sizes))}" if few else "not detected; not tested"
     m = max(int(np.isfinite([f.row["p"] for f in family]).sum()), 1)
     p = f"p_holm {row['p_holm']:.2g}"
     if not finding.one_sided:
