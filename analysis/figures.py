@@ -36,7 +36,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from softevo.analysis.data import ExperimentData  # noqa: E402
 from softevo.analysis.matching import arrival_generation  # noqa: E402
 from softevo.analysis.render import ACTIVE_COLOR, PASSIVE_COLOR, draw_body  # noqa: E402
-from softevo.analysis.stats_tables import ALPHA, ci_table  # noqa: E402
+from softevo.analysis.stats_tables import ALPHA, ci_table, few_runs_text  # noqa: E402
 from softevo.evolution import environments, traits  # noqa: E402
 from softevo.evolution.selection import non_dominated_sort  # noqa: E402
 
@@ -257,8 +257,21 @@ def _boxes(ax: Axes, samples: Sequence[np.ndarray], colors: Sequence, positions=
         ax.scatter(x, s, s=7, color=c, edgecolor="black", linewidth=0.3, zorder=3)
 
 
+def from_zero(ax: Axes) -> None:
+    """The y axis from 0 when every value plotted is at least 0, so that a change in the third
+    decimal does not fill the panel (issue 59.3); axes of signed values are left as drawn."""
+    low, _ = ax.dataLim.intervaly
+    if np.isfinite(low) and low >= 0:
+        ax.set_ylim(bottom=0)
+
+
 def _brackets(ax: Axes, tests: pd.DataFrame, position: dict[str, int]) -> None:
-    """Brackets with stars over the significant pairs (Bonferroni-adjusted p < ALPHA)."""
+    """Brackets with stars over the significant pairs (Bonferroni-adjusted p < ALPHA); where no
+    pair was tested (fewer than ``MIN_TESTED_RUNS`` runs a group), says so instead."""
+    if not tests.empty and tests["p_bonferroni"].isna().all():
+        n = int(min(tests["n_a"].min(), tests["n_b"].min()))
+        ax.set_title(f"{ax.get_title()}\n{few_runs_text(n)}", fontsize=9)
+        return
     significant = tests[tests["p_bonferroni"] < ALPHA].sort_values("p_bonferroni")
     if significant.empty:
         ax.set_title(f"{ax.get_title()}\nno pair differs (p<{ALPHA:g}, Bonferroni)", fontsize=9)
@@ -301,6 +314,7 @@ def descriptors_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path)
         ax.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
         ax.set_title(labels[metric] + " (per run)", fontsize=10)
         ax.grid(axis="y", alpha=0.3)
+        from_zero(ax)
         chosen = tests[(tests["metric"] == metric) & (tests["comparison"] == "between treatments")]
         matched = np.array(
             [
@@ -464,6 +478,7 @@ def transitions_figure(
             ax.set_xticks(range(len(group)), group, rotation=20, ha="right", fontsize=8)
             ax.set_title(f"{traits.labels()[metric]} per run, generation {at[name]}", fontsize=10)
             ax.grid(axis="y", alpha=0.3)
+            from_zero(ax)
             chosen = tests[
                 (tests["metric"] == metric)
                 & (tests["comparison"] == "between treatments")
@@ -617,6 +632,7 @@ def start_end_figure(data: ExperimentData, tests: pd.DataFrame, out_dir: Path) -
         ax.set_xticks(x, names, rotation=60, ha="right", fontsize=7)
         ax.set_title(traits.labels()[trait], fontsize=10)
         ax.grid(axis="y", alpha=0.3)
+        from_zero(ax)
     axes[0].legend(fontsize=8, loc="best")
     fig.suptitle(
         "Start (open, generation 0) vs end (filled, last generation) of evolution: "

@@ -65,7 +65,7 @@ from softevo.analysis.matching import arrival_generation, last_common_generation
 from softevo.analysis.power import treatment_named
 from softevo.analysis.rank_tests import RankTest, holm, jonckheere_terpstra, mann_whitney
 from softevo.analysis.run_summary import best_distance_at
-from softevo.analysis.stats_tables import ALPHA, POWER
+from softevo.analysis.stats_tables import ALPHA, MIN_TESTED_RUNS, POWER, few_runs_text
 from softevo.evolution import environments
 from softevo.evolution.stats import vargha_delaney
 
@@ -273,12 +273,21 @@ def headline_findings(data: ExperimentData, design_figures: bool = True) -> list
     trends = [f for t in TRENDS for f in trend_findings(data, t)]
     transitions = transition_findings(data)
     findings = trends + [paper for paper, _ in transitions] + [equal for _, equal in transitions]
+    for finding in findings:  # fewer runs: described, not tested (issue 59.3)
+        if not tested_groups(finding):
+            finding.row.update(statistic=math.nan, p=math.nan, p_generation0=math.nan)
     by_family = {family: [f for f in findings if f.family == family] for family in FAMILIES}
     for family in by_family.values():
         _adjust(family, design_figures)
     for finding in findings:
         finding.row["verdict"] = verdict(finding, by_family[finding.family], findings)
     return [f for family in FAMILIES for f in by_family[family]]
+
+
+def tested_groups(finding: Finding) -> bool:
+    """Whether each group of ``finding`` that holds runs has at least ``MIN_TESTED_RUNS``."""
+    sizes = [g.size for g in finding.final if g.size]
+    return bool(sizes) and min(sizes) >= MIN_TESTED_RUNS
 
 
 def _adjust(family: list[Finding], design_figures: bool) -> None:
@@ -291,7 +300,8 @@ def _adjust(family: list[Finding], design_figures: bool) -> None:
         row = finding.row
         row["p_holm"], row["holm_threshold"], row["p_generation0_holm"] = p_holm, threshold, start_holm
         high, low = (finding.final[-1], finding.final[0]) if finding.one_sided else finding.final
-        row["a12_low"], row["a12_high"] = design.a12_interval(high, low)  # as ``a12``
+        if tested_groups(finding):  # no interval below MIN_TESTED_RUNS
+            row["a12_low"], row["a12_high"] = design.a12_interval(high, low)  # as ``a12``
         if finding.trend is not None:
             row["adjacent_a12"] = adjacent_text(finding)
         if design_figures and m:
@@ -308,7 +318,7 @@ def design_row(finding: Finding, alpha: float) -> dict:
     """Power at the effect seen, the detectable A12 and the runs a group needed at the
     effect seen and at A12 0.71, at ``alpha`` (``analysis.design``)."""
     groups = [g for g in rising_groups(finding) if g.size]
-    if len(groups) < 2 or min(g.size for g in groups) < 2:
+    if len(groups) < 2 or min(g.size for g in groups) < MIN_TESTED_RUNS:
         return {}
     two_sided, n = not finding.one_sided, min(g.size for g in groups)
     seen = design.observed_effect(groups)
@@ -352,7 +362,9 @@ def verdict(finding: Finding, family: Sequence[Finding], findings: Sequence[Find
     """The finding's verdict (``VERDICTS``, module doc), with its reasons."""
     row = finding.row
     if not np.isfinite(row["p"]):
-        return "not detected; not tested"
+        sizes = [g.size for g in finding.final if g.size]
+        few = sizes and min(sizes) < MIN_TESTED_RUNS
+        return f"not detected; {few_runs_text(min(sizes))}" if few else "not detected; not tested"
     m = max(int(np.isfinite([f.row["p"] for f in family]).sum()), 1)
     p = f"p_holm {row['p_holm']:.2g}"
     if not finding.one_sided:

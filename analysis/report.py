@@ -53,10 +53,13 @@ from softevo.analysis.run_summary import run_summary
 from softevo.analysis.stats_tables import (
     INTERVAL,
     MANN_WHITNEY,
+    MIN_TESTED_RUNS,
     NOT_TESTED,
     RUN_PAIRED,
     SEED_PAIRED,
+    few_runs_text,
     fitness_curves,
+    is_untested,
     metric_labels,
     statistics_table,
     summary_table,
@@ -106,15 +109,18 @@ class ReportWarning(UserWarning):
 
 
 def sample_size_warning(data: ExperimentData) -> str | None:
-    """Why the intervals and tests of ``data`` mean nothing for some treatments (fewer than
-    2 runs: an interval of one value, p = 1), or None."""
+    """Which treatments have too few runs for an interval or a test (fewer than
+    ``MIN_TESTED_RUNS``: at n = 1 every p is 1, at n = 2 a t interval spans far beyond the
+    values), or None."""
     runs = data.runs.groupby("treatment", sort=False)["run_id"].nunique()
-    single = [str(name) for name, count in runs.items() if count < 2]
-    if not single:
+    few = {str(name): int(count) for name, count in runs.items() if count < MIN_TESTED_RUNS}
+    if not few:
         return None
+    counts = sorted(set(few.values()))
+    n = " or ".join(str(c) for c in counts)
     return (
-        f"{len(single)} of {len(runs)} treatment(s) have a single run ({', '.join(single)}): "
-        "their intervals are degenerate and their tests (p = 1) say nothing; run 2 or more "
+        f"{len(few)} of {len(runs)} treatment(s) have fewer than {MIN_TESTED_RUNS} runs "
+        f"({', '.join(few)}): n = {n}: not tested, no interval; run {MIN_TESTED_RUNS} or more "
         "repetitions per treatment"
     )
 
@@ -162,12 +168,12 @@ def number(value: float, digits: int = 3) -> str:
 
 
 def interval_cell(mean: float, low: float, high: float) -> str:
-    """``mean [low, high]``; ``mean (n = 1: no interval)`` where there is one value only
+    """``mean [low, high]``; ``mean (n < 3: no interval)`` where there are too few values
     (its bounds are NaN); empty without a value."""
     if not np.isfinite(mean):
         return ""
     if not (np.isfinite(low) and np.isfinite(high)):
-        return f"{number(mean)} (n = 1: no interval)"
+        return f"{number(mean)} (n < {MIN_TESTED_RUNS}: no interval)"
     return f"{number(mean)} [{number(low)}, {number(high)}]"
 
 
@@ -317,24 +323,34 @@ def treatment_objectives(treatment: pd.Series) -> tuple[Objective, ...]:
 def objectives_table(data: ExperimentData) -> pd.DataFrame:
     """One row per treatment and objective it selects on: the direction, and the mean and the
     best (the largest of one maximised, the smallest of one minimised) of the objective over
-    the members each treatment is shown with (``display_populations``)."""
+    the members each treatment is shown with (``display_populations``). A minimised
+    objective's best is taken over the robots with an active voxel: a passive body (one voxel,
+    nothing active) is its trivial optimum and moves nothing (issue 59.3)."""
     members = data.display_populations()
     rows = []
     for _, treatment in data.treatments.iterrows():
         mine = members[members["treatment"] == treatment["name"]] if not members.empty else members
         for objective in treatment_objectives(treatment):
             values = _objective_column(mine, objective.name)
-            best = values.max() if objective.direction == "max" else values.min()
+            active = _objective_column(_with_active_voxel(mine), objective.name)
+            best = values.max() if objective.direction == "max" else active.min()
             rows.append(
                 {
                     "treatment": treatment["name"],
                     "objective": objective.name,
                     "direction": {"max": "maximised", "min": "minimised"}.get(objective.direction, "?"),
                     "mean": float(values.mean()) if len(values) else math.nan,
-                    "best": float(best) if len(values) else math.nan,
+                    "best": float(best) if pd.notna(best) else math.nan,
                 }
             )
     return pd.DataFrame(rows, columns=["treatment", "objective", "direction", "mean", "best"])
+
+
+def _with_active_voxel(members: pd.DataFrame) -> pd.DataFrame:
+    """The members with an active voxel (all of them where active share is not known)."""
+    if "active_share" not in members.columns:
+        return members
+    return members[members["active_share"].fillna(0) > 0]
 
 
 def _objective_column(members: pd.DataFrame, name: str) -> pd.Series:
@@ -662,7 +678,9 @@ def build_document(
     doc.heading("Objectives")
     doc.paragraph(
         "What each treatment's selection optimises, with each objective's mean and best over "
-        "the members the treatment is shown with (the same generation as the summary)."
+        "the members the treatment is shown with (the same generation as the summary). The best "
+        "of a minimised objective is over the robots with an active voxel: a passive body (one "
+        "voxel, nothing active) is its trivial optimum, and it moves nothing."
     )
     doc.table(objectives_table(data))
     doc.heading("Summary")
@@ -699,8 +717,18 @@ def build_document(
         doc.paragraph(f"Warning: {note}.")
     if data.left_out_note is not None:
         doc.paragraph(f"Warning: {data.left_out_note}.")
+    tested = stats[stats["p"].notna()] if "p" in stats.columns else stats
+    if tested.empty:  # no row with a p-value: none to show (issue 59.3)
+        n = int(min(stats["n_a"].min(), stats["n_b"].min())) if len(stats) else 0
+        doc.paragraph(f"No pairwise test: {few_runs_text(n)} (a test needs {MIN_TESTED_RUNS} or more runs "
+                      "per treatment). statistics.csv holds each comparison's means.")
+        return doc
     doc.paragraph(METHODS)
-    doc.table(_statistics_display(stats))
+    untested = int(stats["test"].map(is_untested).sum())
+    if untested:
+        doc.paragraph(f"{untested} comparison(s) of treatments with fewer than {MIN_TESTED_RUNS} runs are "
+                      "left out of this table (not tested; statistics.csv holds their means).")
+    doc.table(_statistics_display(stats[~stats["test"].map(is_untested)]))
     return doc
 
 
@@ -729,6 +757,10 @@ def findings_block(doc: Document, findings: list[Finding]) -> None:
     doc.heading("Findings")
     if not findings:
         doc.paragraph("This experiment holds none of the paper's headline comparisons.")
+        return
+    if not any(np.isfinite(f.row["p"]) for f in findings):  # issue 59.3: no p-values to show
+        doc.paragraph(f"Not tested: fewer than {MIN_TESTED_RUNS} runs per group in every headline "
+                      "comparison (findings.csv holds their means and A12).")
         return
     doc.paragraph(FINDINGS_METHODS)
     doc.table(findings_display(findings))

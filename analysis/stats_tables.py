@@ -69,6 +69,20 @@ MANN_WHITNEY = "Mann-Whitney U (independent seeds)"
 SEED_PAIRED = "Wilcoxon signed-rank (seed-matched runs)"
 RUN_PAIRED = "Wilcoxon signed-rank (the same runs)"
 NOT_TESTED = "none (described)"
+# Fewer runs than this in a group: no test, no interval, no "no pair differs" (issue 59.3: at
+# n = 1 every p is 1, at n = 2 a 95% t band spans 0-17.5 around means of 3-5): the row says
+# ``few_runs_text(n)`` and keeps the means.
+MIN_TESTED_RUNS = 3
+
+
+def few_runs_text(n: int) -> str:
+    """What a comparison or interval of groups of ``n`` runs (< ``MIN_TESTED_RUNS``) says."""
+    return f"n = {n}: not tested"
+
+
+def is_untested(test: str) -> bool:
+    """Whether a ``test`` column's value says that too few runs left the row untested."""
+    return str(test).endswith(": not tested")
 STAT_COLUMNS = [
     "comparison",
     "family",
@@ -127,10 +141,11 @@ def significance_mark(p: float, alpha: float = ALPHA) -> str:
 
 def t_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float, float]:
     """(mean, low, high): Student t interval of the mean, mean -+ t(n-1) sd / sqrt(n); NaN
-    bounds for fewer than 2 values, a zero-width interval when they do not spread."""
+    bounds for fewer than ``MIN_TESTED_RUNS`` values, a zero-width interval when they do not
+    spread."""
     data = np.asarray(values, float)
     mean = float(data.mean()) if data.size else float("nan")
-    if data.size < 2:
+    if data.size < MIN_TESTED_RUNS:
         return mean, float("nan"), float("nan")
     half = stats.t.ppf((1 + confidence) / 2, data.size - 1) * data.std(ddof=1) / math.sqrt(data.size)
     return mean, float(mean - half), float(mean + half)
@@ -138,10 +153,11 @@ def t_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple
 
 def welch_interval(a: Sequence[float], b: Sequence[float], confidence: float = CONFIDENCE):
     """(mean(a) - mean(b), low, high): Welch's t interval of a difference of means
-    (Welch-Satterthwaite degrees of freedom); NaN bounds when a sample has fewer than 2."""
+    (Welch-Satterthwaite degrees of freedom); NaN bounds when a sample has fewer than
+    ``MIN_TESTED_RUNS`` values."""
     x, y = np.asarray(a, float), np.asarray(b, float)
     difference = float(x.mean() - y.mean())
-    if min(x.size, y.size) < 2:
+    if min(x.size, y.size) < MIN_TESTED_RUNS:
         return difference, float("nan"), float("nan")
     vx, vy = x.var(ddof=1) / x.size, y.var(ddof=1) / y.size
     if vx + vy == 0:
@@ -253,10 +269,13 @@ def _comparison_row(kind: str, question: str, metric: str, generation, names, a,
            "n_b": len(b), "mean_a": a.mean(), "mean_b": b.mean(), "median_a": a.median(),
            "median_b": b.median()}  # fmt: skip
     tested = design != NOT_TESTED and len(a) and len(b)
-    if not tested:
-        return {**row, "U": np.nan, "p": np.nan, "A12": np.nan, "detectable_A12": np.nan,
-                "difference": np.nan, "difference_low": np.nan, "difference_high": np.nan,
-                "interval": ""}  # fmt: skip
+    few = tested and min(len(a), len(b)) < MIN_TESTED_RUNS
+    if not tested or few:  # too few runs: the effect described (A12, the difference), not tested
+        a12 = (paired_a12(a.to_numpy(), b.to_numpy()) if paired else vargha_delaney(a, b)) if few else np.nan
+        return {**row, "test": few_runs_text(min(len(a), len(b))) if few else design, "U": np.nan,
+                "p": np.nan, "A12": a12, "detectable_A12": np.nan,
+                "difference": a.mean() - b.mean() if few else np.nan, "difference_low": np.nan,
+                "difference_high": np.nan, "interval": ""}  # fmt: skip
     if paired:
         u, p = compare_paired(a.to_numpy(), b.to_numpy())
         a12 = paired_a12(a.to_numpy(), b.to_numpy())
@@ -400,7 +419,7 @@ def _finish(rows: list[dict]) -> pd.DataFrame:
 
 
 def _detectable(test: str, n_a: int, n_b: int, family_size: int) -> float:
-    if test == NOT_TESTED or family_size < 1 or min(n_a, n_b) < 2:
+    if test == NOT_TESTED or is_untested(test) or family_size < 1 or min(n_a, n_b) < MIN_TESTED_RUNS:
         return float("nan")
     return detectable_a12(int(n_a), int(n_b), ALPHA / family_size, POWER, test != MANN_WHITNEY)
 

@@ -166,28 +166,19 @@ class Settings(BaseSettings):
 
     @classmethod
     def load(cls, **overrides: Any) -> Settings:
-        """The settings from the environment, ``overrides`` that are not None winning; a
-        UserError naming the variable for a bad value."""
+        """The settings from the environment, ``overrides`` that are not None winning (a
+        command's options, each named ``--field-name``); a UserError naming the option the
+        user typed, or else the variable, for a bad value."""
+        given = {key: value for key, value in overrides.items() if value is not None}
         try:
-            return cls(**{key: value for key, value in overrides.items() if value is not None})
+            return cls(**given)
         except ValidationError as exc:
-            problem = exc.errors()[0]
-            name = ".".join(str(part) for part in problem["loc"])
-            raise UserError(f"setting {name} (SOFTEVO_{name.upper()}): {problem['msg']}") from None
+            raise UserError(setting_problem(exc.errors()[0], given)) from None
 
     @field_validator("redis_url", "token", "read_token", "workers", "device", mode="before")
     @classmethod
     def _empty_is_unset(cls, value):
         return None if value == "" else value
-
-    @field_validator("token", "read_token")
-    @classmethod
-    def _long_enough(cls, value: SecretStr | None) -> SecretStr | None:
-        if value is not None and len(value.get_secret_value()) < MIN_TOKEN_LENGTH:
-            raise ValueError(
-                f"a token needs at least {MIN_TOKEN_LENGTH} characters; make one with `openssl rand -hex 32`"
-            )
-        return value
 
     def trusted_hosts(self) -> list[str]:
         """Host header names served when no token is set: loopback names (and ``host``), so a
@@ -214,7 +205,16 @@ class Settings(BaseSettings):
             return False
 
     def check_safe(self) -> None:
-        """Raise UserError if the server would accept writes from the network unauthenticated."""
+        """Raise UserError if the server would accept writes from the network unauthenticated,
+        or a token is too short to guess hard (fewer than ``MIN_TOKEN_LENGTH`` characters).
+        Only the commands that serve read the tokens and check them: a worker, or ``softevo
+        run``, starts whatever ``SOFTEVO_TOKEN`` holds (issue 59.4)."""
+        for name, value in (("token", self.token_value), ("read_token", self.read_token_value)):
+            if value is not None and len(value) < MIN_TOKEN_LENGTH:
+                raise UserError(
+                    f"setting {name} (SOFTEVO_{name.upper()}): a token needs at least {MIN_TOKEN_LENGTH} "
+                    "characters; make one with `openssl rand -hex 32`"
+                )
         if self.token_value is None and not self.is_loopback():
             raise UserError(
                 f"refusing to serve on {self.host}: set SOFTEVO_TOKEN (the write endpoints "
@@ -239,6 +239,22 @@ def variable(name: str) -> str:
     if name not in Settings.model_fields:
         raise KeyError(f"no setting {name!r}")
     return f"SOFTEVO_{name.upper()}"
+
+
+SECRETS = ("token", "read_token")  # never echoed in a message
+
+
+def setting_problem(problem: dict[str, Any], given: dict[str, Any]) -> str:
+    """One line for a setting pydantic refused: ``--port: ...`` when the user typed the option
+    (a key of ``given``), else ``setting port (SOFTEVO_PORT): ...``; the library's "Value
+    error, " left out, and the value given shown unless it is a secret."""
+    name = ".".join(str(part) for part in problem["loc"])
+    message = str(problem["msg"]).removeprefix("Value error, ")
+    message = message[:1].lower() + message[1:]
+    if name not in SECRETS and "input" in problem:
+        message += f" (got {problem['input']!r})"
+    where = f"--{name.replace('_', '-')}" if name in given else f"setting {name} (SOFTEVO_{name.upper()})"
+    return f"{where}: {message}"
 
 
 def settings_table() -> str:

@@ -192,8 +192,19 @@ def request_problems(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if len(loc) > at and loc[at] in EXPERIMENT_TAGS:
             del loc[at]
         msg = str(error.get("msg", "")).removeprefix("Value error, ")
+        if error.get("type") == "json_invalid":  # not ``body.20: JSON decode error`` (issue 59.4)
+            loc, msg = [], malformed_json_text(error, loc)
         problems.append({"loc": loc, "msg": msg, "type": str(error.get("type", ""))})
     return sorted(problems, key=lambda problem: problem["type"] == "missing")
+
+
+def malformed_json_text(error: dict[str, Any], loc: list[str]) -> str:
+    """What a body that is not JSON gets: the parser's reason and the character it stopped at
+    (the number in ``loc``, counted from 0)."""
+    reason = str((error.get("ctx") or {}).get("error") or "").strip()
+    where = next((part for part in reversed(loc) if part.isdigit()), None)
+    at = f" at character {int(where) + 1}" if where is not None else ""
+    return f"the body is not valid JSON{at}" + (f" ({reason[:1].lower() + reason[1:]})" if reason else "")
 
 
 def problem_line(problems: list[dict[str, Any]]) -> str:
@@ -216,8 +227,9 @@ class Devices(Strict):
     cores: int | None = Field(None, ge=1, le=100_000, description="CPU workers, one core each")
     gpus: int | None = Field(None, ge=1, le=10_000, description="GPUs (their rate: an estimate)")
     coordinators: int = Field(1, ge=1, le=1_000, description="coordinator processes sharing the runs")
-    executor: Literal[EXECUTOR_KINDS] = Field(  # type: ignore[valid-type]
-        "rq", description="rq: a cluster (softevo serve, Redis workers); local: softevo run's process pool"
+    executor: Literal[EXECUTOR_KINDS] | None = Field(  # type: ignore[valid-type]
+        None, description="rq: a cluster (softevo serve, Redis workers); local: softevo run's process pool; "
+        "left out: this server's own (rq with SOFTEVO_REDIS_URL, else local)"
     )
 
 
@@ -268,6 +280,13 @@ class ExperimentCreated(BaseModel):
     runs: list[int]
 
 
+class WorldBest(BaseModel):
+    """A run's best distance in one world (``/runs``: what its list can give cheaply)."""
+
+    environment: str
+    distance: float = Field(description="voxel lengths")
+
+
 class RunSummary(BaseModel):
     id: int
     experiment_id: int
@@ -275,15 +294,18 @@ class RunSummary(BaseModel):
     repetition: int
     seed: int
     status: RunStatusName
-    generation: int = Field(description="last generation stored (-1: none yet)")
-    generations: int
+    generation: int = Field(description="last generation stored, counted from 0 (-1: none yet)")
+    generations: int = Field(description="generations planned (generation + 1 of them stored)")
     environment: str | None = Field(description="world of the last generation stored (None: none yet)")
     best_distance: float | None = Field(
         description="best distance of the last generation stored, voxel lengths (None: none yet)"
     )
+    best_per_world: list[WorldBest] = Field(
+        description="per world the run was evaluated in, in the order the run met them: the best "
+        "distance of any generation in it (GET /runs/{id} gives the whole best evaluation)"
+    )
     best_by_world: dict[str, float] = Field(
-        description="per world the run was evaluated in (first met first): the best distance of "
-        "any generation in it, voxel lengths"
+        description="deprecated, kept for older clients: best_per_world as {world: distance}"
     )
 
 
@@ -335,8 +357,8 @@ class RunOut(BaseModel):
     id: int
     experiment_id: int
     status: RunStatusName
-    generation: int = Field(description="last generation stored (-1: none yet)")
-    generations: int
+    generation: int = Field(description="last generation stored, counted from 0 (-1: none yet)")
+    generations: int = Field(description="generations planned (generation + 1 of them stored)")
     repetition: int
     seed: int
     treatment: TreatmentOut

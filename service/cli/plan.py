@@ -53,9 +53,9 @@ def plan(
     ] = 1,
     executor: Annotated[
         str,
-        typer.Option("--executor", help="rq: a cluster (softevo serve, Redis workers); local: softevo run's "
-                     "process pool on one machine"),
-    ] = "rq",
+        typer.Option("--executor", help="local (the default): softevo run's and experiment's process pool "
+                     "on one machine; rq: a cluster (softevo serve, Redis workers)"),
+    ] = "local",
     as_json: JsonOption = False,
 ) -> None:
     """What a grid costs: wall time, core- or GPU-hours, database size and utilisation."""
@@ -94,43 +94,109 @@ def coordinator_bound(result) -> bool:
 
 
 def plan_text(result, more=None) -> str:
-    """The plan as a table per treatment and the totals, with units. Each treatment's core-
-    (GPU-) hours are its share of the total, in proportion to its evaluations' own seconds
-    (voxel-steps on GPUs), so that the column adds up to the total; ``more``: the plan with
-    as many coordinators as ``result`` needs, when it is coordinator-bound."""
-    unit = "core-h" if result.cores else "GPU-h"
-    total_hours = result.core_hours if result.cores else result.gpu_hours
+    """The plan as a table per treatment and the totals, in units a person reads (``duration``,
+    ``amount``). Each treatment's core- (GPU-) time is its share of the booked total, in
+    proportion to its evaluations' own seconds (voxel-steps on GPUs), so that the column adds
+    up to the total; ``more``: the plan with as many coordinators as ``result`` needs, when
+    it is coordinator-bound."""
+    device = "core" if result.cores else "GPU"
+    booked = result.booked_hours * 3600
+    scale, unit = time_unit(booked)
+    size, size_unit = byte_unit(result.database_bytes)
     weights = [t.core_seconds if result.cores else t.voxel_steps for t in result.treatments]
+    column = f"{device}-{unit}"
     rows = [f"{'treatment':<24} {'runs':>5} {'gens':>6} {'evaluations':>12} {'s/eval mean (p90)':>20} "
-            f"{unit:>9} {'DB GB':>7}"]
+            f"{column:>9} {'DB ' + size_unit:>7}"]
     for t, weight in zip(result.treatments, weights, strict=True):
         spread = " ".join(f"{v['mean']:.3g} ({v['p90']:.3g})" for v in t.seconds_per_evaluation.values())
-        share = total_hours * weight / sum(weights) if sum(weights) else 0.0
+        share = booked * weight / sum(weights) if sum(weights) else 0.0
         rows.append(f"{t.name:<24} {t.runs:>5} {t.generations:>6} {t.evaluations:>12,} {spread:>20} "
-                    f"{share:>9.3g} {t.database_bytes / GB:>7.3g}")
+                    f"{share / scale:>9.3g} {t.database_bytes / size:>7.3g}")
     runs = sum(t.runs for t in result.treatments)
     rows.append(f"{'total':<24} {runs:>5} {'':>6} {result.evaluations:>12,} "
-                f"{'':>20} {total_hours:>9.3g} {result.database_bytes / GB:>7.3g}")
-    device = f"{result.cores} cores" if result.cores else f"{result.gpus} GPUs"
-    evaluation_hours = sum(t.core_seconds for t in result.treatments) / 3600
+                f"{'':>20} {booked / scale:>9.3g} {result.database_bytes / size:>7.3g}")
+    devices = f"{result.cores} cores" if result.cores else f"{result.gpus} GPUs"
+    how = f"{result.executor} executor, {result.dispatch} dispatch" if result.cores else "rounds"
     rows += [
         "",
-        f"on {device} ({result.dispatch} dispatch): wall {result.wall_hours:,.4g} hours, "
-        f"{total_hours:,.4g} {unit.replace('-h', '-hours')} (wall x {device}), "
-        f"utilisation {result.utilisation:.0%}",
-        f"{result.evaluations:,} evaluations, {result.voxel_steps:.3g} voxel-steps, "
-        f"database {result.database_bytes / GB:,.3g} GB",
+        f"on {devices} ({how}): wall {duration(result.wall_seconds)}, utilisation {result.utilisation:.0%}",
+        f"booked {amount(booked, device)} (wall x {devices}) = "
+        f"{amount(result.busy_hours * 3600, device, booked)} evaluating + "
+        f"{amount(result.idle_hours * 3600, device, booked)} idle (waiting for the coordinator, "
+        "a round's slowest job, the start)",
     ]
     if result.cores:
-        rows.append(f"the evaluations themselves: {evaluation_hours:,.4g} core-hours; the rest of the "
-                    f"{result.core_hours:,.4g} is workers waiting (for the coordinator, a round's "
-                    "slowest job, the start)")
+        rows.append(useful_text(result))
+    rows.append(f"{result.evaluations:,} evaluations, {result.voxel_steps:.3g} voxel-steps, "
+                f"database {size_text(result.database_bytes)}")
     rows.append(coordinator_text(result, more))
     if result.gpus:
         rows.append(f"GPU rate {result.cost['gpu_rate']:.2g} voxel-steps/s: {result.cost['gpu_rate_source']}")
-        rows.append(gpu_text(result, evaluation_hours))
+        rows.append(gpu_text(result, sum(t.core_seconds for t in result.treatments) / 3600))
     rows += [f"assumes: {note}" for note in result.assumptions]
     return "\n".join(rows)
+
+
+def useful_text(result) -> str:
+    """Where more cores stop helping (``useful_cores``) and why: the floor the runs' chains of
+    generations set."""
+    generations = {t.generations for t in result.treatments}
+    most = max(generations)
+    chain = (f"each run's {most:,} generations go one after another" if len(generations) == 1
+             else f"a run's generations go one after another ({result.longest_run!r} runs {most:,})")
+    waits = ("its round's slowest evaluation (every run's generation together)"
+             if result.dispatch == "rounds" else "its slowest evaluation")
+    start = f"; the start adds {duration(result.startup_seconds)}" if result.startup_seconds else ""
+    if coordinator_bound(result):
+        chain = f"the coordinator{'s' if result.coordinators > 1 else ''} cannot keep up (below)"
+        return (f"past about {result.useful_cores:,} cores the wall stops shrinking (they come within 10% "
+                f"of the {duration(result.floor_wall_seconds)} that unlimited cores give): {chain}{start}")
+    return (f"past about {result.useful_cores:,} cores the wall stops shrinking (they come within 10% of "
+            f"the {duration(result.floor_wall_seconds)} that unlimited cores give): {chain}, each waiting "
+            f"for {waits} and for the coordinator{start}")
+
+
+def time_unit(seconds: float) -> tuple[float, str]:
+    """(seconds in it, name) of the unit ``seconds`` reads best in: s, min or h."""
+    if seconds < 120:
+        return 1.0, "s"
+    return (60.0, "min") if seconds < 2 * 3600 else (3600.0, "h")
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` in seconds, minutes or hours (days beside it past 3 days)."""
+    scale, unit = time_unit(seconds)
+    words = {"s": "seconds", "min": "minutes", "h": "hours"}[unit]
+    text = f"{_figure(seconds / scale)} {words}"
+    if seconds >= 3 * 86400:
+        text += f" ({_figure(seconds / 86400)} days)"
+    return text
+
+
+def amount(seconds: float, device: str = "core", like: float | None = None) -> str:
+    """Device-time ``seconds`` as core- or GPU-seconds, -minutes or -hours (those ``like``
+    reads best in, when given: figures to add up in one unit)."""
+    scale, unit = time_unit(seconds if like is None else like)
+    words = {"s": "seconds", "min": "minutes", "h": "hours"}[unit]
+    return f"{_figure(seconds / scale)} {device}-{words}"
+
+
+def byte_unit(size: float) -> tuple[float, str]:
+    """(bytes in it, name) of the unit ``size`` reads best in: kB, MB or GB."""
+    for scale, unit in ((GB, "GB"), (1e6, "MB")):
+        if size >= scale:
+            return scale, unit
+    return 1e3, "kB"
+
+
+def size_text(size: float) -> str:
+    scale, unit = byte_unit(size)
+    return f"{_figure(size / scale)} {unit}"
+
+
+def _figure(value: float) -> str:
+    """Three significant figures, with thousands separated and no exponent."""
+    return f"{float(f'{value:.3g}'):,.0f}" if abs(value) >= 100 else f"{value:.3g}"
 
 
 def coordinator_text(result, more=None) -> str:
@@ -139,7 +205,7 @@ def coordinator_text(result, more=None) -> str:
     if more is None:
         return f"{busy}; {result.coordinators_needed()} keep(s) each under 80%"
     return (f"coordinator-bound ({busy}): --coordinators {more.coordinators} gives about "
-            f"{_hours(more.wall_hours)} (from {_hours(result.wall_hours)})")
+            f"{duration(more.wall_seconds)} (from {duration(result.wall_seconds)})")
 
 
 def gpu_text(result, evaluation_hours: float) -> str:
@@ -153,10 +219,6 @@ def gpu_text(result, evaluation_hours: float) -> str:
             f"CPU cores at {per_core:.2g} per core; and each round (a generation of every run) waits for "
             f"its longest robot (a batch steps in lock-step: GPUs busy {result.utilisation:.0%}) and for "
             f"the coordinator ({coordinator:.0%} of the wall), so more cores than that finish sooner")
-
-
-def _hours(hours: float) -> str:
-    return f"{hours:,.2g} h" if hours >= 1 else f"{hours * 60:,.2g} min"
 
 
 def register(app: typer.Typer) -> None:

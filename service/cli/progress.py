@@ -37,10 +37,16 @@ class ProgressReporter:
         self.progress.update(
             self.task,
             advance=1,
-            description=f"run {report.run_id} gen {report.generation + 1}/{report.generations}",
+            description=generation_text(report.run_id, report.generation, report.generations),
             best=f"{max(self.best.values()):.3f}",
             rate=f"{rate:.1f}",
         )
+
+
+def generation_text(run_id: int, generation: int, generations: int) -> str:
+    """A stored generation as REST and the exports number it (``generation``: from 0), with the
+    count stored of the run's ``generations`` (docs/contracts.md, "Numbering")."""
+    return f"run {run_id} generation {generation} stored ({generation + 1} of {generations})"
 
 
 @contextmanager

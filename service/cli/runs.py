@@ -227,7 +227,7 @@ def _print_status(engine, run_ids: list[int]) -> list[int]:
 
     caption = "best: of the last generation; per world: of any generation in it"
     summaries = run_summaries(engine, run_ids)
-    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gen", "world", "best",
+    table = Table("run", "exp", "treatment", "rep", "seed", "status", "gens stored", "world", "best",
                   box=box.SIMPLE_HEAD, show_edge=False, collapse_padding=True, caption=caption)  # fmt: skip
     table.add_column("per world", no_wrap=True)
     for r in summaries:

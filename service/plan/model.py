@@ -52,6 +52,12 @@ from softevo.worker.physics import MEASURED, CostModel, parse_scene, voxel_steps
 from softevo.worker.tasks import EmptyBody, Task, scenes_of
 
 DISPATCH = "per-run"  # the coordinator on the RQ executor (service.runs.coordinator.Coordinator.advance)
+# what ``softevo experiment`` and ``run`` use (no server: the process pool); ``softevo serve`` with
+# Redis uses "rq"
+DEFAULT_EXECUTOR = "local"
+UNBOUNDED_CORES = 10**9  # cores enough for every genome of every run at once (the floor wall)
+USEFUL_MARGIN = 0.1  # useful_cores: the fewest cores whose wall is within 10% of the floor's
+USEFUL_PRECISION = 0.1  # ... found to within 10% (a bisection on simulated dispatches)
 SAMPLE_GENOMES = 48  # random genomes costed per treatment
 EXACT_BUDGET = 4_000  # individual-generations driven whole (sum of population x generations)
 PROBE_BREEDS = 3  # bred generations a probe drives before (and after) a switch
@@ -69,12 +75,20 @@ EVENT_BUDGET = 150_000  # jobs the dispatch simulation simulates in all
 #   a job's round trip: 3 ms and 8 ms, from bench/plan_check.py's 1-worker runs less their
 #   coordinator's share and the cost model's simulation seconds.
 COORDINATOR_SECONDS = {"local": 0.023, "rq": 0.05}
+# - of which a part does not grow with the population (the transaction, the generation's
+#   summary, the progress line): the tiny grid (population 6, 72 run-generations) with instant
+#   results took 0.99 CPU s on the local executor, 14 ms a run-generation where the share of
+#   population 30 alone gave 5 ms (issue 59: bench/coordinator_overhead.py's InstantExecutor
+#   driving ``paper_grid("tiny")``). Not measured for "rq": taken as the local one's (the same
+#   transaction and summary; Redis adds to it).
+COORDINATOR_FIXED_SECONDS = {"local": 0.011, "rq": 0.011}
 # - the coordinator's ask of a run's first population (random viable genomes, drawn until the
 #   body rule holds) and its dispatch, before any of that run's jobs can start; at the start
 #   a coordinator asks its runs one after the other: 50 ms ("rq": ask + RQ submit) and 41 ms
 #   ("local": the ask alone), medians over the paper's 12 treatments at population 30.
 COORDINATOR_ASK_SECONDS = {"local": 0.041, "rq": 0.05}
-assert set(COORDINATOR_SECONDS) == set(COORDINATOR_ASK_SECONDS) == set(EXECUTOR_KINDS)
+assert set(COORDINATOR_SECONDS) == set(COORDINATOR_ASK_SECONDS) == set(COORDINATOR_FIXED_SECONDS) == set(
+    EXECUTOR_KINDS)
 COORDINATOR_POPULATION = 30
 COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
 # - a worker's own work per evaluation: developing the genome (0.2 ms) and its descriptors
@@ -175,13 +189,21 @@ class Plan:
     cost: dict[str, Any]
     assumptions: list[str] = field(default_factory=list)
     coordinators: int = 1
-    executor: str = "rq"  # whose coordinator cost the plan takes (COORDINATOR_SECONDS)
+    executor: str = DEFAULT_EXECUTOR  # whose coordinator cost the plan takes (COORDINATOR_SECONDS)
     coordinator_utilisation: float = 0.0  # the coordinators' busy share: near 1, they limit
     coordinator_seconds: float = 0.0  # the coordinators' work in all (every run-generation)
     # the wall time were coordinators never waited on (one per run): what the workers and
     # each run's own chain of generations allow; the plan's own wall where they do not limit
     unqueued_wall_seconds: float = 0.0
     startup_seconds: float = 0.0  # in wall_seconds: the command's fixed start (STARTUP_SECONDS)
+    # device-seconds spent evaluating (jobs running): at most wall x devices, the rest waiting
+    busy_seconds: float = 0.0
+    # CPU plans: the wall time on unlimited cores (each run's generations one after another,
+    # each waiting for its slowest evaluation and its coordinator), and the fewest cores whose
+    # wall is within USEFUL_MARGIN of it: past them the wall hardly shrinks
+    floor_wall_seconds: float = 0.0
+    useful_cores: int | None = None
+    longest_run: str = ""  # the treatment whose runs have the most generations (the floor's why)
 
     def coordinators_needed(self, target: float = COORDINATOR_TARGET) -> int:
         """Coordinator processes that would be busy at most ``target`` of the time at the pace
@@ -205,7 +227,24 @@ class Plan:
         out["runs"] = sum(t.runs for t in self.treatments)
         out["evaluation_core_hours"] = sum(t.core_seconds for t in self.treatments) / 3600
         out["coordinators_needed"] = self.coordinators_needed()
+        device = "core" if self.cores else "gpu"
+        out[f"busy_{device}_hours"], out[f"idle_{device}_hours"] = self.busy_hours, self.idle_hours
         return out
+
+    @property
+    def booked_hours(self) -> float:
+        """Core- or GPU-hours booked: the wall time on every device."""
+        return self.core_hours if self.cores else self.gpu_hours
+
+    @property
+    def busy_hours(self) -> float:
+        """Of ``booked_hours``, the devices' hours evaluating (jobs running)."""
+        return min(self.busy_seconds / 3600, self.booked_hours)
+
+    @property
+    def idle_hours(self) -> float:
+        """Of ``booked_hours``, the devices' hours waiting: ``booked = busy + idle``."""
+        return self.booked_hours - self.busy_hours
 
 
 def plan(
@@ -219,7 +258,7 @@ def plan(
     coordinator_seconds: float | None = None,
     gpu_rate: float = GPU_VOXEL_STEPS_PER_SECOND,
     coordinators: int = 1,
-    executor: str = "rq",
+    executor: str = DEFAULT_EXECUTOR,
     ask_seconds: float | None = None,
 ) -> Plan:
     """The plan of ``treatments`` on ``cores`` CPU workers or ``gpus`` GPUs (exactly one),
@@ -246,13 +285,21 @@ def plan(
     counts = [count_evaluations(t) for t in treatments]
     costs = [sample_costs(t, cost, samples, seed) for t in treatments]
     lines = [_treatment_plan(t, c, k) for t, c, k in zip(treatments, counts, costs, strict=True)]
-    told = sum(_coordinator(t, coordinator_seconds) * t.repetitions * t.generations for t in treatments)
+    fixed = min(coordinator_seconds, COORDINATOR_FIXED_SECONDS[executor])
 
-    def dispatch_with(k: int, rng: np.random.Generator) -> tuple[float, float]:
+    def tell_of(treatment: Treatment) -> float:
+        return _coordinator(treatment, coordinator_seconds, fixed)
+
+    def ask_of(treatment: Treatment) -> float:
+        return _coordinator(treatment, ask_seconds)
+
+    told = sum(tell_of(t) * t.repetitions * t.generations for t in treatments)
+
+    def dispatch_with(k: int, rng: np.random.Generator, workers: int | None = None) -> tuple[float, float]:
         if gpus is not None:
-            return _gpu_dispatch(treatments, counts, costs, gpus, gpu_rate, coordinator_seconds / k, rng)
-        return _cpu_dispatch(treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, k,
-                             ask_seconds)
+            return _gpu_dispatch(treatments, counts, costs, workers or gpus, gpu_rate,
+                                 lambda t: tell_of(t) / k, rng)
+        return _cpu_dispatch(treatments, counts, costs, workers or cores, dispatch, tell_of, rng, k, ask_of)
 
     wall, busy = dispatch_with(coordinators, rng)
     workers = gpus if gpus is not None else cores
@@ -260,11 +307,23 @@ def plan(
     runs = sum(t.repetitions for t in treatments)
     if wall > 0 and told / (wall * coordinators) > COORDINATOR_TARGET and coordinators < runs:
         unqueued, _ = dispatch_with(runs, np.random.default_rng(seed))  # they limit: how much?
+    useful, span = None, wall
+    if cores is not None:  # every genome its own job on its own core: the runs' chains alone
+        def wall_on(k: int) -> float:
+            return dispatch_with(coordinators, np.random.default_rng(seed), k)[0]
+
+        span = wall_on(UNBOUNDED_CORES)
+        widest = 2 * sum(t.population * t.repetitions for t in treatments)  # every genome of a round
+        useful = useful_cores(wall_on, span, widest, known={cores: wall})
     startup = STARTUP_SECONDS[executor]
     wall, unqueued = wall + startup, unqueued + startup
     return Plan(
         startup_seconds=startup,
         wall_seconds=wall,
+        busy_seconds=busy,
+        useful_cores=useful,
+        floor_wall_seconds=min(span + startup, wall),
+        longest_run=longest_run(treatments),
         core_hours=wall * cores / 3600 if cores else 0.0,
         gpu_hours=wall * gpus / 3600 if gpus else 0.0,
         database_bytes=sum(line.database_bytes for line in lines),
@@ -283,6 +342,32 @@ def plan(
         cost={**cost.to_dict(), **_gpu_rate(gpu_rate, gpus)},
         assumptions=_assumptions(gpus is not None, coordinator_seconds, ask_seconds, executor),
     )
+
+
+def useful_cores(wall_on, floor: float, most: int, known: dict[int, float] | None = None) -> int:
+    """The fewest cores whose wall (``wall_on(cores)``, seconds) is within ``USEFUL_MARGIN``
+    of ``floor`` (the wall on unlimited cores), searched between 1 and ``most`` (cores enough
+    for every job of a round) to ``USEFUL_PRECISION``; ``known``: walls already simulated."""
+    walls = dict(known or {})
+
+    def enough(k: int) -> bool:
+        if k not in walls:
+            walls[k] = wall_on(k)
+        return walls[k] <= floor * (1 + USEFUL_MARGIN)
+
+    low, high = 1, max(1, most)  # low: too few unless it is 1; high: enough (or as many as help)
+    if enough(low) or not enough(high):
+        return low if walls[low] <= floor * (1 + USEFUL_MARGIN) else high
+    while high > low * (1 + USEFUL_PRECISION) and high - low > 1:
+        middle = int(round(math.sqrt(low * high)))
+        low, high = (low, middle) if enough(middle) else (middle, high)
+    return high
+
+
+def longest_run(treatments: Sequence[Treatment]) -> str:
+    """The name of the treatment whose runs have the most generations (of those, the one whose
+    generations simulate longest: steps per evaluation)."""
+    return max(treatments, key=lambda t: (t.generations, t.evaluation.cycles)).name
 
 
 def _gpu_rate(rate: float, gpus: int | None) -> dict[str, Any]:
@@ -523,9 +608,9 @@ def _timeline(treatments, counts, jobs_of) -> tuple[list[tuple[int, float]], lis
     return rounds, runs
 
 
-def _cpu_dispatch(
-    treatments, counts, costs, cores, dispatch, coordinator_seconds, rng, coordinators=1, ask_seconds=0.0
-) -> tuple:
+def _cpu_dispatch(treatments, counts, costs, cores, dispatch, tell_of, rng, coordinators, ask_of) -> tuple:
+    """(wall, busy worker-seconds) of the runs' generations on ``cores`` workers; ``tell_of``
+    and ``ask_of``: a treatment's coordinator seconds per run-generation and first ask."""
     def size_of(t: Treatment, n: int) -> int:  # plan_batches / executors.chunks
         return max(1, min(GENOMES_PER_TASK, math.ceil(n / cores)))
 
@@ -542,18 +627,20 @@ def _cpu_dispatch(
             draws = rng.choice(by_treatment[id(treatment)][stretch.world].seconds, size=n)
             size = size_of(treatment, n) if n else 1
             jobs = np.add.reduceat(draws, np.arange(0, n, size)) + JOB_SECONDS if n else np.zeros(0)
-            told = weight * _coordinator(treatment, coordinator_seconds)
-            asked = _coordinator(treatment, ask_seconds) if stretch.kind == "first" else 0.0
+            told = weight * tell_of(treatment)
+            asked = ask_of(treatment) if stretch.kind == "first" else 0.0
             generations.append(Generation(jobs * weight, told, asked))
         simulated_runs.append(generations)
     return simulate(simulated_runs, cores, dispatch, coordinators)
 
 
-def _coordinator(treatment: Treatment, seconds: float) -> float:
-    return seconds * treatment.population / COORDINATOR_POPULATION
+def _coordinator(treatment: Treatment, seconds: float, fixed: float = 0.0) -> float:
+    """Coordinator seconds at ``treatment``'s population of ``seconds`` measured at
+    ``COORDINATOR_POPULATION``, ``fixed`` of them whatever the population."""
+    return fixed + (seconds - fixed) * treatment.population / COORDINATOR_POPULATION
 
 
-def _gpu_dispatch(treatments, counts, costs, gpus, rate, coordinator_seconds, rng) -> tuple[float, float]:
+def _gpu_dispatch(treatments, counts, costs, gpus, rate, tell_of, rng) -> tuple[float, float]:
     """Rounds of every run's genomes split evenly over the GPUs, each batch in lock-step."""
     rounds, runs = _timeline(treatments, counts, lambda t, n: n)
     by_treatment = {id(t): k for t, k in zip(treatments, costs, strict=True)}
@@ -568,7 +655,7 @@ def _gpu_dispatch(treatments, counts, costs, gpus, rate, coordinator_seconds, rn
             picks = rng.integers(0, len(sample.seconds), size=int(round(count.simulated[stretch.kind])))
             voxels.append(sample.voxels[picks])
             steps.append(sample.steps[picks])
-            told += _coordinator(treatment, coordinator_seconds)
+            told += tell_of(treatment)
         batches = _gpu_batches(np.concatenate(voxels), np.concatenate(steps), gpus, rate)
         wall += weight * (max(batches, default=0.0) + told)
         busy += weight * sum(batches)

@@ -72,6 +72,9 @@ def _sqlite_pragmas(dbapi_connection, _record) -> None:
     cursor.close()
 
 
+POSTGRES_INSTALL = "pip install 'softevo[postgres]'"  # pyproject's extra: psycopg
+
+
 def make_engine(url: str | None = None) -> Engine:
     """Build an engine for ``url`` (see ``database_url``); no schema changes. An unknown
     dialect or a driver that is not installed is a UserError."""
@@ -83,6 +86,11 @@ def make_engine(url: str | None = None) -> Engine:
     try:
         return _engine_for(parsed)
     except (NoSuchModuleError, ImportError) as exc:
+        if parsed.get_backend_name() == "postgresql" and isinstance(exc, ImportError):
+            raise UserError(
+                f"database {shown(parsed)}: the PostgreSQL driver is not installed ({one_line(exc)}); "
+                f"install the postgres extra: {POSTGRES_INSTALL}"
+            ) from exc
         raise UserError(
             f"database {shown(parsed)}: no driver for {parsed.drivername!r} ({one_line(exc)}); "
             "softevo works with sqlite:///FILE and postgresql+psycopg://..."

@@ -69,10 +69,15 @@ def best_by_world(conn: Connection, run_ids: Sequence[int]) -> dict[int, dict[st
 def with_best_by_world(
     conn: Connection, rows: list[dict[str, Any]], id_key: str = "id"
 ) -> list[dict[str, Any]]:
-    """``rows`` (of ``run_summary_select``), each with ``best_by_world`` added."""
+    """``rows`` (of ``run_summary_select``), each with ``best_per_world`` added (a list, the
+    worlds in the order the run met them: ``[{"environment", "distance"}]``, the keys of
+    ``GET /runs/{id}``'s) and ``best_by_world`` (the same as {world: distance}, kept for
+    clients written before issue 59; docs/contracts.md)."""
     worlds = best_by_world(conn, [row[id_key] for row in rows]) if rows else {}
     for row in rows:
         row["best_by_world"] = worlds[row[id_key]]
+        row["best_per_world"] = [{"environment": world, "distance": distance}
+                                 for world, distance in worlds[row[id_key]].items()]
     return rows
 
 

@@ -1,6 +1,7 @@
 """One real tiny experiment per test session: a static treatment and a transition at the same
 stiffness (so every figure, the transition one included, has something to draw), population
-4, 3 generations, 2 repetitions, 2 actuation cycles, a 4x4x4 workspace; evaluated inline."""
+4, 3 generations, 3 repetitions (the fewest a test or an interval takes), 2 actuation cycles,
+a 4x4x4 workspace; evaluated inline."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from softevo.service.runs.executors import InlineExecutor
 from softevo.service.runs.submit import create
 from softevo.service.storage import open_database
 
-COMMON = {"population": 4, "generations": 3, "workspace": (4, 4, 4), "cycles": 2, "repetitions": 2}
+COMMON = {"population": 4, "generations": 3, "workspace": (4, 4, 4), "cycles": 2, "repetitions": 3}
 TREATMENTS = (
     Treatment("land", 0.1, name="land S3", **COMMON),
     Treatment("water-land", 0.1, name="water-land S3", switch_at=2, **COMMON),

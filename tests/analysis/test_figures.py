@@ -159,3 +159,20 @@ def test_the_transitions_figure_plots_each_world_on_its_own_axis(inputs, tmp_pat
     assert "land S3" not in lines("water-land S3 in water")
     assert lines("water-land S3 in land")["water-land S3"] == [2]
     assert lines("water-land S3 in land")["land S3"] == [0, 1, 2]
+
+
+def test_a_descriptor_axis_starts_at_zero_so_a_tiny_change_looks_tiny():
+    """Issue 59.3: each descriptor's y axis stretched over a change in the third decimal."""
+    import matplotlib.pyplot as plt
+
+    from softevo.analysis.figures import from_zero
+
+    fig, (shares, signed) = plt.subplots(1, 2)
+    shares.plot([0, 1], [0.501, 0.503])
+    from_zero(shares)
+    assert shares.get_ylim()[0] == 0 and shares.get_ylim()[1] >= 0.503
+    signed.plot([0, 1], [-0.2, 0.3])
+    before = signed.get_ylim()
+    from_zero(signed)
+    assert signed.get_ylim() == before  # values below 0: left as drawn
+    plt.close(fig)

@@ -16,11 +16,13 @@ from tests.support import exit_code, softevo
 
 @pytest.fixture(scope="module")
 def paper_tiny(tmp_path_factory) -> str:
-    """The database of ``softevo experiment paper --scale tiny`` on 2 worker processes."""
+    """The database of ``softevo experiment paper --scale tiny --repetitions 3`` on 2 worker
+    processes: 3 runs a treatment, the fewest the findings test (issue 59.3)."""
     db = f"sqlite:///{tmp_path_factory.mktemp('paper-tiny') / 'paper.db'}"
     err = io.StringIO()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = exit_code("experiment", "paper", "--scale", "tiny", "--workers", "2", "--db", db, "--quiet")
+        code = exit_code("experiment", "paper", "--scale", "tiny", "--repetitions", "3", "--workers", "2",
+                         "--db", db, "--quiet")
     assert code == 0, err.getvalue()
     return db
 
@@ -30,11 +32,11 @@ def test_every_run_of_the_tiny_paper_grid_is_stored(capsys, tmp_path, paper_tiny
     code, _, err = softevo(capsys, "export", "latest", "--out", str(tmp_path / "out"), "--db", paper_tiny)
     assert code == 0, err
     runs = pd.read_csv(tmp_path / "out" / "runs.csv")
-    assert len(runs) == 12 and set(runs["status"]) == {"finished"}
+    assert len(runs) == 36 and set(runs["status"]) == {"finished"}
     assert sorted(runs["stiffness_pa"].unique()) == [1e3, 1e4, 1e5, 1e6, 1e7]
     individuals = pd.read_csv(tmp_path / "out" / "individuals.csv")
     switching = runs[runs["environment_schedule"].str.contains(",")]["run_id"]
-    assert len(switching) == 2
+    assert len(switching) == 6
     for run_id in switching:
         assert set(individuals[individuals["run_id"] == run_id]["environment"]) == {"land", "water"}
 
@@ -66,7 +68,7 @@ def test_findings_and_per_run_summary_on_the_tiny_paper_grid(capsys, tmp_path, p
     assert findings["family"].tolist() == ["primary"] * 6 + ["gain"] * 4 + ["secondary"] * 4
     assert findings["p_holm"].iloc[:6].notna().all() and findings["verdict"].notna().all()
     summary = pd.read_csv(out / "summary.csv")
-    assert len(summary) == 12 and summary["run_id"].is_unique
+    assert len(summary) == 36 and summary["run_id"].is_unique
     assert summary["distance_per_second"].notna().all()
 
 

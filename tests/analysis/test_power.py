@@ -68,10 +68,10 @@ def test_power_on_the_tiny_experiment(capsys, tiny):
     payload = json.loads(first)
     (estimate,) = payload["comparisons"]
     assert (estimate["a"], estimate["b"], estimate["generation"]) == ("water-land S3", "land S3", 2)
-    assert (estimate["pilot_runs_a"], estimate["pilot_runs_b"]) == (2, 2)
+    assert (estimate["pilot_runs_a"], estimate["pilot_runs_b"]) == (3, 3)
     assert estimate["repetitions"] is None or 2 <= estimate["repetitions"] <= 20
     n = STUDY_REPETITIONS  # the study preset's, the default
-    assert estimate["pilot_seeds"] == "0..1" and estimate["study_n"] == n
+    assert estimate["pilot_seeds"] == "0..2" and estimate["study_n"] == n
     assert estimate["detectable_a12"] == pytest.approx(detectable_a12(n, n, 0.05))
     assert [d["n"] for d in payload["designs"]][:3] == [3, 4, 5]
     assert softevo(capsys, *args, "--json")[1] == first  # seeded: the same estimate again

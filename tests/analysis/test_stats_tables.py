@@ -218,3 +218,15 @@ def test_long_curves_are_thinned_but_keep_both_ends_and_the_switch():
     kept = plotted_generations(np.arange(9000), [4500], 100)
     assert 100 <= len(kept) <= 102
     assert {0, 4499, 4500, 8999} <= set(kept.tolist())
+
+
+def test_fewer_than_three_runs_get_no_interval():
+    """Issue 59.3: at n = 2 a 95% t band spanned 0-17.5 around means of 3-5."""
+    from softevo.analysis.stats_tables import MIN_TESTED_RUNS, few_runs_text, t_interval, welch_interval
+
+    assert MIN_TESTED_RUNS == 3 and few_runs_text(2) == "n = 2: not tested"
+    mean, low, high = t_interval([3.0, 5.0])
+    assert mean == 4.0 and np.isnan(low) and np.isnan(high)
+    assert all(np.isfinite(t_interval([3.0, 5.0, 4.0])))
+    difference, low, high = welch_interval([3.0, 5.0], [1.0, 2.0, 3.0])
+    assert difference == 2.0 and np.isnan(low) and np.isnan(high)

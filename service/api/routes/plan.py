@@ -14,7 +14,7 @@ from fastapi import APIRouter
 from fastapi.concurrency import run_in_threadpool
 
 from softevo.errors import UserError
-from softevo.service.api.deps import COMMON
+from softevo.service.api.deps import COMMON, ServicesDep
 from softevo.service.api.requests import request_treatments
 from softevo.service.api.schemas import ErrorOut, PlanRequest
 from softevo.service.plan.model import check_devices, plan
@@ -47,11 +47,14 @@ def bounded(treatments: list) -> list:
         413: {"model": ErrorOut, "description": "The body is larger than SOFTEVO_MAX_BODY_BYTES"},
     },
 )
-async def plan_experiment(body: PlanRequest) -> dict[str, Any]:
+async def plan_experiment(
+    body: PlanRequest, services: ServicesDep
+) -> dict[str, Any]:
     """The plan of an experiment body (as ``POST /experiments`` takes it) on ``cores`` CPU
     workers or ``gpus`` GPUs: ``wall_seconds, core_hours, gpu_hours, database_bytes,
-    utilisation, evaluations, voxel_steps``, the coordinators' share busy and per-treatment
-    lines. 422 for neither or both."""
+    utilisation, evaluations, voxel_steps``, the coordinators' share busy, ``useful_cores``
+    and per-treatment lines; through ``executor``, by default this server's own. 422 for
+    neither or both."""
     check_devices(body.cores, body.gpus)
     treatments = bounded(request_treatments(body))
     result = await run_in_threadpool(
@@ -60,6 +63,6 @@ async def plan_experiment(body: PlanRequest) -> dict[str, Any]:
         cores=body.cores,
         gpus=body.gpus,
         coordinators=body.coordinators,
-        executor=body.executor,
+        executor=body.executor or ("rq" if services.settings.redis_url else "local"),
     )
     return result.to_json()

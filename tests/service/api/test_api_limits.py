@@ -217,3 +217,30 @@ def test_the_cli_refuses_a_huge_workspace(tmp_path, capsys):
     args = ["run", "--env", "land", "--stiffness", "1", "--workspace", "30,30,30", "--db", db]
     code, _, err = softevo(capsys, *args)
     assert code == 2 and err.count("\n") == 1 and "SOFTEVO_MAX_VOXELS" in err, err
+
+
+def test_a_body_that_is_not_json_says_so_in_words(served):
+    """Issue 59.4: it answered ``body.20: JSON decode error``."""
+    base, _ = served
+    headers = {**auth(), "Content-Type": "application/json"}
+    response = httpx.post(f"{base}/experiments", content=b'{"name": "x", "treatments": [', headers=headers)
+    assert response.status_code in (400, 422), response.text
+    detail = response.json()["detail"]
+    assert detail.startswith("the body is not valid JSON at character "), detail
+    assert "body." not in detail and "decode error" not in detail
+
+
+def test_runs_and_a_run_give_best_per_world_alike(served):
+    """Issue 59.4: ``/runs`` said ``best_by_world`` (a dict), ``/runs/{id}`` ``best_per_world``
+    (a list): one name and shape now, the old key kept (docs/contracts.md)."""
+    base, _ = served
+    listed = httpx.get(f"{base}/runs").json()
+    assert listed
+    for summary in listed:
+        one = httpx.get(f"{base}/runs/{summary['id']}").json()
+        assert [b["environment"] for b in summary["best_per_world"]] == [b["environment"] for b in
+                                                                         one["best_per_world"]]
+        assert [b["distance"] for b in summary["best_per_world"]] == pytest.approx(
+            [b["distance"] for b in one["best_per_world"]])
+        old = {b["environment"]: b["distance"] for b in summary["best_per_world"]}
+        assert summary["best_by_world"] == old

@@ -51,3 +51,12 @@ def test_calling_main_again_does_not_add_the_commands_again(capsys):
         softevo(capsys, "bogus")
     assert (len(app.registered_commands), len(app.registered_groups)) == counts
     assert counts[0] > 5
+
+
+def test_the_progress_bar_numbers_generations_as_rest_does():
+    """Issue 59.4: the bar said "gen 6/6 stored" where REST says ``generation: 5``: a
+    generation is an index from 0 everywhere, a count says "of" (docs/contracts.md)."""
+    from softevo.service.cli.progress import generation_text
+
+    assert generation_text(3, 5, 6) == "run 3 generation 5 stored (6 of 6)"
+    assert generation_text(1, 0, 6) == "run 1 generation 0 stored (1 of 6)"

@@ -75,12 +75,13 @@ def test_per_run_dispatch_uses_workers_at_least_as_well_as_rounds():
 
 def test_a_second_coordinator_halves_their_load_and_never_slows_the_plan():
     grid = paper_grid("tiny")
-    one, two = plan(grid, cores=64, coordinators=1), plan(grid, cores=64, coordinators=2)
+    one, two = (plan(grid, cores=64, coordinators=k, executor="rq") for k in (1, 2))
     assert 0 < two.coordinator_utilisation < one.coordinator_utilisation <= 1
     assert two.wall_seconds <= one.wall_seconds * 1.0001
-    slow = plan(grid, cores=64, coordinator_seconds=5.0)  # a coordinator far too slow
+    slow = plan(grid, cores=64, coordinator_seconds=5.0, executor="rq")  # a coordinator far too slow
     assert slow.coordinator_utilisation > 0.9 and slow.coordinators_needed() > 1
-    assert plan(grid, cores=64, coordinator_seconds=5.0, coordinators=4).wall_seconds < slow.wall_seconds
+    faster = plan(grid, cores=64, coordinator_seconds=5.0, coordinators=4, executor="rq")
+    assert faster.wall_seconds < slow.wall_seconds
 
 
 def test_coordinators_needed_holds_even_when_one_coordinator_is_saturated():
@@ -88,10 +89,10 @@ def test_coordinators_needed_holds_even_when_one_coordinator_is_saturated():
     comes from its work over the wall the workers alone allow, and planning with that many
     keeps each one near the target, the wall no longer waiting on them."""
     grid = paper_grid("tiny")
-    slow = plan(grid, cores=64, coordinator_seconds=5.0)
+    slow = plan(grid, cores=64, coordinator_seconds=5.0, executor="rq")
     needed = slow.coordinators_needed()
     assert slow.coordinator_utilisation > 0.99 and needed > 2
-    enough = plan(grid, cores=64, coordinator_seconds=5.0, coordinators=needed)
+    enough = plan(grid, cores=64, coordinator_seconds=5.0, coordinators=needed, executor="rq")
     assert enough.coordinator_utilisation <= 0.9
     assert enough.wall_seconds < 0.6 * slow.wall_seconds
     assert enough.wall_seconds <= 1.25 * slow.unqueued_wall_seconds
@@ -119,7 +120,7 @@ def test_a_coordinator_asks_its_runs_first_populations_one_after_the_other():
 
 def test_the_first_populations_ask_lengthens_a_wide_grid():
     grid = paper_grid("tiny")
-    asked, free = plan(grid, cores=64), plan(grid, cores=64, ask_seconds=0.0)
+    asked, free = plan(grid, cores=64, executor="rq"), plan(grid, cores=64, ask_seconds=0.0, executor="rq")
     assert asked.wall_seconds > free.wall_seconds
     assert f"{COORDINATOR_ASK_SECONDS['rq'] * 1000:.0f} ms to ask" in " ".join(asked.assumptions)
 
@@ -148,7 +149,7 @@ def test_cli_reads_a_spec_file(capsys, tmp_path):
                                                               "population": 4, "generations": 3}]}))
     code, out, err = softevo(capsys, "plan", str(spec), "--cores", "1")
     assert code == 0, err
-    assert "wall" in out and "core-hours" in out and "GB" in out
+    assert "wall" in out and "core-seconds" in out and "kB" in out
 
 
 @pytest.mark.parametrize(
@@ -210,10 +211,12 @@ def test_rest_plan_200_and_422(tmp_path):
         two = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
                                                "coordinators": 2}, timeout=120)
         assert two.status_code == 200 and two.json()["coordinators"] == 2, two.text
-        local = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
-                                                 "executor": "local"}, timeout=120)
-        assert local.status_code == 200 and local.json()["executor"] == "local", local.text
-        assert local.json()["coordinator_seconds"] < ok.json()["coordinator_seconds"]
+        assert ok.json()["executor"] == "local"  # the server's own: no Redis here (issue 59.2)
+        assert isinstance(ok.json()["useful_cores"], int)
+        rq = httpx.post(f"{base}/plan", json={"preset": "paper", "scale": "tiny", "cores": 2,
+                                              "executor": "rq"}, timeout=120)
+        assert rq.status_code == 200 and rq.json()["executor"] == "rq", rq.text
+        assert ok.json()["coordinator_seconds"] < rq.json()["coordinator_seconds"]
         for bad in ({"preset": "paper", "scale": "tiny"},
                     {"preset": "paper", "cores": 2, "gpus": 1},
                     {"preset": "paper", "cores": 0},
@@ -244,7 +247,7 @@ def test_a_local_plan_counts_the_commands_start():
 
 
 def _table_hours(out: str) -> tuple[list[float], float]:
-    """(the treatments' hours column, the total row's) of ``softevo plan``'s table."""
+    """(the treatments' core- or GPU-time column, the total row's) of ``softevo plan``'s table."""
     lines = out.splitlines()
     end = next(k for k, line in enumerate(lines) if line.startswith("total"))
     column = [float(line.split()[-2]) for line in lines[1:end]]
@@ -258,11 +261,11 @@ def test_the_hours_column_adds_up_to_the_total(capsys, device):
     code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", *device)
     assert code == 0, err
     header = out.splitlines()[0]
-    assert ("GPU-h" in header) == (device[0] == "--gpus") and ("core-h" in header) == (device[0] == "--cores")
+    assert ("GPU-s" in header) == (device[0] == "--gpus") and ("core-s" in header) == (device[0] == "--cores")
     column, total = _table_hours(out)
     assert sum(column) == pytest.approx(total, rel=0.01)
-    unit = "core-hours" if device[0] == "--cores" else "GPU-hours"
-    assert f"{total:.3g}" in out and unit in out
+    unit = "core-seconds" if device[0] == "--cores" else "GPU-seconds"
+    assert f"booked {total:.3g} {unit}" in out
 
 
 def test_eight_gpus_say_why_they_lose_to_a_thousand_cores(capsys):
@@ -280,10 +283,110 @@ def test_a_coordinator_bound_plan_says_what_more_coordinators_give(capsys, tmp_p
     spec.write_text(json.dumps({"name": "many", "treatments": [
         {"environment": "water", "stiffness_mpa": 0.001, "population": 30, "generations": 50,
          "repetitions": 400, "workspace": [3, 3, 3], "cycles": 1}]}))  # fmt: skip
-    code, out, err = softevo(capsys, "plan", str(spec), "--cores", "1000")
+    code, out, err = softevo(capsys, "plan", str(spec), "--cores", "1000", "--executor", "rq")
     assert code == 0, err
     line = next(line for line in out.splitlines() if line.startswith("coordinator-bound"))
     needed = int(line.split("--coordinators ")[1].split()[0])
-    assert needed > 1 and "gives about" in line and "(from 17 min)" in line, line
-    code, more, _ = softevo(capsys, "plan", str(spec), "--cores", "1000", "--coordinators", str(needed))
+    assert needed > 1 and "gives about" in line and "(from 17 minutes)" in line, line
+    code, more, _ = softevo(capsys, "plan", str(spec), "--cores", "1000", "--coordinators", str(needed),
+                            "--executor", "rq")
     assert code == 0 and "coordinator-bound" not in more
+
+
+def test_the_executor_defaults_to_the_one_softevo_experiment_uses(capsys):
+    """Issue 59.2: with --cores 2 and no --executor it planned for the RQ executor (11 s, no
+    start-up) while ``softevo experiment`` runs the local process pool."""
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "tiny", "--cores", "2", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["executor"] == "local" and data["dispatch"] == "rounds" and data["startup_seconds"] > 0
+    assert plan(paper_grid("tiny"), cores=2).executor == "local"
+
+
+def test_useful_cores_is_where_more_cores_stop_shrinking_the_wall():
+    """Issue 59.2: 300 cores gave 367 h, 3,000 gave 363 h, and the plan did not say so."""
+    from softevo.service.plan.model import USEFUL_MARGIN
+
+    grid = paper_grid("tiny")
+    two = plan(grid, cores=2)
+    useful, floor = two.useful_cores, two.floor_wall_seconds - two.startup_seconds
+    assert 2 < useful < 10**4 and 0 < floor < two.wall_seconds - two.startup_seconds
+    at = plan(grid, cores=useful)
+    assert at.useful_cores == useful and at.wall_seconds - at.startup_seconds <= floor * (1 + USEFUL_MARGIN)
+    fewer = plan(grid, cores=max(1, useful // 2))
+    assert fewer.wall_seconds - fewer.startup_seconds > floor * (1 + USEFUL_MARGIN)
+    many = plan(grid, cores=useful * 100)
+    assert many.wall_seconds >= two.floor_wall_seconds * 0.999  # never below the floor
+
+
+def test_the_paper_grid_on_a_thousand_cores_says_where_cores_stop_helping_and_why(capsys):
+    code, out, err = softevo(capsys, "plan", "paper", "--scale", "paper", "--cores", "1000", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert isinstance(data["useful_cores"], int) and data["useful_cores"] > 1
+    assert data["floor_wall_seconds"] <= data["wall_seconds"]
+    code, out, _ = softevo(capsys, "plan", "paper", "--scale", "paper", "--cores", "1000")
+    line = next(line for line in out.splitlines() if line.startswith("past about"))
+    assert f"past about {data['useful_cores']:,} cores the wall stops shrinking" in line
+    assert "9,000)" in line and "one after another" in line and "hours that unlimited cores give" in line
+
+
+def test_booked_core_hours_are_busy_plus_idle_and_the_lines_agree(capsys):
+    """Issue 59.2: "the evaluations themselves: 5.408 core-hours; the rest of the 5.368 is workers
+    waiting": booked (wall x cores) and evaluating time were mixed; now booked = busy + idle."""
+    for args in (("paper", "--scale", "tiny", "--cores", "2"),
+                 ("paper", "--scale", "small", "--cores", "500")):
+        code, out, err = softevo(capsys, "plan", *args, "--json")
+        assert code == 0, err
+        data = json.loads(out)
+        cores = data["cores"]
+        assert data["core_hours"] == pytest.approx(data["wall_seconds"] * cores / 3600)
+        assert data["busy_core_hours"] + data["idle_core_hours"] == pytest.approx(data["core_hours"])
+        assert 0 < data["busy_core_hours"] <= data["core_hours"]
+        assert data["utilisation"] == pytest.approx(data["busy_core_hours"] / data["core_hours"], rel=1e-6)
+        assert sum(t["evaluations"] for t in data["treatments"]) == data["evaluations"]
+        assert sum(t["database_bytes"] for t in data["treatments"]) == data["database_bytes"]
+        code, out, _ = softevo(capsys, "plan", *args)
+        booked = next(line for line in out.splitlines() if line.startswith("booked"))
+        figures = [float(word.replace(",", "")) for word in booked.replace("(", " ").split()
+                   if word.replace(",", "").replace(".", "").isdigit()]
+        total, _, busy, idle = figures  # booked, the cores, busy, idle
+        assert busy + idle == pytest.approx(total, rel=0.01), booked
+
+
+@pytest.mark.parametrize(
+    ("seconds", "text"),
+    [(0.0009792 * 3600, "3.53 seconds"), (16.5, "16.5 seconds"), (200, "3.33 minutes"),
+     (7199, "120 minutes"), (36 * 3600, "36 hours"), (363 * 3600, "363 hours (15.1 days)")],
+)  # fmt: skip
+def test_durations_read_in_seconds_minutes_or_hours(seconds, text):
+    """Issue 59.2: short jobs read "wall 0.0009792 hours"."""
+    from softevo.service.cli.plan import duration
+
+    assert duration(seconds) == text
+
+
+def test_a_tiny_plan_reads_in_seconds(capsys):
+    code, out, _ = softevo(capsys, "plan", "paper", "--scale", "tiny", "--cores", "2")
+    assert code == 0
+    wall = next(line for line in out.splitlines() if line.startswith("on 2 cores"))
+    assert "seconds" in wall and "hours" not in wall and "e-0" not in out
+
+
+def test_the_example_spec_plans_and_its_format_is_documented(capsys):
+    """Issue 59.2: the spec file ``softevo plan`` takes was not documented ("name: Field
+    required"): docs/spec.md lists every treatment option, and examples/ holds one."""
+    from pathlib import Path
+
+    from softevo.evolution import options
+
+    root = Path(__file__).resolve().parents[3]
+    example = root / "examples" / "experiment_spec.json"
+    code, out, err = softevo(capsys, "plan", str(example), "--cores", "2")
+    assert code == 0, err
+    assert len(json.loads(example.read_text())["treatments"]) == 3 and "land-water S3" in out
+    spec = (root / "docs" / "spec.md").read_text()
+    section = spec.split("### Experiment spec files")[1].split("\n## ")[0]
+    assert "examples/experiment_spec.json" in section
+    missing = [o.name for o in options.declared() if f"| `{o.name}` |" not in section]
+    assert not missing, missing

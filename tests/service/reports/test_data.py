@@ -31,9 +31,9 @@ def test_the_experiment_is_read_back(tiny, tiny_data):
     assert data.treatments["switch_at"].tolist()[1] == 2 and data.treatments["switch_at"].isna()[0]
     assert sorted(data.runs["run_id"]) == sorted(tiny.run_ids)
     assert (data.runs["status"] == "finished").all()
-    assert len(data.generations) == 4 * 3
+    assert len(data.generations) == 6 * 3
     counts = data.populations.groupby(["run_id", "generation"]).size()
-    assert (counts == 4).all() and len(counts) == 4 * 2  # only the two ends of each run
+    assert (counts == 4).all() and len(counts) == 6 * 2  # only the two ends of each run
     assert sorted(data.populations["generation"].unique()) == [0, 2]
     assert set(data.evaluations["individual_id"]) == set(data.populations["individual_id"])
 
@@ -52,7 +52,7 @@ def test_members_carry_the_traits_of_their_latest_evaluation(tiny_data):
 def test_initial_and_final_populations(tiny_data):
     assert (tiny_data.initial_populations()["generation"] == 0).all()
     final = tiny_data.final_populations()
-    assert len(final) == 4 * 4 and (final["generation"] == 2).all()
+    assert len(final) == 4 * 6 and (final["generation"] == 2).all()
 
 
 def test_resolve_experiment_by_id_and_name(tiny):
@@ -85,7 +85,7 @@ def test_statistics_table_on_the_real_experiment(tiny_data):
     tested = start_end.dropna(subset=["p"])
     assert tested["p_bonferroni"].to_numpy() == pytest.approx(np.minimum(1, 2 * tested["p"]))
     assert (table["unit"] == "run").all() and (table["generation"] == 2).all()
-    # both treatments run seeds 0 and 1: their runs are paired by seed
+    # both treatments run seeds 0, 1 and 2: their runs are paired by seed
     assert (between["test"] == SEED_PAIRED).all()
     final = tiny_data.final_populations()
     per_run = final.groupby(["treatment", "repetition"])["voxel_count"].mean()  # one value per run
@@ -94,18 +94,18 @@ def test_statistics_table_on_the_real_experiment(tiny_data):
     if differences.any():
         reference = scipy_stats.wilcoxon(differences)
         assert (row["U"], row["p"]) == pytest.approx((reference.statistic, reference.pvalue))
-    assert (row["n_a"], row["n_b"]) == (2, 2)
+    assert (row["n_a"], row["n_b"]) == (3, 3)
     assert row["difference"] == pytest.approx(differences.mean())
     assert row["difference_low"] <= row["difference"] <= row["difference_high"]
     assert row["family_size"] == 1 and row["p_bonferroni"] == pytest.approx(row["p"])
-    assert np.isnan(row["detectable_A12"])  # 2 pairs: the signed-rank floor is 0.5
+    assert np.isnan(row["detectable_A12"])  # 3 pairs: the signed-rank floor is 0.25
     again = statistics_table(tiny_data)  # the same table again
     pd.testing.assert_frame_equal(table, again)
 
 
 def test_summary_and_fitness_curves_are_over_repetitions(tiny_data):
     summary = summary_table(tiny_data)
-    assert (summary["n"] == 2).all()
+    assert (summary["n"] == 3).all()
     assert (summary["low"] <= summary["mean"] + 1e-12).all()
     assert (summary["mean"] <= summary["high"] + 1e-12).all()
     best = best_distance_per_run(tiny_data)
@@ -114,7 +114,7 @@ def test_summary_and_fitness_curves_are_over_repetitions(tiny_data):
         best.loc[best["treatment"] == "land S3", "best_distance"].mean()
     )
     curves = fitness_curves(tiny_data)
-    assert len(curves) == 2 * 3 and (curves["n"] == 2).all()
+    assert len(curves) == 2 * 3 and (curves["n"] == 3).all()
     generations = tiny_data.generations
     mean = generations.groupby(["treatment", "generation"])["best_distance"].mean()
     for r in curves.itertuples():

@@ -67,7 +67,7 @@ def test_markdown_links_every_figure_and_holds_the_tables(report):
     assert "](figures/best.gif)" in text
     assert "## Run settings" in text and "## Statistics" in text
     assert "| comparison | family | family_size | test | metric | a | b |" in text
-    assert "| land S3 | land:0 | 0.1 | 4 | 3 | 4x4x4 | 2 | 2 | 0..1 | afpo | 2/2 |" in text
+    assert "| land S3 | land:0 | 0.1 | 4 | 3 | 4x4x4 | 2 | 3 | 0..2 | afpo | 3/3 |" in text
 
 
 def test_report_command(capsys, tiny, tmp_path):
@@ -135,11 +135,20 @@ def test_a_report_of_single_runs_warns_that_its_statistics_say_nothing(capsys, t
     code, _, err = softevo(capsys, "report", "latest", "--out", str(out), "--db", url, "--no-animation", "-q")
     assert code == 0, err
     warning = [line for line in err.splitlines() if line.startswith("warning: ")]
-    assert len(warning) == 1 and "1 of 1 treatment(s) have a single run (water S=0.1MPa)" in warning[0]
-    assert "(p = 1) say nothing" in (out / "report.md").read_text()  # was: degenerate CIs, no word
-    code, _, err = softevo(capsys, "report", f"e{tiny.experiment_id}", "--out", str(tmp_path / "two"),
+    assert len(warning) == 1 and "1 of 1 treatment(s) have fewer than 3 runs (water S=0.1MPa)" in warning[0]
+    markdown = (out / "report.md").read_text()
+    assert "n = 1: not tested, no interval" in markdown  # was: degenerate CIs, no word
+    # issue 59.3: it listed 10 tests, all p = 1, and "no pair differs" with one treatment
+    statistics = markdown.split("## Statistics")[1]
+    assert "No pairwise test: n = 1: not tested" in statistics and "| p |" not in statistics
+    assert "| ns |" not in markdown and "no pair differs" not in markdown
+    import pandas as pd
+
+    rows = pd.read_csv(out / "statistics.csv")
+    assert rows["p"].isna().all() and (rows["test"] == "n = 1: not tested").all()
+    code, _, err = softevo(capsys, "report", f"e{tiny.experiment_id}", "--out", str(tmp_path / "three"),
                            "--db", tiny.url, "--no-animation", "-q")  # fmt: skip
-    assert code == 0 and "warning" not in err  # 2 repetitions: no warning
+    assert code == 0 and "warning" not in err  # 3 repetitions: no warning
 
 
 def test_the_report_writes_the_findings_and_one_summary_row_per_run(report, tiny):
@@ -175,7 +184,7 @@ def test_report_numbers_say_zero_and_no_interval_plainly():
     from softevo.analysis.report import _cell, interval_cell
 
     assert _cell(3.93e-16) == "0" and _cell(-2e-17) == "0" and _cell(0.0001234) == "0.0001234"
-    assert interval_cell(1.5, float("nan"), float("nan")) == "1.5 (n = 1: no interval)"
+    assert interval_cell(1.5, float("nan"), float("nan")) == "1.5 (n < 3: no interval)"
     assert interval_cell(3.93e-16, -1e-16, 2e-16) == "0 [0, 0]"
     assert interval_cell(2.0, 1.25, 2.75) == "2 [1.25, 2.75]"
     assert interval_cell(float("nan"), float("nan"), float("nan")) == ""
@@ -201,3 +210,17 @@ def test_qd_figure_and_table_are_the_runs_archives(report, tiny):
         assert last["n"] == len(values) and last["mean"] == pytest.approx(sum(values) / len(values))
     page = result.html.read_text(encoding="utf-8")
     assert "Quality-diversity" in page and '<figure id="qd">' in page
+
+
+def test_a_minimised_objectives_best_is_over_robots_with_an_active_voxel(tiny_data):
+    """Issue 59.3: the "best" voxel count was a 1-voxel passive body, the trivial optimum."""
+    from softevo.analysis.report import objectives_table
+
+    table = objectives_table(tiny_data)
+    members = tiny_data.display_populations()
+    for name in ("land S3", "water-land S3"):
+        active = members[(members["treatment"] == name) & (members["active_share"] > 0)]
+        rows = table[table["treatment"] == name].set_index("objective")
+        assert rows.loc["voxel_count", "best"] == active["voxel_count"].min()
+        assert rows.loc["active_share", "best"] == pytest.approx(active["active_share"].min())
+        assert rows.loc["active_share", "best"] > 0

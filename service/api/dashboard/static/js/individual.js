@@ -169,7 +169,8 @@ async function main() {
     return;
   }
   document.getElementById("individual-title").textContent =
-    `run ${individual.run_id} · local id ${individual.local_id} · born in generation ${individual.generation_born}`;
+    `id ${individual.id} · run ${individual.run_id}'s individual ${individual.local_id} (local id) · `
+    + `born in generation ${individual.generation_born}`;
   state.individual = individual;
   const environment = environmentChoice(individual);
   showObjectives(individual, environment);
