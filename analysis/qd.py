@@ -9,7 +9,7 @@ moves on to its new world's archive at the switch. Any run has an archive, whate
 algorithm: the grid is its treatment's (``map-elites``) or the default one.
 
 Each run is one observation; the interval is ``analysis.stats_tables.t_interval``'s, none
-below two runs (as every interval of the report), clipped to what the measure allows
+below three runs (as every interval of the report), clipped to what the measure allows
 (coverage within [0, 1], QD score at least 0).
 """
 

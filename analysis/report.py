@@ -802,7 +802,7 @@ def qd_block(doc: Document, curves: pd.DataFrame) -> None:
     doc.heading("Quality-diversity")
     doc.paragraph(
         "Per treatment at its last generation (each run one observation; mean and 95% t interval, "
-        "none below two runs): the QD score (the sum of the elites' distances) and coverage (the "
+        "none below three runs): the QD score (the sum of the elites' distances) and coverage (the "
         "share of cells filled) of each run's MAP-Elites archive, the best robot of each cell of "
         "the archive's measures in the world evaluated then. Every generation: qd.csv; per run: "
         "softevo archive RUN."
