@@ -90,7 +90,7 @@ def qd_figure(data: ExperimentData, curves: pd.DataFrame, out_dir: Path) -> fig.
     caption = (
         "Each run's MAP-Elites archive after every generation (the best robot of each cell of "
         "the archive's measures, in the world evaluated then; softevo archive RUN): its QD "
-        "score (left) and coverage (right), mean over runs with the 95% t band (none below two "
+        "score (left) and coverage (right), mean over runs with the 95% t band (none below three "
         "runs); a dashed line marks a transition's switch, where the curve moves on to the new "
         "world's archive."
     )
