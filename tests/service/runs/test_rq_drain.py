@@ -29,7 +29,7 @@ from tests.service.rq_support import Processes, redis_for_test, wait_for
 from tests.service.runs.test_rq_executor import tasks, without_seconds
 
 pytestmark = [pytest.mark.redis, pytest.mark.slow]
-CYCLES = 100  # a job of 2 genomes lasts seconds: still running a second after it starts
+CYCLES = 500  # a job of 2 genomes lasts seconds (100 cycles: 0.9 s, too short): running a second on
 KILL_WAIT = 1.0  # seconds from SIGTERM to SIGKILL (SLURM's KillWait, 30 by default)
 
 
