@@ -1,13 +1,15 @@
 """softevo against the paper's engine (the VoxCAD fork in evosoro), paired on the same VXA robots.
 
 Usage: python bench/voxcad_paired.py [--repeat 3] [--seconds S] [--only REGEX] [--profile]
-       [--precision float64|mixed]
+       [--precision float64|mixed] [--holdout SEED]
 
 The robots are the fork's 8 sample robots (their VXA text in tests/sim/reference/voxcad/
 sample_*.json), each in its own world (4 on land, 4 in water), self-collisions on, as shipped
 (12-20 simulated seconds; ``--seconds S`` stops each at S simulated seconds instead, the same
-cut VXA for both engines). The fork is built from source by ``bench/voxcad_reference.py``
-(``g++ -O3``, cached in ``--build``/O3) and run by its driver (``bench/voxcad/driver.cpp``:
+cut VXA for both engines). ``--holdout SEED``: robots no test has run instead, a variant of
+each sample (``held_out``: materials changed, voxels emptied, phases shuffled). The fork is
+built from source by ``bench/voxcad_reference.py`` (``g++ -O3``, cached in ``--build``/O3)
+and run by its driver (``bench/voxcad/driver.cpp``:
 the fork's own stepping loop, as voxelyzeMain/main.cpp). softevo runs the same VXA through the
 importer (``analysis.vxa_import.vxa_to_scene``: model ``voxcad-land-water``) with
 ``sim.simulate(scene, threads=1)``, after a warm-up run of the same scene that compiles (or
@@ -76,6 +78,50 @@ def samples(only: str | None) -> list[dict]:
     if not out:
         sys.exit(f"error: no sample robots under {REFERENCE} (--only {only!r})")
     return out
+
+
+def held_out(robot: dict, seed: int) -> dict:
+    """A variant of a sample robot that no test or bench has run: with the generator of
+    ``seed`` (and the robot's name), a tenth of its filled voxels take another of the robot's
+    materials, a twentieth are emptied, and its phase offsets are shuffled within each layer.
+    The world, size, stopping time and the fork's settings stay the sample's."""
+    import random
+
+    rng = random.Random(f"{seed}:{robot['name']}")
+    vxa = robot["vxa"]
+
+    def layers(section: str, text: str, change) -> str:
+        start = text.index(f"<{section}>")
+        end = text.index(f"</{section}>", start)
+        body = re.sub(
+            r"<!\[CDATA\[(.*?)\]\]>", lambda m: f"<![CDATA[{change(m.group(1))}]]>", text[start:end]
+        )
+        return text[:start] + body + text[end:]
+
+    data = vxa[vxa.index("<Data>") : vxa.index("</Data>")]
+    materials = sorted({c for layer in re.findall(r"CDATA\[(\d*)\]", data) for c in layer} - {"0"})
+
+    def body(digits: str) -> str:
+        out = []
+        for c in digits:
+            if c != "0":
+                u = rng.random()
+                if u < 0.05:
+                    c = "0"
+                elif u < 0.15 and len(materials) > 1:
+                    c = rng.choice([m for m in materials if m != c])
+            out.append(c)
+        return "".join(out)
+
+    def shuffled(values: str) -> str:
+        items = [v.strip() for v in values.split(",") if v.strip()]
+        rng.shuffle(items)
+        return ", ".join(items) + ", "
+
+    vxa = layers("Data", vxa, body)
+    if "<PhaseOffset>" in vxa:
+        vxa = layers("PhaseOffset", vxa, shuffled)
+    return {**robot, "name": f"{robot['name']}~{seed}", "vxa": vxa}
 
 
 def cut(vxa: str, seconds: float | None) -> str:
@@ -387,9 +433,19 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="pairs per robot")
     parser.add_argument("--seconds", type=float, help="simulated seconds per robot (default: as shipped)")
     parser.add_argument("--only", help="regex: only the matching sample robots")
+    parser.add_argument(
+        "--holdout",
+        type=int,
+        metavar="SEED",
+        help="robots never seen: each sample robot's variant of this seed (``held_out``)",
+    )
     parser.add_argument("--profile", action="store_true", help="also say where the time goes")
-    parser.add_argument("--precision", default="float64", choices=("float64", "mixed"),
-                        help="softevo's arithmetic (model_options.precision; the fork's is float64)")
+    parser.add_argument(
+        "--precision",
+        default="float64",
+        choices=("float64", "mixed"),
+        help="softevo's arithmetic (model_options.precision; the fork's is float64)",
+    )
     parser.add_argument(
         "--profile-seconds", type=float, default=0.3, help="simulated seconds of the fork's callgrind runs"
     )
@@ -399,6 +455,8 @@ def main() -> None:
         sys.exit("error: --seconds must exceed 0.5 (the land robots settle for 0.5 s)")
     info = ref.build(args.evosoro, args.build / "O3")
     robots = samples(args.only)
+    if args.holdout is not None:
+        robots = [held_out(robot, args.holdout) for robot in robots]
     if not args.no_paired:
         paired(args, info["driver"], robots)
     if args.profile:
