@@ -62,17 +62,20 @@ class CostModel:
 
 # One core of this project's machine (docs/benchmarks.md "Cost model"), random paper-like 7^3
 # robots, numba, one thread per robot, whole evaluations: voxel-steps/s by model and world.
+# ``measure`` over the tiny grid's sampled robots, 3 repeats, twice, on the idle 2-core Intel
+# Xeon (Sapphire Rapids class, AVX-512), 2026-12-07 (after the vectorized voxel update; they
+# were 1.6e7 / 8.0e6 / 1.45e7 / 9.5e6 before it, 2026-12-04, CPU not recorded).
 MEASURED = CostModel(
     rates={
-        ("voxcad-land-water", worlds.LAND.name): 1.6e7,
-        ("voxcad-land-water", worlds.WATER.name): 8.0e6,
-        ("voxcad-land-water", worlds.VOID.name): 1.6e7,
-        ("voxelyze-2", worlds.LAND.name): 1.45e7,
-        ("voxelyze-2", worlds.WATER.name): 9.5e6,
-        ("voxelyze-2", worlds.VOID.name): 1.45e7,
+        ("voxcad-land-water", worlds.LAND.name): 2.2e7,
+        ("voxcad-land-water", worlds.WATER.name): 1.15e7,
+        ("voxcad-land-water", worlds.VOID.name): 2.2e7,
+        ("voxelyze-2", worlds.LAND.name): 1.5e7,
+        ("voxelyze-2", worlds.WATER.name): 1.25e7,
+        ("voxelyze-2", worlds.VOID.name): 1.5e7,
     },
-    overhead_seconds=0.004,
-    default_rate=1.2e7,
+    overhead_seconds=0.002,
+    default_rate=1.5e7,
     source="docs/benchmarks.md",
 )
 

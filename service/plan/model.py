@@ -91,17 +91,20 @@ assert set(COORDINATOR_SECONDS) == set(COORDINATOR_ASK_SECONDS) == set(COORDINAT
     EXECUTOR_KINDS)
 COORDINATOR_POPULATION = 30
 COORDINATOR_TARGET = 0.8  # coordinators_needed keeps each coordinator busy at most this share
-# - a worker's own work per evaluation: developing the genome (0.2 ms) and its descriptors
-#   (trimesh's surface mesh: 9.6 ms), CPU seconds on random 5^3 genomes (bench/plan_startup.py;
-#   it was 3 ms, measured without descriptors, and the tiny preset came out 1.9x its plan);
-WORKER_SECONDS_PER_EVALUATION = 0.010
+# - a worker's own work per evaluation: developing the genome and its descriptors, CPU
+#   seconds on random 5^3 genomes (bench/plan_startup.py): 3.2 ms on the idle 2-core Intel Xeon
+#   (Sapphire Rapids class), 2026-12-07 (10 ms on a loaded AMD EPYC before, where the tiny
+#   preset had come out 1.9x a plan that counted 3 ms without descriptors);
+WORKER_SECONDS_PER_EVALUATION = 0.0032
 JOB_SECONDS = 0.008
 # - the fixed start of one ``softevo run`` / ``experiment`` (the local executor): the command
 #   and a new SQLite database (1.46 s), the kernel cache check (1.27 s) and a pool process
 #   spawned and warmed, land and water kernels loaded (1.74 s; the processes start side by
-#   side): CPU seconds, medians of 3 (bench/plan_startup.py). A cluster's workers are started
-#   and warm before a plan's experiment is sent: nothing for "rq".
-STARTUP_SECONDS = {"local": 4.5, "rq": 0.0}
+#   side): CPU seconds, medians of 3 (bench/plan_startup.py): 0.92 + 1.01 + 1.03 s on the idle
+#   2-core Intel Xeon (Sapphire Rapids class), 2026-12-07 (1.46 + 1.27 + 1.74 s on a loaded AMD
+#   EPYC before). A cluster's workers are started and warm before a plan's experiment is sent:
+#   nothing for "rq".
+STARTUP_SECONDS = {"local": 3.0, "rq": 0.0}
 # An H200's rate in the cuda engine: ESTIMATE, NOT MEASURED (a GPU design review's
 # 1.5-2.2e9 voxel-steps/s, docs/gpu.md); replace it once bench/gpu_device_check.sh has run on
 # one.
@@ -398,7 +401,7 @@ def _assumptions(gpu: bool, coordinator_seconds: float, ask_seconds: float, exec
         f"coordinator ({executor} executor) {coordinator_seconds * 1000:.0f} ms per run-generation at "
         f"population {COORDINATOR_POPULATION}, one generation at a time, and "
         f"{ask_seconds * 1000:.0f} ms to ask a run's first population; "
-        f"{WORKER_SECONDS_PER_EVALUATION * 1000:.0f} ms "
+        f"{WORKER_SECONDS_PER_EVALUATION * 1000:.1f} ms "
         f"of a worker's own per evaluation, {JOB_SECONDS * 1000:.0f} ms per job (measured here)",
         "database bytes measured on SQLite for short runs; genomes grow over long runs",
     ]

@@ -232,18 +232,19 @@ def test_rest_plan_200_and_422(tmp_path):
 
 def test_a_local_plan_counts_the_commands_start():
     """Issue 49.11: the tiny preset on 2 idle cores took 20-21 s where its plan said 11 s
-    (9.4 s here): the start of the command, its database and its pool's processes (4.5 s,
-    bench/plan_startup.py) and a worker's descriptors per evaluation (10 ms, not 3) were
-    left out. A cluster's workers are already warm: no start-up there."""
+    (9.4 s here): the start of the command, its database and its pool's processes
+    (bench/plan_startup.py) and a worker's descriptors per evaluation were left out. A
+    cluster's workers are already warm: no start-up there."""
     from softevo.service.plan.model import STARTUP_SECONDS, WORKER_SECONDS_PER_EVALUATION
 
     grid = paper_grid("tiny")
     local = plan(grid, cores=2, executor="local")
-    assert local.startup_seconds == STARTUP_SECONDS["local"] == 4.5
-    assert WORKER_SECONDS_PER_EVALUATION == 0.010
-    assert local.wall_seconds >= 14.0, local.wall_seconds  # was 9.4
+    assert local.startup_seconds == STARTUP_SECONDS["local"] > 0
+    assert local.wall_seconds >= local.startup_seconds + local.busy_seconds / 2
     assert plan(grid, cores=2, executor="rq").startup_seconds == 0.0
     assert any("to start the command" in note for note in local.assumptions)
+    assert any(f"{WORKER_SECONDS_PER_EVALUATION * 1000:.1f} ms of a worker's own" in note
+               for note in local.assumptions)
 
 
 def _table_hours(out: str) -> tuple[list[float], float]:
