@@ -83,44 +83,47 @@ def samples(only: str | None) -> list[dict]:
 def held_out(robot: dict, seed: int) -> dict:
     """A variant of a sample robot that no test or bench has run: with the generator of
     ``seed`` (and the robot's name), a tenth of its filled voxels take another of the robot's
-    materials, a twentieth are emptied, and its phase offsets are shuffled within each layer.
+    materials, a twentieth are emptied (each only if the body stays in one piece, so that
+    both engines simulate every voxel), and its phase offsets are shuffled within each layer.
     The world, size, stopping time and the fork's settings stay the sample's."""
     import random
 
+    import numpy as np
+    from scipy import ndimage
+
     rng = random.Random(f"{seed}:{robot['name']}")
     vxa = robot["vxa"]
-
-    def layers(section: str, text: str, change) -> str:
-        start = text.index(f"<{section}>")
-        end = text.index(f"</{section}>", start)
-        body = re.sub(
-            r"<!\[CDATA\[(.*?)\]\]>", lambda m: f"<![CDATA[{change(m.group(1))}]]>", text[start:end]
-        )
-        return text[:start] + body + text[end:]
-
-    data = vxa[vxa.index("<Data>") : vxa.index("</Data>")]
-    materials = sorted({c for layer in re.findall(r"CDATA\[(\d*)\]", data) for c in layer} - {"0"})
-
-    def body(digits: str) -> str:
-        out = []
-        for c in digits:
-            if c != "0":
-                u = rng.random()
-                if u < 0.05:
-                    c = "0"
-                elif u < 0.15 and len(materials) > 1:
-                    c = rng.choice([m for m in materials if m != c])
-            out.append(c)
-        return "".join(out)
-
-    def shuffled(values: str) -> str:
-        items = [v.strip() for v in values.split(",") if v.strip()]
-        rng.shuffle(items)
-        return ", ".join(items) + ", "
-
-    vxa = layers("Data", vxa, body)
+    start, end = vxa.index("<Data>"), vxa.index("</Data>")
+    cdata = re.compile(r"<!\[CDATA\[(.*?)\]\]>")
+    layers = [list(layer) for layer in cdata.findall(vxa[start:end])]
+    materials = sorted({c for layer in layers for c in layer} - {"0"})
+    shape = (
+        len(layers),
+        int(re.search(r"<Y_Voxels>(\d+)<", vxa)[1]),
+        int(re.search(r"<X_Voxels>(\d+)<", vxa)[1]),
+    )
+    for layer in layers:
+        for k, c in enumerate(layer):
+            if c == "0":
+                continue
+            u = rng.random()
+            if u < 0.05:
+                layer[k] = "0"
+                if ndimage.label((np.array(layers) != "0").reshape(shape))[1] != 1:
+                    layer[k] = c  # it would split the body
+            elif u < 0.15 and len(materials) > 1:
+                layer[k] = rng.choice([m for m in materials if m != c])
+    rows = iter(layers)
+    vxa = vxa[:start] + cdata.sub(lambda m: f"<![CDATA[{''.join(next(rows))}]]>", vxa[start:end]) + vxa[end:]
     if "<PhaseOffset>" in vxa:
-        vxa = layers("PhaseOffset", vxa, shuffled)
+        start, end = vxa.index("<PhaseOffset>"), vxa.index("</PhaseOffset>")
+
+        def shuffled(m: re.Match) -> str:
+            items = [v.strip() for v in m.group(1).split(",") if v.strip()]
+            rng.shuffle(items)
+            return f"<![CDATA[{', '.join(items)}, ]]>"
+
+        vxa = vxa[:start] + cdata.sub(shuffled, vxa[start:end]) + vxa[end:]
     return {**robot, "name": f"{robot['name']}~{seed}", "vxa": vxa}
 
 
