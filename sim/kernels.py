@@ -537,18 +537,22 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
         xs[a] = pos[surface[a], 0]
         partners[surface[a]] = 0
     order = np.argsort(xs)
+    # the sweep reads the surface in x order from contiguous copies (no gathers in its loop)
+    ids, sx, sy, sz = np.empty(ns, np.int64), np.empty(ns), np.empty(ns), np.empty(ns)
+    for a in range(ns):
+        v = surface[order[a]]
+        ids[a], sx[a], sy[a], sz[a] = v, pos[v, 0], pos[v, 1], pos[v, 2]
     count = 0
     reach2 = reach * reach
     flat, width = near.reshape(-1), near.shape[1]
     for a in range(ns):
-        i = surface[order[a]]
+        i, x, y, z = ids[a], sx[a], sy[a], sz[a]
         for b in range(a + 1, ns):
-            j = surface[order[b]]
-            dx = pos[j, 0] - pos[i, 0]
+            dx = sx[b] - x
             if dx > reach:
                 break
-            if is_candidate(flat, width, i, j, dx, pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
-                            reach2):
+            j = ids[b]
+            if is_candidate(flat, width, i, j, dx, sy[b] - y, sz[b] - z, reach2):
                 partners[i] += 1
                 partners[j] += 1
                 if partners[i] > MAX_CONTACTS or partners[j] > MAX_CONTACTS:

@@ -28,14 +28,16 @@ PIECES = ("listed", "is_candidate", "pair_force")
 
 def listed(near, width, i, j):
     """Whether row i of ``near`` (flat, ``width`` entries per row, ascending, -1 pads at the
-    end: ``system.nearby``) holds j, scanning only up to the first entry past j."""
-    for q in range(width):
-        w = near[i * width + q]
-        if w == j:
-            return True
-        if w > j or w < 0:
-            return False
-    return False
+    end: ``system.nearby``) holds j: a binary search for the first entry not below j (a pad
+    counts as above every voxel)."""
+    lo, hi = 0, width
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        w = near[i * width + mid]
+        below = w >= 0 and w < j
+        lo = mid + 1 if below else lo
+        hi = hi if below else mid
+    return lo < width and near[i * width + lo] == j
 
 
 def is_candidate(near, width, i, j, dx, dy, dz, reach2):

@@ -210,6 +210,35 @@ def test_actuation_matches_numpy(wave):
     assert np.all(size == 0.05), "no actuation while settling"
 
 
+@pytest.mark.parametrize("hops", [1, 3])
+def test_listed_is_membership_in_the_near_row(hops):
+    """``listed`` (a binary search over a row ascending with -1 pads at its end) against the
+    obvious test, j in the row, for every pair of a robot's voxels and for rows of every
+    width from 0 to 9 of random members, compiled and plain."""
+    from softevo.sim import substeps
+
+    body = np.ones((4, 3, 3), int)
+    body[1, 1, 1:] = 0
+    robot = system.build_robot(sim.parse_scene({"body": body.tolist()}))
+    near = system.nearby(robot.nbr, hops)
+    n, width = near.shape
+    flat = near.reshape(-1)
+    for i in range(n):
+        row = set(near[i][near[i] >= 0].tolist())
+        got = [kernels.listed(flat, width, i, j) for j in range(-1, n + 1)]
+        assert got == [j in row for j in range(-1, n + 1)]
+    rng = np.random.default_rng(3)
+    for width in range(10):
+        for _ in range(20):
+            members = np.sort(rng.choice(40, size=rng.integers(0, width + 1), replace=False))
+            row = np.full(width, -1, np.int64)
+            row[:len(members)] = members
+            for j in range(41):
+                want = j in members.tolist()
+                assert kernels.listed(row, width, 0, j) == want
+                assert substeps.listed(row, width, 0, j) == want
+
+
 def test_collision_pairs_and_forces_match_brute_force():
     """Sweep-and-prune candidates equal the brute-force set; forces are equal and opposite."""
     rng = np.random.default_rng(5)
