@@ -159,6 +159,19 @@ class Processes:
                 process.wait(5)
 
 
+def job_held_by(redis_url: str, queue: str, worker: str) -> str | None:
+    """The id of the job ``worker`` runs now on ``queue``, if any."""
+    from rq.job import Job
+    from rq.registry import StartedJobRegistry
+
+    connection = Redis.from_url(redis_url)
+    for job_id in StartedJobRegistry(queue, connection=connection).get_job_ids(cleanup=False):
+        job = Job.fetch(job_id, connection=connection)
+        if job.worker_name == worker and job.get_status() == "started":
+            return job_id
+    return None
+
+
 def service_env(db_url: str, redis_url: str | None, **extra: str) -> dict[str, str]:
     """Environment of a test's serve and worker processes: its own queue, short heartbeats."""
     env = {

@@ -21,11 +21,10 @@ import pytest
 from redis import Redis
 from rq import Queue
 from rq.job import Job
-from rq.registry import StartedJobRegistry
 
 from softevo.service.runs.executors import InlineExecutor
 from softevo.service.runs.rq_executor import RQExecutor
-from tests.service.rq_support import Processes, redis_for_test, wait_for
+from tests.service.rq_support import Processes, job_held_by, redis_for_test, wait_for
 from tests.service.runs.test_rq_executor import tasks, without_seconds
 
 pytestmark = [pytest.mark.redis, pytest.mark.slow]
@@ -53,16 +52,6 @@ def long_tasks(n: int) -> list[dict]:
     return [{**task, "cycles": CYCLES} for task in tasks(n, run_id=31, seed=4)]
 
 
-def job_of(url: str, queue: str, worker: str) -> str | None:
-    """The id of the job ``worker`` runs now, if any."""
-    connection = Redis.from_url(url)
-    for job_id in StartedJobRegistry(queue, connection=connection).get_job_ids(cleanup=False):
-        job = Job.fetch(job_id, connection=connection)
-        if job.worker_name == worker and job.get_status() == "started":
-            return job_id
-    return None
-
-
 def evaluated(executor: RQExecutor, ticket, work: list[dict]) -> None:
     """Wait for ``ticket``; its results must equal in-process evaluation's."""
     executor.wait([ticket], timeout=180)
@@ -77,7 +66,7 @@ def test_the_drain_signal_lets_the_job_finish_and_takes_no_other(cluster):
     executor = RQExecutor(url, queue=queue, genomes_per_job=2, maintenance_seconds=1)
     try:
         ticket = executor.submit(work)
-        job_id = wait_for(lambda: job_of(url, queue, "w1"), 60, "w1 to start a job", every=0.005)
+        job_id = wait_for(lambda: job_held_by(url, queue, "w1"), 60, "w1 to start a job", every=0.005)
         worker.send_signal(signal.SIGTERM)
         assert worker.wait(60) == 0
         connection = Redis.from_url(url)
@@ -97,10 +86,10 @@ def test_a_worker_killed_at_its_time_limit_hands_its_job_back(cluster):
     executor = RQExecutor(url, queue=queue, genomes_per_job=2, maintenance_seconds=1)
     try:
         ticket = executor.submit(work)
-        job_id = wait_for(lambda: job_of(url, queue, "w1"), 60, "w1 to start the job", every=0.005)
+        job_id = wait_for(lambda: job_held_by(url, queue, "w1"), 60, "w1 to start the job", every=0.005)
         os.killpg(worker.pid, signal.SIGTERM)  # the worker and its heartbeat process
         time.sleep(KILL_WAIT)
-        assert job_of(url, queue, "w1") == job_id, "the job ended before the kill: make it longer"
+        assert job_held_by(url, queue, "w1") == job_id, "the job ended before the kill: make it longer"
         os.killpg(worker.pid, signal.SIGKILL)
         worker.wait(10)
         group.worker("w2")

@@ -28,12 +28,11 @@ import pytest
 from redis import Redis
 from rq import Queue
 from rq.job import Job
-from rq.registry import StartedJobRegistry
 
 from softevo.service.storage import open_database
 from softevo.worker.evaluate import ensure_compiled
 from tests.service import tinyrun
-from tests.service.rq_support import REPO, Processes, RedisServer, service_env, wait_for
+from tests.service.rq_support import REPO, Processes, RedisServer, job_held_by, service_env, wait_for
 from tests.service.runs.test_rq_cluster import submit, undisturbed, wait_finished
 
 pytestmark = [pytest.mark.slow, pytest.mark.redis]
@@ -96,16 +95,6 @@ def task_state(task: str) -> tuple[str, str]:
     shown = subprocess.run(["scontrol", "show", "job", task], capture_output=True, text=True).stdout
     fields = dict(re.findall(r"(JobState|ExitCode)=(\S+)", shown))
     return fields.get("JobState", "?"), fields.get("ExitCode", "?")
-
-
-def job_held_by(redis_url: str, queue: str, worker: str) -> str | None:
-    """The id of the job ``worker`` runs now, if any."""
-    connection = Redis.from_url(redis_url)
-    for job_id in StartedJobRegistry(queue, connection=connection).get_job_ids(cleanup=False):
-        job = Job.fetch(job_id, connection=connection)
-        if job.worker_name == worker and job.get_status() == "started":
-            return job_id
-    return None
 
 
 def test_documented_slurm_array_survives_scancel_of_a_worker_mid_job(tmp_path):
