@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import math
 import sys
 from pathlib import Path
@@ -243,9 +244,6 @@ def designs(rows: list[dict]) -> pd.DataFrame:
     seen and at A12 0.71, and `softevo plan`'s figures on 1,000 cores for each design: the
     finding's treatments at the study's sizes with that many runs each (its stored cost
     model, no --measure)."""
-    from softevo.evolution.treatments import preset_grid, select_treatments
-    from softevo.service.plan import model as planner
-
     out = []
     for r in rows:
         if r["family"] == "secondary":
@@ -254,18 +252,29 @@ def designs(rows: list[dict]) -> pd.DataFrame:
             figures = {"core_hours": math.nan, "evaluation_core_hours": math.nan, "wall_hours": math.nan,
                        "evaluations": math.nan}
             if n is not None and not pd.isna(n):
-                treatments = [dataclasses.replace(t, repetitions=int(n))  # the plan does not depend on seeds
-                              for t in select_treatments(preset_grid("paper", "study"), r["names"])]
-                plan = planner.plan(treatments, cores=DESIGN_CORES, executor="rq")
-                figures = {"core_hours": plan.core_hours,
-                           "evaluation_core_hours": sum(t.core_seconds for t in plan.treatments) / 3600,
-                           "wall_hours": plan.wall_hours, "evaluations": plan.evaluations}
+                figures = design_plan(tuple(r["names"]), int(n))
             out.append({"question": r["question"], "effect": effect, "a12": r["a12"],
                         "runs_per_treatment": None if n is None or pd.isna(n) else int(n),
                         "treatments": len(r["names"]), "cores": DESIGN_CORES, **figures})
     frame = pd.DataFrame(out)
     frame["runs_per_treatment"] = pd.array(frame["runs_per_treatment"], dtype="Int64")
     return frame
+
+
+@functools.cache
+def design_plan(names: tuple[str, ...], n: int) -> dict[str, float]:
+    """`softevo plan`'s figures on DESIGN_CORES cores for the study's treatments ``names`` with
+    ``n`` runs each (kept: the same design is planned once per process, however often ``main``
+    runs)."""
+    from softevo.evolution.treatments import preset_grid, select_treatments
+    from softevo.service.plan import model as planner
+
+    treatments = [dataclasses.replace(t, repetitions=n)  # the plan does not depend on seeds
+                  for t in select_treatments(preset_grid("paper", "study"), list(names))]
+    plan = planner.plan(treatments, cores=DESIGN_CORES, executor="rq")
+    return {"core_hours": plan.core_hours,
+            "evaluation_core_hours": sum(t.core_seconds for t in plan.treatments) / 3600,
+            "wall_hours": plan.wall_hours, "evaluations": plan.evaluations}
 
 
 def check_designs(results: Path, frame: pd.DataFrame) -> int:
@@ -434,11 +443,17 @@ def sensitivity_markdown(frame: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-def cost_numbers(runs, evaluations) -> dict[str, str]:
-    """What the study cost, planned and measured, and the frequencies' shares."""
+@functools.lru_cache(maxsize=1)
+def study_plan():
+    """`softevo plan paper --scale study --cores 2` (the local executor), once per process."""
     from softevo.evolution.treatments import preset_grid
     from softevo.service.plan import model as planner
 
+    return planner.plan(preset_grid("paper", "study"), cores=2, executor="local")
+
+
+def cost_numbers(runs, evaluations) -> dict[str, str]:
+    """What the study cost, planned and measured, and the frequencies' shares."""
     frequency = evaluations["frequency"].abs()
     simulated = evaluations.dropna(subset=["steps"])
     merged = evaluations.merge(runs[["run_id", "cycles", "max_seconds", "treatment"]], on="run_id")
@@ -448,7 +463,7 @@ def cost_numbers(runs, evaluations) -> dict[str, str]:
     shared = evaluations.dropna(subset=["frequency"]).groupby("frequency")["run_id"].nunique()
     start = pd.to_datetime(runs["created_at"]).min()
     end = pd.to_datetime(runs["last_stored_at"]).max()
-    planned = planner.plan(preset_grid("paper", "study"), cores=2, executor="local")
+    planned = study_plan()
     rows = ["| treatment | evaluations planned, run | seconds an evaluation, planned (mean per world) | "
             "measured (mean wall) | simulated seconds (mean) | steps (mean) |",
             "| --- | --- | --- | ---: | ---: | ---: |"]
