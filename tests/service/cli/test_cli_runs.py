@@ -107,8 +107,12 @@ def test_ctrl_c_exits_130_so_a_chained_report_does_not_run(tmp_path):
     cmd = [exe] if exe else [sys.executable, "-m", "softevo.service.cli"]
     args = ["run", "--env", "land", "--stiffness", "1", "--population", "4", "--generations", "100000",
             "--workspace", "3,3,3", "--cycles", "1", "--workers", "0", "--quiet", "--db", f"sqlite:///{db}"]
+    # its own process group with Ctrl-C's default action, as a terminal's job: a command started
+    # in the background of a script (as .ci/run starts the tests) inherits SIGINT ignored, and a
+    # Python started so keeps it ignored (as nohup would)
     proc = subprocess.Popen([*cmd, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)  # its own process group, as a terminal's job
+                            start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         generation = -1
         while generation < 1 and proc.poll() is None:  # a generation stored: it is evolving
