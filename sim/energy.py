@@ -354,7 +354,7 @@ def audit_run(batch, state, real, series):
     positions)."""
     p, voxels, links, body = kernels.take_robot(batch, state, 0)
     n, m = len(voxels.flags), len(links.neg)
-    work = kernels.robot_work(n, links, batch.poff[1] - batch.poff[0], len(voxels.surface),
+    work = kernels.robot_work(n, links, batch.poff[1] - batch.poff[0], voxels, p.collide,
                               len(voxels.mesh_vert), len(voxels.mesh_face), real)
     contacts = kernels.Contacts(0, COLLIDE_MARGIN * p.L)
     mode = np.zeros(m)
