@@ -626,44 +626,72 @@ def far_pairs(surface, near, n_voxels, collide):
     return first, far[:count].copy()
 
 
+# The far pairs within the candidate radius plus OUTER_MARGIN voxel lengths are kept in an
+# outer list, rebuilt only once the surface has spread by half of that since it was listed:
+# until then it holds every pair within the candidate radius (``outer_pairs``), and the
+# candidate list is rebuilt from it instead of from all the far pairs.
+OUTER_MARGIN = 1.2
+
+
+@njit(**INLINE)
+def outer_stale(spread, L):
+    """Whether the outer list may miss a pair within the candidate radius: half the spread of
+    the surface's displacements since it was listed (``surface_moved``) has reached half its
+    margin (NaN: never listed)."""
+    return not (2.0 * spread < OUTER_MARGIN * L)
+
+
 @njit(**JIT)
-def far_candidates(surface, pos, first, far, reach, pairs, partners, spos):
-    """``collision_pairs`` over the far pairs (``far_pairs``): the same pairs, those nearer
-    than ``reach``, in the same order (``sweep_order``); returns how many, or -1 past the
-    policy's cap. ``spos``: scratch, the surface's positions by component, so that each row's
-    distances are one SIMD loop over reads of L1-resident rows; no search of ``near``: a
-    third of the cost of the sweep, and no branch that depends on where the voxels are."""
-    ns = len(surface)
-    sx, sy, sz = spos[0], spos[1], spos[2]
-    for a in range(ns):
+def surface_columns(surface, pos, spos):
+    """The surface voxels' positions by component into ``spos`` (3, s): contiguous rows."""
+    for a in range(len(surface)):
         v = surface[a]
-        sx[a], sy[a], sz[a] = pos[v, 0], pos[v, 1], pos[v, 2]
-        partners[v] = 0
+        spos[0, a], spos[1, a], spos[2, a] = pos[v, 0], pos[v, 1], pos[v, 2]
+
+
+@njit(**JIT)
+def outer_pairs(first, far, spos, radius, outer):
+    """The far pairs (``far_pairs``) nearer than ``radius`` (positions ``spos``) into
+    ``outer`` (rows a, b: surface indices), in row order; returns how many. Each pair is
+    written and the count advanced by whether it is near: no branch on positions."""
+    U = np.uint64  # unsigned offsets: no negative-index wrap-around to test per access
+    sx, sy, sz = spos[0], spos[1], spos[2]
+    first_a, first_b = outer[0], outer[1]
+    r2 = radius * radius
+    near_ones = U(0)
+    for a in range(len(first) - 1):
+        x, y, z = sx[a], sy[a], sz[a]
+        for q in range(first[a], first[a + 1]):
+            b = U(far[q])
+            dx, dy, dz = sx[b] - x, sy[b] - y, sz[b] - z
+            first_a[near_ones], first_b[near_ones] = a, b  # near_ones <= q: in bounds
+            near_ones += U(1) if dx * dx + dy * dy + dz * dz < r2 else U(0)
+    return np.int64(near_ones)
+
+
+@njit(**JIT)
+def far_candidates(surface, outer, n_outer, spos, reach, pairs, partners):
+    """``collision_pairs`` from the outer list (``outer_pairs``, valid while not
+    ``outer_stale``): the same pairs, those nearer than ``reach``, in the same order
+    (``sweep_order``); returns how many, or -1 past the policy's cap. No search of ``near``
+    (the far pairs are the ones it never lists)."""
+    sx, sy, sz = spos[0], spos[1], spos[2]
+    for a in range(len(surface)):
+        partners[surface[a]] = 0
     reach2 = reach * reach
     count = 0
-    for a in range(ns):
-        x, y, z = sx[a], sy[a], sz[a]
-        lo, hi = first[a], first[a + 1]
-        near_ones = 0
-        for q in range(lo, hi):  # branch-free: most rows have none
-            b = far[q]
-            dx, dy, dz = sx[b] - x, sy[b] - y, sz[b] - z
-            near_ones += 1 if dx * dx + dy * dy + dz * dz < reach2 else 0
-        if near_ones == 0:
-            continue
-        i = surface[a]
-        for q in range(lo, hi):
-            b = far[q]
-            dx, dy, dz = sx[b] - x, sy[b] - y, sz[b] - z
-            if dx * dx + dy * dy + dz * dz < reach2:
-                j = surface[b]
-                partners[i] += 1
-                partners[j] += 1
-                if partners[i] > MAX_CONTACTS or partners[j] > MAX_CONTACTS:
-                    return -1
-                pairs[count, 0] = a  # surface indices until ``sweep_order``
-                pairs[count, 1] = b
-                count += 1
+    for q in range(n_outer):  # a branch per pair: a third of them or fewer are near
+        a, b = outer[0, q], outer[1, q]
+        dx, dy, dz = sx[b] - sx[a], sy[b] - sy[a], sz[b] - sz[a]
+        if dx * dx + dy * dy + dz * dz < reach2:
+            i, j = surface[a], surface[b]
+            partners[i] += 1
+            partners[j] += 1
+            if partners[i] > MAX_CONTACTS or partners[j] > MAX_CONTACTS:
+                return -1
+            pairs[count, 0] = a  # surface indices until ``sweep_order``
+            pairs[count, 1] = b
+            count += 1
     sweep_order(surface, sx, pairs, count)
     return count
 
@@ -716,7 +744,7 @@ def surface_moved(surface, pos, built):
 
 @njit(**JIT)
 def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built, far_first, far,
-                        spos):
+                        spos, outer, n_outer, outer_built):
     """The self-contact candidates, rebuilt when they may be stale, if the robot has
     self-collisions; returns the updated ``Contacts`` (``count`` -1: a voxel has more
     candidates than the policy keeps, and the run stops).
@@ -735,7 +763,11 @@ def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built,
         if contacts_stale(travel, p.L):  # NaN before the first build
             reach = candidate_radius(p.L, p.contact_reach, p.amp)
             if len(far_first):
-                count = far_candidates(surface, pos, far_first, far, reach, pairs, partners, spos)
+                surface_columns(surface, pos, spos)
+                if outer_stale(surface_moved(surface, pos, outer_built), p.L):
+                    n_outer[0] = outer_pairs(far_first, far, spos, reach + OUTER_MARGIN * p.L, outer)
+                    outer_built[:] = spos.T
+                count = far_candidates(surface, outer, n_outer[0], spos, reach, pairs, partners)
             else:
                 count = collision_pairs(surface, pos, near, reach, pairs, partners)
             for a in range(len(surface)):
@@ -972,7 +1004,10 @@ class Work(NamedTuple):
     built: np.ndarray  # (s, 3) surface voxels' positions when the candidates were listed
     far_first: np.ndarray  # (s + 1,) row starts in ``far`` (empty: the sweep lists candidates)
     far: np.ndarray  # int32 surface pairs ``near`` never lists, by row (``far_pairs``)
-    spos: np.ndarray  # (3, s) scratch: the surface's positions by component (``far_candidates``)
+    spos: np.ndarray  # (3, s) scratch: the surface's positions by component (``surface_columns``)
+    outer: np.ndarray  # (2, len(far)) int32 the far pairs within the outer radius (``outer_pairs``)
+    n_outer: np.ndarray  # (1,) how many
+    outer_built: np.ndarray  # (s, 3) surface voxels' positions when they were listed (NaN: never)
     # the links as ``link_kernel`` keeps them, in two runs by frame (see there):
     link_buf: np.ndarray  # link_buffer_size(m): inputs, state, output, constants per link
     link_ends: np.ndarray  # (2 m,) negative voxels, then positive voxels
@@ -1021,7 +1056,8 @@ def contact_list(p, voxels, body, work, contacts):
     """The self-contact candidates, rebuilt if stale (``contact_list_kernel``); returns the
     updated ``Contacts``."""
     return contact_list_kernel(p, contacts, voxels.surface, voxels.near, body.pos, work.pairs,
-                               work.partners, work.built, work.far_first, work.far, work.spos)
+                               work.partners, work.built, work.far_first, work.far, work.spos,
+                               work.outer, work.n_outer, work.outer_built)
 
 
 @njit(**INLINE)
@@ -1129,14 +1165,14 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, links, n_pairs, voxels, collide, n_vert, n_face, real):
+def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, n_face, real):
     """``Work`` of one robot's run: static friction flags set, every link in the small-angle
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), the surface's pairs that can ever be candidates listed
     (``far_pairs``; if ``collide``), everything else zero. The link buffer has ``real``'s
     dtype (an empty array: float64, or float32 for the mixed precision)."""
-    n_surface = len(voxels.surface)
-    far_first, far = far_pairs(voxels.surface, voxels.near, n_voxels, collide)
+    n_surface = len(surface)
+    far_first, far = far_pairs(surface, near, n_voxels, collide)
     m = len(links.neg)
     buf = np.zeros(link_buffer_size(m), real.dtype)
     for j in range(m):
@@ -1151,7 +1187,9 @@ def robot_work(n_voxels, links, n_pairs, voxels, collide, n_vert, n_face, real):
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.int64), np.zeros(n_voxels, dtype=np.bool_),
                 np.full((n_surface, 3), np.nan), far_first, far,
-                np.zeros((3, n_surface if len(far_first) else 0)), buf,
+                np.zeros((3, n_surface if len(far_first) else 0)),
+                np.zeros((2, len(far)), np.int32), np.zeros(1, np.int64),
+                np.full((n_surface if len(far_first) else 0, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
                 np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)),
                 np.zeros((3, 8, n_voxels if n_vert else 0)), np.zeros((n_face, 3)))
@@ -1193,8 +1231,9 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, 
     p, own_voxels, own_links, own_body = take_robot(batch, state, r)
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
-    own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r], own_voxels, p.collide,
-                          len(own_voxels.mesh_vert), len(own_voxels.mesh_face), real)
+    own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r], own_voxels.surface,
+                          own_voxels.near, p.collide, len(own_voxels.mesh_vert),
+                          len(own_voxels.mesh_face), real)
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)
     body, work = borrow(own_body), borrow(own_work)

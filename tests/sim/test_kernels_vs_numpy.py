@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -49,15 +47,8 @@ def _links(batch):
                          batch.link_stiff, batch.link_damp)
 
 
-class _Surface(NamedTuple):
-    """What ``kernels.robot_work`` reads of a robot's voxels (``kernels.Voxels``)."""
-
-    surface: np.ndarray
-    near: np.ndarray
-
-
 def _work(batch, n, collide=False):
-    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), _Surface(batch.surface, batch.near),
+    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), batch.surface, batch.near,
                               collide, 0, 0, np.zeros(0))
 
 
@@ -296,7 +287,8 @@ def _contact_case():
     def collide(contacts):
         return kernels.contact_list_kernel(p, contacts, voxels.surface, voxels.near, mine.pos,
                                            work.pairs, work.partners, work.built, work.far_first,
-                                           work.far, work.spos)
+                                           work.far, work.spos, work.outer, work.n_outer,
+                                           work.outer_built)
 
     return p, voxels, mine, work, margin, collide
 
@@ -413,10 +405,11 @@ def test_mixed_collision_forces_are_equal_and_opposite():
 
 @pytest.mark.parametrize("seed", range(4))
 def test_far_pairs_list_the_sweeps_candidates_pair_for_pair(seed):
-    """``far_candidates`` (the surface's pairs ``near`` never lists, measured row by row) gives
-    ``collision_pairs``' list exactly: the same pairs, ends and order, so that the contact
-    forces are summed in the same order; on a lattice whose x ties the sort must break, and
-    on bodies shaken so that many voxels have several candidates."""
+    """``far_candidates`` (from an outer list of the surface's pairs ``near`` never lists,
+    ``outer_pairs``, taken at the candidate radius or beyond it) gives ``collision_pairs``'
+    list exactly: the same pairs, ends and order, so that the contact forces are summed in the
+    same order; on a lattice whose x ties the sort must break, and on bodies shaken so that
+    many voxels have several candidates."""
     rng = np.random.default_rng(seed)
     body = (rng.random((5, 5, 4)) < 0.8).astype(int)
     body[2, 2, :] = 1
@@ -431,10 +424,49 @@ def test_far_pairs_list_the_sweeps_candidates_pair_for_pair(seed):
             sweep = np.zeros_like(work.pairs)
             want = kernels.collision_pairs(batch.surface, pos, batch.near, reach, sweep,
                                            np.zeros(n, np.int64))
-            got = kernels.far_candidates(batch.surface, pos, work.far_first, work.far, reach,
-                                         work.pairs, np.zeros(n, np.int64), work.spos)
-            assert got == want
-            np.testing.assert_array_equal(work.pairs[:max(got, 0)], sweep[:max(want, 0)])
+            kernels.surface_columns(batch.surface, pos, work.spos)
+            for beyond in (0.0, 0.02):
+                n_outer = kernels.outer_pairs(work.far_first, work.far, work.spos, reach + beyond,
+                                              work.outer)
+                got = kernels.far_candidates(batch.surface, work.outer, n_outer, work.spos, reach,
+                                             work.pairs, np.zeros(n, np.int64))
+                assert got == want
+                np.testing.assert_array_equal(work.pairs[:max(got, 0)], sweep[:max(want, 0)])
+
+
+def test_candidates_from_the_outer_list_stay_the_sweeps_as_the_body_moves():
+    """``contact_list_kernel`` through many rebuilds, its outer list (``outer_pairs``) kept
+    while the surface spreads less than OUTER_MARGIN and rebuilt after: at every rebuild the
+    list is ``collision_pairs``' on the same positions, pair for pair."""
+    rng = np.random.default_rng(7)
+    body = np.ones((5, 4, 4), int)
+    body[1:4, 1:3, 1:] = 0
+    scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
+    batch, state = system.pack([system.build_robot(scene)])
+    p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
+    n = len(mine.pos)
+    work = _work(batch, n, collide=True)
+    reach = kernels.candidate_radius(p.L, p.contact_reach, p.amp)
+    velocity = rng.normal(0, 0.1 * p.L, mine.pos.shape)
+    contacts, outer_builds, checked = kernels.Contacts(0, np.nan), 0, 0
+    for _ in range(300):
+        velocity += rng.normal(0, 0.02 * p.L, velocity.shape)
+        mine.pos[:] += 0.02 * velocity
+        before = (work.built[0, 0], work.outer_built[0, 0])
+        contacts = kernels.contact_list_kernel(
+            p, kernels.Contacts(contacts.count, np.inf), voxels.surface, voxels.near, mine.pos,
+            work.pairs, work.partners, work.built, work.far_first, work.far, work.spos,
+            work.outer, work.n_outer, work.outer_built)
+        if work.built[0, 0] == before[0]:
+            continue
+        outer_builds += work.outer_built[0, 0] != before[1]
+        sweep = np.zeros_like(work.pairs)
+        want = kernels.collision_pairs(voxels.surface, mine.pos, voxels.near, reach, sweep,
+                                       np.zeros(n, np.int64))
+        assert contacts.count == want
+        np.testing.assert_array_equal(work.pairs[:max(want, 0)], sweep[:max(want, 0)])
+        checked += want > 0
+    assert outer_builds >= 3 and checked >= 20, (outer_builds, checked)
 
 
 def test_far_pairs_are_the_surface_pairs_near_does_not_list():
@@ -483,5 +515,6 @@ def test_a_voxel_with_more_candidates_than_the_cap_stops_the_listing():
         partners = np.zeros(k, np.int64)
         assert kernels.collision_pairs(surface, pos, near, 0.05, pairs, partners) == want
         first, far = kernels.far_pairs(surface, near, k, True)
-        spos = np.zeros((3, k))
-        assert kernels.far_candidates(surface, pos, first, far, 0.05, pairs, partners, spos) == want
+        spos, outer = pos.T.copy(), np.zeros((2, len(far)), np.int32)
+        n_outer = kernels.outer_pairs(first, far, spos, 0.05, outer)
+        assert kernels.far_candidates(surface, outer, n_outer, spos, 0.05, pairs, partners) == want
