@@ -703,27 +703,41 @@ def sweep_order(surface, sx, pairs, count):
     x (``np.argsort`` of the same values, ``sx``), then the second's, the first the one placed
     lower. The same list, pair for pair, so the contact forces are summed in the same order
     as before (bit-identical runs)."""
-    if count == 0:
+    if count == 1:  # one pair has no order; which end comes first does not change a bit
+        pairs[0, 0], pairs[0, 1] = surface[pairs[0, 0]], surface[pairs[0, 1]]
+    if count <= 1:
         return
-    rank = np.empty(len(sx), np.int64)
-    if count > 1:  # one pair has no order; which end comes first does not change a bit
-        order = np.argsort(sx)
-        for k in range(len(order)):
-            rank[order[k]] = k
-    else:
-        rank[pairs[0, 0]], rank[pairs[0, 1]] = 0, 1
     ns = len(sx)
-    keys = np.empty(count, np.int64)
+    order = np.argsort(sx)  # surface index at each rank
+    rank = np.empty(ns, np.int64)
+    for k in range(ns):
+        rank[order[k]] = k
+    # the pairs by (lower rank, higher rank): a stable counting sort by the higher rank, then
+    # by the lower (ranks are distinct, so this is the sweep's order whatever the sort)
+    lo, hi = np.empty(count, np.int64), np.empty(count, np.int64)
     for q in range(count):
         ra, rb = rank[pairs[q, 0]], rank[pairs[q, 1]]
-        keys[q] = min(ra, rb) * ns + max(ra, rb)
-    by_key = np.argsort(keys)  # distinct keys: one order whatever the sort
-    lo_first = np.empty((count, 2), np.int64)
+        lo[q], hi[q] = min(ra, rb), max(ra, rb)
+    by_hi = counting_order(hi, ns, np.arange(count))
+    by_key = counting_order(lo, ns, by_hi)
     for q in range(count):
-        a, b = pairs[by_key[q], 0], pairs[by_key[q], 1]
-        lo_first[q, 0], lo_first[q, 1] = (a, b) if rank[a] < rank[b] else (b, a)
-    for q in range(count):
-        pairs[q, 0], pairs[q, 1] = surface[lo_first[q, 0]], surface[lo_first[q, 1]]
+        k = by_key[q]
+        pairs[q, 0], pairs[q, 1] = surface[order[lo[k]]], surface[order[hi[k]]]
+
+
+@njit(**JIT)
+def counting_order(key, buckets, items):
+    """``items`` (indices into ``key``) stably ordered by ``key`` (integers in [0, buckets))."""
+    start = np.zeros(buckets + 1, np.int64)
+    for k in items:
+        start[key[k] + 1] += 1
+    for b in range(buckets):
+        start[b + 1] += start[b]
+    out = np.empty(len(items), np.int64)
+    for k in items:
+        out[start[key[k]]] = k
+        start[key[k]] += 1
+    return out
 
 
 @njit(**JIT)
