@@ -15,7 +15,7 @@ update, the sampling, the order of the failure checks) and ``sim.substeps`` (the
 test, a pair's contact force), compiled here as device functions. What is the GPU's own is
 how the work is spread over a block: the loops over a thread's elements; a link's frame
 change computed in the same pass (the CPU marks it for a second one); each surface voxel's
-candidates found by one thread's search over the surface (the CPU sweeps sorted pairs); a
+candidates found by one thread's search over the surface (the CPU scans its far pairs); a
 vertex's corners computed where it is averaged (the CPU keeps every voxel's corners); each
 voxel gathering its own link loads, contacts and facet drag, where the CPU scatters them;
 the reductions over the block.
@@ -371,7 +371,7 @@ def contact_list(p, t, nt, ns, s0, contacts, near, width, pos, red, flag, travel
     ``travel`` is stale (``physics.contacts_stale``): the surface voxels' displacement spread
     is measured (``physics.displacement_spread``), and the list rebuilt if that is stale
     too; each thread lists its surface voxels' candidates (``substeps.is_candidate``) by a
-    search over every surface voxel (the CPU engine sweeps sorted pairs). flag[2] set if a
+    search over every surface voxel (the CPU engine scans lists of far pairs). flag[2] set if a
     voxel has more than MAX_CONTACTS (the policy). Returns the new bound on half the spread.
     Every thread calls it (it reduces over the block). ``contacts``: the batch's (the robot's
     surface from s0); ``near``: the robot's rows."""

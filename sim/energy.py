@@ -354,8 +354,8 @@ def audit_run(batch, state, real, series):
     positions)."""
     p, voxels, links, body = kernels.take_robot(batch, state, 0)
     n, m = len(voxels.flags), len(links.neg)
-    work = kernels.robot_work(n, links, batch.poff[1] - batch.poff[0], len(voxels.surface),
-                              len(voxels.mesh_vert), len(voxels.mesh_face), real)
+    work = kernels.robot_work(n, links, batch.poff[1] - batch.poff[0], voxels.surface, voxels.near,
+                              p.collide, len(voxels.mesh_vert), len(voxels.mesh_face), real)
     contacts = kernels.Contacts(0, COLLIDE_MARGIN * p.L)
     mode = np.zeros(m)
     old_size = np.full(n, p.L)  # the body is built at the nominal size

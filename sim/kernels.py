@@ -593,6 +593,153 @@ def contact_forces_kernel(count, pairs, pos, lin_mom, size, vconst, force, reach
         opposite(force, j, i, fx, fy, fz)
 
 
+FAR_SURFACE = 1024  # surfaces up to this size list their far pairs (at most 2 MB of them)
+
+
+@njit(**JIT)
+def far_pairs(surface, near, n_voxels, collide):
+    """The surface's pairs that ``near`` lists for neither voxel (the only ones that can ever
+    be contact candidates; it lists bonded and nearby voxels for each other), by row: row a
+    (``far[first[a]:first[a + 1]]``) holds the surface indices b > a of a's pairs, ascending.
+    Empty (no rows) without self-collisions or for a surface of more than FAR_SURFACE voxels,
+    whose candidates the sweep lists (``collision_pairs``)."""
+    ns = len(surface)
+    if not collide or ns > FAR_SURFACE:
+        return np.zeros(0, np.int64), np.zeros(0, np.int32)
+    first = np.zeros(ns + 1, np.int64)
+    mark = np.zeros(n_voxels, np.bool_)  # voxels of row a's near list
+    far = np.empty(ns * (ns - 1) // 2, np.int32)
+    count = 0
+    for a in range(ns):
+        i = surface[a]
+        for w in near[i]:
+            if w >= 0:
+                mark[w] = True
+        for b in range(a + 1, ns):
+            if not mark[surface[b]]:
+                far[count] = b
+                count += 1
+        for w in near[i]:
+            if w >= 0:
+                mark[w] = False
+        first[a + 1] = count
+    return first, far[:count].copy()
+
+
+# The far pairs within the candidate radius plus OUTER_MARGIN voxel lengths are kept in an
+# outer list, rebuilt only once the surface has spread by half of that since it was listed:
+# until then it holds every pair within the candidate radius (``outer_pairs``), and the
+# candidate list is rebuilt from it instead of from all the far pairs.
+OUTER_MARGIN = 1.2
+
+
+@njit(**INLINE)
+def outer_stale(spread, L):
+    """Whether the outer list may miss a pair within the candidate radius: half the spread of
+    the surface's displacements since it was listed (``surface_moved``) has reached half its
+    margin (NaN: never listed)."""
+    return not (2.0 * spread < OUTER_MARGIN * L)
+
+
+@njit(**JIT)
+def surface_columns(surface, pos, spos):
+    """The surface voxels' positions by component into ``spos`` (3, s): contiguous rows."""
+    for a in range(len(surface)):
+        v = surface[a]
+        spos[0, a], spos[1, a], spos[2, a] = pos[v, 0], pos[v, 1], pos[v, 2]
+
+
+@njit(**JIT)
+def outer_pairs(first, far, spos, radius, outer):
+    """The far pairs (``far_pairs``) nearer than ``radius`` (positions ``spos``) into
+    ``outer`` (rows a, b: surface indices), in row order; returns how many. Each pair is
+    written and the count advanced by whether it is near: no branch on positions."""
+    U = np.uint64  # unsigned offsets: no negative-index wrap-around to test per access
+    sx, sy, sz = spos[0], spos[1], spos[2]
+    first_a, first_b = outer[0], outer[1]
+    r2 = radius * radius
+    near_ones = U(0)
+    for a in range(len(first) - 1):
+        x, y, z = sx[a], sy[a], sz[a]
+        for q in range(first[a], first[a + 1]):
+            b = U(far[q])
+            dx, dy, dz = sx[b] - x, sy[b] - y, sz[b] - z
+            first_a[near_ones], first_b[near_ones] = a, b  # near_ones <= q: in bounds
+            near_ones += U(1) if dx * dx + dy * dy + dz * dz < r2 else U(0)
+    return np.int64(near_ones)
+
+
+@njit(**JIT)
+def far_candidates(surface, outer, n_outer, spos, reach, pairs, partners):
+    """``collision_pairs`` from the outer list (``outer_pairs``, valid while not
+    ``outer_stale``): the same pairs, those nearer than ``reach``, in the same order
+    (``sweep_order``); returns how many, or -1 past the policy's cap. No search of ``near``
+    (the far pairs are the ones it never lists)."""
+    sx, sy, sz = spos[0], spos[1], spos[2]
+    for a in range(len(surface)):
+        partners[surface[a]] = 0
+    reach2 = reach * reach
+    count = 0
+    for q in range(n_outer):  # a branch per pair: a third of them or fewer are near
+        a, b = outer[0, q], outer[1, q]
+        dx, dy, dz = sx[b] - sx[a], sy[b] - sy[a], sz[b] - sz[a]
+        if dx * dx + dy * dy + dz * dz < reach2:
+            i, j = surface[a], surface[b]
+            partners[i] += 1
+            partners[j] += 1
+            if partners[i] > MAX_CONTACTS or partners[j] > MAX_CONTACTS:
+                return -1
+            pairs[count, 0] = a  # surface indices until ``sweep_order``
+            pairs[count, 1] = b
+            count += 1
+    sweep_order(surface, sx, pairs, count)
+    return count
+
+
+@njit(**JIT)
+def sweep_order(surface, sx, pairs, count):
+    """The ``count`` candidate pairs of surface indices at the head of ``pairs`` as voxel
+    pairs in ``collision_pairs``' order: by the first voxel's place in the surface sorted by
+    x (``np.argsort`` of the same values, ``sx``), then the second's, the first the one placed
+    lower. The same list, pair for pair, so the contact forces are summed in the same order
+    as before (bit-identical runs)."""
+    if count == 1:  # one pair has no order; which end comes first does not change a bit
+        pairs[0, 0], pairs[0, 1] = surface[pairs[0, 0]], surface[pairs[0, 1]]
+    if count <= 1:
+        return
+    ns = len(sx)
+    order = np.argsort(sx)  # surface index at each rank
+    rank = np.empty(ns, np.int64)
+    for k in range(ns):
+        rank[order[k]] = k
+    # the pairs by (lower rank, higher rank): a stable counting sort by the higher rank, then
+    # by the lower (ranks are distinct, so this is the sweep's order whatever the sort)
+    lo, hi = np.empty(count, np.int64), np.empty(count, np.int64)
+    for q in range(count):
+        ra, rb = rank[pairs[q, 0]], rank[pairs[q, 1]]
+        lo[q], hi[q] = min(ra, rb), max(ra, rb)
+    by_hi = counting_order(hi, ns, np.arange(count))
+    by_key = counting_order(lo, ns, by_hi)
+    for q in range(count):
+        k = by_key[q]
+        pairs[q, 0], pairs[q, 1] = surface[order[lo[k]]], surface[order[hi[k]]]
+
+
+@njit(**JIT)
+def counting_order(key, buckets, items):
+    """``items`` (indices into ``key``) stably ordered by ``key`` (integers in [0, buckets))."""
+    start = np.zeros(buckets + 1, np.int64)
+    for k in items:
+        start[key[k] + 1] += 1
+    for b in range(buckets):
+        start[b + 1] += start[b]
+    out = np.empty(len(items), np.int64)
+    for k in items:
+        out[start[key[k]]] = k
+        start[key[k]] += 1
+    return out
+
+
 @njit(**JIT)
 def surface_moved(surface, pos, built):
     """Half the spread of the surface voxels' displacements from ``built`` (their positions
@@ -610,7 +757,8 @@ def surface_moved(surface, pos, built):
 
 
 @njit(**JIT)
-def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built):
+def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built, far_first, far,
+                        spos, outer, n_outer, outer_built):
     """The self-contact candidates, rebuilt when they may be stale, if the robot has
     self-collisions; returns the updated ``Contacts`` (``count`` -1: a voxel has more
     candidates than the policy keeps, and the run stops).
@@ -628,7 +776,14 @@ def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built)
         travel = surface_moved(surface, pos, built)
         if contacts_stale(travel, p.L):  # NaN before the first build
             reach = candidate_radius(p.L, p.contact_reach, p.amp)
-            count = collision_pairs(surface, pos, near, reach, pairs, partners)
+            if len(far_first):
+                surface_columns(surface, pos, spos)
+                if outer_stale(surface_moved(surface, pos, outer_built), p.L):
+                    n_outer[0] = outer_pairs(far_first, far, spos, reach + OUTER_MARGIN * p.L, outer)
+                    outer_built[:] = spos.T
+                count = far_candidates(surface, outer, n_outer[0], spos, reach, pairs, partners)
+            else:
+                count = collision_pairs(surface, pos, near, reach, pairs, partners)
             for a in range(len(surface)):
                 for c in range(3):
                     built[a, c] = pos[surface[a], c]
@@ -861,6 +1016,12 @@ class Work(NamedTuple):
     partners: np.ndarray  # (n,) candidates of each voxel (``collision_pairs``' scratch)
     contact: np.ndarray  # (n,) bool: touching the floor this step
     built: np.ndarray  # (s, 3) surface voxels' positions when the candidates were listed
+    far_first: np.ndarray  # (s + 1,) row starts in ``far`` (empty: the sweep lists candidates)
+    far: np.ndarray  # int32 surface pairs ``near`` never lists, by row (``far_pairs``)
+    spos: np.ndarray  # (3, s) scratch: the surface's positions by component (``surface_columns``)
+    outer: np.ndarray  # (2, len(far)) int32 the far pairs within the outer radius (``outer_pairs``)
+    n_outer: np.ndarray  # (1,) how many
+    outer_built: np.ndarray  # (s, 3) surface voxels' positions when they were listed (NaN: never)
     # the links as ``link_kernel`` keeps them, in two runs by frame (see there):
     link_buf: np.ndarray  # link_buffer_size(m): inputs, state, output, constants per link
     link_ends: np.ndarray  # (2 m,) negative voxels, then positive voxels
@@ -909,7 +1070,8 @@ def contact_list(p, voxels, body, work, contacts):
     """The self-contact candidates, rebuilt if stale (``contact_list_kernel``); returns the
     updated ``Contacts``."""
     return contact_list_kernel(p, contacts, voxels.surface, voxels.near, body.pos, work.pairs,
-                               work.partners, work.built)
+                               work.partners, work.built, work.far_first, work.far, work.spos,
+                               work.outer, work.n_outer, work.outer_built)
 
 
 @njit(**INLINE)
@@ -1017,11 +1179,14 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, links, n_pairs, n_surface, n_vert, n_face, real):
+def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, n_face, real):
     """``Work`` of one robot's run: static friction flags set, every link in the small-angle
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
-    built yet (NaN positions), everything else zero. The link buffer has ``real``'s dtype
-    (an empty array: float64, or float32 for the mixed precision)."""
+    built yet (NaN positions), the surface's pairs that can ever be candidates listed
+    (``far_pairs``; if ``collide``), everything else zero. The link buffer has ``real``'s
+    dtype (an empty array: float64, or float32 for the mixed precision)."""
+    n_surface = len(surface)
+    far_first, far = far_pairs(surface, near, n_voxels, collide)
     m = len(links.neg)
     buf = np.zeros(link_buffer_size(m), real.dtype)
     for j in range(m):
@@ -1035,7 +1200,10 @@ def robot_work(n_voxels, links, n_pairs, n_surface, n_vert, n_face, real):
     return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.int64), np.zeros(n_voxels, dtype=np.bool_),
-                np.full((n_surface, 3), np.nan), buf,
+                np.full((n_surface, 3), np.nan), far_first, far,
+                np.zeros((3, n_surface if len(far_first) else 0)),
+                np.zeros((2, len(far)), np.int32), np.zeros(1, np.int64),
+                np.full((n_surface if len(far_first) else 0, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
                 np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)),
                 np.zeros((3, 8, n_voxels if n_vert else 0)), np.zeros((n_face, 3)))
@@ -1077,8 +1245,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, 
     p, own_voxels, own_links, own_body = take_robot(batch, state, r)
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
-    own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r],
-                          len(own_voxels.surface), len(own_voxels.mesh_vert),
+    own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r], own_voxels.surface,
+                          own_voxels.near, p.collide, len(own_voxels.mesh_vert),
                           len(own_voxels.mesh_face), real)
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)

@@ -47,9 +47,9 @@ def _links(batch):
                          batch.link_stiff, batch.link_damp)
 
 
-def _work(batch, n):
-    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), len(batch.surface), 0, 0,
-                              np.zeros(0))
+def _work(batch, n, collide=False):
+    return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), batch.surface, batch.near,
+                              collide, 0, 0, np.zeros(0))
 
 
 def _rows(work, first, count):
@@ -279,13 +279,16 @@ def _contact_case():
     scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
     batch, state = system.pack([system.build_robot(scene)])
     p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
-    work = _work(batch, len(mine.pos))
+    work = _work(batch, len(mine.pos), collide=True)
+    assert len(work.far_first), "a small surface lists its far pairs"
     work.size[:] = 0.05
     margin = kernels.COLLIDE_MARGIN * p.L
 
     def collide(contacts):
         return kernels.contact_list_kernel(p, contacts, voxels.surface, voxels.near, mine.pos,
-                                           work.pairs, work.partners, work.built)
+                                           work.pairs, work.partners, work.built, work.far_first,
+                                           work.far, work.spos, work.outer, work.n_outer,
+                                           work.outer_built)
 
     return p, voxels, mine, work, margin, collide
 
@@ -400,6 +403,88 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12 * np.abs(force).max())
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_far_pairs_list_the_sweeps_candidates_pair_for_pair(seed):
+    """``far_candidates`` (from an outer list of the surface's pairs ``near`` never lists,
+    ``outer_pairs``, taken at the candidate radius or beyond it) gives ``collision_pairs``'
+    list exactly: the same pairs, ends and order, so that the contact forces are summed in the
+    same order; on a lattice whose x ties the sort must break, and on bodies shaken so that
+    many voxels have several candidates."""
+    rng = np.random.default_rng(seed)
+    body = (rng.random((5, 5, 4)) < 0.8).astype(int)
+    body[2, 2, :] = 1
+    robot = system.build_robot(sim.parse_scene({"body": body.tolist(), "self_collisions": True}))
+    batch, state = system.pack([robot])
+    n = len(state.pos)
+    work = _work(batch, n, collide=True)
+    assert len(work.far_first) == len(batch.surface) + 1
+    for shake in (0.0, 0.005, 0.015, 0.03):
+        pos = state.pos + rng.normal(0, shake, state.pos.shape)
+        for reach in (0.06, 0.09):
+            sweep = np.zeros_like(work.pairs)
+            want = kernels.collision_pairs(batch.surface, pos, batch.near, reach, sweep,
+                                           np.zeros(n, np.int64))
+            kernels.surface_columns(batch.surface, pos, work.spos)
+            for beyond in (0.0, 0.02):
+                n_outer = kernels.outer_pairs(work.far_first, work.far, work.spos, reach + beyond,
+                                              work.outer)
+                got = kernels.far_candidates(batch.surface, work.outer, n_outer, work.spos, reach,
+                                             work.pairs, np.zeros(n, np.int64))
+                assert got == want
+                np.testing.assert_array_equal(work.pairs[:max(got, 0)], sweep[:max(want, 0)])
+
+
+def test_candidates_from_the_outer_list_stay_the_sweeps_as_the_body_moves():
+    """``contact_list_kernel`` through many rebuilds, its outer list (``outer_pairs``) kept
+    while the surface spreads less than OUTER_MARGIN and rebuilt after: at every rebuild the
+    list is ``collision_pairs``' on the same positions, pair for pair."""
+    rng = np.random.default_rng(7)
+    body = np.ones((5, 4, 4), int)
+    body[1:4, 1:3, 1:] = 0
+    scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
+    batch, state = system.pack([system.build_robot(scene)])
+    p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
+    n = len(mine.pos)
+    work = _work(batch, n, collide=True)
+    reach = kernels.candidate_radius(p.L, p.contact_reach, p.amp)
+    velocity = rng.normal(0, 0.1 * p.L, mine.pos.shape)
+    contacts, outer_builds, checked = kernels.Contacts(0, np.nan), 0, 0
+    for _ in range(300):
+        velocity += rng.normal(0, 0.02 * p.L, velocity.shape)
+        mine.pos[:] += 0.02 * velocity
+        before = (work.built[0, 0], work.outer_built[0, 0])
+        contacts = kernels.contact_list_kernel(
+            p, kernels.Contacts(contacts.count, np.inf), voxels.surface, voxels.near, mine.pos,
+            work.pairs, work.partners, work.built, work.far_first, work.far, work.spos,
+            work.outer, work.n_outer, work.outer_built)
+        if work.built[0, 0] == before[0]:
+            continue
+        outer_builds += work.outer_built[0, 0] != before[1]
+        sweep = np.zeros_like(work.pairs)
+        want = kernels.collision_pairs(voxels.surface, mine.pos, voxels.near, reach, sweep,
+                                       np.zeros(n, np.int64))
+        assert contacts.count == want
+        np.testing.assert_array_equal(work.pairs[:max(want, 0)], sweep[:max(want, 0)])
+        checked += want > 0
+    assert outer_builds >= 3 and checked >= 20, (outer_builds, checked)
+
+
+def test_far_pairs_are_the_surface_pairs_near_does_not_list():
+    """``far_pairs`` against the obvious double loop; none without self-collisions or over
+    FAR_SURFACE voxels of surface (the sweep's case)."""
+    body = np.ones((4, 3, 3), int)
+    robot = system.build_robot(sim.parse_scene({"body": body.tolist(), "self_collisions": True}))
+    first, far = kernels.far_pairs(robot.surface, robot.near, len(robot.pos), True)
+    surf, near = robot.surface, robot.near
+    for a in range(len(surf)):
+        want = [b for b in range(a + 1, len(surf))
+                if surf[b] not in near[surf[a]] and surf[a] not in near[surf[b]]]
+        assert far[first[a]:first[a + 1]].tolist() == want
+    assert len(kernels.far_pairs(surf, near, len(robot.pos), False)[0]) == 0
+    big = np.arange(kernels.FAR_SURFACE + 1)
+    assert len(kernels.far_pairs(big, -np.ones((len(big), 1), np.int64), len(big), True)[0]) == 0
+
+
 def test_fma_rounds_once():
     """kernels.fma is a fused multiply-add: (1 + e)(1 - e) - 1 = -e^2 exactly, where the
     product rounded first gives 0; and it agrees with the plain expression elsewhere."""
@@ -429,3 +514,7 @@ def test_a_voxel_with_more_candidates_than_the_cap_stops_the_listing():
         pairs = np.zeros((k * cap // 2 + 1, 2), np.int64)
         partners = np.zeros(k, np.int64)
         assert kernels.collision_pairs(surface, pos, near, 0.05, pairs, partners) == want
+        first, far = kernels.far_pairs(surface, near, k, True)
+        spos, outer = pos.T.copy(), np.zeros((2, len(far)), np.int32)
+        n_outer = kernels.outer_pairs(first, far, spos, 0.05, outer)
+        assert kernels.far_candidates(surface, outer, n_outer, spos, 0.05, pairs, partners) == want
