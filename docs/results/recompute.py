@@ -443,7 +443,7 @@ def sensitivity_markdown(frame: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-@functools.lru_cache(maxsize=1)
+@functools.cache
 def study_plan():
     """`softevo plan paper --scale study --cores 2` (the local executor), once per process."""
     from softevo.evolution.treatments import preset_grid
