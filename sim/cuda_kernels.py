@@ -165,7 +165,6 @@ class VoxelData(NamedTuple):
     phase: Any  # radians
     vc: Any  # (N_VCONST per voxel) mass, damping, floor stiffness, frequency, weight
     ext: Any  # (3 per voxel) external force
-    nbr: Any  # (6 per voxel) face neighbours, local (-1: exposed)
     vlink: Any  # (6 per voxel) link on each face, local (-1: none)
     exposed: Any  # bit f: face f exposed
     fstart: Any  # the voxel's first surface-mesh triangle (``mesh_face`` order)
@@ -319,7 +318,7 @@ LINK_FORCES = {"float64": _link_forces(phys, float), "mixed": _link_forces(phys3
 
 
 @substep
-def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
+def mesh_vertices(p, t, nt, nv, m0, mvert, exposed, pos, quat, size, points):
     """The surface mesh's vertices (``kernels.mesh_vertices_kernel``): each the mean of the
     corners of the voxels that share it (``physics.voxel_corner``), computed per vertex and
     voxel (the CPU engine keeps every voxel's corners instead, for its vector loop; the same
@@ -333,10 +332,8 @@ def mesh_vertices(p, t, nt, nv, m0, mvert, NB, pos, quat, size, points):
                 break
             v, c = code8 >> 3, code8 & 7
             R = rotation_matrix(quat[4 * v], quat[4 * v + 1], quat[4 * v + 2], quat[4 * v + 3])
-            has = (NB[6 * v] >= 0, NB[6 * v + 1] >= 0, NB[6 * v + 2] >= 0, NB[6 * v + 3] >= 0,
-                   NB[6 * v + 4] >= 0, NB[6 * v + 5] >= 0)
             cx, cy, cz = voxel_corner(c, pos[3 * v], pos[3 * v + 1], pos[3 * v + 2], R, size[v],
-                                      p.L, has)
+                                      p.L, exposed[v])
             sx, sy, sz = sx + cx, sy + cy, sz + cz
             count += 1
         points[3 * (m0 + kv)] = sx / count
@@ -549,7 +546,7 @@ def rollout_kernel(shared: bool, threads: int, precision: str = "float64"):
 
         # this robot's slices (local indices from here on)
         VC = voxels.vc[v0 * N_VCONST:(v0 + n) * N_VCONST]
-        FL, NB = voxels.flags[v0:v0 + n], voxels.nbr[6 * v0:6 * (v0 + n)]
+        FL, EX = voxels.flags[v0:v0 + n], voxels.exposed[v0:v0 + n]
         VL = voxels.vlink[6 * v0:6 * (v0 + n)]
         width = contacts.near_width[0]
         NEAR = contacts.near[v0 * width:(v0 + n) * width]
@@ -595,7 +592,7 @@ def rollout_kernel(shared: bool, threads: int, precision: str = "float64"):
                         links.axis[l0:l0 + m], links.stiff[l0:l0 + m], links.damp[l0:l0 + m],
                         pos, quat, size, ls, loads, flag)
             if p.mesh_drag > 0.0:
-                mesh_vertices(p, t, nt, nv, m0, mesh.vert, NB, pos, quat, size, mesh.points)
+                mesh_vertices(p, t, nt, nv, m0, mesh.vert, EX, pos, quat, size, mesh.points)
             if p.collide and contacts_stale(travel, p.L):
                 travel = contact_list(p, t, nt, ns, s0, contacts, NEAR, width, pos, red, flag,
                                       travel)
@@ -603,7 +600,7 @@ def rollout_kernel(shared: bool, threads: int, precision: str = "float64"):
             gather(p, t, nt, n, v0, s0, m0, f0, voxels, contacts, mesh, VC, VL, pos, lm, size,
                    loads, force, moment)
             cuda.syncthreads()
-            fastest = voxel_update(world, t, nt, n, FL, VC, voxels.exposed[v0:v0 + n],
+            fastest = voxel_update(world, t, nt, n, FL, VC, EX,
                                    voxels.ext[3 * v0:3 * (v0 + n)], ST, pos, quat, lm, am,
                                    size, force, moment, flag)
             if p.collide:

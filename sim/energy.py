@@ -355,7 +355,7 @@ def audit_run(batch, state, real, series):
     p, voxels, links, body = kernels.take_robot(batch, state, 0)
     n, m = len(voxels.flags), len(links.neg)
     work = kernels.robot_work(n, links, batch.poff[1] - batch.poff[0], voxels.surface, voxels.near,
-                              p.collide, len(voxels.mesh_vert), len(voxels.mesh_face), real)
+                              p.collide, len(voxels.mesh_vert), real)
     contacts = kernels.Contacts(0, COLLIDE_MARGIN * p.L)
     mode = np.zeros(m)
     old_size = np.full(n, p.L)  # the body is built at the nominal size

@@ -210,7 +210,8 @@ frame_damping, rest_length = by_precision("frame_damping"), _phys.rest_length
 voxel_loads, candidate_radius = _phys.voxel_loads, _phys.candidate_radius
 contacts_stale, travel_after, widen = _phys.contacts_stale, _phys.travel_after, _phys.widen
 displacement_spread, facet_force_of = _phys.displacement_spread, _phys.facet_force
-voxel_corner, voxel_update_of, voxel_world = _phys.voxel_corner, _phys.voxel_update, _phys.voxel_world
+corner_extents, mesh_corner, corner_point = _phys.corner_extents, _phys.mesh_corner, _phys.corner_point
+voxel_update_of, voxel_world = _phys.voxel_update, _phys.voxel_world
 centre_of_mass, frame_due, com_due = _phys.centre_of_mass, _phys.frame_due, _phys.com_due
 step_status = _phys.step_status
 # the array-reading pieces both engines share (``sim.substeps``)
@@ -793,7 +794,7 @@ def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built,
 
 # ---------------------------------------------------------------- drag on the surface mesh
 @njit(**JIT)
-def mesh_vertices_kernel(mesh_vert, nbr, L, pos, quat, size, vert_pos, corners):
+def mesh_vertices_kernel(mesh_vert, exposed, L, pos, quat, size, vert_pos, corners):
     """The vertices of the deformed surface mesh (``sim.system.surface_mesh``) into
     ``vert_pos``: each the mean over the voxels that share it of the voxel's corner
     (``physics.voxel_corner``: its centre plus its corner, rotated; as in the fork, a corner
@@ -803,51 +804,65 @@ def mesh_vertices_kernel(mesh_vert, nbr, L, pos, quat, size, vert_pos, corners):
     In two loops: every voxel's 8 corners in world axes into ``corners`` (component, corner,
     voxel: one branch-free loop over the voxels, one SIMD lane each); each vertex the mean of
     its voxels' corners, summed in ``mesh_vert``'s order (the same sums, in the same order,
-    as the GPU engine's one pass per vertex and voxel)."""
+    as the GPU engine's one pass per vertex and voxel). Both on flat views with unsigned
+    offsets: on the 3-d arrays LLVM kept the corner loop's vector code behind run-time checks
+    it then failed, and ran the scalar loop at about 2.4 times the cost."""
+    U = np.uint64
+    n = U(len(pos))
+    Q, P, C = quat.reshape(-1), pos.reshape(-1), corners.reshape(-1)
     for v in range(len(pos)):
-        R = rotation_matrix(quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
-        x, y, z, s = pos[v, 0], pos[v, 1], pos[v, 2], size[v]
-        has = (nbr[v, 0] >= 0, nbr[v, 1] >= 0, nbr[v, 2] >= 0, nbr[v, 3] >= 0,
-               nbr[v, 4] >= 0, nbr[v, 5] >= 0)  # a neighbour on each side (-x, +x, ...)
+        V = U(v)
+        R = rotation_matrix(Q[U(4) * V], Q[U(4) * V + U(1)], Q[U(4) * V + U(2)], Q[U(4) * V + U(3)])
+        x, y, z = P[U(3) * V], P[U(3) * V + U(1)], P[U(3) * V + U(2)]
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+        xm, xp, ym, yp, zm, zp = corner_extents(size[V], L, exposed[V])
         for c in range(8):
-            corners[0, c, v], corners[1, c, v], corners[2, c, v] = voxel_corner(
-                c, x, y, z, R, s, L, has)
+            ox, oy, oz = mesh_corner(c, xm, xp, ym, yp, zm, zp)
+            o = U(c) * n + V
+            C[o], C[U(8) * n + o], C[U(16) * n + o] = corner_point(
+                x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
+    M, X = mesh_vert.reshape(-1), vert_pos.reshape(-1)
     for k in range(len(mesh_vert)):
         ax, ay, az, count = 0.0, 0.0, 0.0, 0
         for slot in range(8):
-            code = mesh_vert[k, slot]
+            code = M[U(8) * U(k) + U(slot)]
             if code < 0:
                 break
-            v, c = code >> 3, code & 7
-            ax, ay, az = ax + corners[0, c, v], ay + corners[1, c, v], az + corners[2, c, v]
+            o = U(code & 7) * n + U(code >> 3)
+            ax, ay, az = ax + C[o], ay + C[U(8) * n + o], az + C[U(16) * n + o]
             count += 1
-        vert_pos[k, 0], vert_pos[k, 1], vert_pos[k, 2] = ax / count, ay / count, az / count
+        K = U(3) * U(k)
+        X[K], X[K + U(1)], X[K + U(2)] = ax / count, ay / count, az / count
 
 
 @njit(**JIT)
-def mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, facet_force, force):
+def mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, force):
     """The paper's engine's water drag, added to ``force``: on each triangle of the deformed
     surface mesh (vertices ``vert_pos``: ``mesh_vertices_kernel``) moving into the fluid,
     -``drag`` A (v.n)^2 n, A its area, n its unit normal and v the velocity of the voxel
     whose face it covers (``physics.facet_force``; ``drag`` = 0.5 rho C_d; ``inv_mass``: each
-    voxel's 1 / m). Each triangle's drag into ``facet_force`` (one branch-free loop over the
-    triangles, its reads gathers on flat views with unsigned offsets: SIMD), then those added
-    to their voxels' forces in triangle order."""
+    voxel's 1 / m), added to that voxel's force in triangle order.
+
+    One exposed face at a time: its two triangles are consecutive rows of ``mesh_face`` that
+    share their voxel and their first vertex (``system.surface_mesh``), so the voxel's
+    momentum and that vertex are read once and the two forces added in one pass (the same
+    sums in the same order as one triangle at a time); flat views, unsigned offsets."""
     U = np.uint64
-    T, V, LM, FF = mesh_face.reshape(-1), vert_pos.reshape(-1), lin_mom.reshape(-1), facet_force.reshape(-1)
-    for t in range(len(mesh_face)):
-        k = U(4) * U(t)
-        a, b, c, v = U(3) * U(T[k]), U(3) * U(T[k + U(1)]), U(3) * U(T[k + U(2)]), U(T[k + U(3)])
-        f = U(3) * U(t)
-        FF[f], FF[f + U(1)], FF[f + U(2)] = facet_force_of(
-            drag, V[a], V[a + U(1)], V[a + U(2)], V[b], V[b + U(1)], V[b + U(2)], V[c],
-            V[c + U(1)], V[c + U(2)], LM[U(3) * v], LM[U(3) * v + U(1)], LM[U(3) * v + U(2)],
-            inv_mass[v])
-    for t in range(len(mesh_face)):
-        v = mesh_face[t, 3]
-        force[v, 0] += facet_force[t, 0]
-        force[v, 1] += facet_force[t, 1]
-        force[v, 2] += facet_force[t, 2]
+    T, V, LM, F = mesh_face.reshape(-1), vert_pos.reshape(-1), lin_mom.reshape(-1), force.reshape(-1)
+    for face in range(len(mesh_face) // 2):
+        k = U(8) * U(face)  # rows 2 face and 2 face + 1: (a, b, c, voxel), (a, s, t, voxel)
+        a, b, c = U(3) * U(T[k]), U(3) * U(T[k + U(1)]), U(3) * U(T[k + U(2)])
+        s, t, v = U(3) * U(T[k + U(5)]), U(3) * U(T[k + U(6)]), U(T[k + U(3)])
+        ax, ay, az = V[a], V[a + U(1)], V[a + U(2)]
+        m = U(3) * v
+        px, py, pz, inv_m = LM[m], LM[m + U(1)], LM[m + U(2)], inv_mass[v]
+        f0 = facet_force_of(drag, ax, ay, az, V[b], V[b + U(1)], V[b + U(2)], V[c],
+                            V[c + U(1)], V[c + U(2)], px, py, pz, inv_m)
+        f1 = facet_force_of(drag, ax, ay, az, V[s], V[s + U(1)], V[s + U(2)], V[t],
+                            V[t + U(1)], V[t + U(2)], px, py, pz, inv_m)
+        F[m] = F[m] + f0[0] + f1[0]
+        F[m + U(1)] = F[m + U(1)] + f0[1] + f1[1]
+        F[m + U(2)] = F[m + U(2)] + f0[2] + f1[2]
 
 
 # ---------------------------------------------------------------- voxels
@@ -1031,7 +1046,6 @@ class Work(NamedTuple):
     changed: np.ndarray  # (m,) scratch of ``change_frames``
     vert_pos: np.ndarray  # (nv, 3) surface-mesh vertex positions (``mesh_vertices_kernel``)
     corners: np.ndarray  # (3, 8, n) every voxel's corners (``mesh_vertices_kernel``; n 0 on land)
-    facet_force: np.ndarray  # (nf, 3) each surface-mesh triangle's drag (``mesh_drag_kernel``)
 
 
 class Contacts(NamedTuple):
@@ -1087,8 +1101,8 @@ def contact_forces(p, voxels, body, work, contacts):
 def mesh_vertices(p, voxels, body, work):
     """The surface mesh's vertices (water with the paper's drag) into ``work.vert_pos``."""
     if p.mesh_drag > 0.0:
-        mesh_vertices_kernel(voxels.mesh_vert, voxels.nbr, p.L, body.pos, body.quat, work.size,
-                             work.vert_pos, work.corners)
+        mesh_vertices_kernel(voxels.mesh_vert, voxels.exposed, p.L, body.pos, body.quat,
+                             work.size, work.vert_pos, work.corners)
 
 
 @njit(**INLINE)
@@ -1096,7 +1110,7 @@ def mesh_drag(p, voxels, body, work):
     """The drag on the surface mesh's triangles (if on), added to ``work.force``."""
     if p.mesh_drag > 0.0:
         mesh_drag_kernel(p.mesh_drag, voxels.mesh_face, body.lin_mom, voxels.vcols[V_INV_MASS],
-                         work.vert_pos, work.facet_force, work.force)
+                         work.vert_pos, work.force)
 
 
 @njit(**INLINE)
@@ -1179,7 +1193,7 @@ def take_robot(batch, state, r):
 
 
 @njit(**JIT)
-def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, n_face, real):
+def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, real):
     """``Work`` of one robot's run: static friction flags set, every link in the small-angle
     run at its own place with frame mode 0 (nothing to damp against yet), no candidate list
     built yet (NaN positions), the surface's pairs that can ever be candidates listed
@@ -1206,7 +1220,7 @@ def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, n_face,
                 np.full((n_surface if len(far_first) else 0, 3), np.nan), buf,
                 np.concatenate((links.neg, links.pos)), vlink, np.arange(m),
                 np.full(1, m), np.empty(m, dtype=np.int64), np.zeros((n_vert, 3)),
-                np.zeros((3, 8, n_voxels if n_vert else 0)), np.zeros((n_face, 3)))
+                np.zeros((3, 8, n_voxels if n_vert else 0)))
 
 
 @njit(**JIT)
@@ -1246,8 +1260,7 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, 
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     n = v1 - v0
     own_work = robot_work(n, own_links, batch.poff[r + 1] - batch.poff[r], own_voxels.surface,
-                          own_voxels.near, p.collide, len(own_voxels.mesh_vert),
-                          len(own_voxels.mesh_face), real)
+                          own_voxels.near, p.collide, len(own_voxels.mesh_vert), real)
     # the steps run on views: no reference counting per step (the owners live to the end)
     voxels, links = borrow(own_voxels), borrow(own_links)
     body, work = borrow(own_body), borrow(own_work)

@@ -534,15 +534,21 @@ def facet_force(drag, ax, ay, az, bx, by, bz, cx, cy, cz, px, py, pz, inv_m):
     return facet_drag(drag, px * nx + py * ny + pz * nz, inv_m, nx, ny, nz)
 
 
-def mesh_corner(c, size, L, has_x, has_y, has_z):
+def corner_extents(size, L, exposed):
+    """Where a voxel's mesh corners sit along its own axes, as signed offsets from its centre
+    on each side (-x, +x, -y, +y, -z, +z): half its current size where it has a neighbour on
+    that side, half the nominal size L where that face is exposed (``exposed``: its bits, as
+    ``system.exposed_faces``; the fork places corners by the bonds' strains, and an exposed
+    face has none)."""
+    return (-(0.5 * (L if exposed & 1 else size)), 0.5 * (L if exposed & 2 else size),
+            -(0.5 * (L if exposed & 4 else size)), 0.5 * (L if exposed & 8 else size),
+            -(0.5 * (L if exposed & 16 else size)), 0.5 * (L if exposed & 32 else size))
+
+
+def mesh_corner(c, xm, xp, ym, yp, zm, zp):
     """Offset of corner c (bits: x, y, z; 1 the + side) of a voxel from its centre in its own
-    frame: half its current size along an axis where it has a neighbour on that side, half
-    the nominal size L where that face is exposed (the fork places corners by the bonds'
-    strains, and an exposed face has none)."""
-    sx, sy, sz = (c >> 2) & 1, (c >> 1) & 1, c & 1
-    return (0.5 * (size if has_x else L) * (1.0 if sx else -1.0),
-            0.5 * (size if has_y else L) * (1.0 if sy else -1.0),
-            0.5 * (size if has_z else L) * (1.0 if sz else -1.0))
+    frame, from its ``corner_extents``."""
+    return (xp if (c >> 2) & 1 else xm, yp if (c >> 1) & 1 else ym, zp if c & 1 else zm)
 
 
 def corner_point(x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz):
@@ -554,13 +560,12 @@ def corner_point(x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, o
             z + dot3(r20, r21, r22, ox, oy, oz))
 
 
-def voxel_corner(c, x, y, z, R, size, L, has):
+def voxel_corner(c, x, y, z, R, size, L, exposed):
     """Corner c of a voxel (``mesh_corner``) in world axes (``corner_point``): its centre
-    (x, y, z), rotation R (rows), current size, and ``has``: whether it has a neighbour on
-    each side (-x, +x, -y, +y, -z, +z)."""
+    (x, y, z), rotation R (rows), current size and exposed faces (``corner_extents``)."""
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
-    ox, oy, oz = mesh_corner(c, size, L, has[(c >> 2) & 1], has[2 + ((c >> 1) & 1)],
-                             has[4 + (c & 1)])
+    xm, xp, ym, yp, zm, zp = corner_extents(size, L, exposed)
+    ox, oy, oz = mesh_corner(c, xm, xp, ym, yp, zm, zp)
     return corner_point(x, y, z, r00, r01, r02, r10, r11, r12, r20, r21, r22, ox, oy, oz)
 
 
@@ -784,8 +789,8 @@ PIECES = (
     "frame_damping", "damped", "link_loads", "link_diverged", "rest_length", "link_frame",
     "frame_mode", "reframe", "link_response", "candidate_radius", "contact_overlap",
     "contacts_stale", "travel_after", "nan_min", "nan_max", "widen", "displacement_spread",
-    "contact_push", "facet_drag", "facet_normal", "facet_force", "mesh_corner", "corner_point",
-    "voxel_corner", "load_sum", "voxel_loads", "frame_due", "com_due", "step_status",
+    "contact_push", "facet_drag", "facet_normal", "facet_force", "corner_extents", "mesh_corner",
+    "corner_point", "voxel_corner", "load_sum", "voxel_loads", "frame_due", "com_due", "step_status",
     "centre_of_mass", "face_drag", "voxel_update", "turned", "voxel_turn", "voxel_world",
 )
 

@@ -453,9 +453,10 @@ def surface_mesh(idx: np.ndarray, lookup: np.ndarray, nbr: np.ndarray):
     that lattice corner (-1 pads); its position is the mean over them of the voxel's centre
     plus its rotated corner (``kernels.mesh_vertices_kernel``). ``mesh_face`` (nf, 4): a
     triangle's three vertices and the voxel whose exposed face it covers. Faces come voxel by
-    voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each; vertices
-    are numbered in the order the triangles first meet them, and list their voxels in corner
-    order."""
+    voxel (in ``idx`` order), face by face (in ``nbr`` order), two triangles each, in
+    consecutive rows that start at the same vertex (``FACE_TRIANGLES``; the CPU's drag reads
+    a face's pair at once); vertices are numbered in the order the triangles first meet
+    them, and list their voxels in corner order."""
     from .tables import surface_mesh_tables  # numba: loaded by the engines, not by sim's users
 
     return surface_mesh_tables(np.ascontiguousarray(idx, dtype=np.int64), lookup.astype(np.int64),

@@ -49,7 +49,7 @@ def _links(batch):
 
 def _work(batch, n, collide=False):
     return kernels.robot_work(n, _links(batch), int(batch.poff[-1]), batch.surface, batch.near,
-                              collide, 0, 0, np.zeros(0))
+                              collide, 0, np.zeros(0))
 
 
 def _rows(work, first, count):

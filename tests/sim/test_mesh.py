@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from softevo.sim import kernels
+from softevo.sim.system import exposed_faces
 from softevo.sim.mesh import (
     CORNER_SIGNS,
     deformed_mesh,
@@ -189,7 +190,8 @@ def test_vertex_mean_is_the_drag_kernels():
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     size = L * (1 + rng.uniform(-0.2, 0.2, n))
     vert_pos, corner_scratch = np.zeros((len(mesh_vert), 3)), np.zeros((3, 8, n))
-    kernels.mesh_vertices_kernel(mesh_vert, nbr, L, pos, quat, size, vert_pos, corner_scratch)
+    kernels.mesh_vertices_kernel(mesh_vert, exposed_faces(nbr), L, pos, quat, size, vert_pos,
+                                 corner_scratch)
     corners = np.zeros((n, 8, 3))
     for v in range(n):
         turn = np.array(kernels.rotation_matrix(*quat[v])).reshape(3, 3)
@@ -198,3 +200,35 @@ def test_vertex_mean_is_the_drag_kernels():
             corners[v, c] = pos[v] + turn @ (signs * extent)
     assert mesh_vertices(mesh_vert, corners) == pytest.approx(vert_pos, abs=1e-12)
     assert corner_scratch.transpose(2, 1, 0) == pytest.approx(corners, abs=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mesh_drag_kernel_is_the_sum_over_triangles(seed):
+    """The CPU's drag reads an exposed face's two triangles at once (consecutive rows that
+    share their voxel and first vertex): the forces it adds are, triangle by triangle, the
+    drag law -drag A (v.n)^2 n on the triangles moving into the fluid (a slow loop)."""
+    rng = np.random.default_rng(seed)
+    voxels = random_voxels(rng, (4, 3, 3), fill=0.7) if seed else l_shape()
+    _, _, mesh_face = lattice_mesh(voxels)
+    assert len(mesh_face) % 2 == 0
+    assert (mesh_face[0::2, 0] == mesh_face[1::2, 0]).all()
+    assert (mesh_face[0::2, 3] == mesh_face[1::2, 3]).all()
+    n, nv = len(voxels), int(mesh_face[:, :3].max()) + 1
+    vert_pos = rng.normal(0, L, (nv, 3))
+    lin_mom = rng.normal(0, 1e-3, (n, 3))
+    inv_mass = rng.uniform(500, 2000, n)
+    drag = 750.0
+    force = rng.normal(0, 1e-3, (n, 3))
+    expected = force.copy()
+    into = 0
+    for a, b, c, v in mesh_face:
+        normal2a = np.cross(vert_pos[b] - vert_pos[a], vert_pos[c] - vert_pos[a])  # 2 A n
+        area = 0.5 * np.linalg.norm(normal2a)
+        unit = normal2a / np.linalg.norm(normal2a)
+        speed = lin_mom[v] @ unit * inv_mass[v]
+        if speed > 0:
+            expected[v] -= drag * area * speed**2 * unit
+            into += 1
+    assert 0 < into < len(mesh_face)
+    kernels.mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, force)
+    assert force == pytest.approx(expected, rel=1e-12, abs=1e-15)
