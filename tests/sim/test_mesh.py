@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from softevo.sim import kernels
-from softevo.sim.system import exposed_faces
 from softevo.sim.mesh import (
     CORNER_SIGNS,
     deformed_mesh,
@@ -18,6 +17,7 @@ from softevo.sim.mesh import (
     voxel_axes,
     voxel_corners,
 )
+from softevo.sim.system import exposed_faces
 
 L = 0.01
 
