@@ -7,6 +7,8 @@ PostgreSQL, Chromium, ffmpeg, the Voxelyze reference data). CI installs and star
 
 import os
 import re
+import subprocess
+import sys
 
 import pytest
 
@@ -62,3 +64,33 @@ def pytest_runtest_makereport(item, call):
         reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
         report.outcome = "failed"
         report.longrepr = f"skipped under CI=true ({reason}): .ci/run must provide what this test needs"
+
+
+# Under ``pytest -n N`` numba's on-disk cache of the simulator's kernels is filled once, by the
+# controller, before the workers start: with a cold cache every worker and every ``softevo``
+# subprocess a test starts compiled the same kernels at once (1-2 min of a core each; one
+# fixture took 217 s instead of 3 in CI). One subprocess per precision, in parallel; the
+# energy audit's kernels with each. A failure here is left to the tests to report.
+WARM_UP = """
+import sys
+from softevo.worker.evaluate import warm_up
+from softevo.worker.physics import energy_audit
+precision = sys.argv[1]
+if precision == "float64":
+    warm_up()  # the float64 kernels, the water mesh's and the shape descriptors
+body = [[[2]], [[1]]]
+for model, world in (("voxelyze-2", "land"), ("voxcad-land-water", "water")):
+    scene = {"body": body, "duration": {"cycles": 1}, "model": model,
+             "environment": {"kind": world}, "model_options": {"precision": precision}}
+    energy_audit(scene)
+"""
+
+
+def pytest_configure(config):
+    if os.environ.get("PYTEST_XDIST_WORKER") or not getattr(config.option, "numprocesses", None):
+        return
+    warming = [subprocess.Popen([sys.executable, "-c", WARM_UP, precision],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+               for precision in ("float64", "mixed")]
+    for process in warming:
+        process.wait()
