@@ -123,7 +123,7 @@ def com_sample(n, vc, pos, com, row):
     """The mass-weighted centre of mass into ``com[row, 1:4]`` (one thread;
     ``physics.centre_of_mass``)."""
     com[row * 4 + 1], com[row * 4 + 2], com[row * 4 + 3] = centre_of_mass(
-        n, vc, N_VCONST, V_WEIGHT, pos)
+        n, vc, N_VCONST, V_WEIGHT, pos, 3, 1)
 
 
 @device
@@ -419,7 +419,7 @@ def contact_forces(p, v, first, count, cand, pos, lm, size, VC, fx, fy, fz):
     ``cand[first]``; ``substeps.pair_force``; ``kernels.contact_forces_kernel``)."""
     for c in range(count):
         touch, px, py, pz = pair_force(pos, lm, size, VC, N_VCONST, v, cand[first + c],
-                                       p.contact_reach, p.contact_stiff, p.contact_damp)
+                                       p.contact_reach, p.contact_stiff, p.contact_damp, 3, 1)
         if touch:
             fx, fy, fz = fx - px, fy - py, fz - pz
     return fx, fy, fz

@@ -375,21 +375,22 @@ def audit_run(batch, state, real, series):
         kernels.actuate((k - p.act_start) * p.dt, p, voxels, work)
         if k < p.steps:  # the engine's step (``kernels.step``), sub-step by sub-step
             bad = kernels.link_forces(p, links, body, work)
-            f_engine[:], m_engine[:] = work.force, work.moment
+            f_engine[:], m_engine[:] = work.force.T, work.moment.T  # (3, n): rows by component
             contacts = kernels.contact_list(p, voxels, body, work, contacts)
             kernels.contact_forces(p, voxels, body, work, contacts)
-            f_with_contacts[:] = work.force
+            f_with_contacts[:] = work.force.T
             kernels.mesh_vertices(p, voxels, body, work)
             kernels.mesh_drag(p, voxels, body, work)
-            f_with_drag[:] = work.force
+            f_with_drag[:] = work.force.T
         # the energies of the state before the step, and the actuator's work since the last
+        pos, quat = body.pos.T, body.quat.T  # (n, 3), (n, 4) views of the engine's rows
         e_links, a_links, jumps, a_damp = link_pass(
-            p, links.neg, links.pos, links.axis, links.stiff, links.damp, body.pos, body.quat,
+            p, links.neg, links.pos, links.axis, links.stiff, links.damp, pos, quat,
             work.size, old_size, mode, f_links, m_links, dforce, previous, damper, torque, extra)
-        e_cont, a_cont = contact_pass(p, max(contacts.count, 0), work.pairs, body.pos,
+        e_cont, a_cont = contact_pass(p, max(contacts.count, 0), work.pairs, pos,
                                       work.size, old_size, voxels.vconst, f_spring, dforce)
-        a_floor, a_int = state_row(p, voxels.flags, voxels.vconst, body.pos, body.lin_mom,
-                                   body.ang_mom, work.size, old_size, f_links, m_links,
+        a_floor, a_int = state_row(p, voxels.flags, voxels.vconst, pos, body.lin_mom.T,
+                                   body.ang_mom.T, work.size, old_size, f_links, m_links,
                                    f_spring, dforce, row)
         row[C_ELINK], row[C_ECONT] = e_links, e_cont
         row[C_ALINK] += a_links
@@ -401,13 +402,14 @@ def audit_run(batch, state, real, series):
         old_size[:] = work.size
         if k == p.steps:
             break
-        pos0[:], quat0[:], mom0[:], ang0[:] = body.pos, body.quat, body.lin_mom, body.ang_mom
+        pos0[:], quat0[:] = body.pos.T, body.quat.T
+        mom0[:], ang0[:] = body.lin_mom.T, body.ang_mom.T
         speed2 = kernels.voxel_update(p, voxels, body, work)
         contacts = kernels.Contacts(contacts.count, kernels.travel_after(contacts.travel, speed2, p.dt))
         nxt = series[k + 1]
         nxt[C_ALINK:] = row[C_ALINK:]
-        step_works(p, voxels.flags, voxels.ext_force, voxels.nbr, voxels.vconst, pos0, quat0,
-                   mom0, ang0, body.lin_mom, body.ang_mom, work.size, f_engine, m_engine,
+        step_works(p, voxels.flags, voxels.ext_force.T, voxels.nbr, voxels.vconst, pos0, quat0,
+                   mom0, ang0, body.lin_mom.T, body.ang_mom.T, work.size, f_engine, m_engine,
                    f_links, m_links, f_with_contacts, f_spring, f_with_drag, torque, extra,
                    nxt)
         if bad or speed2 < 0.0 or contacts.count < 0:
@@ -415,7 +417,7 @@ def audit_run(batch, state, real, series):
                     else system.STATUS_CONTACTS)
             done = k + 1
             break
-    return code, done, body.pos.copy()
+    return code, done, np.ascontiguousarray(body.pos.T)
 
 
 @dataclass

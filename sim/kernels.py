@@ -457,21 +457,20 @@ def link_kernel(p, ends, split, pos, quat, size, B):
     m = len(ends) // 2
     U = np.uint64
     # gather: the one loop with indirect access, on flat views with unsigned offsets (no
-    # negative-index wrap-around to test per load)
-    Q, P = quat.reshape(-1), pos.reshape(-1)
+    # negative-index wrap-around to test per load); components are rows (``State``)
+    Q, P, n = quat.reshape(-1), pos.reshape(-1), U(pos.shape[1])
     for first in range(0, m, LINK_TILE):
         tile = place(first)
         for lane in range(min(LINK_TILE, m - first)):
             J, j = tile + U(lane), first + lane
             i, k = U(ends[j]), U(ends[m + j])
-            qi, qk, pi, pk = U(4) * i, U(4) * k, U(3) * i, U(3) * k
-            B[at(0, J)], B[at(1, J)] = Q[qi], Q[qi + U(1)]
-            B[at(2, J)], B[at(3, J)] = Q[qi + U(2)], Q[qi + U(3)]
-            B[at(4, J)], B[at(5, J)] = Q[qk], Q[qk + U(1)]
-            B[at(6, J)], B[at(7, J)] = Q[qk + U(2)], Q[qk + U(3)]
-            B[at(8, J)] = P[pk] - P[pi]
-            B[at(9, J)] = P[pk + U(1)] - P[pi + U(1)]
-            B[at(10, J)] = P[pk + U(2)] - P[pi + U(2)]
+            B[at(0, J)], B[at(1, J)] = Q[i], Q[n + i]
+            B[at(2, J)], B[at(3, J)] = Q[U(2) * n + i], Q[U(3) * n + i]
+            B[at(4, J)], B[at(5, J)] = Q[k], Q[n + k]
+            B[at(6, J)], B[at(7, J)] = Q[U(2) * n + k], Q[U(3) * n + k]
+            B[at(8, J)] = P[k] - P[i]
+            B[at(9, J)] = P[n + k] - P[n + i]
+            B[at(10, J)] = P[U(2) * n + k] - P[U(2) * n + i]
             B[at(11, J)] = rest_length(size[i], size[k])
     ns = split[0]
     count = 0  # diverged links plus MOVED times the links that change frame (one reduction)
@@ -505,8 +504,8 @@ def link_sums(vlink, B, force, moment):
     """
     U = np.uint64
     for v in range(len(vlink)):
-        (force[v, 0], force[v, 1], force[v, 2],
-         moment[v, 0], moment[v, 1], moment[v, 2]) = voxel_loads(
+        (force[0, v], force[1, v], force[2, v],
+         moment[0, v], moment[1, v], moment[2, v]) = voxel_loads(
             face_loads(B, U(vlink[v, 1])), face_loads(B, U(vlink[v, 3])),
             face_loads(B, U(vlink[v, 5])), face_loads(B, U(vlink[v, 0])),
             face_loads(B, U(vlink[v, 2])), face_loads(B, U(vlink[v, 4])))
@@ -535,14 +534,14 @@ def collision_pairs(surface, pos, near, reach, pairs, partners):
     ns = len(surface)
     xs = np.empty(ns)
     for a in range(ns):
-        xs[a] = pos[surface[a], 0]
+        xs[a] = pos[0, surface[a]]
         partners[surface[a]] = 0
     order = np.argsort(xs)
     # the sweep reads the surface in x order from contiguous copies (no gathers in its loop)
     ids, sx, sy, sz = np.empty(ns, np.int64), np.empty(ns), np.empty(ns), np.empty(ns)
     for a in range(ns):
         v = surface[order[a]]
-        ids[a], sx[a], sy[a], sz[a] = v, pos[v, 0], pos[v, 1], pos[v, 2]
+        ids[a], sx[a], sy[a], sz[a] = v, pos[0, v], pos[1, v], pos[2, v]
     count = 0
     reach2 = reach * reach
     flat, width = near.reshape(-1), near.shape[1]
@@ -586,12 +585,13 @@ def contact_forces_kernel(count, pairs, pos, lin_mom, size, vconst, force, reach
     mean of their collision damping coefficients. The paper's engine: 0.75, 0.5, 0
     (``Params.contact_*``)."""
     P, LM, VC, nc = pos.reshape(-1), lin_mom.reshape(-1), vconst.reshape(-1), vconst.shape[1]
+    n, out = pos.shape[1], force.T  # components are rows (``State``)
     for q in range(count):
         i, j = pairs[q, 0], pairs[q, 1]
-        touch, fx, fy, fz = pair_force(P, LM, size, VC, nc, i, j, reach, stiff, damp)
+        touch, fx, fy, fz = pair_force(P, LM, size, VC, nc, i, j, reach, stiff, damp, 1, n)
         if not touch:
             continue
-        opposite(force, j, i, fx, fy, fz)
+        opposite(out, j, i, fx, fy, fz)
 
 
 FAR_SURFACE = 1024  # surfaces up to this size list their far pairs (at most 2 MB of them)
@@ -647,7 +647,7 @@ def surface_columns(surface, pos, spos):
     """The surface voxels' positions by component into ``spos`` (3, s): contiguous rows."""
     for a in range(len(surface)):
         v = surface[a]
-        spos[0, a], spos[1, a], spos[2, a] = pos[v, 0], pos[v, 1], pos[v, 2]
+        spos[0, a], spos[1, a], spos[2, a] = pos[0, v], pos[1, v], pos[2, v]
 
 
 @njit(**JIT)
@@ -750,7 +750,7 @@ def surface_moved(surface, pos, built):
     hi_x = hi_y = hi_z = -math.inf
     for a in range(len(surface)):
         v = surface[a]
-        dx, dy, dz = pos[v, 0] - built[a, 0], pos[v, 1] - built[a, 1], pos[v, 2] - built[a, 2]
+        dx, dy, dz = pos[0, v] - built[a, 0], pos[1, v] - built[a, 1], pos[2, v] - built[a, 2]
         lo_x, hi_x = widen(lo_x, hi_x, dx)
         lo_y, hi_y = widen(lo_y, hi_y, dy)
         lo_z, hi_z = widen(lo_z, hi_z, dz)
@@ -787,7 +787,7 @@ def contact_list_kernel(p, contacts, surface, near, pos, pairs, partners, built,
                 count = collision_pairs(surface, pos, near, reach, pairs, partners)
             for a in range(len(surface)):
                 for c in range(3):
-                    built[a, c] = pos[surface[a], c]
+                    built[a, c] = pos[c, surface[a]]
             travel = 0.0
     return Contacts(count, travel)
 
@@ -808,12 +808,12 @@ def mesh_vertices_kernel(mesh_vert, exposed, L, pos, quat, size, vert_pos, corne
     offsets: on the 3-d arrays the corner loop took about 12 ns a voxel, on them about 9
     (docs/benchmarks.md)."""
     U = np.uint64
-    n = U(len(pos))
+    n = U(pos.shape[1])  # components are rows (``State``)
     Q, P, C = quat.reshape(-1), pos.reshape(-1), corners.reshape(-1)
-    for v in range(len(pos)):
+    for v in range(pos.shape[1]):
         V = U(v)
-        R = rotation_matrix(Q[U(4) * V], Q[U(4) * V + U(1)], Q[U(4) * V + U(2)], Q[U(4) * V + U(3)])
-        x, y, z = P[U(3) * V], P[U(3) * V + U(1)], P[U(3) * V + U(2)]
+        R = rotation_matrix(Q[V], Q[n + V], Q[U(2) * n + V], Q[U(3) * n + V])
+        x, y, z = P[V], P[n + V], P[U(2) * n + V]
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
         xm, xp, ym, yp, zm, zp = corner_extents(size[V], L, exposed[V])
         for c in range(8):
@@ -849,20 +849,21 @@ def mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, force):
     sums in the same order as one triangle at a time); flat views, unsigned offsets."""
     U = np.uint64
     T, V, LM, F = mesh_face.reshape(-1), vert_pos.reshape(-1), lin_mom.reshape(-1), force.reshape(-1)
+    n = U(force.shape[1])  # components are rows (``State``)
     for face in range(len(mesh_face) // 2):
         k = U(8) * U(face)  # rows 2 face and 2 face + 1: (a, b, c, voxel), (a, s, t, voxel)
         a, b, c = U(3) * U(T[k]), U(3) * U(T[k + U(1)]), U(3) * U(T[k + U(2)])
         s, t, v = U(3) * U(T[k + U(5)]), U(3) * U(T[k + U(6)]), U(T[k + U(3)])
         ax, ay, az = V[a], V[a + U(1)], V[a + U(2)]
-        m = U(3) * v
-        px, py, pz, inv_m = LM[m], LM[m + U(1)], LM[m + U(2)], inv_mass[v]
+        m = v
+        px, py, pz, inv_m = LM[m], LM[m + n], LM[m + U(2) * n], inv_mass[v]
         f0 = facet_force_of(drag, ax, ay, az, V[b], V[b + U(1)], V[b + U(2)], V[c],
                             V[c + U(1)], V[c + U(2)], px, py, pz, inv_m)
         f1 = facet_force_of(drag, ax, ay, az, V[s], V[s + U(1)], V[s + U(2)], V[t],
                             V[t + U(1)], V[t + U(2)], px, py, pz, inv_m)
         F[m] = F[m] + f0[0] + f1[0]
-        F[m + U(1)] = F[m + U(1)] + f0[1] + f1[1]
-        F[m + U(2)] = F[m + U(2)] + f0[2] + f1[2]
+        F[m + n] = F[m + n] + f0[1] + f1[1]
+        F[m + U(2) * n] = F[m + U(2) * n] + f0[2] + f1[2]
 
 
 # ---------------------------------------------------------------- voxels
@@ -903,13 +904,13 @@ def voxel_pass(world, flags, ext_force, exposed, vcols, pos, quat, lin_mom, ang_
     n = U(len(flags))
     P, Q, LM, AM = pos.reshape(-1), quat.reshape(-1), lin_mom.reshape(-1), ang_mom.reshape(-1)
     F, M, E, VC = force.reshape(-1), moment.reshape(-1), ext_force.reshape(-1), vcols.reshape(-1)
-    X, Y, Z = U(0), U(1), U(2)  # a vector's components
-    QW, QX, QY, QZ = U(0), U(1), U(2), U(3)  # a quaternion's, stored (w, x, y, z)
+    X, Y, Z = U(0), n, U(2) * n  # a vector's components: rows (``State``)
+    QW, QX, QY, QZ = U(0), n, U(2) * n, U(3) * n  # a quaternion's, stored (w, x, y, z)
     insane = 0  # integer reductions: LLVM vectorizes those
     fastest = 0  # bits of the largest squared speed (>= 0)
     turns = 0
     for v in range(len(flags)):
-        a, q, c = U(3) * U(v), U(4) * U(v), U(v)
+        a = q = c = U(v)
         (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane,
          turn) = voxel_update_of(
             world, (VC[c + U(V_MASS) * n], VC[c + U(V_INV_MASS) * n],
@@ -980,12 +981,12 @@ def voxel_update_kernel(p, flags, ext_force, exposed, vcols, pos, quat, lin_mom,
     if turns:
         inv_inertia = vcols[V_INV_INERTIA]
         for v in range(len(flags)):
-            lx, ly, lz = ang_mom[v, 0], ang_mom[v, 1], ang_mom[v, 2]
+            lx, ly, lz = ang_mom[0, v], ang_mom[1, v], ang_mom[2, v]
             step_i = inv_inertia[v] * dt
             if not quat_from_small_rotvec(lx * step_i, ly * step_i, lz * step_i)[4]:
                 continue
-            quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3], sane = voxel_turn(
-                inv_inertia[v], dt, lx, ly, lz, quat[v, 0], quat[v, 1], quat[v, 2], quat[v, 3])
+            quat[0, v], quat[1, v], quat[2, v], quat[3, v], sane = voxel_turn(
+                inv_inertia[v], dt, lx, ly, lz, quat[0, v], quat[1, v], quat[2, v], quat[3, v])
             ok = ok and sane
     return float_of(fastest) if ok else -1.0
 
@@ -995,7 +996,7 @@ class Voxels(NamedTuple):
     """One robot's per-voxel constants (indices local to the robot)."""
 
     flags: np.ndarray  # (n,) int8: FLAG_FIXED | FLAG_ACTIVE
-    ext_force: np.ndarray  # (n, 3) newtons
+    ext_force: np.ndarray  # (3, n) newtons, by component
     cos_phase: np.ndarray  # (n,) cos of the actuation phase
     sin_phase: np.ndarray  # (n,)
     phase: np.ndarray  # (n,) radians
@@ -1024,8 +1025,8 @@ class Work(NamedTuple):
     """Scratch and per-link state of one robot's run, overwritten step by step."""
 
     size: np.ndarray  # (n,) current (actuated) voxel size
-    force: np.ndarray  # (n, 3) total force on each voxel
-    moment: np.ndarray  # (n, 3) total moment on each voxel
+    force: np.ndarray  # (3, n) total force on each voxel, by component
+    moment: np.ndarray  # (3, n) total moment on each voxel, by component
     static: np.ndarray  # (n,) bool: held by static friction
     pairs: np.ndarray  # (p, 2) self-collision candidates
     partners: np.ndarray  # (n,) candidates of each voxel (``collision_pairs``' scratch)
@@ -1172,11 +1173,13 @@ params = njit(**JIT)(params_of)  # a robot's ``Params`` from its rows (``system.
 
 @njit(**JIT)
 def take_robot(batch, state, r):
-    """Private copies of robot r's parameters, voxels, links and body state."""
+    """Private copies of robot r's parameters, voxels, links and body state; the body state
+    and the external forces by component, one row each (``State``'s (3, n) and (4, n): the
+    voxel update's vector loop reads and writes contiguous rows)."""
     v0, v1 = batch.voff[r], batch.voff[r + 1]
     l0, l1 = batch.loff[r], batch.loff[r + 1]
     s0, s1 = batch.soff[r], batch.soff[r + 1]
-    voxels = Voxels(batch.flags[v0:v1].copy(), batch.ext_force[v0:v1].copy(),
+    voxels = Voxels(batch.flags[v0:v1].copy(), np.ascontiguousarray(batch.ext_force[v0:v1].T),
                     batch.cos_phase[v0:v1].copy(), batch.sin_phase[v0:v1].copy(),
                     batch.phase[v0:v1].copy(), batch.nbr[v0:v1].copy(),
                     batch.exposed[v0:v1].copy(), batch.surface[s0:s1].copy(), batch.vconst[v0:v1].copy(),
@@ -1187,8 +1190,10 @@ def take_robot(batch, state, r):
     links = Links(batch.link_neg[l0:l1].copy(), batch.link_pos[l0:l1].copy(),
                   batch.link_axis[l0:l1].copy(), batch.vlink[v0:v1].copy(),
                   batch.link_stiff[l0:l1].copy(), batch.link_damp[l0:l1].copy())
-    body = State(state.pos[v0:v1].copy(), state.quat[v0:v1].copy(),
-                 state.lin_mom[v0:v1].copy(), state.ang_mom[v0:v1].copy())
+    body = State(np.ascontiguousarray(state.pos[v0:v1].T),
+                 np.ascontiguousarray(state.quat[v0:v1].T),
+                 np.ascontiguousarray(state.lin_mom[v0:v1].T),
+                 np.ascontiguousarray(state.ang_mom[v0:v1].T))
     return params(batch.fparams[r], batch.iparams[r]), voxels, links, body
 
 
@@ -1211,7 +1216,7 @@ def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, real):
     for v in range(len(vlink)):
         for f in range(6):
             vlink[v, f] = place(links.vlink[v, f])
-    return Work(np.zeros(n_voxels), np.zeros((n_voxels, 3)), np.zeros((n_voxels, 3)),
+    return Work(np.zeros(n_voxels), np.zeros((3, n_voxels)), np.zeros((3, n_voxels)),
                 np.ones(n_voxels, dtype=np.bool_), np.zeros((n_pairs, 2), dtype=np.int64),
                 np.zeros(n_voxels, dtype=np.int64), np.zeros(n_voxels, dtype=np.bool_),
                 np.full((n_surface, 3), np.nan), far_first, far,
@@ -1227,7 +1232,8 @@ def robot_work(n_voxels, links, n_pairs, surface, near, collide, n_vert, real):
 def com(pos, vconst, out, row):
     """Centre of mass into out[row, 1:4] (``physics.centre_of_mass``)."""
     out[row, 1], out[row, 2], out[row, 3] = centre_of_mass(
-        len(pos), vconst.reshape(-1), vconst.shape[1], V_WEIGHT, pos.reshape(-1))
+        pos.shape[1], vconst.reshape(-1), vconst.shape[1], V_WEIGHT, pos.reshape(-1), 1,
+        pos.shape[1])
 
 
 @njit(**INLINE)
@@ -1237,9 +1243,9 @@ def sample(k, p, v0, pos, vconst, frames, traj, n_com):
     centre of mass into ``traj``. Returns the samples taken so far."""
     if frame_due(k, p):
         f = k // p.record
-        for v in range(len(pos)):
+        for v in range(pos.shape[1]):
             for c in range(3):
-                frames[f, v0 + v, c] = pos[v, c]
+                frames[f, v0 + v, c] = pos[c, v]
     if com_due(k, p, n_com, traj.shape[0]):
         traj[n_com, 0] = k * p.dt
         com(pos, vconst, traj, n_com)
@@ -1285,8 +1291,8 @@ def run_robot(r, batch, state, frames, com_traj, com_count, status, steps_done, 
     com_traj[r, : n_com + 1] = traj[: n_com + 1]
     com_count[r] = n_com + 1
     status[r], steps_done[r] = code, done
-    state.pos[v0:v1], state.quat[v0:v1] = own_body.pos, own_body.quat
-    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = own_body.lin_mom, own_body.ang_mom
+    state.pos[v0:v1], state.quat[v0:v1] = own_body.pos.T, own_body.quat.T
+    state.lin_mom[v0:v1], state.ang_mom[v0:v1] = own_body.lin_mom.T, own_body.ang_mom.T
     keep((own_voxels, own_links, own_body, own_work))
 
 

@@ -616,20 +616,21 @@ def step_status(diverged, insane, overfull):
     return STATUS_OK
 
 
-def centre_of_mass(n, weights, stride, column, pos):
+def centre_of_mass(n, weights, stride, column, pos, vs, cs):
     """The centre of mass of n voxels: ``weights[v * stride + column]`` their mass weights
     (``V_WEIGHT``: m_i / max m, so exactly the mean position for one density), ``pos`` their
-    positions, flat (x, y, z per voxel). Summed in voxel order, one axis after the other."""
+    positions, flat (voxel v's component c at ``vs * v + cs * c``: 3, 1 for (x, y, z) per
+    voxel, 1, n for rows by component). Summed in voxel order, one axis after the other."""
     total = 0.0
     for v in range(n):
         total += weights[v * stride + column]
     cx, cy, cz = 0.0, 0.0, 0.0
     for v in range(n):
-        cx += weights[v * stride + column] * pos[3 * v]
+        cx += weights[v * stride + column] * pos[vs * v]
     for v in range(n):
-        cy += weights[v * stride + column] * pos[3 * v + 1]
+        cy += weights[v * stride + column] * pos[vs * v + cs]
     for v in range(n):
-        cz += weights[v * stride + column] * pos[3 * v + 2]
+        cz += weights[v * stride + column] * pos[vs * v + 2 * cs]
     return cx / total, cy / total, cz / total
 
 

@@ -47,23 +47,26 @@ def is_candidate(near, width, i, j, dx, dy, dz, reach2):
     return dx * dx + dy * dy + dz * dz < reach2 and not listed(near, width, i, j)
 
 
-def pair_force(pos, lin_mom, size, vconst, stride, i, j, reach, stiff, damp):
+def pair_force(pos, lin_mom, size, vconst, stride, i, j, reach, stiff, damp, vs, cs):
     """The contact force on voxel j from voxel i of a candidate pair (i gets its opposite):
     whether they touch (``physics.contact_overlap``), and the force (``physics.contact_push``;
     zero when they do not). ``vconst``: the voxels' constants, ``stride`` per voxel
-    (``sim.system``'s V_*); ``reach``, ``stiff``, ``damp``: the model's contact parameters."""
-    dx = pos[3 * j] - pos[3 * i]
-    dy = pos[3 * j + 1] - pos[3 * i + 1]
-    dz = pos[3 * j + 2] - pos[3 * i + 2]
+    (``sim.system``'s V_*); ``reach``, ``stiff``, ``damp``: the model's contact parameters;
+    voxel v's component c of ``pos`` and ``lin_mom`` is at ``vs * v + cs * c`` (3, 1 for
+    (x, y, z) per voxel, 1, n for rows by component)."""
+    a, b = vs * i, vs * j  # offsets of i's and j's x
+    dx = pos[b] - pos[a]
+    dy = pos[b + cs] - pos[a + cs]
+    dz = pos[b + 2 * cs] - pos[a + 2 * cs]
     overlap, dist = contact_overlap(dx, dy, dz, size[i], size[j], reach)
     if overlap <= 0.0 or dist == 0.0:
         return False, 0.0, 0.0, 0.0
     ci, cj = stride * i, stride * j
     inv_mi, inv_mj = vconst[ci + V_INV_MASS], vconst[cj + V_INV_MASS]
     fx, fy, fz = contact_push(
-        overlap, dist, dx, dy, dz, lin_mom[3 * j] * inv_mj - lin_mom[3 * i] * inv_mi,
-        lin_mom[3 * j + 1] * inv_mj - lin_mom[3 * i + 1] * inv_mi,
-        lin_mom[3 * j + 2] * inv_mj - lin_mom[3 * i + 2] * inv_mi,
+        overlap, dist, dx, dy, dz, lin_mom[b] * inv_mj - lin_mom[a] * inv_mi,
+        lin_mom[b + cs] * inv_mj - lin_mom[a + cs] * inv_mi,
+        lin_mom[b + 2 * cs] * inv_mj - lin_mom[a + 2 * cs] * inv_mi,
         vconst[ci + V_KFLOOR], vconst[cj + V_KFLOOR], vconst[ci + V_CCOLL], vconst[cj + V_CCOLL],
         stiff, damp)
     return True, fx, fy, fz

@@ -183,7 +183,10 @@ class Batch(NamedTuple):
 
 
 class State(NamedTuple):
-    """Dynamic state of a batch (updated in place by the kernel)."""
+    """Dynamic state of a batch (updated in place by the kernel). The numba engine runs each
+    robot on private copies by component, one row each: (3, n) and (4, n), so that the voxel
+    update's vector loop reads and writes contiguous rows (``kernels.take_robot``); the
+    batch's arrays, and every caller's, are (N, 3) and (N, 4)."""
 
     pos: np.ndarray  # (N, 3)
     quat: np.ndarray  # (N, 4)

@@ -69,8 +69,9 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
     """The link forces as the step computes them (``kernels.link_forces``: beams in their two
     runs, frame changes, per-voxel sums). The sums are also checked against a NumPy scatter
     of the per-link forces, and the kernel's places of the links against their voxels."""
-    n = len(pos)
-    body = system.State(pos, quat, np.zeros_like(pos), np.zeros_like(pos))
+    n = len(pos)  # pos, quat (n, 3), (n, 4); the kernels' rows by component (``take_robot``)
+    body = system.State(np.ascontiguousarray(pos.T), np.ascontiguousarray(quat.T),
+                        np.zeros((3, n)), np.zeros((3, n)))
     bad = kernels.link_forces(p, _links(batch), body, work)
     m = len(work.link_id)
     assert sorted(work.link_id) == list(range(m))
@@ -90,8 +91,8 @@ def _link_forces(batch, p, pos, quat, size, work, force, moment):
     np.add.at(f, batch.link_pos, -out[0:3].T)
     np.add.at(mo, batch.link_neg, out[3:6].T)
     np.add.at(mo, batch.link_pos, out[6:9].T)
-    np.testing.assert_allclose(force, f, rtol=1e-12, atol=1e-12 * np.abs(f).max())
-    np.testing.assert_allclose(moment, mo, rtol=1e-12, atol=1e-12 * np.abs(mo).max())
+    np.testing.assert_allclose(force.T, f, rtol=1e-12, atol=1e-12 * np.abs(f).max())
+    np.testing.assert_allclose(moment.T, mo, rtol=1e-12, atol=1e-12 * np.abs(mo).max())
     return bad
 
 
@@ -139,8 +140,8 @@ def _check_link_forces(angle, shift, mixed, shape):
         np.testing.assert_array_equal(small, small_ref)
         np.testing.assert_allclose(_link_state(work, m)[1], prev_ref, rtol=1e-10, atol=1e-14)
         # the kernel's rotation-vector polynomial is accurate to 5e-14 relative (kernels.rotvec)
-        np.testing.assert_allclose(force, f_ref, atol=1e-10 * scale)
-        np.testing.assert_allclose(moment, m_ref, atol=1e-10 * scale * 0.05)
+        np.testing.assert_allclose(force.T, f_ref, atol=1e-10 * scale)
+        np.testing.assert_allclose(moment.T, m_ref, atol=1e-10 * scale * 0.05)
         state.pos[:] += rng.normal(0, 1e-5, state.pos.shape)
     if angle > 1:
         assert not small.all(), "large deformations must use the large-angle frame"
@@ -167,14 +168,14 @@ def test_trajectory_matches_numpy(env, mixed):
     static_ref = static.copy()
     small_ref, prev_ref, valid_ref = (a.copy() for a in _link_state(work, len(batch.link_neg)))
     for _ in range(60):
-        _link_forces(batch, p, mine.pos, mine.quat, size, work, _f, _m)
+        _link_forces(batch, p, mine.pos.T, mine.quat.T, size, work, _f, _m)
         kernels.voxel_update(p, voxels, mine, work)
         ref.step(batch, theirs, size, static_ref, small_ref, prev_ref, valid_ref, fp, ENVS[env],
                  mats, scene)
     np.testing.assert_array_equal(static, static_ref)
-    np.testing.assert_allclose(mine.pos, theirs[0], atol=1e-10)
-    np.testing.assert_allclose(mine.quat, theirs[1], atol=1e-8)
-    np.testing.assert_allclose(mine.lin_mom, theirs[2], atol=1e-9 * np.abs(theirs[2]).max())
+    np.testing.assert_allclose(mine.pos.T, theirs[0], atol=1e-10)  # rows by component
+    np.testing.assert_allclose(mine.quat.T, theirs[1], atol=1e-8)
+    np.testing.assert_allclose(mine.lin_mom.T, theirs[2], atol=1e-9 * np.abs(theirs[2]).max())
 
 
 def expected_sizes(wave: str, angle: np.ndarray, flags: np.ndarray) -> np.ndarray:
@@ -248,10 +249,11 @@ def test_collision_pairs_and_forces_match_brute_force():
     batch, state = system.pack([robot])
     state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
     n = len(state.pos)
-    size, force, _m, _s, pairs = _work(batch, n)[:5]
+    size, force, _m, _s, pairs = _work(batch, n)[:5]  # force: (3, n), rows by component
+    pos, lin_mom = np.ascontiguousarray(state.pos.T), np.ascontiguousarray(state.lin_mom.T)
     size[:] = 0.05
     reach = 0.06
-    count = kernels.collision_pairs(batch.surface, state.pos, batch.near, reach, pairs,
+    count = kernels.collision_pairs(batch.surface, pos, batch.near, reach, pairs,
                                     np.zeros(n, np.int64))
     got = {tuple(sorted(p)) for p in pairs[:count]}
     want = set()
@@ -263,7 +265,8 @@ def test_collision_pairs_and_forces_match_brute_force():
                 want.add(tuple(sorted((i, j))))
     assert got == want and len(want) > 0
     force[:] = 0.0
-    kernels.contact_forces_kernel(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
+    kernels.contact_forces_kernel(count, pairs, pos, lin_mom, size, batch.vconst, force)
+    force = force.T
     np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12)
     touching = [(i, j) for i, j in want
                 if np.linalg.norm(state.pos[i] - state.pos[j]) < 0.05]
@@ -279,7 +282,7 @@ def _contact_case():
     scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
     batch, state = system.pack([system.build_robot(scene)])
     p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
-    work = _work(batch, len(mine.pos), collide=True)
+    work = _work(batch, mine.pos.shape[1], collide=True)  # the body's rows by component
     assert len(work.far_first), "a small surface lists its far pairs"
     work.size[:] = 0.05
     margin = kernels.COLLIDE_MARGIN * p.L
@@ -299,20 +302,21 @@ def test_candidates_are_rebuilt_only_when_the_surface_spread_over_the_margin():
     0.3 L = 15 mm here; half the spread is what ``travel`` holds), and then holds every pair
     within reach of the moved voxels."""
     p, voxels, mine, work, margin, collide = _contact_case()
+    pos = mine.pos.T  # (n, 3): a view of the kernels' rows
     first = collide(kernels.Contacts(0, margin))  # the first step: NaN positions, so a build
     count = first.count
     assert first.travel == 0.0 and count > 0
-    np.testing.assert_array_equal(work.built, mine.pos[voxels.surface])
+    np.testing.assert_array_equal(work.built, pos[voxels.surface])
     inner = voxels.surface[0]
-    mine.pos[inner, 0] += 0.8 * margin  # spread 0.8 of the margin: no rebuild
+    pos[inner, 0] += 0.8 * margin  # spread 0.8 of the margin: no rebuild
     kept = collide(kernels.Contacts(count, margin))
     assert kept.travel == pytest.approx(0.4 * margin) and kept.count == count
-    np.testing.assert_allclose(work.built[0], mine.pos[inner] - [0.8 * margin, 0, 0], rtol=0,
+    np.testing.assert_allclose(work.built[0], pos[inner] - [0.8 * margin, 0, 0], rtol=0,
                                atol=1e-15)  # the positions it was built from (to rounding)
-    mine.pos[inner, 0] += 0.4 * margin  # now 1.2 of the margin: rebuilt
+    pos[inner, 0] += 0.4 * margin  # now 1.2 of the margin: rebuilt
     rebuilt = collide(kernels.Contacts(count, margin))
     assert rebuilt.travel == 0.0
-    np.testing.assert_array_equal(work.built, mine.pos[voxels.surface])
+    np.testing.assert_array_equal(work.built, pos[voxels.surface])
     assert kernels.surface_moved(voxels.surface, mine.pos, work.built) == 0.0
 
 
@@ -322,13 +326,14 @@ def test_a_body_moving_as_a_whole_keeps_its_candidates_and_they_hold_every_touch
     kept list still holds every pair that touches, against a brute-force search (the
     policy's guarantee: ``displacement_spread``)."""
     p, voxels, mine, work, margin, collide = _contact_case()
+    pos = mine.pos.T  # (n, 3): a view of the kernels' rows
     work.size[:] = p.L * (1.0 + p.amp)  # fully expanded: diagonal neighbours nearly touch
     count = collide(kernels.Contacts(0, margin)).count
     listed_before = {tuple(sorted(pq)) for pq in work.pairs[:count]}
     built = work.built.copy()
     rng = np.random.default_rng(3)
-    mine.pos[:] += [5 * margin, -3 * margin, 0.5 * margin]
-    mine.pos[:] += rng.uniform(-0.2 * margin, 0.2 * margin, mine.pos.shape)  # spread < margin
+    pos[:] += [5 * margin, -3 * margin, 0.5 * margin]
+    pos[:] += rng.uniform(-0.2 * margin, 0.2 * margin, pos.shape)  # spread < margin
     kept = collide(kernels.Contacts(count, margin))
     assert kept.count == count and 0.0 < kept.travel < 0.5 * margin
     np.testing.assert_array_equal(work.built, built)  # not rebuilt
@@ -337,7 +342,7 @@ def test_a_body_moving_as_a_whole_keeps_its_candidates_and_they_hold_every_touch
     surface = [int(v) for v in voxels.surface]
     touching = {(i, j) for a, i in enumerate(surface) for j in surface[a + 1:]
                 if (i, j) not in near and (j, i) not in near
-                and np.linalg.norm(mine.pos[i] - mine.pos[j])
+                and np.linalg.norm(pos[i] - pos[j])
                 < p.contact_reach * (work.size[i] + work.size[j])}
     assert touching, "the deformed cup must have touching unbonded pairs"
     assert touching <= {tuple(sorted((int(i), int(j)))) for i, j in work.pairs[:count]}
@@ -393,14 +398,15 @@ def test_mixed_collision_forces_are_equal_and_opposite():
     state.pos[:] += rng.normal(0, 0.012, state.pos.shape)
     state.lin_mom[:] = rng.normal(0, 1e-3, state.lin_mom.shape)
     n = len(state.pos)
-    size, force, _m, _s, pairs = _work(batch, n)[:5]
+    size, force, _m, _s, pairs = _work(batch, n)[:5]  # force: (3, n), rows by component
+    pos, lin_mom = np.ascontiguousarray(state.pos.T), np.ascontiguousarray(state.lin_mom.T)
     size[:] = 0.05
-    count = kernels.collision_pairs(batch.surface, state.pos, batch.near, 0.06, pairs,
-                                    np.zeros(len(state.pos), np.int64))
+    count = kernels.collision_pairs(batch.surface, pos, batch.near, 0.06, pairs,
+                                    np.zeros(n, np.int64))
     force[:] = 0.0
-    kernels.contact_forces_kernel(count, pairs, state.pos, state.lin_mom, size, batch.vconst, force)
+    kernels.contact_forces_kernel(count, pairs, pos, lin_mom, size, batch.vconst, force)
     assert np.abs(force).max() > 0
-    np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-12 * np.abs(force).max())
+    np.testing.assert_allclose(force.sum(axis=1), 0.0, atol=1e-12 * np.abs(force).max())
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -419,7 +425,7 @@ def test_far_pairs_list_the_sweeps_candidates_pair_for_pair(seed):
     work = _work(batch, n, collide=True)
     assert len(work.far_first) == len(batch.surface) + 1
     for shake in (0.0, 0.005, 0.015, 0.03):
-        pos = state.pos + rng.normal(0, shake, state.pos.shape)
+        pos = np.ascontiguousarray((state.pos + rng.normal(0, shake, state.pos.shape)).T)
         for reach in (0.06, 0.09):
             sweep = np.zeros_like(work.pairs)
             want = kernels.collision_pairs(batch.surface, pos, batch.near, reach, sweep,
@@ -444,7 +450,7 @@ def test_candidates_from_the_outer_list_stay_the_sweeps_as_the_body_moves():
     scene = sim.parse_scene({"body": body.tolist(), "self_collisions": True})
     batch, state = system.pack([system.build_robot(scene)])
     p, voxels, _links, mine = kernels.take_robot(batch, state, 0)
-    n = len(mine.pos)
+    n = mine.pos.shape[1]  # the body's rows by component
     work = _work(batch, n, collide=True)
     reach = kernels.candidate_radius(p.L, p.contact_reach, p.amp)
     velocity = rng.normal(0, 0.1 * p.L, mine.pos.shape)
@@ -513,8 +519,9 @@ def test_a_voxel_with_more_candidates_than_the_cap_stops_the_listing():
         near = -np.ones((k, 1), np.int64)
         pairs = np.zeros((k * cap // 2 + 1, 2), np.int64)
         partners = np.zeros(k, np.int64)
-        assert kernels.collision_pairs(surface, pos, near, 0.05, pairs, partners) == want
+        spos = pos.T.copy()  # rows by component, as the kernels keep positions
+        assert kernels.collision_pairs(surface, spos, near, 0.05, pairs, partners) == want
         first, far = kernels.far_pairs(surface, near, k, True)
-        spos, outer = pos.T.copy(), np.zeros((2, len(far)), np.int32)
+        outer = np.zeros((2, len(far)), np.int32)
         n_outer = kernels.outer_pairs(first, far, spos, 0.05, outer)
         assert kernels.far_candidates(surface, outer, n_outer, spos, 0.05, pairs, partners) == want

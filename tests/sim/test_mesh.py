@@ -190,8 +190,8 @@ def test_vertex_mean_is_the_drag_kernels():
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     size = L * (1 + rng.uniform(-0.2, 0.2, n))
     vert_pos, corner_scratch = np.zeros((len(mesh_vert), 3)), np.zeros((3, 8, n))
-    kernels.mesh_vertices_kernel(mesh_vert, exposed_faces(nbr), L, pos, quat, size, vert_pos,
-                                 corner_scratch)
+    kernels.mesh_vertices_kernel(mesh_vert, exposed_faces(nbr), L, np.ascontiguousarray(pos.T),
+                                 np.ascontiguousarray(quat.T), size, vert_pos, corner_scratch)
     corners = np.zeros((n, 8, 3))
     for v in range(n):
         turn = np.array(kernels.rotation_matrix(*quat[v])).reshape(3, 3)
@@ -230,5 +230,7 @@ def test_mesh_drag_kernel_is_the_sum_over_triangles(seed):
             expected[v] -= drag * area * speed**2 * unit
             into += 1
     assert 0 < into < len(mesh_face)
-    kernels.mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, force)
-    assert force == pytest.approx(expected, rel=1e-12, abs=1e-15)
+    rows = np.ascontiguousarray(force.T)  # the kernels' rows by component
+    kernels.mesh_drag_kernel(drag, mesh_face, np.ascontiguousarray(lin_mom.T), inv_mass, vert_pos,
+                             rows)
+    assert rows.T == pytest.approx(expected, rel=1e-12, abs=1e-15)

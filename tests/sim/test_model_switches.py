@@ -66,8 +66,8 @@ def test_collision_pairs_skip_every_pair_within_the_horizon():
         near = system.nearby(robot.nbr, hops)
         reach = 2.5 * scene.voxel_size
         pairs = np.zeros((200, 2), np.int64)
-        count = kernels.collision_pairs(robot.surface, pos, near, reach, pairs,
-                                        np.zeros(len(pos), np.int64))
+        count = kernels.collision_pairs(robot.surface, np.ascontiguousarray(pos.T), near, reach,
+                                        pairs, np.zeros(len(pos), np.int64))
         got = {tuple(sorted(p)) for p in pairs[:count].tolist()}
         want = set()
         for a in robot.surface:
@@ -243,8 +243,10 @@ def test_voxcad_contact_repels_spheres_of_one_and_a_half_voxels_undamped():
     vconst[:, system.V_INV_MASS] = 1 / (1200 * L**3)
     pairs = np.array([[0, 1]])
     for reach, stiff, damp, want in ((0.5, 1.0, 1.0, 0.0), (0.75, 0.5, 0.0, E * L * 0.3 * L)):
-        force = np.zeros((2, 3))
-        kernels.contact_forces_kernel(1, pairs, pos, mom, size, vconst, force, reach, stiff, damp)
+        force = np.zeros((3, 2))  # the kernels' rows by component
+        kernels.contact_forces_kernel(1, pairs, pos.T.copy(), mom.T.copy(), size, vconst, force,
+                                      reach, stiff, damp)
+        force = force.T
         assert force[1, 0] == pytest.approx(want, rel=1e-12, abs=1e-15)
         assert force[0, 0] == -force[1, 0]
     robot = system.build_robot(parse_scene({"body": [[[1]]], "model": "voxcad-land-water"}))
