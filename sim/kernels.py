@@ -166,6 +166,25 @@ def fma(typingctx, a, b, c):
     return sig, codegen
 
 
+@intrinsic
+def wide_vectors(typingctx):
+    """Nothing at run time; it marks the function that calls it (its LLVM attributes
+    "prefer-vector-width" and "min-legal-vector-width") to take vectors of up to 512 bits
+    where the CPU has them. LLVM's default for AVX-512 CPUs of the Intel line is 256 bits,
+    which the other loops keep (their 512-bit forms measured no faster); the link loops,
+    bound by their arithmetic, run 10-15% faster in 512 (docs/benchmarks.md). Without
+    AVX-512 the attributes change nothing."""
+
+    def codegen(context, builder, signature, args):
+        attributes = builder.function.attributes
+        # llvmlite's set of attributes takes only flags; these two are LLVM's string ones
+        set.add(attributes, '"prefer-vector-width"="512"')
+        set.add(attributes, '"min-legal-vector-width"="512"')
+        return context.get_dummy_value()
+
+    return types.none(), codegen
+
+
 # The physics, compiled for this target (``sim.physics``): inlined into the loops below, in
 # float64, and the link's pieces in float32 too for the mixed precision (``by_precision``).
 _INLINE_PHYSICS = njit(inline="always", fastmath=FASTMATH, error_model="numpy")
@@ -454,6 +473,7 @@ def link_kernel(p, ends, split, pos, quat, size, B):
     ones, by place. A voxel's force and moment do not depend on where its links are stored
     (``link_sums`` sums them by face).
     """
+    wide_vectors()
     m = len(ends) // 2
     U = np.uint64
     # gather: the one loop with indirect access, on flat views with unsigned offsets (no
@@ -495,7 +515,8 @@ def link_kernel(p, ends, split, pos, quat, size, B):
 
 @njit(**JIT)
 def link_sums(vlink, B, force, moment):
-    """Force and moment on every voxel from its links (overwrites ``force``/``moment``).
+    """Force and moment on every voxel from its links (overwrites ``force``/``moment``: (3, n),
+    rows by component).
 
     ``vlink[v, 2a + 1]`` is the offset (``place``) of the link on v's +a face (v its negative
     end), ``vlink[v, 2a]`` of the one on its -a face (v its positive end); a face without a
@@ -579,10 +600,11 @@ def opposite(out, a, b, x, y, z):
 def contact_forces_kernel(count, pairs, pos, lin_mom, size, vconst, force, reach=0.5,
                           stiff=1.0, damp=1.0):
     """Penalty contact between voxels of the candidate pairs (``substeps.pair_force``), added
-    to ``force``: equal and opposite, so momentum is kept. Contact begins at ``reach`` times
-    the sum of the two sizes (0.5: touching cubes); stiffness: ``stiff`` times the harmonic
-    mean of the two voxels' 2 E L (exactly it for one material); damping: ``damp`` times the
-    mean of their collision damping coefficients. The paper's engine: 0.75, 0.5, 0
+    to ``force`` ((3, n) like ``pos`` and ``lin_mom``: rows by component): equal and
+    opposite, so momentum is kept. Contact begins at ``reach`` times the sum of the two sizes
+    (0.5: touching cubes); stiffness: ``stiff`` times the harmonic mean of the two voxels'
+    2 E L (exactly it for one material); damping: ``damp`` times the mean of their collision
+    damping coefficients. The paper's engine: 0.75, 0.5, 0
     (``Params.contact_*``)."""
     P, LM, VC, nc = pos.reshape(-1), lin_mom.reshape(-1), vconst.reshape(-1), vconst.shape[1]
     n, out = pos.shape[1], force.T  # components are rows (``State``)
