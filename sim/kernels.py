@@ -877,15 +877,14 @@ def mesh_drag_kernel(drag, mesh_face, lin_mom, inv_mass, vert_pos, force):
         a, b, c = U(3) * U(T[k]), U(3) * U(T[k + U(1)]), U(3) * U(T[k + U(2)])
         s, t, v = U(3) * U(T[k + U(5)]), U(3) * U(T[k + U(6)]), U(T[k + U(3)])
         ax, ay, az = V[a], V[a + U(1)], V[a + U(2)]
-        m = v
-        px, py, pz, inv_m = LM[m], LM[m + n], LM[m + U(2) * n], inv_mass[v]
+        px, py, pz, inv_m = LM[v], LM[v + n], LM[v + U(2) * n], inv_mass[v]
         f0 = facet_force_of(drag, ax, ay, az, V[b], V[b + U(1)], V[b + U(2)], V[c],
                             V[c + U(1)], V[c + U(2)], px, py, pz, inv_m)
         f1 = facet_force_of(drag, ax, ay, az, V[s], V[s + U(1)], V[s + U(2)], V[t],
                             V[t + U(1)], V[t + U(2)], px, py, pz, inv_m)
-        F[m] = F[m] + f0[0] + f1[0]
-        F[m + n] = F[m + n] + f0[1] + f1[1]
-        F[m + U(2) * n] = F[m + U(2) * n] + f0[2] + f1[2]
+        F[v] = F[v] + f0[0] + f1[0]
+        F[v + n] = F[v + n] + f0[1] + f1[1]
+        F[v + U(2) * n] = F[v + U(2) * n] + f0[2] + f1[2]
 
 
 # ---------------------------------------------------------------- voxels
@@ -932,23 +931,23 @@ def voxel_pass(world, flags, ext_force, exposed, vcols, pos, quat, lin_mom, ang_
     fastest = 0  # bits of the largest squared speed (>= 0)
     turns = 0
     for v in range(len(flags)):
-        a = q = c = U(v)
+        c = U(v)  # voxel v: column c of every row
         (x, y, z, qw, qx, qy, qz, px, py, pz, lx, ly, lz, still, touch, v2, sane,
          turn) = voxel_update_of(
             world, (VC[c + U(V_MASS) * n], VC[c + U(V_INV_MASS) * n],
                     VC[c + U(V_INV_INERTIA) * n], VC[c + U(V_CGLIN) * n],
                     VC[c + U(V_CGANG) * n], VC[c + U(V_KFLOOR) * n], VC[c + U(V_CCOLL) * n]),
             exposed[c], size[c], flags[c] & FLAG_FIXED != 0,
-            F[a + X] + E[a + X], F[a + Y] + E[a + Y], F[a + Z] + E[a + Z],
-            M[a + X], M[a + Y], M[a + Z], P[a + X], P[a + Y], P[a + Z],
-            Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ], LM[a + X], LM[a + Y], LM[a + Z],
-            AM[a + X], AM[a + Y], AM[a + Z], static[c])
+            F[c + X] + E[c + X], F[c + Y] + E[c + Y], F[c + Z] + E[c + Z],
+            M[c + X], M[c + Y], M[c + Z], P[c + X], P[c + Y], P[c + Z],
+            Q[c + QW], Q[c + QX], Q[c + QY], Q[c + QZ], LM[c + X], LM[c + Y], LM[c + Z],
+            AM[c + X], AM[c + Y], AM[c + Z], static[c])
         static[c] = still
         contact[c] = touch
-        LM[a + X], LM[a + Y], LM[a + Z] = px, py, pz
-        P[a + X], P[a + Y], P[a + Z] = x, y, z
-        AM[a + X], AM[a + Y], AM[a + Z] = lx, ly, lz
-        Q[q + QW], Q[q + QX], Q[q + QY], Q[q + QZ] = qw, qx, qy, qz
+        LM[c + X], LM[c + Y], LM[c + Z] = px, py, pz
+        P[c + X], P[c + Y], P[c + Z] = x, y, z
+        AM[c + X], AM[c + Y], AM[c + Z] = lx, ly, lz
+        Q[c + QW], Q[c + QX], Q[c + QY], Q[c + QZ] = qw, qx, qy, qz
         speed_bits = bits_of(v2)
         fastest = speed_bits if speed_bits > fastest else fastest
         insane += 0 if sane else 1
